@@ -1,0 +1,1 @@
+"""posed daemon: the supervisor, its stage processes, Zenoh publishing, falls and the CLI."""

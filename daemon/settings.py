@@ -1,0 +1,74 @@
+"""Configuration sections owned by the daemon itself: ``pipeline``, ``zenoh`` and ``logging``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """The supervised stage processes and their frame budget."""
+
+    target_fps: float = field(
+        default=10.0, metadata={"doc": "frames per second the pipeline takes from the camera", "unit": "Hz",
+                                "range": (0.5, 60.0)}
+    )
+    ring_slots: int = field(
+        default=4, metadata={"doc": "shared-memory frame slots between capture and landmark stage",
+                             "range": (2, 64)}
+    )
+    stuck_after_s: float = field(
+        default=5.0, metadata={"doc": "a stage busy on one step longer than this is stuck and restarted",
+                               "unit": "s", "range": (0.5, 600.0)}
+    )
+    max_restarts: int = field(
+        default=5, metadata={"doc": "restarts allowed within restart_window_s before escalating to systemd",
+                             "range": (1, 1000)}
+    )
+    restart_window_s: float = field(
+        default=60.0, metadata={"doc": "window for max_restarts", "unit": "s", "range": (1.0, 3600.0)}
+    )
+    status_period_s: float = field(
+        default=1.0, metadata={"doc": "period of the status topic and stats log", "unit": "s",
+                               "range": (0.1, 60.0)}
+    )
+    state_dir: str = field(
+        default="", metadata={"doc": "where events and history live; empty = $XDG_STATE_HOME/posed "
+                                     "(the service: $STATE_DIRECTORY)"}
+    )
+
+
+@dataclass(frozen=True)
+class ZenohConfig:
+    """The Zenoh session; the default exposes nothing beyond this machine."""
+
+    mode: str = field(default="peer", metadata={"doc": "session mode", "choices": ("peer", "client")})
+    listen: tuple[str, ...] = field(
+        default=("tcp/127.0.0.1:7447",), metadata={"doc": "endpoints to listen on"}
+    )
+    connect: tuple[str, ...] = field(default=(), metadata={"doc": "endpoints (routers/peers) to connect to"})
+    multicast_scouting: bool = field(default=False, metadata={"doc": "UDP multicast discovery on the LAN"})
+    config_file: str = field(
+        default="", metadata={"doc": "native Zenoh JSON5 config (TLS, user/password, access control); "
+                                     "the keys above override it"}
+    )
+    publish_images: bool = field(
+        default=False, metadata={"doc": "privacy: never publish images unless true (not implemented: "
+                                        "topics carry landmarks, poses and events only)"}
+    )
+
+
+@dataclass(frozen=True)
+class LoggingConfig:
+    """structlog output: readable on a terminal, JSON lines otherwise (journald collects stdout)."""
+
+    level: str = field(
+        default="info", metadata={"doc": "lowest level logged", "choices": ("debug", "info", "warning", "error")}
+    )
+    format: str = field(
+        default="auto", metadata={"doc": "auto = console on a TTY, JSON otherwise",
+                                  "choices": ("auto", "console", "json")}
+    )
+    stats_period_s: float = field(
+        default=10.0, metadata={"doc": "period of the stats log event", "unit": "s", "range": (1.0, 3600.0)}
+    )

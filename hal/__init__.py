@@ -1,0 +1,1 @@
+"""Hardware abstraction: RealSense, V4L2 and replay cameras behind one interface."""

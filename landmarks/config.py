@@ -1,0 +1,29 @@
+"""Configuration of the 2D landmark stage (config section ``landmarks``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class LandmarkConfig:
+    """BlazePose (MediaPipe Pose, full model) on onnxruntime; defaults are MediaPipe's own."""
+
+    models_dir: str = field(
+        default="",
+        metadata={"doc": "folder of the converted models; empty = $XDG_CACHE_HOME/posed/models "
+                         "(the service uses its state dir)"},
+    )
+    threads: int = field(default=1, metadata={"doc": "onnxruntime intra-op threads", "range": (1, 64)})
+    min_detection_confidence: float = field(
+        default=0.5, metadata={"doc": "detector score threshold (MediaPipe default)", "range": (0.0, 1.0)}
+    )
+    min_tracking_confidence: float = field(
+        default=0.5, metadata={"doc": "pose-presence threshold; below it the detector runs again",
+                               "range": (0.0, 1.0)}
+    )
+    smoothing: bool = field(default=True, metadata={"doc": "one-euro smoothing with MediaPipe's parameters"})
+    rotate_on_miss: bool = field(
+        default=True, metadata={"doc": "when nobody is found, retry the frame rotated by +-90 deg "
+                                       "(people lying on the floor)"}
+    )

@@ -1,0 +1,297 @@
+"""2D landmarks per frame and the ``*.landmarks.jsonl`` recording format (interfaces.md section 1).
+
+A recording is JSON Lines: a header line, then one frame per line. Landmarks are 33 rows of
+``[x, y, z, visibility, presence]`` in MediaPipe Pose order; x, y are image pixels (x right, y down), z is
+MediaPipe's relative depth on the x scale (negative nearer the camera, 0 when unknown). In memory a frame's
+landmarks are a (33, 5) float64 array; a landmark that is ``null`` in the file is a row of NaN.
+
+Reading never raises on a bad frame line: it yields a :class:`RecordingProblem` naming the file and line and
+goes on. Only a header that cannot be understood raises :class:`RecordingError` (nothing after it can be read).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, BinaryIO, TextIO
+
+import numpy as np
+
+FORMAT = "posed.landmarks"
+VERSION = 1
+NUM_LANDMARKS = 33
+
+LANDMARK_NAMES = (
+    "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner", "right_eye", "right_eye_outer",
+    "left_ear", "right_ear", "mouth_left", "mouth_right", "left_shoulder", "right_shoulder", "left_elbow",
+    "right_elbow", "left_wrist", "right_wrist", "left_pinky", "right_pinky", "left_index", "right_index",
+    "left_thumb", "right_thumb", "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle",
+    "right_ankle", "left_heel", "right_heel", "left_foot_index", "right_foot_index",
+)
+
+
+class RecordingError(ValueError):
+    """A recording that cannot be read at all (missing file, bad header)."""
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics in pixels of the recorded image."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    def to_json(self) -> dict:
+        return {"fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy}
+
+
+@dataclass(frozen=True)
+class RecordingHeader:
+    """First line of a recording. ``extra`` keeps fields this version does not know, for round trips."""
+
+    image_size: tuple[int, int]
+    fps: float
+    source: str = ""
+    camera: CameraIntrinsics | None = None
+    extra: dict = field(default_factory=dict, compare=False)
+
+    def to_json(self) -> dict:
+        out: dict[str, Any] = {"format": FORMAT, "version": VERSION, "image_size": list(self.image_size),
+                               "fps": self.fps, "source": self.source}
+        if self.camera is not None:
+            out["camera"] = self.camera.to_json()
+        for k, v in self.extra.items():
+            out.setdefault(k, v)
+        return out
+
+    @classmethod
+    def from_json(cls, obj: Any) -> RecordingHeader:
+        """Parse a header object; raises ValueError naming the first wrong field."""
+        if not isinstance(obj, dict):
+            raise ValueError("the header must be a JSON object")
+        if obj.get("format") != FORMAT:
+            raise ValueError(f"format is {obj.get('format')!r}, expected {FORMAT!r}")
+        if obj.get("version") != VERSION:
+            raise ValueError(f"version {obj.get('version')!r} is not supported (this reader knows {VERSION})")
+        size = obj.get("image_size")
+        if (not isinstance(size, list) or len(size) != 2
+                or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in size)):
+            raise ValueError(f"image_size must be [W, H] positive integers, got {size!r}")
+        fps = obj.get("fps")
+        if not _is_number(fps) or fps <= 0:
+            raise ValueError(f"fps must be a positive number, got {fps!r}")
+        source = obj.get("source", "")
+        if not isinstance(source, str):
+            raise ValueError(f"source must be a string, got {source!r}")
+        camera = None
+        if obj.get("camera") is not None:
+            cam = obj["camera"]
+            if not isinstance(cam, dict) or not all(_is_number(cam.get(k)) for k in ("fx", "fy", "cx", "cy")):
+                raise ValueError(f"camera must be {{fx, fy, cx, cy}} numbers, got {cam!r}")
+            camera = CameraIntrinsics(*(float(cam[k]) for k in ("fx", "fy", "cx", "cy")))
+        known = {"format", "version", "image_size", "fps", "source", "camera"}
+        extra = {k: v for k, v in obj.items() if k not in known}
+        return cls((size[0], size[1]), float(fps), source, camera, extra)
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+@dataclass(frozen=True, eq=False)
+class LandmarkFrame:
+    """The 2D landmarks of one frame.
+
+    seq: frame sequence number; t: capture time in seconds from the start of the recording (or of the
+    daemon's monotonic clock); landmarks: (33, 5) float64 ``[x_px, y_px, z, visibility, presence]`` with NaN
+    rows for unknown landmarks, or None when there is no person. ``extra`` keeps unknown JSON fields.
+    """
+
+    seq: int
+    t: float
+    landmarks: np.ndarray | None
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.landmarks is not None:
+            arr = np.asarray(self.landmarks, dtype=np.float64)
+            if arr.shape != (NUM_LANDMARKS, 5):
+                raise ValueError(f"landmarks must have shape (33, 5), got {arr.shape}")
+            arr.setflags(write=False)
+            object.__setattr__(self, "landmarks", arr)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, LandmarkFrame):
+            return NotImplemented
+        if (self.seq, self.t, self.extra) != (other.seq, other.t, other.extra):
+            return False
+        if self.landmarks is None or other.landmarks is None:
+            return self.landmarks is None and other.landmarks is None
+        return bool(np.array_equal(self.landmarks, other.landmarks, equal_nan=True))
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def to_json(self) -> dict:
+        lms = None
+        if self.landmarks is not None:
+            lms = [None if np.isnan(row).any() else [float(v) for v in row] for row in self.landmarks]
+        out: dict[str, Any] = {"seq": self.seq, "t": self.t, "landmarks": lms}
+        for k, v in self.extra.items():
+            out.setdefault(k, v)
+        return out
+
+    @classmethod
+    def from_json(cls, obj: Any) -> LandmarkFrame:
+        """Parse a frame object; raises ValueError naming what is wrong."""
+        if not isinstance(obj, dict):
+            raise ValueError("a frame line must be a JSON object")
+        seq = obj.get("seq")
+        if not isinstance(seq, int) or isinstance(seq, bool) or seq < 0:
+            raise ValueError(f"seq must be a non-negative integer, got {seq!r}")
+        t = obj.get("t")
+        if not _is_number(t):
+            raise ValueError(f"t must be a finite number of seconds, got {t!r}")
+        if "landmarks" not in obj:
+            raise ValueError("the key 'landmarks' is missing (use null for no person)")
+        raw = obj["landmarks"]
+        arr = None
+        if raw is not None:
+            if not isinstance(raw, list) or len(raw) != NUM_LANDMARKS:
+                n = len(raw) if isinstance(raw, list) else type(raw).__name__
+                raise ValueError(f"landmarks must be a list of 33 entries or null, got {n}")
+            arr = np.full((NUM_LANDMARKS, 5), np.nan)
+            for i, lm in enumerate(raw):
+                if lm is None:
+                    continue
+                if not isinstance(lm, list) or len(lm) != 5 or not all(_is_number(v) for v in lm):
+                    raise ValueError(
+                        f"landmark {i} ({LANDMARK_NAMES[i]}) must be [x, y, z, visibility, presence] finite "
+                        f"numbers or null, got {lm!r}"
+                    )
+                arr[i] = lm
+        extra = {k: v for k, v in obj.items() if k not in ("seq", "t", "landmarks")}
+        return cls(seq, float(t), arr, extra)
+
+
+@dataclass(frozen=True)
+class RecordingProblem:
+    """A frame line that could not be read; the reader skips it and goes on."""
+
+    path: str
+    line: int
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.path}:{self.line}: {self.message}"
+
+
+def read_header(path: str | os.PathLike) -> RecordingHeader:
+    """Read only the header of a recording."""
+    with _open(path) as fh:
+        return _parse_header(fh.readline(), str(path))
+
+
+def iter_recording(path: str | os.PathLike) -> tuple[RecordingHeader, Iterator[LandmarkFrame | RecordingProblem]]:
+    """Open a recording: its header and a lazy stream of frames, with problems in place of bad lines."""
+    fh = _open(path)
+    try:
+        header = _parse_header(fh.readline(), str(path))
+    except BaseException:
+        fh.close()
+        raise
+    return header, _frames(fh, str(path))
+
+
+def read_recording(path: str | os.PathLike) -> tuple[RecordingHeader, list[LandmarkFrame], list[RecordingProblem]]:
+    """Read a whole recording: header, the frames that could be read, and the problems found."""
+    header, stream = iter_recording(path)
+    frames: list[LandmarkFrame] = []
+    problems: list[RecordingProblem] = []
+    for item in stream:
+        (problems if isinstance(item, RecordingProblem) else frames).append(item)
+    return header, frames, problems
+
+
+def write_recording(path: str | os.PathLike, header: RecordingHeader, frames: Iterable[LandmarkFrame]) -> int:
+    """Write a whole recording; returns the number of frames written."""
+    with RecordingWriter(path, header) as writer:
+        for frame in frames:
+            writer.write(frame)
+        return writer.count
+
+
+class RecordingWriter:
+    """Append frames to a recording as they come (flushes each line so a crash loses at most one)."""
+
+    def __init__(self, path: str | os.PathLike, header: RecordingHeader) -> None:
+        self.path = Path(path)
+        self._fh: TextIO = open(self.path, "w", encoding="utf-8")
+        self._fh.write(dumps(header.to_json()) + "\n")
+        self.count = 0
+
+    def write(self, frame: LandmarkFrame) -> None:
+        self._fh.write(dumps(frame.to_json()) + "\n")
+        self._fh.flush()
+        self.count += 1
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def dumps(obj: Any) -> str:
+    """Compact JSON without NaN or Infinity (which are not JSON)."""
+    return json.dumps(obj, separators=(", ", ": "), allow_nan=False)
+
+
+def _open(path: str | os.PathLike) -> BinaryIO:
+    try:
+        return open(path, "rb")
+    except FileNotFoundError as exc:
+        raise RecordingError(f"{path}: no such landmark recording") from exc
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot open: {exc.strerror}") from exc
+
+
+def _parse_header(raw: bytes, path: str) -> RecordingHeader:
+    try:
+        line = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RecordingError(f"{path}:1: not UTF-8 text ({exc.reason})") from exc
+    if not line.strip():
+        raise RecordingError(f"{path}:1: empty file; a recording starts with a header line "
+                             f'{{"format": "{FORMAT}", "version": {VERSION}, ...}}')
+    try:
+        obj = json.loads(line)
+        return RecordingHeader.from_json(obj)
+    except (json.JSONDecodeError, ValueError) as exc:
+        raise RecordingError(f"{path}:1: bad header: {exc}") from exc
+
+
+def _frames(fh: BinaryIO, path: str) -> Iterator[LandmarkFrame | RecordingProblem]:
+    with fh:
+        for lineno, raw in enumerate(fh, start=2):
+            try:
+                line = raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                yield RecordingProblem(path, lineno, f"not UTF-8 text ({exc.reason})")
+                continue
+            if not line.strip():
+                continue
+            try:
+                yield LandmarkFrame.from_json(json.loads(line))
+            except json.JSONDecodeError as exc:
+                yield RecordingProblem(path, lineno, f"not valid JSON: {exc.msg} at column {exc.colno}")
+            except ValueError as exc:
+                yield RecordingProblem(path, lineno, str(exc))
