@@ -64,7 +64,7 @@ def template() -> str:
             args = typing.get_args(stp)
             if args and dataclasses.is_dataclass(args[0]):
                 item = args[0]
-                lines.append(f"  # each item: " + ", ".join(
+                lines.append("  # each item: " + ", ".join(
                     f"{x.name} ({x.metadata.get('doc', '')}{'; ' + _limits(x.metadata) if _limits(x.metadata) else ''})"
                     for x in dataclasses.fields(item)))
             lines.append(f"  {sf.name}: {_yaml_value(getattr(default, sf.name))}")

@@ -128,7 +128,7 @@ def _convert(tp: Any, value: Any, path: str, meta: Any, problems: list[ConfigPro
             if len(value) != len(args):
                 problems.append(ConfigProblem(path, f"expected a list of {len(args)} items, got {len(value)}"))
                 return None
-            items = [_convert(a, v, f"{path}[{i}]", {}, problems) for i, (a, v) in enumerate(zip(args, value))]
+            items = [_convert(a, v, f"{path}[{i}]", {}, problems) for i, (a, v) in enumerate(zip(args, value, strict=True))]
         result = tuple(items)
         _check_meta(result, path, meta, problems)
         return result

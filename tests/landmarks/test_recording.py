@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 
 from landmarks.recording import (
-    CameraIntrinsics, LandmarkFrame, RecordingError, RecordingHeader, RecordingProblem, iter_recording,
-    read_recording, write_recording,
+    CameraIntrinsics,
+    LandmarkFrame,
+    RecordingError,
+    RecordingHeader,
+    RecordingProblem,
+    iter_recording,
+    read_recording,
+    write_recording,
 )
 
 
