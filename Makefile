@@ -19,11 +19,11 @@ $(STAMP): pyproject.toml deploy/bootstrap.sh
 models: $(STAMP)
 	$(BIN)/posed models fetch
 
-test: setup
+test: models
 	bash deploy/check-shared-data.sh
 	$(BIN)/python -m pytest
 
-demo: setup
+demo: models
 	$(BIN)/posed demo
 
 lint: $(STAMP)

@@ -1,0 +1,344 @@
+"""``posed models fetch``: get MediaPipe's pose models, check them, convert them to ONNX, write the folder.
+
+The two TFLite files come from the ``mediapipe==0.10.21`` wheel on PyPI (the last release that ships
+them; newer wheels do not) or from ``--from PATH`` (that wheel, or a folder holding the two files). Both
+are pinned by sha256. The folder then holds the TFLite originals, their ONNX conversions and
+``manifest.json``; a second run with everything intact does nothing.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from landmarks.convert.converter import CONVERTER_VERSION, OPSET, convert
+from landmarks.convert.tflite_graph import read_graph
+from landmarks.models import (
+    DETECTOR_ONNX,
+    DETECTOR_TFLITE,
+    LANDMARK_ONNX,
+    LANDMARK_TFLITE,
+    MANIFEST,
+    MANIFEST_FORMAT,
+    MODEL_FILES,
+    ModelMissingError,
+    ModelPaths,
+    read_manifest,
+    sha256_file,
+)
+
+MEDIAPIPE_VERSION = "0.10.21"
+# Any platform's wheel holds the same two files; this one is asked for explicitly so the download works
+# from any host (e.g. another Python version or an ARM board).
+WHEEL_PLATFORM = ("manylinux_2_28_x86_64", "3.11", "cp", "cp311")
+WHEEL_NAME = f"mediapipe-{MEDIAPIPE_VERSION}-cp311-cp311-manylinux_2_28_x86_64.whl"
+WHEEL_SHA256 = "05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3"  # recorded, not required
+
+EX_DATAERR, EX_UNAVAILABLE, EX_SOFTWARE, EX_CANTCREAT, EX_IOERR = 65, 69, 70, 73, 74
+
+
+@dataclass(frozen=True)
+class PinnedModel:
+    name: str  # file name in the models folder
+    member: str  # path inside the mediapipe wheel
+    sha256: str
+    size: int
+    onnx_name: str
+
+
+PINNED = (
+    PinnedModel(DETECTOR_TFLITE, "mediapipe/modules/pose_detection/pose_detection.tflite",
+                "9ba9dd3d42efaaba86b4ff0122b06f29c4122e756b329d89dca1e297fd8f866c", 2_959_046, DETECTOR_ONNX),
+    PinnedModel(LANDMARK_TFLITE, "mediapipe/modules/pose_landmark/pose_landmark_full.tflite",
+                "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f", 6_440_512, LANDMARK_ONNX),
+)
+
+
+class FetchError(RuntimeError):
+    """``posed models fetch`` failed; the message says what and how to fix it; ``exit_code`` is a
+    sysexits code."""
+
+    def __init__(self, message: str, exit_code: int = EX_SOFTWARE) -> None:
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+@dataclass(frozen=True)
+class FetchResult:
+    models_dir: Path
+    changed: bool  # False: everything was already in place
+    manifest: dict
+    seconds: dict[str, float] = field(default_factory=dict)  # time per step
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _offline_hint() -> str:
+    plat, py, impl, abi = WHEEL_PLATFORM
+    return (f"On a machine with internet access, run `pip download mediapipe=={MEDIAPIPE_VERSION} --no-deps "
+            f"--only-binary=:all: --platform {plat} --python-version {py} --implementation {impl} "
+            f"--abi {abi} "
+            f"-d DIR`, copy DIR here and run `posed models fetch --from DIR` (a folder holding "
+            f"{DETECTOR_TFLITE} and {LANDMARK_TFLITE} works too)")
+
+
+# ---- getting the TFLite bytes ---------------------------------------------------------------------------
+def _read_wheel(wheel: Path) -> dict[str, bytes]:
+    out = {}
+    try:
+        with zipfile.ZipFile(wheel) as z:
+            names = set(z.namelist())
+            for pin in PINNED:
+                if pin.member not in names:
+                    raise FetchError(f"{wheel} lacks {pin.member}: use the mediapipe "
+                                     f"{MEDIAPIPE_VERSION} wheel "
+                                     "(newer mediapipe wheels no longer ship the pose models)", EX_DATAERR)
+                out[pin.name] = z.read(pin.member)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
+        raise FetchError(f"{wheel} is not a readable wheel (zip) file: {exc}; download it again",
+                         EX_DATAERR) from exc
+    except OSError as exc:
+        raise FetchError(f"cannot read {wheel}: {exc}", EX_IOERR) from exc
+    return out
+
+
+def _from_path(path: Path) -> tuple[dict[str, bytes], dict]:
+    """TFLite bytes from ``--from PATH`` (a wheel, or a folder with the two files or with the wheel)."""
+    if not path.exists():
+        raise FetchError(f"--from {path}: no such file or folder", EX_DATAERR)
+    if path.is_file():
+        return _read_wheel(path), {"kind": "wheel", "path": str(path.resolve()), "wheel": path.name,
+                                   "wheel_sha256": sha256_file(path)}
+    found = {}
+    for pin in PINNED:
+        for candidate in (path / pin.name, path / pin.member):
+            if candidate.is_file():
+                found[pin.name] = candidate
+                break
+    if len(found) == len(PINNED):
+        try:
+            data = {name: p.read_bytes() for name, p in found.items()}
+        except OSError as exc:
+            raise FetchError(f"cannot read the models in {path}: {exc}", EX_IOERR) from exc
+        return data, {"kind": "folder", "path": str(path.resolve())}
+    wheels = sorted(path.glob(f"mediapipe-{MEDIAPIPE_VERSION}-*.whl"))
+    if wheels:
+        return _from_path(wheels[0])
+    missing = [pin.name for pin in PINNED if pin.name not in found]
+    raise FetchError(f"--from {path}: the folder holds neither {' nor '.join(missing)} nor a "
+                     f"mediapipe-{MEDIAPIPE_VERSION}-*.whl", EX_DATAERR)
+
+
+def _download(say: Callable[[str], None]) -> tuple[dict[str, bytes], dict]:
+    plat, py, impl, abi = WHEEL_PLATFORM
+    say(f"downloading mediapipe=={MEDIAPIPE_VERSION} ({WHEEL_NAME}, about 36 MB) from PyPI with pip")
+    with tempfile.TemporaryDirectory(prefix="posed-models-") as tmp:
+        cmd = [sys.executable, "-m", "pip", "download", f"mediapipe=={MEDIAPIPE_VERSION}", "--no-deps",
+               "--only-binary=:all:", "--platform", plat, "--python-version", py, "--implementation", impl,
+               "--abi", abi, "--disable-pip-version-check", "--no-input", "-d", tmp]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
+        except subprocess.TimeoutExpired as exc:
+            raise FetchError(f"pip download of mediapipe=={MEDIAPIPE_VERSION} timed out after 30 min. "
+                             f"{_offline_hint()}", EX_UNAVAILABLE) from exc
+        except OSError as exc:
+            raise FetchError(f"cannot run pip ({exc}). {_offline_hint()}", EX_UNAVAILABLE) from exc
+        wheels = sorted(Path(tmp).glob("mediapipe-*.whl"))
+        if proc.returncode != 0 or not wheels:
+            tail = " | ".join(line.strip() for line in (proc.stderr or proc.stdout).strip().splitlines()[-3:])
+            raise FetchError(f"could not download mediapipe=={MEDIAPIPE_VERSION} from PyPI (pip exit "
+                             f"{proc.returncode}: {tail or 'no output'}). Offline? {_offline_hint()}",
+                             EX_UNAVAILABLE)
+        wheel = wheels[0]
+        return _read_wheel(wheel), {"kind": "pypi", "package": "mediapipe", "version": MEDIAPIPE_VERSION,
+                                    "wheel": wheel.name, "wheel_sha256": sha256_file(wheel)}
+
+
+def _check_pins(data: dict[str, bytes], origin: str) -> None:
+    for pin in PINNED:
+        got = _sha256(data[pin.name])
+        if got != pin.sha256:
+            raise FetchError(f"{pin.name} from {origin}: sha256 mismatch: expected {pin.sha256}, got {got} "
+                             f"({len(data[pin.name])} bytes, expected {pin.size}); this is not the file of "
+                             f"mediapipe {MEDIAPIPE_VERSION} (damaged download or another version)",
+                             EX_DATAERR)
+
+
+# ---- the folder -----------------------------------------------------------------------------------------
+def _write_error(path: Path, exc: OSError) -> FetchError:
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return FetchError(f"no space left writing {path} (the models need about 45 MB); free some space or "
+                          "choose another folder with --models-dir or POSED_MODELS_DIR", EX_CANTCREAT)
+    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return FetchError(f"cannot write {path}: {exc.strerror}; choose a writable folder with --models-dir "
+                          "or POSED_MODELS_DIR (or fix the folder's permissions)", EX_CANTCREAT)
+    return FetchError(f"cannot write {path}: {exc}", EX_IOERR)
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise _write_error(path, exc) from exc
+
+
+def up_to_date(paths: ModelPaths) -> dict | None:
+    """The manifest when the folder is complete, made by this converter version from the pinned TFLite
+    files, and every file matches its recorded sha256; else None."""
+    try:
+        manifest = read_manifest(paths)
+    except ModelMissingError:
+        return None
+    if manifest.get("converter_version") != CONVERTER_VERSION:
+        return None
+    files = manifest["files"]
+    for pin in PINNED:
+        if files.get(pin.name, {}).get("sha256") != pin.sha256:
+            return None
+    for name in MODEL_FILES:
+        entry = files.get(name)
+        path = paths.models_dir / name
+        if not isinstance(entry, dict) or not path.is_file() or path.stat().st_size != entry.get("bytes"):
+            return None
+        if sha256_file(path) != entry.get("sha256"):
+            return None
+    return manifest
+
+
+def _kept_tflite(paths: ModelPaths) -> tuple[dict[str, bytes], dict] | None:
+    """The TFLite files already in the folder when both match their pins (no download needed)."""
+    data = {}
+    for pin in PINNED:
+        p = paths.models_dir / pin.name
+        if not p.is_file() or p.stat().st_size != pin.size:
+            return None
+        data[pin.name] = p.read_bytes()
+        if _sha256(data[pin.name]) != pin.sha256:
+            return None
+    try:
+        source = read_manifest(paths).get("source") or {}
+    except ModelMissingError:
+        source = {}
+    return data, source or {"kind": "folder", "path": str(paths.models_dir.resolve())}
+
+
+def _smoke_test(name: str, onnx_bytes: bytes, tflite_bytes: bytes) -> None:
+    """Load the converted model in onnxruntime and check its outputs' names and shapes on zeros."""
+    import onnxruntime as ort
+
+    graph = read_graph(tflite_bytes)
+    want = {graph.tensors[i].name: graph.tensors[i].shape for i in graph.outputs}
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = 1
+    sess = ort.InferenceSession(onnx_bytes, opts, providers=["CPUExecutionProvider"])
+    inp = sess.get_inputs()[0]
+    outs = sess.run(None, {inp.name: np.zeros(inp.shape, np.float32)})
+    got = {o.name: tuple(v.shape) for o, v in zip(sess.get_outputs(), outs, strict=True)}
+    if got != want:
+        raise FetchError(f"{name}: the converted model's outputs {got} differ from the TFLite outputs {want} "
+                         "(converter bug: please report it)", EX_SOFTWARE)
+    if not all(np.isfinite(v).all() for v in outs):
+        raise FetchError(f"{name}: the converted model gives non-finite outputs on a zero input "
+                         "(converter bug: please report it)", EX_SOFTWARE)
+
+
+def fetch_models(models_dir: str | os.PathLike, source: str | os.PathLike | None = None, force: bool = False,
+                 say: Callable[[str], None] = lambda _msg: None) -> FetchResult:
+    """Make ``models_dir`` hold the verified TFLite models, their ONNX conversions and the manifest.
+
+    Does nothing when the folder is up to date (see ``up_to_date``) unless ``force``. ``source``: a
+    mediapipe wheel or a folder (offline install); None = reuse the TFLite files already in the folder when
+    they match their pins, else download from PyPI. Raises FetchError (message and sysexits code).
+    """
+    t0 = time.perf_counter()
+    seconds: dict[str, float] = {}
+    paths = ModelPaths.in_dir(Path(models_dir).expanduser())
+    if not force:  # the same pinned inputs give the same files, whatever the source
+        manifest = up_to_date(paths)
+        if manifest is not None:
+            seconds["check"] = time.perf_counter() - t0
+            return FetchResult(paths.models_dir, False, manifest, seconds)
+
+    try:
+        paths.models_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _write_error(paths.models_dir, exc) from exc
+    if not os.access(paths.models_dir, os.W_OK | os.X_OK):
+        raise _write_error(paths.models_dir, PermissionError(errno.EACCES, "permission denied"))
+
+    t = time.perf_counter()
+    got = None if source is not None else _kept_tflite(paths)
+    if source is not None:
+        data, src = _from_path(Path(source).expanduser())
+        origin = str(source)
+    elif got is not None:
+        (data, src), origin = got, f"{paths.models_dir} (kept from the last fetch)"
+        say(f"re-converting the TFLite models kept in {paths.models_dir}")
+    else:
+        data, src = _download(say)
+        origin = src["wheel"]
+    _check_pins(data, origin)
+    seconds["obtain"] = time.perf_counter() - t
+
+    converted = {}
+    for pin in PINNED:
+        t = time.perf_counter()
+        model = convert(data[pin.name], pin.name.removesuffix(".tflite"))
+        converted[pin.onnx_name] = model.SerializeToString()
+        seconds[f"convert {pin.name}"] = time.perf_counter() - t
+        t = time.perf_counter()
+        _smoke_test(pin.onnx_name, converted[pin.onnx_name], data[pin.name])
+        seconds[f"check {pin.onnx_name}"] = time.perf_counter() - t
+        say(f"converted {pin.name} -> {pin.onnx_name} ({len(converted[pin.onnx_name]) / 1e6:.1f} MB)")
+
+    import onnx
+    import tflite
+
+    files: dict[str, dict] = {}
+    for pin in PINNED:
+        files[pin.name] = {"sha256": pin.sha256, "bytes": len(data[pin.name]), "member": pin.member}
+        blob = converted[pin.onnx_name]
+        files[pin.onnx_name] = {"sha256": _sha256(blob), "bytes": len(blob), "converted_from": pin.name,
+                                "opset": OPSET}
+    manifest = {
+        "format": MANIFEST_FORMAT,
+        "converter_version": CONVERTER_VERSION,
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "source": src,
+        "files": files,
+        "tools": {"python": sys.version.split()[0], "numpy": np.__version__, "onnx": onnx.__version__,
+                  "tflite": getattr(tflite, "__version__", "unknown")},
+    }
+    t = time.perf_counter()
+    try:
+        (paths.models_dir / MANIFEST).unlink(missing_ok=True)  # no manifest = incomplete while files change
+    except OSError as exc:
+        raise _write_error(paths.models_dir / MANIFEST, exc) from exc
+    for pin in PINNED:
+        _write_atomic(paths.models_dir / pin.name, data[pin.name])
+        _write_atomic(paths.models_dir / pin.onnx_name, converted[pin.onnx_name])
+    _write_atomic(paths.models_dir / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
+    seconds["write"] = time.perf_counter() - t
+    seconds["total"] = time.perf_counter() - t0
+    return FetchResult(paths.models_dir, True, manifest, seconds)

@@ -1,0 +1,141 @@
+"""Where the landmark models live at run time, and whether they are intact.
+
+``posed models fetch`` (``landmarks.convert.fetch``) writes a models folder holding MediaPipe's two
+TFLite files, their ONNX conversions and ``manifest.json`` (sources, sha256 of every file, converter
+version). This module only finds and checks that folder; it needs nothing beyond the standard library.
+
+Folder, first that applies: the ``--models-dir`` option / ``landmarks.models_dir`` config key (passed as
+``configured``), ``$POSED_MODELS_DIR`` (the systemd unit points it at its state dir),
+``$XDG_CACHE_HOME/posed/models``, ``~/.cache/posed/models``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+ENV_MODELS_DIR = "POSED_MODELS_DIR"
+MANIFEST = "manifest.json"
+MANIFEST_FORMAT = 1
+DETECTOR_TFLITE = "pose_detection.tflite"
+LANDMARK_TFLITE = "pose_landmark_full.tflite"
+DETECTOR_ONNX = "pose_detection.onnx"
+LANDMARK_ONNX = "pose_landmark_full.onnx"
+MODEL_FILES = (DETECTOR_ONNX, LANDMARK_ONNX, DETECTOR_TFLITE, LANDMARK_TFLITE)
+FETCH_HINT = "run `posed models fetch`"
+
+
+class ModelMissingError(FileNotFoundError):
+    """The models folder lacks a model (or its manifest); the message names the folder and the fix."""
+
+
+class ModelCorruptError(ModelMissingError):
+    """A model file differs from what its manifest records (hash or size); re-fetching fixes it."""
+
+
+@dataclass(frozen=True)
+class ModelPaths:
+    """The files of one models folder (paths may not exist: see ``find_models``)."""
+
+    models_dir: Path
+    detector_onnx: Path
+    landmark_onnx: Path
+    detector_tflite: Path
+    landmark_tflite: Path
+    manifest: Path
+
+    @classmethod
+    def in_dir(cls, models_dir: str | os.PathLike) -> ModelPaths:
+        d = Path(models_dir)
+        return cls(d, d / DETECTOR_ONNX, d / LANDMARK_ONNX, d / DETECTOR_TFLITE, d / LANDMARK_TFLITE,
+                   d / MANIFEST)
+
+
+def default_models_dir(configured: str = "") -> Path:
+    """The models folder: ``configured`` (option or config key) if set, else ``$POSED_MODELS_DIR``, else
+    ``$XDG_CACHE_HOME/posed/models`` (``~/.cache/posed/models`` when XDG_CACHE_HOME is unset or relative)."""
+    if configured:
+        return Path(configured).expanduser()
+    env = os.environ.get(ENV_MODELS_DIR, "")
+    if env:
+        return Path(env).expanduser()
+    cache = os.environ.get("XDG_CACHE_HOME", "")
+    base = Path(cache) if cache and Path(cache).is_absolute() else Path.home() / ".cache"
+    return base / "posed" / "models"
+
+
+def _fetch_hint(models_dir: Path) -> str:
+    return f"{FETCH_HINT} (or `posed models fetch --models-dir {models_dir}`)"
+
+
+def find_models(models_dir: str | os.PathLike | None = None) -> ModelPaths:
+    """The model files of ``models_dir`` (default: ``default_models_dir()``); raises ModelMissingError
+    naming the folder, the missing files and ``posed models fetch`` when any file or the manifest is
+    missing. Does not hash anything (see ``verify_models``)."""
+    d = Path(models_dir).expanduser() if models_dir else default_models_dir()
+    paths = ModelPaths.in_dir(d)
+    if not d.is_dir():
+        raise ModelMissingError(f"no landmark models: the models folder {d} does not exist; {_fetch_hint(d)}")
+    missing = [p.name for p in (paths.detector_onnx, paths.landmark_onnx, paths.detector_tflite,
+                                paths.landmark_tflite, paths.manifest) if not p.is_file()]
+    if missing:
+        raise ModelMissingError(f"landmark models missing in {d}: {', '.join(missing)}; {_fetch_hint(d)}")
+    return paths
+
+
+def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
+    """Hex sha256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
+
+def read_manifest(paths: ModelPaths) -> dict:
+    """The manifest as a dict; ModelCorruptError when it is unreadable or not a posed models manifest."""
+    try:
+        manifest = json.loads(paths.manifest.read_text())
+    except (OSError, ValueError) as exc:
+        raise ModelCorruptError(f"unreadable model manifest {paths.manifest}: {exc}; "
+                                f"{_fetch_hint(paths.models_dir)}") from exc
+    if not isinstance(manifest, dict) or manifest.get("format") != MANIFEST_FORMAT \
+            or not isinstance(manifest.get("files"), dict):
+        raise ModelCorruptError(f"{paths.manifest} is not a posed models manifest "
+                                f"(format {MANIFEST_FORMAT}); "
+                                f"{_fetch_hint(paths.models_dir)}")
+    return manifest
+
+
+def verify_models(paths: ModelPaths, include_tflite: bool = False) -> dict:
+    """Check the files against ``manifest.json`` (size and sha256); returns the manifest.
+
+    By default only the two ONNX files the daemon runs are hashed (about 25 MB, tens of ms);
+    ``include_tflite`` hashes the TFLite originals too. Raises ModelCorruptError naming the file, the
+    expected and the actual sha256, and ``posed models fetch``.
+    """
+    manifest = read_manifest(paths)
+    names = list(MODEL_FILES if include_tflite else (DETECTOR_ONNX, LANDMARK_ONNX))
+    for name in names:
+        entry = manifest["files"].get(name)
+        path = paths.models_dir / name
+        if not isinstance(entry, dict) or "sha256" not in entry:
+            raise ModelCorruptError(f"{paths.manifest} has no sha256 for {name}; "
+                                    f"{_fetch_hint(paths.models_dir)}")
+        try:
+            size = path.stat().st_size
+            if "bytes" in entry and size != entry["bytes"]:
+                raise ModelCorruptError(f"model file {path} has {size} bytes, "
+                                        f"the manifest says {entry['bytes']}; "
+                                        f"{_fetch_hint(paths.models_dir)}")
+            got = sha256_file(path)
+        except FileNotFoundError as exc:
+            raise ModelMissingError(f"landmark model {path} is missing; "
+                                    f"{_fetch_hint(paths.models_dir)}") from exc
+        if got != entry["sha256"]:
+            raise ModelCorruptError(f"model file {path} is damaged: sha256 {got}, the manifest expects "
+                                    f"{entry['sha256']}; {_fetch_hint(paths.models_dir)}")
+    return manifest
