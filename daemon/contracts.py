@@ -25,6 +25,9 @@ class FrameRef:
     width: int
     height: int
     has_depth: bool = False
+    intrinsics: tuple[float, float, float, float] | None = None   # fx, fy, cx, cy in pixels, when known
+    t_read: float | None = None   # monotonic time the capture stage read it, set only for unpaced replays
+                                  # (whose t_capture follows the recording): latency is measured from it
 
     def to_json(self) -> dict:
         return asdict(self)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 
@@ -36,6 +37,27 @@ class PipelineConfig:
         default="", metadata={"doc": "where events and history live; empty = $XDG_STATE_HOME/posed "
                                      "(the service: $STATE_DIRECTORY)"}
     )
+    startup_timeout_s: float = field(
+        default=180.0, metadata={"doc": "a stage still warming up (model load, numba compile) after this is "
+                                        "stuck and restarted", "unit": "s", "range": (5.0, 3600.0)}
+    )
+    backoff_max_s: float = field(
+        default=10.0, metadata={"doc": "longest wait before restarting a stage (the first restart is at once, "
+                                       "then 0.5 s doubling)", "unit": "s", "range": (0.5, 600.0)}
+    )
+    shutdown_timeout_s: float = field(
+        default=4.0, metadata={"doc": "on SIGTERM/SIGINT, stages still running after this are killed",
+                               "unit": "s", "range": (0.5, 60.0)}
+    )
+    frame_max_pixels: int = field(
+        default=1280 * 720, metadata={"doc": "largest frame (width x height) a ring slot holds; the camera's "
+                                             "configured size is always allowed", "unit": "px",
+                                      "range": (160 * 120, 8192 * 8192)}
+    )
+    stop_at_end: bool = field(
+        default=False, metadata={"doc": "file sources: stop the daemon (exit 0) once the recording has "
+                                        "ended and the pipeline is empty"}
+    )
 
 
 @dataclass(frozen=True)
@@ -56,6 +78,32 @@ class ZenohConfig:
         default=False, metadata={"doc": "privacy: never publish images unless true (not implemented: "
                                         "topics carry landmarks, poses and events only)"}
     )
+    publish_landmarks: bool = field(
+        default=True, metadata={"doc": "publish the 2D landmarks of each frame on posed/ROBOT/landmarks"}
+    )
+    event_republish_s: float = field(
+        default=30.0, metadata={"doc": "fall events nobody acknowledged (posed/ROBOT/events/ack) are "
+                                       "published again this often, and when a subscriber appears",
+                                "unit": "s", "range": (1.0, 86400.0)}
+    )
+    reconnect_s: float = field(
+        default=5.0, metadata={"doc": "retry opening the session this often when it fails (client mode "
+                                      "without a reachable router, a busy listen port)", "unit": "s",
+                               "range": (0.5, 600.0)}
+    )
+
+    def __post_init__(self) -> None:
+        problems = []
+        for key in ("listen", "connect"):
+            for ep in getattr(self, key):
+                if not re.fullmatch(r"(tcp|udp|tls|quic|ws|unixsock-stream|unixpipe|serial|vsock)/\S+", ep):
+                    problems.append(f"{key}: {ep!r} is not a Zenoh endpoint such as tcp/127.0.0.1:7447 "
+                                    "or tls/host:7447")
+        if self.mode == "client" and not self.connect:
+            problems.append("connect: client mode needs at least one router or peer to connect to, "
+                            "e.g. [tcp/192.168.1.10:7447]; or use mode: peer")
+        if problems:
+            raise ValueError("; ".join(problems))
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,11 @@ class LandmarkConfig:
         default=0.5, metadata={"doc": "pose-presence threshold; below it the detector runs again",
                                "range": (0.0, 1.0)}
     )
+    tracking: bool = field(
+        default=True, metadata={"doc": "place the next crop from this frame's landmarks and run the detector only "
+                                       "when the person is lost (MediaPipe's video mode); false = detect every "
+                                       "frame, no smoothing (static-image mode)"}
+    )
     smoothing: bool = field(default=True, metadata={"doc": "one-euro smoothing with MediaPipe's parameters"})
     rotate_on_miss: bool = field(
         default=True, metadata={"doc": "when nobody is found, retry the frame rotated by +-90 deg "

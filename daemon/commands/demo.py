@@ -1,0 +1,121 @@
+"""``posed demo [--seconds 20]``: run the whole daemon on the embedded default input, watch what it publishes
+from a separate Zenoh session (one line per second: fps, latency, knee and hip angles), then stop it."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("demo", help="run the daemon on the embedded demo input for a while and show its output")
+    parser.add_argument("--seconds", type=float, default=20.0, help="how long to publish (default 20)")
+    parser.add_argument("--config", metavar="FILE", help="config file (default: the embedded config.yaml)")
+    parser.add_argument("--source", metavar="URI", help="input instead of the embedded demo video")
+    parser.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
+    parser.set_defaults(func=_demo)
+
+
+def _free_port() -> int:
+    import socket
+
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from daemon.commands.watch import open_viewer
+    from daemon.viewer import Summary, subscribe
+
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    state = tempfile.mkdtemp(prefix="posed-demo-")
+    cmd = [sys.executable, "-m", "daemon.cli", "run", "--set", "source.loop=true",
+           "--set", f"zenoh.listen=[{endpoint}]", "--set", "zenoh.connect=[]", "--set", "zenoh.mode=peer",
+           "--set", f"pipeline.state_dir={state}", "--set", "robot_id=demo", "--set", "logging.format=json"]
+    if args.config:
+        cmd += ["--config", args.config]
+    if args.source:
+        cmd += ["--source", args.source]
+    for o in args.overrides:
+        cmd += ["--set", o]
+    log_path = os.path.join(state, "daemon.log")
+    print(f"posed demo: starting the daemon (log: {log_path}); listening on {endpoint}", flush=True)
+    err_path = os.path.join(state, "daemon.err")
+    with open(log_path, "w") as log, open(err_path, "w") as errlog:
+        daemon = subprocess.Popen(cmd, stdout=log, stderr=errlog, text=True)
+    summary = Summary()
+    session = None
+    t0 = time.monotonic()
+    try:
+        deadline = t0 + 60.0
+        while session is None and daemon.poll() is None and time.monotonic() < deadline:
+            session = open_viewer(endpoint, 1.0, quiet=True) if _listening(endpoint) else None
+            if session is None:
+                time.sleep(0.2)
+        if session is None:
+            return _failed(daemon, "the daemon did not come up", err_path)
+        with session:
+            keep = subscribe(session, "demo", summary)
+            t_line = time.monotonic() + 1.0
+            t_start = time.monotonic()
+            while daemon.poll() is None:
+                time.sleep(max(0.0, t_line - time.monotonic()))
+                for line in summary.line(t_line - t_start):
+                    print(line, flush=True)
+                t_line += 1.0
+                first = summary.first_pose_at
+                if first is not None and time.monotonic() - first >= args.seconds:
+                    break
+                if first is None and time.monotonic() - t_start > 120:
+                    print("posed demo: no pose within 120 s", file=sys.stderr)
+                    break
+            del keep
+            if daemon.poll() is not None:
+                return _failed(daemon, "the daemon stopped early", err_path)
+    finally:
+        if daemon.poll() is None:
+            daemon.send_signal(signal.SIGTERM)
+        try:
+            daemon.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            daemon.kill()
+            daemon.wait()
+    final = summary.final()
+    lat = final["latency_ms"]
+    knee = final["knee_deg"]
+    print(f"posed demo: {final['poses']} poses ({final['poses_ok']} with a person) at {final['fps']} fps; "
+          f"latency p50 {lat['p50']} ms, p95 {lat['p95']} ms; knee flexion "
+          + (f"{knee[0]:.0f}..{knee[1]:.0f} deg" if knee[0] is not None else "-")
+          + f"; {final['events']} fall events; daemon exit status {daemon.returncode}", flush=True)
+    return 0 if daemon.returncode == 0 and final["poses_ok"] > 0 else 1
+
+
+def _listening(endpoint: str) -> bool:
+    import socket
+
+    host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
+    with socket.socket() as s:
+        s.settimeout(0.2)
+        return s.connect_ex((host, int(port))) == 0
+
+
+def _failed(daemon: subprocess.Popen, what: str, err_path: str) -> int:
+    try:
+        daemon.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        daemon.kill()
+        daemon.wait()
+    print(f"posed demo: {what} (exit status {daemon.returncode})", file=sys.stderr)
+    with open(err_path) as fh:
+        err = fh.read()
+    if err:
+        print(err.rstrip(), file=sys.stderr)
+    return daemon.returncode or 1

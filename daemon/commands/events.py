@@ -1,0 +1,64 @@
+"""``posed events [--since T] [--until T] [--limit N] [--unacked] [--json]``: list stored fall events."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from daemon.commands import add_config_args, config_from_args
+from daemon.falls.journal import EventJournal
+from daemon.falls.paths import events_path
+from daemon.falls.timeparse import parse_time
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("events", help="list the fall events stored in the journal (state dir)")
+    add_config_args(parser, source=False)
+    parser.add_argument("--since", metavar="TIME", help="from this time: 2h, 7d, today, 2024-05-01T14:00, ...")
+    parser.add_argument("--until", metavar="TIME", help="up to this time (same forms as --since)")
+    parser.add_argument("--limit", type=int, default=None, metavar="N", help="only the newest N messages")
+    parser.add_argument("--unacked", action="store_true", help="only messages not yet acknowledged")
+    parser.add_argument("--journal", metavar="FILE", help="journal file (default: events.sqlite3 in the state dir)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        since = parse_time(args.since) if args.since else None
+        until = parse_time(args.until) if args.until else None
+    except ValueError as exc:
+        print(f"posed events: {exc}", file=sys.stderr)
+        return 2
+    if args.journal:
+        from pathlib import Path
+
+        path = Path(args.journal)
+    else:
+        path = events_path(config_from_args(args).pipeline)
+    if not path.is_file():
+        if args.json:
+            print(json.dumps({"journal": str(path), "events": []}))
+        else:
+            print(f"no event journal at {path} yet (the daemon creates it with its first fall event)")
+        return 0
+    journal = EventJournal(path)
+    try:
+        stored = journal.query(since, until, args.limit)
+    finally:
+        journal.close()
+    if args.unacked:
+        stored = [s for s in stored if s.acked_at is None]
+    if args.json:
+        print(json.dumps({"journal": str(path), "events": [s.to_json() for s in stored]}))
+        return 0
+    if not stored:
+        print(f"no events in {path} for that time range")
+        return 0
+    print(f"{'wall time (UTC)':<24} {'event':<12} {'state':<10} {'conf':>5} {'pub':>3} {'ack':>3}  features")
+    for s in stored:
+        e = s.event
+        print(f"{e.wall_time[:23]:<24} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
+              f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3}  {','.join(e.features)}")
+    return 0

@@ -1,0 +1,85 @@
+"""``posed fit INPUT.landmarks.jsonl [-o OUTPUT.jsonl] [--mode video|image] [--config FILE]``: the 3D fit alone.
+
+Reads a landmark recording (interfaces.md section 1) and writes one fit result per frame as JSON Lines
+(interfaces.md section 2; standard output without ``-o``). Frames without a person, with missing, NaN or
+low-visibility landmarks get ``"ok": false`` and a reason; a line that cannot be read is reported on stderr as
+``FILE:LINE: message`` and skipped. The recording header's ``camera`` intrinsics, when present, select the
+perspective model (``fitting.projection: auto``).
+
+Exit status: 0 every line was read, 1 some lines were skipped, 2 the recording cannot be read at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from daemon.commands import add_config_args, config_from_args
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("fit", help="fit the 3D humanoid to a landmark recording (JSON Lines of fit results)")
+    parser.add_argument("input", metavar="INPUT.landmarks.jsonl", help="landmark recording to fit")
+    parser.add_argument("-o", "--output", metavar="OUTPUT.jsonl", default="-",
+                        help="fit results to write (default: standard output)")
+    parser.add_argument("--mode", choices=("video", "image"), default="video",
+                        help="video (default): each frame starts from the previous one; image: every frame on "
+                             "its own")
+    add_config_args(parser, source=False)
+    parser.set_defaults(func=run)
+
+
+def _err(msg: str) -> None:
+    print(f"posed fit: {msg}", file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    from fitting.body import CalibrationError
+    from fitting.fitter import Fitter
+    from fitting.result import FitResult
+    from landmarks.recording import RecordingError, RecordingProblem, dumps, iter_recording
+
+    cfg = config_from_args(args).fitting
+    try:
+        header, frames = iter_recording(args.input)
+    except RecordingError as exc:
+        _err(str(exc))
+        return 2
+    try:
+        fitter = Fitter(cfg)
+    except CalibrationError as exc:
+        _err(f"{exc} (fitting.calibration in the config)")
+        return 2
+    intrinsics = header.camera
+    out = sys.stdout if args.output == "-" else None
+    if out is None:
+        try:
+            Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+            out = open(args.output, "w", encoding="utf-8")
+        except OSError as exc:
+            _err(f"{args.output}: cannot write: {exc.strerror}")
+            return 2
+    skipped = fitted = ok = 0
+    try:
+        for item in frames:
+            if isinstance(item, RecordingProblem):
+                print(str(item), file=sys.stderr, flush=True)
+                skipped += 1
+                continue
+            result = fitter.fit(item.landmarks, item.seq, item.t, header.image_size, mode=args.mode,
+                                intrinsics=intrinsics)
+            try:
+                line = dumps(result.to_json())
+            except ValueError as exc:  # a non-finite number must never reach the output
+                line = dumps(FitResult.failure(item.seq, item.t, f"result not representable as JSON: {exc}").to_json())
+            out.write(line + "\n")
+            fitted += 1
+            ok += result.ok
+    finally:
+        if out is not sys.stdout:
+            out.close()
+        else:
+            out.flush()
+    _err(f"{fitted} frames fitted ({ok} ok, {fitted - ok} not ok), {skipped} lines skipped")
+    return 1 if skipped else 0

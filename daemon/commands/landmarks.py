@@ -1,0 +1,203 @@
+"""``posed landmarks INPUT [-o OUT.landmarks.jsonl]``: the 2D landmark stage alone, on an image, a video or a
+folder of images, written as a landmark recording (interfaces.md section 1).
+
+Frame times: a video's own frame timestamps (seconds from its first frame); images: ``seq / fps``. A frame
+that cannot be decoded is reported on stderr and left out (its ``seq`` is skipped, so the gap shows); the rest
+is still written. Exit status: 0 all frames read, 1 some frames could not be read, 2 nothing could be done
+(input or models missing).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from daemon.commands import add_config_args, config_from_args
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+
+
+class InputError(Exception):
+    """The input cannot be read at all."""
+
+
+@dataclass(frozen=True)
+class InputFrame:
+    seq: int
+    t: float
+    image: np.ndarray | None  # None: this frame could not be read
+    problem: str = ""
+
+
+@dataclass
+class FrameSource:
+    kind: str           # "image", "video" or "folder"
+    fps: float
+    image_size: tuple[int, int]
+    frames: Iterator[InputFrame]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("landmarks", help="run the 2D landmark stage on an image, video or folder of images")
+    parser.add_argument("input", metavar="INPUT", help="an image, a video file or a folder of images")
+    parser.add_argument("-o", "--output", metavar="OUT.landmarks.jsonl", default="-",
+                        help="landmark recording to write (default: standard output)")
+    parser.add_argument("--mode", choices=("video", "image"), default=None,
+                        help="video: track across frames (MediaPipe's video mode; default for videos and "
+                             "folders); image: every frame on its own (detector every frame, no smoothing)")
+    parser.add_argument("--fps", type=float, default=None,
+                        help="frame rate for images and folders (t = seq / fps); default: the video's own, "
+                             "else source.fps")
+    add_config_args(parser, source=False)
+    parser.set_defaults(func=run)
+
+
+def _err(msg: str) -> None:
+    print(f"posed landmarks: {msg}", file=sys.stderr, flush=True)
+
+
+def _read_image(path: Path) -> np.ndarray | None:
+    data = np.fromfile(str(path), dtype=np.uint8) if path.is_file() else np.zeros(0, np.uint8)
+    if data.size == 0:
+        return None
+    return cv2.imdecode(data, cv2.IMREAD_COLOR)
+
+
+def open_input(path: Path, fps: float | None, default_fps: float) -> FrameSource:
+    """The frames of an image, a video or a folder of images (InputError when there are none to read)."""
+    if not path.exists():
+        raise InputError(f"{path}: no such file or folder")
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise InputError(f"{path}: the folder holds no images ({', '.join(sorted(IMAGE_SUFFIXES))})")
+        return _image_files(files, "folder", fps or default_fps)
+    if path.suffix.lower() in IMAGE_SUFFIXES:
+        return _image_files([path], "image", fps or default_fps)
+    return _video(path, fps, default_fps)
+
+
+def _image_files(files: list[Path], kind: str, fps: float) -> FrameSource:
+    first = None
+    for f in files:
+        first = _read_image(f)
+        if first is not None:
+            break
+    if first is None:
+        what = files[0] if len(files) == 1 else f"{files[0].parent} ({len(files)} files)"
+        raise InputError(f"{what}: cannot decode any image (corrupt or not an image)")
+    size = (first.shape[1], first.shape[0])
+
+    def frames() -> Iterator[InputFrame]:
+        for seq, f in enumerate(files):
+            image = _read_image(f)
+            t = seq / fps
+            if image is None:
+                yield InputFrame(seq, t, None, f"{f}: cannot decode the image (corrupt or not an image)")
+            elif (image.shape[1], image.shape[0]) != size:
+                yield InputFrame(seq, t, None, f"{f}: image is {image.shape[1]}x{image.shape[0]}, the "
+                                               f"recording is {size[0]}x{size[1]}; left out")
+            else:
+                yield InputFrame(seq, t, image)
+
+    return FrameSource(kind, fps, size, frames())
+
+
+def _video(path: Path, fps: float | None, default_fps: float) -> FrameSource:
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        cap.release()
+        raise InputError(f"{path}: cannot open as a video or image (unknown format or corrupt file)")
+    ok, first = cap.read()
+    if not ok or first is None:
+        cap.release()
+        raise InputError(f"{path}: the video holds no decodable frame (corrupt or empty)")
+    video_fps = cap.get(cv2.CAP_PROP_FPS)
+    rate = fps or (video_fps if math.isfinite(video_fps) and video_fps > 0 else default_fps)
+    count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    size = (first.shape[1], first.shape[0])
+
+    def frames() -> Iterator[InputFrame]:
+        seq, image, t0, last_t = 0, first, None, -math.inf
+        try:
+            while True:
+                msec = cap.get(cv2.CAP_PROP_POS_MSEC)
+                t_file = msec / 1000.0 if math.isfinite(msec) else math.nan
+                if fps is None and math.isfinite(t_file):
+                    t0 = t_file if t0 is None else t0
+                    t = t_file - t0
+                    t = t if t > last_t else seq / rate  # broken timestamps: fall back to seq / fps
+                else:
+                    t = seq / rate
+                last_t = t
+                yield InputFrame(seq, t, image)
+                seq += 1
+                ok, image = cap.read()
+                if not ok or image is None:
+                    break
+            if count > 0 and seq < count - 1:
+                yield InputFrame(seq, seq / rate, None,
+                                 f"{path}: the video ended after {seq} of {count} frames (truncated or corrupt)")
+        finally:
+            cap.release()
+
+    return FrameSource("video", rate, size, frames())
+
+
+def run(args: argparse.Namespace) -> int:
+    from landmarks.models import ModelMissingError
+    from landmarks.pipeline import PoseLandmarker
+    from landmarks.recording import RecordingHeader, dumps
+
+    config = config_from_args(args)
+    path = Path(args.input)
+    try:
+        source = open_input(path, args.fps, config.source.fps)
+    except InputError as exc:
+        _err(str(exc))
+        return 2
+    mode = args.mode or ("image" if source.kind == "image" else "video")
+    lm_config = replace(config.landmarks, tracking=(mode == "video"))
+    try:
+        landmarker = PoseLandmarker(lm_config)
+    except ModelMissingError as exc:  # also ModelCorruptError
+        _err(str(exc))
+        return 2
+
+    header = RecordingHeader(source.image_size, source.fps, source=f"posed landmarks {path.name} ({mode} mode)")
+    problems = written = found = 0
+    try:
+        out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
+    except OSError as exc:
+        _err(f"cannot write {args.output}: {exc.strerror or exc}")
+        return 2
+    try:
+        out.write(dumps(header.to_json()) + "\n")
+        for frame in source.frames:
+            if frame.image is None:
+                _err(frame.problem)
+                problems += 1
+                continue
+            result = landmarker.process(frame.image, frame.t, frame.seq)
+            out.write(dumps(result.to_json()) + "\n")
+            out.flush()
+            written += 1
+            found += result.landmarks is not None
+    except OSError as exc:
+        _err(f"cannot write {args.output}: {exc.strerror or exc}")
+        return 2
+    finally:
+        if out is not sys.stdout:
+            out.close()
+    summary = f"{written} frame(s), person found in {found}"
+    if problems:
+        summary += f", {problems} problem(s) reported above"
+    _err(summary + ("" if args.output == "-" else f" -> {args.output}"))
+    return 1 if problems else 0

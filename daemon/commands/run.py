@@ -1,0 +1,31 @@
+"""``posed run [--config FILE] [--source URI]``: the daemon (see daemon/supervisor.py and docs/daemon.md)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from daemon import logs
+from daemon.commands import add_config_args, config_from_args
+from daemon.config import EX_CONFIG
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("run", help="run the daemon: camera -> pose -> Zenoh, with watchdog and sd_notify")
+    add_config_args(parser)
+    parser.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from daemon.preflight import check, resolve_source
+    from daemon.supervisor import Supervisor
+
+    cfg = resolve_source(config_from_args(args))
+    problems = check(cfg)
+    if problems:
+        for p in problems:
+            print(f"posed: {p}", file=sys.stderr)
+        print(f"posed: {len(problems)} problem(s); nothing was started", file=sys.stderr)
+        return EX_CONFIG
+    logs.configure(cfg.logging.level, cfg.logging.format)
+    return Supervisor(cfg).run()

@@ -1,0 +1,98 @@
+"""``posed watch [ROBOT] [--connect ENDPOINT]``: show a running daemon's poses, status and fall events."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("watch", help="subscribe to a daemon and show its live poses, status and events")
+    parser.add_argument("robot", nargs="?", default="*", help="robot id (default: every robot, *)")
+    parser.add_argument("--connect", metavar="ENDPOINT", default="tcp/127.0.0.1:7447",
+                        help="the daemon's or a router's Zenoh endpoint (default: tcp/127.0.0.1:7447)")
+    parser.add_argument("--seconds", type=float, default=0.0, help="stop after this long (default: until Ctrl-C)")
+    parser.add_argument("--json", action="store_true", help="print every message as a JSON line instead")
+    parser.add_argument("--wait", type=float, default=10.0, metavar="S",
+                        help="keep trying to connect this long (default 10 s)")
+    parser.set_defaults(func=_watch)
+
+
+def open_viewer(endpoint: str, wait_s: float, quiet: bool = False):
+    """A client session to ``endpoint``, retried for ``wait_s``; None with a message when it cannot connect."""
+    import zenoh
+
+    from daemon.settings import ZenohConfig
+    from daemon.zenoh_session import build_config
+
+    cfg = ZenohConfig(mode="client", listen=(), connect=(endpoint,))
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            return zenoh.open(build_config(cfg))
+        except Exception as exc:
+            if time.monotonic() >= deadline:
+                if quiet:
+                    return None
+                print(f"posed watch: cannot connect to {endpoint}: {str(exc).splitlines()[0]}\n"
+                      "  is `posed run` running? It listens on tcp/127.0.0.1:7447 by default; give another "
+                      "endpoint with --connect", file=sys.stderr)
+                return None
+            time.sleep(0.25)
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from daemon.viewer import Summary, subscribe
+
+    session = open_viewer(args.connect, args.wait)
+    if session is None:
+        return 1
+    t0 = time.monotonic()
+    with session:
+        if args.json:
+            return _print_json(session, args, t0)
+        summary = Summary()
+        keep = subscribe(session, args.robot, summary)
+        print(f"posed watch: {args.connect}, robot {args.robot} (Ctrl-C to stop)", flush=True)
+        next_line = t0 + 1.0
+        try:
+            while not args.seconds or time.monotonic() - t0 < args.seconds:
+                time.sleep(max(0.0, next_line - time.monotonic()))
+                for line in summary.line(next_line - t0):
+                    print(line, flush=True)
+                next_line += 1.0
+        except KeyboardInterrupt:
+            pass
+        del keep
+    return 0
+
+
+def _print_json(session, args: argparse.Namespace, t0: float) -> int:
+    """Every message as one JSON line, printed from the main thread (a closed pipe ends quietly)."""
+    import queue
+
+    lines: queue.Queue = queue.Queue(maxsize=10000)
+
+    def on_sample(sample):
+        try:
+            value = json.loads(sample.payload.to_string())
+        except ValueError:
+            value = sample.payload.to_string()
+        try:
+            lines.put_nowait(json.dumps({"key": str(sample.key_expr), "value": value}))
+        except queue.Full:
+            pass
+
+    keep = [session.declare_subscriber(f"posed/{args.robot}/**", on_sample)]
+    try:
+        while not args.seconds or time.monotonic() - t0 < args.seconds:
+            try:
+                print(lines.get(timeout=0.1), flush=True)
+            except queue.Empty:
+                continue
+    except (KeyboardInterrupt, BrokenPipeError):
+        sys.stderr.close()            # nothing more to say on a closed pipe
+    del keep
+    return 0

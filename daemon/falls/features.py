@@ -1,0 +1,188 @@
+"""Per-frame fall features from one fit result and its 2D landmarks.
+
+Frames. Camera: x image right, y image down, z away from the camera (metres). The fit's ``joints_3d`` are
+metric offsets from the mid-hip in the fit's frame: with a weak-perspective fit that frame looks along the
+ray through the body (``fit_frame="ray"``), with a full-perspective fit it is the camera frame
+(``fit_frame="camera"``). Gravity ``d_c`` is a unit vector pointing down, in camera coordinates.
+
+Heights (metres above the floor): the mid-hip's camera-frame position ``P`` is the translation that makes the
+fitted joints (metric offsets from the mid-hip, rotated into camera axes) project onto their 2D landmarks —
+linear least squares in ``P`` (``locate``). With the floor a plane ``H`` below the camera along gravity,
+``h_pelvis = H - P . d_c``; the other joints follow from their fitted offsets. A wrong body size scales ``P``
+and every height below the camera in the same proportion, which is why the detector judges heights
+relative to the person's own standing pelvis height.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fitting.result import FitResult
+
+# joints_3d name -> MediaPipe landmark index
+LANDMARK_INDEX = {
+    "left_shoulder": 11, "right_shoulder": 12, "left_elbow": 13, "right_elbow": 14, "left_wrist": 15,
+    "right_wrist": 16, "left_hip": 23, "right_hip": 24, "left_knee": 25, "right_knee": 26, "left_ankle": 27,
+    "right_ankle": 28,
+}
+TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
+# Anthropometric ratios (Winter, Biomechanics and Motor Control of Human Movement, 4th ed., table 4.1):
+# hip joint 0.530 H, knee 0.285 H, ankle 0.039 H above the floor; thigh 0.245 H, shank 0.246 H.
+ANKLE_OVER_LEG = 0.039 / 0.491
+PELVIS_OVER_LEG = 0.530 / 0.491
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole intrinsics in pixels."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @classmethod
+    def from_hfov(cls, hfov_deg: float, width: float, height: float) -> Camera:
+        f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+        return cls(f, f, width / 2.0, height / 2.0)
+
+    @classmethod
+    def coerce(cls, obj, fallback_hfov_deg: float, image_size) -> Camera:
+        """From an object with fx, fy, cx, cy attributes, a dict with those keys, a (fx, fy, cx, cy) tuple
+        (``FrameRef.intrinsics``), or None (-> hfov)."""
+        if obj is None:
+            return cls.from_hfov(fallback_hfov_deg, float(image_size[0]), float(image_size[1]))
+        if isinstance(obj, Camera):
+            return obj
+        if isinstance(obj, (tuple, list)):
+            fx, fy, cx, cy = (float(v) for v in obj)
+            return cls(fx, fy, cx, cy)
+        get = obj.get if isinstance(obj, dict) else (lambda k: getattr(obj, k))
+        return cls(float(get("fx")), float(get("fy")), float(get("cx")), float(get("cy")))
+
+
+def gravity_from_tilt(tilt_deg: float, roll_deg: float = 0.0) -> np.ndarray:
+    """Down, in camera coordinates, for a camera pitched down by ``tilt_deg`` and rolled clockwise (seen from
+    behind the camera) by ``roll_deg``."""
+    a, b = math.radians(tilt_deg), math.radians(roll_deg)
+    return np.array([math.sin(b) * math.cos(a), math.cos(b) * math.cos(a), math.sin(a)])
+
+
+def ray_rotation(ray: np.ndarray) -> np.ndarray:
+    """Rotation R with R @ (0, 0, 1) = ray/|ray|, the smallest one (about an axis perpendicular to both)."""
+    r = ray / np.linalg.norm(ray)
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, r)
+    s = float(np.linalg.norm(axis))
+    c = float(r[2])
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
+
+
+@dataclass(frozen=True)
+class FrameFeatures:
+    """What one frame says about the body (metres above the floor, degrees, pixels)."""
+
+    t: float
+    below_camera_pelvis: float   # P . d_c: how far the mid-hip is below the camera along gravity
+    below_camera_ankles: float | None   # the same for the mean visible ankle (None when not visible)
+    offsets_down: dict[str, float]   # each joint's offset below the mid-hip along gravity (m)
+    trunk_incl_deg: float        # mid-hip -> mid-shoulder against up; 0 upright, 90 horizontal
+    leg_length: float            # fitted thigh + shank (m), mean of the two sides
+    distance: float              # Z of the mid-hip (m)
+    bbox_aspect: float           # width / height of the visible landmarks, roll-corrected
+    flexion: dict[str, float]    # theta_hp_l/r, theta_kn_l/r (deg)
+    upright_legs: bool           # hips and knees nearly straight (standing-reference candidate)
+
+
+def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Camera) -> np.ndarray | None:
+    """Camera-frame position T of the mid-hip from the joints' pixels and their fitted offsets (camera
+    axes): least squares of the pinhole equations ``u - cx = fx (T + o)_x / (T + o)_z`` (linear in T)."""
+    if len(pixels) < 3:
+        return None
+    du = pixels[:, 0] - camera.cx
+    dv = pixels[:, 1] - camera.cy
+    n = len(pixels)
+    a = np.zeros((2 * n, 3))
+    b = np.zeros(2 * n)
+    a[:n, 0] = camera.fx
+    a[:n, 2] = -du
+    b[:n] = du * offsets_c[:, 2] - camera.fx * offsets_c[:, 0]
+    a[n:, 1] = camera.fy
+    a[n:, 2] = -dv
+    b[n:] = dv * offsets_c[:, 2] - camera.fy * offsets_c[:, 1]
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    if not np.all(np.isfinite(sol)) or sol[2] <= 0.3:
+        return None
+    return sol
+
+
+def landmark_ok(landmarks: np.ndarray, index: int, min_vis: float, width: float, height: float) -> bool:
+    row = landmarks[index]
+    if not np.all(np.isfinite(row[:2])):
+        return False
+    vis = row[3] if landmarks.shape[1] > 3 and np.isfinite(row[3]) else 1.0
+    pres = row[4] if landmarks.shape[1] > 4 and np.isfinite(row[4]) else 1.0
+    return vis >= min_vis and pres >= min_vis and 0 <= row[0] < width and 0 <= row[1] < height
+
+
+def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera: Camera, d_c: np.ndarray,
+            min_visibility: float, upright_knee_deg: float, roll_deg: float = 0.0,
+            fit_frame: str = "ray") -> FrameFeatures | None:
+    """The frame's features, or None when it cannot be judged (no person, failed fit, torso not in view)."""
+    if not result.ok or landmarks is None or not result.joints_3d:
+        return None
+    lm = np.asarray(landmarks, float)
+    if lm.ndim != 2 or lm.shape[0] < 29 or lm.shape[1] < 2:
+        return None
+    width, height = float(image_size[0]), float(image_size[1])
+    joints = {k: np.asarray(v, float) for k, v in result.joints_3d.items()}
+    if any(name not in joints for name in TORSO):
+        return None
+    visible = {name: landmark_ok(lm, i, min_visibility, width, height) for name, i in LANDMARK_INDEX.items()}
+    if not all(visible[name] for name in TORSO):
+        return None
+    names = [n for n, ok in visible.items() if ok and n in joints and np.all(np.isfinite(joints[n]))]
+    hip_px = 0.5 * (lm[23, :2] + lm[24, :2])
+    ray = np.array([(hip_px[0] - camera.cx) / camera.fx, (hip_px[1] - camera.cy) / camera.fy, 1.0])
+    r_fit = ray_rotation(ray) if fit_frame == "ray" else np.eye(3)
+    mid_hip = joints.get("mid_hip", 0.5 * (joints["left_hip"] + joints["right_hip"]))
+    pelvis = locate(np.array([lm[LANDMARK_INDEX[n], :2] for n in names]),
+                    np.array([joints[n] - mid_hip for n in names]) @ r_fit.T, camera)
+    if pelvis is None:
+        return None
+    z = float(pelvis[2])
+    d_fit = r_fit.T @ d_c
+    offsets = {n: float((v - mid_hip) @ d_fit) for n, v in joints.items()}
+    trunk = 0.5 * (joints["left_shoulder"] + joints["right_shoulder"]) - mid_hip
+    norm = float(np.linalg.norm(trunk))
+    if norm < 1e-6:
+        return None
+    incl = math.degrees(math.acos(max(-1.0, min(1.0, float(-trunk @ d_fit) / norm))))
+    legs = []
+    for side in ("left", "right"):
+        h, k, a = (joints.get(f"{side}_{j}") for j in ("hip", "knee", "ankle"))
+        if h is not None and k is not None and a is not None:
+            legs.append(float(np.linalg.norm(k - h) + np.linalg.norm(a - k)))
+    leg = float(np.mean(legs)) if legs else 0.8
+    ankles = [n for n in ("left_ankle", "right_ankle") if visible.get(n) and n in joints]
+    below_ankles = float(pelvis @ d_c + np.mean([offsets[n] for n in ankles])) if ankles else None
+    pts = np.array([lm[LANDMARK_INDEX[n], :2] for n, ok in visible.items() if ok])
+    if roll_deg:
+        b = math.radians(roll_deg)
+        rot = np.array([[math.cos(b), math.sin(b)], [-math.sin(b), math.cos(b)]])
+        pts = pts @ rot.T
+    extent = pts.max(0) - pts.min(0)
+    aspect = float(extent[0] / max(extent[1], 1e-6))
+    ja = result.joint_angles_deg
+    flex = {k: float(ja[k]) for k in ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r") if k in ja}
+    upright_legs = bool(flex) and all(abs(v) < upright_knee_deg for v in flex.values())
+    return FrameFeatures(t=result.t, below_camera_pelvis=float(pelvis @ d_c), below_camera_ankles=below_ankles,
+                         offsets_down=offsets, trunk_incl_deg=incl, leg_length=leg, distance=z,
+                         bbox_aspect=aspect, flexion=flex, upright_legs=upright_legs)

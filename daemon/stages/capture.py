@@ -1,0 +1,229 @@
+"""Capture stage: camera or recording -> shared-memory ring -> ``frames`` mailbox (a FrameRef).
+
+* Frames come from ``hal.open_source(config.source)``; the capture timestamp is the frame's ``t``
+  (monotonic clock), and it travels with the frame to the publisher. Reading starts once every stage is
+  ready (the supervisor's ``go``), so warm-up neither drops frames nor delays a replay's first ones.
+* ``pipeline.target_fps`` thins the camera's rate: a frame is taken when at least 0.75 of the target period
+  has passed since the last one taken (the others count as ``skipped``, not dropped).
+* Live cameras and paced replays never wait: a FrameRef the landmark stage has not taken yet is replaced
+  (a drop; the newest frame wins). An unpaced file replay (``source.realtime: false``) is lossless instead:
+  every stage waits until the next one has taken its previous message, so the pipeline runs at the pace
+  of its slowest stage and a benchmark measures throughput without drops.
+* A disconnected or failing camera is closed and opened again with backoff (camera state ``lost``); a
+  recording that ended leaves the stage idle (``ended``). A missing file or an unsupported source is fatal.
+
+``run_recording`` replaces capture *and* landmarks for a ``*.landmarks.jsonl`` source: it reads the
+recording (``landmarks.recording``) and sends LandmarkMsg straight to the fitting stage, with capture
+timestamps on the recording's time line from the start of the replay (like hal's replays).
+
+For unpaced replays the capture timestamps follow the recording, not the wall clock, so the FrameRef also
+carries ``t_read`` (when the frame was read), from which latency is measured.
+"""
+
+from __future__ import annotations
+
+import time
+
+from daemon import clock
+from daemon.messages import LandmarkMsg
+from daemon.stages.base import StageRuntime, sleep_until
+
+REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
+
+
+def _intrinsics(frame) -> tuple[float, float, float, float] | None:
+    k = getattr(frame, "intrinsics", None)
+    if k is None:
+        return None
+    return (float(k.fx), float(k.fy), float(k.cx), float(k.cy))
+
+
+class _Thinner:
+    """Takes frames at no more than ``target_fps`` (by capture time)."""
+
+    def __init__(self, target_fps: float) -> None:
+        self.min_gap = 0.75 / target_fps
+        self.last: float | None = None
+
+    def take(self, t: float) -> bool:
+        if self.last is not None and self.last <= t < self.last + self.min_gap:
+            return False
+        self.last = t
+        return True
+
+
+def _wait_taken(rt: StageRuntime) -> None:
+    """Backpressure for unpaced replays: wait until the reader took the last message."""
+    box = rt.output
+    while box.pending():
+        rt.beat()
+        rt.check_stop()
+        time.sleep(0.0005)
+
+
+def run(rt: StageRuntime) -> None:
+    import hal
+    from hal.errors import EndOfStream, SourceError, SourceNotFound, SourceTimeout, SourceUnsupported
+
+    src_cfg = rt.config.source
+    paced = not (src_cfg.type == "file" and not src_cfg.realtime)
+    thinner = _Thinner(rt.config.pipeline.target_fps)
+    source = None
+    failures = 0
+    reported_ready = False
+    rt.row.set_camera("opening")
+    try:
+        while True:
+            rt.beat()
+            rt.check_stop()
+            if source is None:
+                try:
+                    source = hal.open_source(src_cfg)
+                    source.open()
+                except SourceUnsupported as exc:
+                    rt.fatal(str(exc), fix="check the source section (source.type, source.path, source.device)")
+                except SourceNotFound as exc:
+                    if src_cfg.type == "file":
+                        rt.fatal(str(exc), fix="check source.path (or --source file:PATH)")
+                    source = _failed_open(rt, source, exc, failures)
+                    failures += 1
+                    if not reported_ready:
+                        reported_ready = True
+                        rt.ready()
+                    continue
+                except SourceError as exc:
+                    source = _failed_open(rt, source, exc, failures)
+                    failures += 1
+                    if not reported_ready:
+                        reported_ready = True
+                        rt.ready()
+                    continue
+                failures = 0
+                rt.row.set_camera("open")
+                rt.report(camera=_info(source))
+                rt.log.info("camera_open", **_info(source))
+                if not reported_ready:
+                    reported_ready = True
+                    rt.ready()
+                rt.wait_go()
+            try:
+                frame = source.read(src_cfg.read_timeout_s)
+                t_read = clock.now()
+            except SourceTimeout:
+                rt.error()
+                continue
+            except EndOfStream:
+                rt.row.set_camera("ended")
+                rt.report(camera={"state": "ended"})
+                rt.log.info("recording_ended", frames=int(rt.row.get("frames")))
+                _close(source)
+                source = None
+                while True:
+                    sleep_until(clock.now() + 0.2, rt)
+            except SourceError as exc:
+                rt.row.set_camera("lost")
+                rt.report(camera={"state": "lost", "error": str(exc)})
+                rt.log.warning("camera_lost", error=str(exc))
+                _close(source)
+                source = None
+                continue
+            if not thinner.take(frame.t):
+                rt.skip()
+                continue
+            if not paced:
+                _wait_taken(rt)
+            with rt.step():
+                t0 = clock.now()
+                ref = rt.ring.write(frame.image, frame.seq, frame.t, frame.depth,
+                                    float(getattr(frame, "depth_scale", 0.0) or 0.0), _intrinsics(frame),
+                                    t_read=None if paced else t_read)
+                rt.send(ref)
+            rt.done(clock.now() - t0, frame.t if paced else t_read)
+    finally:
+        _close(source)
+        rt.row.set_camera("none")
+
+
+def _failed_open(rt: StageRuntime, source, exc: Exception, failures: int):
+    rt.row.set_camera("lost")
+    wait = REOPEN_BACKOFF_S[min(failures, len(REOPEN_BACKOFF_S) - 1)]
+    if failures == 0 or failures % 20 == 0:
+        rt.log.warning("camera_unavailable", error=str(exc), retry_in_s=wait, attempts=failures + 1)
+    rt.report(camera={"state": "lost", "error": str(exc)})
+    _close(source)
+    sleep_until(clock.now() + wait, rt)
+    return None
+
+
+def _info(source) -> dict:
+    info = getattr(source, "info", None) or {}
+    return {k: v for k, v in dict(info).items() if isinstance(v, (str, int, float, bool)) or v is None}
+
+
+def _close(source) -> None:
+    if source is None:
+        return
+    try:
+        source.close()
+    except Exception:  # closing a broken camera must not hide why we are closing
+        pass
+
+
+def run_recording(rt: StageRuntime) -> None:
+    """Replay a ``*.landmarks.jsonl`` recording as the landmark stage's output."""
+    from landmarks.recording import LandmarkFrame, RecordingError, RecordingProblem, iter_recording
+
+    src = rt.config.source
+    thinner = _Thinner(rt.config.pipeline.target_fps)
+    problems = 0
+    first = True
+    while True:
+        try:
+            header, stream = iter_recording(src.path)
+        except RecordingError as exc:
+            rt.fatal(str(exc), fix="check source.path (or --source file:PATH.landmarks.jsonl)")
+        if first:
+            rt.row.set_camera("open")
+            info = {"kind": "landmark recording", "fps": header.fps,
+                    "image_size": list(header.image_size)}
+            rt.report(camera=info)
+            rt.log.info("camera_open", **info)
+            rt.ready()
+            rt.wait_go()
+            first = False
+        intrinsics = header.camera
+        t_start = clock.now()
+        t_first: float | None = None
+        for item in stream:
+            rt.beat()
+            rt.check_stop()
+            if isinstance(item, RecordingProblem):
+                problems += 1
+                rt.error()
+                if problems <= 3:
+                    rt.log.warning("recording_problem", problem=str(item))
+                continue
+            if t_first is None:
+                t_first = item.t
+            if src.realtime:
+                sleep_until(t_start + (item.t - t_first), rt, slice_s=0.05)
+            if not thinner.take(t_start + (item.t - t_first)):
+                rt.skip()
+                continue
+            if not src.realtime:
+                _wait_taken(rt)
+            with rt.step():
+                t_read = clock.now()
+                t_capture = t_start + (item.t - t_first)      # the recording's time line
+                frame = LandmarkFrame(item.seq, t_capture, item.landmarks)
+                rt.send(LandmarkMsg(frame, t_capture, tuple(header.image_size), intrinsics, (),
+                                    None if src.realtime else t_read))
+            rt.done(clock.now() - t_read, t_capture if src.realtime else t_read)
+        if not src.loop:
+            break
+        thinner.last = None
+    rt.row.set_camera("ended")
+    rt.report(camera={"state": "ended"})
+    rt.log.info("recording_ended", frames=int(rt.row.get("frames")))
+    while True:
+        sleep_until(clock.now() + 0.2, rt)

@@ -1,0 +1,61 @@
+"""Landmark stage: ``frames`` mailbox (FrameRef) -> pixels from the ring -> BlazePose -> ``landmarks`` mailbox.
+
+Warm-up loads the models and runs them once (``PoseLandmarker.warmup``) before the stage reports ready. A
+missing model is fatal (exit 78) with the landmark package's message, which names ``posed models fetch``.
+A FrameRef whose slot was overwritten before it was read is dropped.
+"""
+
+from __future__ import annotations
+
+from daemon import clock
+from daemon.messages import LandmarkMsg
+from daemon.stages.base import StageRuntime
+
+
+def run(rt: StageRuntime) -> None:
+    from landmarks.models import ModelMissingError
+    from landmarks.pipeline import PoseLandmarker
+    from landmarks.recording import CameraIntrinsics
+
+    with rt.step():
+        try:
+            landmarker = PoseLandmarker(rt.config.landmarks)
+            landmarker.warmup()
+        except ModelMissingError as exc:
+            rt.fatal(str(exc), fix="run: posed models fetch")
+    rt.ready()
+    inbox = rt.input
+    failures = 0
+    last_seq: int | None = None
+    while True:
+        rt.beat()
+        rt.check_stop()
+        ref = inbox.wait(0.1)
+        if ref is None:
+            continue
+        with rt.step():
+            t_in = clock.now()
+            got = rt.ring.read(ref)
+            if got is None:
+                rt.drop()
+                continue
+            image, _depth, _scale = got
+            if last_seq is not None and ref.seq <= last_seq:
+                landmarker.reset()        # the source started again: forget the tracked person
+            last_seq = ref.seq
+            try:
+                frame = landmarker.process(image, ref.t_capture, ref.seq)
+            except Exception as exc:  # one bad frame must not stop the pipeline
+                failures += 1
+                rt.error()
+                if failures <= 3 or failures % 100 == 0:
+                    rt.log.error("landmarks_failed", error=repr(exc), seq=ref.seq, failures=failures)
+                landmarker.reset()
+                continue
+            t_out = clock.now()
+            k = ref.intrinsics
+            rt.send(LandmarkMsg(frame, ref.t_capture, (ref.width, ref.height),
+                                CameraIntrinsics(*k) if k is not None else None,
+                                (("landmarks_in", t_in), ("landmarks_out", t_out)), ref.t_read),
+                    lossless=ref.t_read is not None)
+        rt.done(t_out - t_in, ref.t_capture if ref.t_read is None else ref.t_read, t_out)

@@ -1,0 +1,453 @@
+"""The supervisor: ``posed run``'s main process.
+
+It creates the shared memory (the control segment with the health board and mailboxes, and the frame
+ring), spawns the stage processes (spawn context), and then loops every 0.1 s:
+
+* the watchdog: a dead stage, or one stuck (busy on one step too long, no heartbeat), is killed and started
+  again after a backoff (:mod:`daemon.watchdog`); more than ``pipeline.max_restarts`` restarts within
+  ``pipeline.restart_window_s`` escalates: WATCHDOG=1 stops so systemd restarts the unit (without a systemd
+  watchdog the supervisor exits with 70 instead);
+* readiness: READY=1 once every stage has warmed up (models loaded, numba kernels compiled); only then may
+  the capture stage start reading frames (``go``), so warm-up drops no frame of a replay;
+* status every ``pipeline.status_period_s``: per-stage fps, latency, drops, restarts, CPU and memory, camera
+  state -> the publisher (posed/ROBOT/status) and STATUS= for systemd; WATCHDOG=1 while every stage is healthy;
+* a stage reporting a fatal problem (a missing model or input file) stops the daemon with exit status 78.
+
+SIGTERM/SIGINT stop the stages in pipeline order (capture first: it closes the camera), kill what has not
+left by ``pipeline.shutdown_timeout_s``, unlink the shared memory and return.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import signal
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from daemon import clock, logs, procstat, shm
+from daemon.config import EX_CONFIG, Config
+from daemon.control import DOORBELLS, Control
+from daemon.health import CAMERA_STATES
+from daemon.notify import Notifier
+from daemon.ring import FrameRing
+from daemon.stages.base import EXIT_FATAL, StageArgs, stage_main
+from daemon.watchdog import RestartPolicy, verdict
+
+EX_SOFTWARE = 70   # escalated without a systemd watchdog to do the restart
+TICK_S = 0.1
+
+
+@dataclass(frozen=True)
+class StageSpec:
+    """One stage of the pipeline: its name, entry point and the mailboxes it reads and writes."""
+
+    name: str
+    entry: str
+    input: str | None = None
+    output: str | None = None
+    uses_ring: bool = False
+
+
+def is_landmark_recording(cfg: Config) -> bool:
+    return cfg.source.type == "file" and cfg.source.path.endswith(".landmarks.jsonl")
+
+
+def default_plan(cfg: Config) -> tuple[StageSpec, ...]:
+    """capture -> landmarks -> fitting -> publisher; a ``*.landmarks.jsonl`` source skips the landmark stage."""
+    fit = StageSpec("fitting", "daemon.stages.fit:run", "landmarks", "fits")
+    pub = StageSpec("publisher", "daemon.stages.publish:run", "fits", None)
+    if is_landmark_recording(cfg):
+        return (StageSpec("capture", "daemon.stages.capture:run_recording", None, "landmarks"), fit, pub)
+    return (StageSpec("capture", "daemon.stages.capture:run", None, "frames", uses_ring=True),
+            StageSpec("landmarks", "daemon.stages.landmark:run", "frames", "landmarks", uses_ring=True),
+            fit, pub)
+
+
+@dataclass
+class _Slot:
+    spec: StageSpec
+    process: multiprocessing.Process | None = None
+    restart_at: float | None = None
+    restarts: int = 0
+    last_reason: str = ""
+    exitcodes: list = field(default_factory=list)
+
+
+class Supervisor:
+    """Run the pipeline until stopped; :meth:`run` returns the exit status."""
+
+    def __init__(self, config: Config, plan: tuple[StageSpec, ...] | None = None,
+                 notifier: Notifier | None = None) -> None:
+        self.config = config
+        self.plan = plan or default_plan(config)
+        self.notifier = notifier or Notifier()
+        self.log = logs.get("supervisor", pid=os.getpid())
+        p = config.pipeline
+        self.policy = RestartPolicy(p.max_restarts, p.restart_window_s, backoff_max_s=p.backoff_max_s)
+        self._ctx = multiprocessing.get_context("spawn")
+        self._slots = {s.name: _Slot(s) for s in self.plan}
+        self._stop_reason = ""
+        self._exit_code = 0
+        self._ready_sent = False
+        self._escalated = False
+        self._camera_info: dict = {}
+        self._cpu = procstat.CpuMeter()
+        self._t0 = clock.now()
+        self._next_status = 0.0
+        self._next_stats_log = 0.0
+        self._next_ping = 0.0
+        self._ended_at: float | None = None
+        self.control: Control | None = None
+        self.ring: FrameRing | None = None
+        self.last_status: dict = {}
+
+    # ------------------------------------------------------------------ public
+    def request_stop(self, reason: str) -> None:
+        if not self._stop_reason:
+            self._stop_reason = reason
+
+    def run(self) -> int:
+        previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+        try:
+            self._start()
+            while not self._stop_reason:
+                self._tick(clock.now())
+                time.sleep(TICK_S)
+        except Exception as exc:  # a bug in the supervisor itself: stop cleanly, let systemd restart us
+            self.log.error("supervisor_failed", error=repr(exc), traceback=traceback.format_exc(limit=8))
+            self._exit_code = EX_SOFTWARE
+            self.request_stop("supervisor error")
+        finally:
+            self._shutdown()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        return self._exit_code
+
+    # ------------------------------------------------------------------ start
+    def _start(self) -> None:
+        stale = shm.remove_stale()
+        if stale:
+            self.log.warning("removed_stale_shared_memory", segments=stale)
+        doorbells = {name: self._ctx.Semaphore(0) for name in DOORBELLS}
+        self._doorbells = doorbells
+        names = tuple(s.name for s in self.plan)
+        self.control = Control.create(names, doorbells)
+        if any(s.uses_ring for s in self.plan):
+            src = self.config.source
+            capacity = max(self.config.pipeline.frame_max_pixels, src.width * src.height)
+            depth = src.type == "realsense" or src.path.endswith((".bag", ".db3"))
+            self.ring = FrameRing.create(self.config.pipeline.ring_slots, capacity, depth)
+        self.log.info("daemon_start", robot=self.config.robot_id, stages=list(names),
+                      source=self._source_text(), watchdog_s=self.notifier.watchdog_interval_s)
+        now = clock.now()
+        for slot in self._slots.values():
+            self._spawn(slot, now)
+
+    def _source_text(self) -> str:
+        s = self.config.source
+        return {"file": f"file:{s.path}", "v4l2": f"v4l2:{s.device}", "realsense": f"realsense:{s.serial}"}.get(
+            s.type, s.type)
+
+    def _spawn(self, slot: _Slot, now: float) -> None:
+        spec = slot.spec
+        self.control.board.reset(spec.name, now)
+        if self._ready_sent:
+            self.control.board.row(spec.name).set("go", 1.0)
+        args = StageArgs(name=spec.name, entry=spec.entry, config=self.config, control=self.control.spec,
+                         ring=self.ring.spec if (spec.uses_ring and self.ring) else None,
+                         supervisor_pid=os.getpid(), input=spec.input, output=spec.output)
+        proc = self._ctx.Process(target=stage_main, args=(args, self._doorbells), name=f"posed-{spec.name}")
+        proc.start()
+        slot.process = proc
+        slot.restart_at = None
+        self.control.board.row(spec.name).set("pid", proc.pid)
+
+    # ------------------------------------------------------------------ the loop
+    def _tick(self, now: float) -> None:
+        self._read_reports()
+        if self._stop_reason:
+            return
+        self._watch(now)
+        if self._stop_reason:
+            return
+        if not self._ready_sent and self._all_ready():
+            self._ready_sent = True
+            for slot in self._slots.values():
+                self.control.board.row(slot.spec.name).set("go", 1.0)
+            self.notifier.ready(f"running: warm-up took {now - self._t0:.1f} s")
+            self.log.info("daemon_ready", warmup_s=round(now - self._t0, 2))
+        if now >= self._next_status:
+            self._next_status = now + self.config.pipeline.status_period_s
+            self._publish_status(now)
+        self._maybe_ping(now)
+        self._check_end(now)
+
+    def _read_reports(self) -> None:
+        for slot in self._slots.values():
+            info = self.control.mailbox(f"report.{slot.spec.name}").take()
+            if not info:
+                continue
+            if "camera" in info:
+                self._camera_info = dict(info["camera"])
+            if "fatal" in info:
+                self._fatal(slot.spec.name, info["fatal"], info.get("fix", ""))
+
+    def _fatal(self, stage: str, message: str, fix: str) -> None:
+        self.log.error("daemon_fatal", stage=stage, error=message, fix=fix)
+        print(f"posed: {stage}: {message}" + (f"\n  fix: {fix}" if fix else ""), flush=True, file=sys.stderr)
+        self._exit_code = EX_CONFIG
+        self.request_stop(f"fatal problem in {stage}")
+
+    def _watch(self, now: float) -> None:
+        p = self.config.pipeline
+        for slot in self._slots.values():
+            name = slot.spec.name
+            if slot.restart_at is not None:
+                if now >= slot.restart_at:
+                    self._spawn(slot, now)
+                    self.log.info("stage_restarted", stage=name, pid=slot.process.pid, restarts=slot.restarts,
+                                  reason=slot.last_reason)
+                continue
+            proc = slot.process
+            row = self.control.board.row(name)
+            alive = proc.is_alive()
+            if not alive and proc.exitcode == EXIT_FATAL:
+                self._read_reports()
+                if not self._stop_reason:
+                    self._fatal(name, "the stage stopped with a problem restarting cannot fix; see its log",
+                                "")
+                return
+            v = verdict(alive, proc.exitcode, row.state, row.get("beat"), row.get("step_started"),
+                        row.get("started"), now, p.stuck_after_s, p.startup_timeout_s)
+            if v.kind == "ok":
+                continue
+            if alive:
+                _kill(proc)
+            slot.exitcodes.append(proc.exitcode)
+            slot.restarts += 1
+            slot.last_reason = f"{v.kind}: {v.reason}"
+            delay = self.policy.delay(name, now)
+            self.policy.record(name, now)
+            slot.restart_at = now + delay
+            self.log.warning("stage_" + v.kind, stage=name, reason=v.reason, restart_in_s=round(delay, 2),
+                             restarts_in_window=self.policy.recent(now))
+            if self.policy.escalated(now) and not self._escalated:
+                self._escalate(now)
+
+    def _escalate(self, now: float) -> None:
+        self._escalated = True
+        p = self.config.pipeline
+        message = (f"{self.policy.recent(now)} restarts within {p.restart_window_s:g} s "
+                   f"(pipeline.max_restarts = {p.max_restarts})")
+        if self.notifier.watchdog_interval_s is not None:
+            self.log.error("daemon_escalated", reason=message,
+                           action="WATCHDOG=1 stopped: systemd will restart the unit")
+            self.notifier.status(f"escalated: {message}")
+        else:
+            self.log.error("daemon_escalated", reason=message,
+                           action=f"no systemd watchdog: exiting with {EX_SOFTWARE} so the service manager "
+                                  "restarts the daemon")
+            self._exit_code = EX_SOFTWARE
+            self.request_stop("escalated")
+
+    def _all_ready(self) -> bool:
+        for slot in self._slots.values():
+            row = self.control.board.row(slot.spec.name)
+            if slot.restart_at is not None or row.get("ready") < 1 or row.state != "running":
+                return False
+        return True
+
+    def healthy(self) -> bool:
+        """Every stage alive and not stuck, and no escalation: the condition for WATCHDOG=1."""
+        if self._escalated:
+            return False
+        p = self.config.pipeline
+        now = clock.now()
+        for slot in self._slots.values():
+            if slot.restart_at is not None or slot.process is None:
+                return False
+            row = self.control.board.row(slot.spec.name)
+            v = verdict(slot.process.is_alive(), slot.process.exitcode, row.state, row.get("beat"),
+                        row.get("step_started"), row.get("started"), now, p.stuck_after_s, p.startup_timeout_s)
+            if v.kind != "ok":
+                return False
+        return True
+
+    def _maybe_ping(self, now: float) -> None:
+        interval = self.notifier.watchdog_interval_s
+        if interval is None or now < self._next_ping or not self._ready_sent:
+            return                       # systemd arms the watchdog once start-up is complete (READY=1)
+        if self.healthy():
+            self.notifier.watchdog()
+            self._next_ping = now + interval
+
+    def _check_end(self, now: float) -> None:
+        if not self.config.pipeline.stop_at_end:
+            return
+        cap = self.control.board.row("capture")
+        if cap.camera != "ended":
+            self._ended_at = None
+            return
+        if self._ended_at is None:
+            self._ended_at = now
+        busy = any(self.control.mailbox(s.input).pending() for s in self.plan if s.input)
+        if not busy and now - self._ended_at > 1.0:
+            self.request_stop("the recording ended (pipeline.stop_at_end)")
+
+    # ------------------------------------------------------------------ status
+    def _publish_status(self, now: float) -> None:
+        status = self.status(now)
+        self.last_status = status
+        try:
+            self.control.mailbox("status").put(status)
+        except ValueError as exc:
+            self.log.error("status_too_large", error=str(exc))
+        e2e = status["latency_ms"]
+        text = (f"{status['state']}: {status['fps']:.1f} fps, latency p95 "
+                f"{_fmt(e2e['p95'])} ms, drops {status['drops']}, restarts {status['restarts']}, "
+                f"camera {status['camera']['state']}")
+        self.notifier.status(text)
+        if now >= self._next_stats_log:
+            self._next_stats_log = now + self.config.logging.stats_period_s
+            self.log.info("stats", fps=status["fps"], latency_ms=e2e, drops=status["drops"],
+                          restarts=status["restarts"], memory_mb=status["memory_mb"], state=status["state"])
+
+    def status(self, now: float) -> dict:
+        """The status object (posed/ROBOT/status) as the supervisor sees it."""
+        stages = {}
+        total_pss = total_anon = 0.0
+        total_drops = 0
+        own = procstat.sample(os.getpid())
+        if own is not None:
+            total_pss += _pss(own)
+            total_anon += _nz(own.anon_mb)
+        for slot in self._slots.values():
+            name = slot.spec.name
+            r = self.control.board.row(name).snapshot()
+            proc = slot.process
+            alive = proc is not None and proc.is_alive() and slot.restart_at is None
+            entry = {
+                "pid": proc.pid if proc else None, "alive": alive,
+                "state": "restarting" if slot.restart_at is not None else self.control.board.row(name).state,
+                "fps": _round(r["fps"], 2), "frames": int(r["frames"]), "drops": int(r["drops"]),
+                "skipped": int(r["skipped"]), "errors": int(r["errors"]), "restarts": slot.restarts,
+                "step_ms": {"p50": _round(r["step_p50_ms"]), "p95": _round(r["step_p95_ms"]),
+                            "max": _round(r["step_max_ms"])},
+                "latency_ms": {"p50": _round(r["lat_p50_ms"]), "p95": _round(r["lat_p95_ms"]),
+                               "max": _round(r["lat_max_ms"])},
+            }
+            total_drops += int(r["drops"])
+            if alive:
+                s = procstat.sample(proc.pid)
+                if s is not None:
+                    entry.update(cpu_pct=_round(self._cpu.percent(s, now)), rss_mb=round(s.rss_mb, 1),
+                                 pss_mb=_round(s.pss_mb), uss_mb=_round(s.uss_mb), anon_mb=_round(s.anon_mb))
+                    total_pss += _pss(s)
+                    total_anon += _nz(s.anon_mb)
+            stages[name] = entry
+        sup = {"pid": os.getpid()}
+        if own is not None:
+            sup.update(cpu_pct=_round(self._cpu.percent(own, now)), rss_mb=round(own.rss_mb, 1),
+                       pss_mb=_round(own.pss_mb), uss_mb=_round(own.uss_mb), anon_mb=_round(own.anon_mb))
+        pub = stages.get("publisher", {})
+        cap_row = self.control.board.row("capture") if "capture" in self._slots else None
+        if self._stop_reason:
+            state = "stopping"
+        elif self._escalated:
+            state = "escalated"
+        elif not self._ready_sent:
+            state = "starting"
+        else:
+            state = "running" if self.healthy() else "degraded"
+        return {
+            "robot": self.config.robot_id,
+            "time": clock.iso(time.time()),
+            "uptime_s": round(now - self._t0, 1),
+            "state": state,
+            "ready": self._ready_sent,
+            "fps": pub.get("fps") or 0.0,
+            "latency_ms": pub.get("latency_ms", {"p50": None, "p95": None, "max": None}),
+            "drops": total_drops,
+            "restarts": self.policy.total,
+            "camera": {**self._camera_info, "state": cap_row.camera if cap_row else CAMERA_STATES[0],
+                       "source": self._source_text()},
+            "stages": stages,
+            "supervisor": sup,
+            "memory_mb": round(total_pss, 1),
+            "anon_mb": round(total_anon, 1),
+            "processes": 1 + sum(1 for s in stages.values() if s["alive"]),
+        }
+
+    # ------------------------------------------------------------------ stop
+    def _on_signal(self, signum, frame) -> None:
+        self.request_stop(signal.Signals(signum).name)
+
+    def _shutdown(self) -> None:
+        t_start = clock.now()
+        deadline = t_start + self.config.pipeline.shutdown_timeout_s
+        self.notifier.stopping(f"stopping: {self._stop_reason or 'error'}")
+        self.log.info("daemon_stopping", reason=self._stop_reason or "error")
+        if self.control is not None:
+            for slot in self._slots.values():          # pipeline order: capture first (closes the camera)
+                proc = slot.process
+                if proc is None or not proc.is_alive():
+                    continue
+                self.control.board.row(slot.spec.name).set("stop", 1.0)
+                share = max(0.2, (deadline - clock.now()) / 2)
+                proc.join(min(share, max(0.0, deadline - clock.now())))
+            for slot in self._slots.values():
+                proc = slot.process
+                if proc is not None and proc.is_alive():
+                    proc.join(max(0.0, deadline - clock.now()))
+                if proc is not None and proc.is_alive():
+                    self.log.warning("stage_killed_at_shutdown", stage=slot.spec.name, pid=proc.pid)
+                    _kill(proc)
+        if self.ring is not None:
+            self.ring.close()
+            self.ring = None
+        if self.control is not None:
+            self.control.close()
+            self.control = None
+        self.log.info("daemon_stopped", seconds=round(clock.now() - t_start, 2), exit_code=self._exit_code)
+
+
+def _kill(proc: multiprocessing.Process) -> None:
+    try:
+        os.kill(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.join(2.0)
+
+
+def _round(v, nd: int = 1):
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return None
+    return round(float(v), nd)
+
+
+def _fmt(v) -> str:
+    return "-" if v is None else f"{v:.0f}"
+
+
+def _nz(v: float) -> float:
+    return 0.0 if math.isnan(v) else v
+
+
+def _pss(s: procstat.ProcSample) -> float:
+    return s.rss_mb if math.isnan(s.pss_mb) else s.pss_mb
+
+
+def state_dir(config: Config) -> Path:
+    """Where events and history live: pipeline.state_dir, else $STATE_DIRECTORY (systemd), else
+    $XDG_STATE_HOME/posed (default ~/.local/state/posed)."""
+    if config.pipeline.state_dir:
+        return Path(config.pipeline.state_dir)
+    if os.environ.get("STATE_DIRECTORY"):
+        return Path(os.environ["STATE_DIRECTORY"].split(":")[0])
+    base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
+    return Path(base) / "posed"

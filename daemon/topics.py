@@ -1,0 +1,47 @@
+"""The Zenoh key expressions (interfaces.md section 4); ROBOT is ``Config.robot_id``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Topics:
+    robot: str
+
+    @property
+    def root(self) -> str:
+        return f"posed/{self.robot}"
+
+    @property
+    def pose(self) -> str:
+        return f"{self.root}/pose"
+
+    @property
+    def landmarks(self) -> str:
+        return f"{self.root}/landmarks"
+
+    @property
+    def status(self) -> str:
+        return f"{self.root}/status"
+
+    @property
+    def events_fall(self) -> str:
+        return f"{self.root}/events/fall"
+
+    @property
+    def events_ack(self) -> str:
+        """Receivers put an event id here to acknowledge it (payload: the id, or JSON {"id": ...})."""
+        return f"{self.root}/events/ack"
+
+    @property
+    def alive(self) -> str:
+        return f"{self.root}/alive"
+
+    @property
+    def state(self) -> str:
+        return f"{self.root}/state"
+
+    @property
+    def history(self) -> str:
+        return f"{self.root}/events/history"

@@ -1,0 +1,396 @@
+"""The fit of one person per frame: 2D landmarks (33 x 5) -> the humanoid's 19 variables, 23 joint angles and
+12 joints in 3D (interfaces.md section 2).
+
+Image mode (every frame on its own, and the first frame of a video): uDEAS over the search box (paper
+Table 1, or the wide box that also holds lying and fallen people) with restarts, the first ones searching
+around the body orientations computed from the hips and shoulders (both depth mirrors); Levenberg-Marquardt
+refines analytic starts (limbs solved from their 2D landmarks) and the best distinct restart results, then
+each limb's depth mirror in turn; the unobservable pelvis tilt is set by its prior; with noisy landmarks
+the best candidates are refined again under a noise-weighted pose prior; the smallest loss wins.
+
+Video mode (paper section 4): refinement from the previous frame's solution, and when that does not fit
+exactly, uDEAS within +-10 degrees of it (knees and elbows never below 0) and refinement from there, with the
+previous frame as a noise-weighted prior. A frame whose 2D error jumps (fast motion, a lost track) is fitted
+again in image mode and the better result kept. docs/body-model.md describes every step.
+
+``Fitter.fit`` never raises on bad landmarks: it returns ``ok: false`` with a reason.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from fitting import kernels as K
+from fitting import problem as P
+from fitting import refine, udeas
+from fitting.body import BodyDimensions, dimensions_for
+from fitting.config import FitConfig
+from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
+from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+
+MODES = ("video", "image")
+FIXED_NAMES = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
+_TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
+EXACT_MSE = 1e-14          # mean squared 2D error (body heights^2) of an exact fit (1e-7 H rms)
+STRAIGHT_RAD = math.radians(5.0)  # a limb bent less than this has an exact depth mirror
+_LIMB_JOINT = (K.X_TEL_L, K.X_TEL_R, K.X_TKN_L, K.X_TKN_R)  # refine.LIMB_* order
+PRIOR_MIN_NOISE = 0.001  # below this estimated landmark noise (fraction of body height) no prior is used
+MIRROR_PASSES = 2  # image mode: passes over the four limb mirrors (a second one only after an improvement)
+PRIOR_CANDIDATES = 4  # noisy landmarks: refine this many of the best candidates again with the prior
+RECOVER_FACTOR, RECOVER_FLOOR, ERR_REF_RATE = 2.0, 0.002, 0.1  # video mode: when to look again in image mode
+
+
+class Fitter:
+    """Fits frames of one person; keeps the previous frame's solution for video mode."""
+
+    def __init__(self, config: FitConfig | None = None) -> None:
+        self.config = config or FitConfig()
+        # a bad calibration file raises CalibrationError here (a configuration error, not a frame error)
+        self.dims: BodyDimensions = dimensions_for(self.config.body_height_m, self.config.calibration)
+        self._work = K.empty_work()
+        self._lim_lo = P.to_radians(P.LIMIT_LO)
+        self._lim_hi = P.to_radians(P.LIMIT_HI)
+        self._fixed_deg = np.zeros(K.N_FIXED)  # the joint angles that are not estimated (FIXED_NAMES), degrees
+        self.reset()
+
+    # --- state ---
+
+    def reset(self) -> None:
+        """Forget the previous frame (the next fit runs in image mode)."""
+        self._prev_x: np.ndarray | None = None
+        self._prev_ppm: float = 0.0
+        self._prev_t: float | None = None
+        self._err_ref: float = 0.0  # recent 2D error level in video mode (body heights)
+        self._udeas_s: float = 0.0  # CPU time of the uDEAS kernel in the current fit
+
+    def warmup(self) -> None:
+        """Compile (or load from the numba cache) every kernel by fitting a simulated frame in both modes."""
+        from fitting import simulate
+
+        pose = simulate.pose("stand_arms_front", 30.0)
+        lm = simulate.render(pose, dims=self.dims)
+        noisy = simulate.render(pose, dims=self.dims, noise_px=3.0, seed=1)
+        saved = (self._prev_x, self._prev_ppm, self._prev_t, self._err_ref)
+        self.reset()
+        self.fit(lm, 0, 0.0, (640, 480), mode="image")
+        self.fit(lm, 1, 1 / 30, (640, 480), mode="video")
+        self.fit(noisy, 2, 2 / 30, (640, 480), mode="video")      # the prior paths (noise > 0)
+        self.fit(noisy, 3, 3 / 30, (640, 480), mode="image", intrinsics=(600.0, 600.0, 320.0, 240.0))
+        self._prev_x, self._prev_ppm, self._prev_t, self._err_ref = saved
+
+    # --- the fit ---
+
+    def fit(self, landmarks: np.ndarray | None, seq: int, t: float, image_size: tuple[int, int],
+            mode: str = "video", intrinsics=None) -> FitResult:
+        """Fit one frame. ``landmarks``: (33, 5) ``[x_px, y_px, z, visibility, presence]`` or None (no person).
+
+        ``intrinsics``: (fx, fy, cx, cy) pixels, or an object with those attributes, or None.
+        """
+        t0 = time.perf_counter()
+        try:
+            return self._fit(landmarks, seq, t, image_size, mode, intrinsics, t0)
+        except Exception as exc:  # never raise on bad input: report it
+            self.reset()
+            return FitResult.failure(seq, float(t) if _finite(t) else 0.0,
+                                     f"fit failed: {type(exc).__name__}: {exc}")
+
+    def _fit(self, landmarks, seq, t, image_size, mode, intrinsics, t0) -> FitResult:
+        cfg = self.config
+        t = float(t) if _finite(t) else 0.0
+        if mode not in MODES:
+            return FitResult.failure(seq, t, f"mode {mode!r} is not one of: video, image")
+        if landmarks is None:
+            self.reset()
+            return FitResult.failure(seq, t, "no person")
+        lm = np.asarray(landmarks, dtype=np.float64)
+        if lm.shape != (33, 5):
+            self.reset()
+            return FitResult.failure(seq, t, f"landmarks must be a (33, 5) array, got shape {lm.shape}")
+        try:
+            width, height = (int(v) for v in image_size)
+        except (TypeError, ValueError):
+            return FitResult.failure(seq, t, f"image_size must be (width, height), got {image_size!r}")
+        if width <= 0 or height <= 0:
+            return FitResult.failure(seq, t, f"image_size must be positive, got {image_size!r}")
+        xy, w, missing = P.landmark_weights(lm, cfg)
+        usable = 12 - len(missing)
+        torso_missing = [n for n in _TORSO if n in missing]
+        if usable < cfg.min_landmarks or len(torso_missing) > 1:
+            self.reset()
+            return FitResult.failure(
+                seq, t, f"too few usable body landmarks ({usable} of 12, need {cfg.min_landmarks} with at least "
+                        f"3 of the shoulders and hips); missing or visibility < {cfg.visibility_drop}: "
+                        + ", ".join(missing), missing=missing)
+        ppm0 = P.reference_scale(xy, w, self.dims)
+        if not ppm0 > 0:
+            self.reset()
+            return FitResult.failure(seq, t, "the body landmarks collapse to a point; no scale can be measured",
+                                     missing=missing)
+        intr = _intrinsics(intrinsics)
+        use_persp = cfg.projection == "perspective" or (cfg.projection == "auto" and intr is not None)
+        if use_persp and intr is None:
+            return FitResult.failure(seq, t, "projection is 'perspective' but no camera intrinsics were given "
+                                             "(add \"camera\" to the recording header or use projection: auto)")
+        frame = P.pack(xy, w, self.dims, cfg, ppm0, intr if use_persp else None, self._fixed_deg)
+
+        used_mode = "image"
+        evals = 0
+        self._udeas_s = 0.0
+        x = None
+        if mode == "video" and self._prev_x is not None and self._prev_t is not None \
+                and 0.0 <= t - self._prev_t <= cfg.video_max_gap_s:
+            prev = self._prev_x.copy()
+            prev[0] *= self._prev_ppm / ppm0  # same pixel scale under the new reference
+            x, loss, mp, evals = self._video(frame, prev)
+            used_mode = "video"
+            # lost track (fast motion, a wrong branch after an ambiguity): the 2D error jumps above its
+            # recent level -> fit this frame in image mode too and keep the better of the two
+            if mp > min(cfg.video_recover_error, RECOVER_FACTOR * self._err_ref + RECOVER_FLOOR):
+                xi, li, mi, ei = self._image(frame)
+                evals += ei
+                if li < loss:
+                    x, loss, mp, used_mode = xi, li, mi, "video+image"
+        if x is None:
+            x, loss, mp, evals = self._image(frame)
+            self._err_ref = mp
+        else:
+            self._err_ref += ERR_REF_RATE * (mp - self._err_ref)
+        fit_ms = (time.perf_counter() - t0) * 1000.0
+        gamma = float(x[0] * ppm0 * self.dims.body_height_m / height)
+        if not mp <= cfg.max_error or not gamma <= cfg.max_gamma:
+            self.reset()
+            what = (f"mean 2D error {mp:.3f} of body height exceeds max_error {cfg.max_error}"
+                    if not mp <= cfg.max_error else
+                    f"the body would be {gamma:.1f} image heights tall (max_gamma {cfg.max_gamma})")
+            return FitResult.failure(seq, t, f"fit rejected: {what}; the landmarks do not fit a person",
+                                     loss=float(loss), fit_ms=fit_ms)
+        self._prev_x, self._prev_ppm, self._prev_t = x.copy(), ppm0, t
+        return self._result(seq, t, x, frame, loss, mp, fit_ms, used_mode, evals, missing, height)
+
+    def _lm(self, data: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, float]:
+        out = np.empty(K.N_VAR)
+        cost = refine.levenberg_marquardt(x, self._lim_lo, self._lim_hi, data, self.config.refine_iterations, out)[0]
+        return out, float(cost)
+
+    def _score(self, frame: P.Frame, x: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """Set the pelvis tilt by its prior and evaluate the loss: (x, loss, mpjpe)."""
+        out = x.copy()
+        refine.pelvis_projection(out, frame.data, self._lim_lo, self._lim_hi)
+        loss, mp = K.pose_loss_terms(out, frame.data, self._work)[:2]
+        return out, float(loss), float(mp)
+
+    def _select(self, frame: P.Frame, pool: list[np.ndarray], prev: np.ndarray | None = None
+                ) -> tuple[np.ndarray, float, float]:
+        """The best of refined candidates.
+
+        Noise-free (an exact fit): the smallest loss. With landmark noise the depth of limbs near the image
+        plane is weakly determined, so the best candidates are refined again with a prior weighted by the
+        noise estimated from the best residual (MAP; zero for an exact fit): in video mode the previous
+        frame's solution (``video_smoothing``), in image mode left/right symmetry (``pose_prior``). The
+        smallest prior-weighted cost wins.
+        """
+        cfg = self.config
+        scored = [self._score(frame, x) for x in pool]
+        best = min(scored, key=lambda s: s[1])
+        weight = cfg.video_smoothing if prev is not None else cfg.pose_prior
+        if not (cfg.refine and weight > 0):
+            return best
+        f_min = min(refine.data_mse(x, frame.data) for x in pool)
+        # landmark noise variance per coordinate from the residual (3 degrees of freedom: 24 coordinates,
+        # 19 variables, 2 translations), capped: a poor fit is a model mismatch rather than noise
+        sigma2 = min(4.0 * f_min, cfg.pose_prior_max_noise ** 2)
+        if sigma2 < PRIOR_MIN_NOISE ** 2:
+            return best  # (nearly) exact: no noise to regularize
+        lam = weight * sigma2 / 12.0
+        data = frame.data.copy()
+        data[K.D_PRIOR] = lam
+        if prev is not None:
+            sig = np.full(K.N_VAR, math.radians(cfg.video_smoothing_deg))
+            sig[0] = 0.0
+            data[K.D_PRIOR_MU:K.D_PRIOR_MU + K.N_VAR] = prev
+            data[K.D_PRIOR_SIG:K.D_PRIOR_SIG + K.N_VAR] = sig
+            data[K.D_PRIOR_PARTNER:K.D_PRIOR_PARTNER + K.N_VAR] = -1.0
+        else:
+            data[K.D_PRIOR_MU:K.D_PRIOR_MU + K.N_VAR] = P.PRIOR_MU_RAD
+            data[K.D_PRIOR_SIG:K.D_PRIOR_SIG + K.N_VAR] = P.PRIOR_SIG_RAD
+            data[K.D_PRIOR_PARTNER:K.D_PRIOR_PARTNER + K.N_VAR] = P.PRIOR_PARTNER
+        best_cost = math.inf
+        order = np.argsort([sc[1] for sc in scored])
+        for i in order[:PRIOR_CANDIDATES]:
+            out, cost = self._lm(data, pool[i])
+            if cost < best_cost:
+                best_cost, best_x = cost, out
+        return self._score(frame, best_x)
+
+    def _analytic(self, frame: P.Frame, seeds: np.ndarray) -> list[np.ndarray]:
+        """Starting points from the orientation seeds with every limb solved from its 2D landmarks (each
+        limb's depth sign chosen by the loss), for the refinement."""
+        out = []
+        trial = np.empty(K.N_VAR)
+        for seed in seeds:
+            x = seed.copy()
+            for limb in range(4):
+                best = (K.pose_loss(x, frame.data, self._work), x)
+                for sign in (1.0, -1.0):
+                    refine.limb_from_observation(x, frame.data, limb, sign, trial)
+                    c = K.pose_loss(trial, frame.data, self._work)
+                    if c < best[0]:
+                        best = (c, trial.copy())
+                x = best[1]
+            out.append(x)
+        return out
+
+    def _image(self, frame: P.Frame) -> tuple[np.ndarray, float, float, int]:
+        cfg = self.config
+        lo, hi = P.image_box(cfg)
+        seeds = P.orientation_seeds(frame, self.dims, lo, hi) if cfg.seed_orientation else np.zeros((0, K.N_VAR))
+        seeds = seeds[: cfg.restarts]
+        los, his = P.restart_boxes(lo, hi, seeds, cfg.restarts)
+        inits = np.ascontiguousarray(seeds) if len(seeds) else np.zeros((1, K.N_VAR))
+        n = K.N_VAR
+        best_x = np.empty(n)
+        rx = np.empty((cfg.restarts, n))
+        rc = np.empty(cfg.restarts)
+        c0 = time.thread_time()
+        _, evals = udeas.udeas(udeas.PROBLEM_POSE, los, his, cfg.restarts, cfg.row_init, cfg.row_max, cfg.seed,
+                               frame.data, self._work, inits, len(seeds), best_x, rx, rc)
+        self._udeas_s += time.thread_time() - c0
+        if not cfg.refine:
+            return (*self._score(frame, best_x), int(evals))
+        order = np.argsort(rc)
+        picked: list[np.ndarray] = []
+        for i in order:
+            if len(picked) >= cfg.refine_candidates:
+                break
+            if all(np.max(np.abs(rx[i, 1:] - p[1:])) > 0.05 for p in picked):
+                picked.append(rx[i].copy())
+        if cfg.analytic_seeds:
+            picked = self._analytic(frame, seeds) + picked
+        pool = []
+        exact = False
+        for cand in picked:
+            x = self._lm(frame.data, cand)[0]
+            pool.append(x)
+            if refine.data_mse(x, frame.data) < EXACT_MSE:
+                exact = True  # an exact fit: the other candidates cannot fit better
+                break
+        if cfg.limb_mirrors:
+            # each limb's depth mirror in turn, from the best so far (two wrong limbs get fixed one by one)
+            lead, lead_loss = min((self._score(frame, x) for x in pool), key=lambda s: s[1])[:2]
+            trial = np.empty(K.N_VAR)
+            tried = set()
+            for _ in range(MIRROR_PASSES):
+                improved = False
+                for limb in range(4):
+                    if exact and abs(lead[_LIMB_JOINT[limb]]) > STRAIGHT_RAD:
+                        continue  # the mirror of a bent limb cannot fit exactly: it cannot tie with an exact fit
+                    refine.limb_flip(lead, frame.data, limb, trial)
+                    key = tuple(np.round(trial, 3))
+                    if key in tried:
+                        continue
+                    tried.add(key)
+                    x = self._lm(frame.data, trial)[0]
+                    pool.append(x)
+                    scored = self._score(frame, x)
+                    if scored[1] < lead_loss:
+                        lead, lead_loss = scored[:2]
+                        improved = True
+                if not improved:
+                    break
+        return (*self._select(frame, pool), int(evals))
+
+    def _video(self, frame: P.Frame, prev: np.ndarray) -> tuple[np.ndarray, float, float, int]:
+        """Paper section 4: uDEAS within +-video_window_deg of the previous solution. The refinement from
+        the previous solution goes first; when it already fits exactly, the window search is skipped."""
+        cfg = self.config
+        pool = []
+        if cfg.refine:
+            start = self._lm(frame.data, prev)[0]
+            if refine.data_mse(start, frame.data) < EXACT_MSE:
+                return (*self._score(frame, start), 0)
+            pool.append(start)
+        else:
+            pool.append(prev)
+        evals = 0
+        if cfg.video_restarts > 0:
+            lo, hi = P.video_box(prev, cfg)
+            n = K.N_VAR
+            best_x = np.empty(n)
+            rx = np.empty((cfg.video_restarts, n))
+            rc = np.empty(cfg.video_restarts)
+            lo = np.ascontiguousarray(np.broadcast_to(lo, (cfg.video_restarts, n)))
+            hi = np.ascontiguousarray(np.broadcast_to(hi, (cfg.video_restarts, n)))
+            c0 = time.thread_time()
+            _, evals = udeas.udeas(udeas.PROBLEM_POSE, lo, hi, cfg.video_restarts, cfg.video_row_init,
+                                   cfg.video_row_max, cfg.seed, frame.data, self._work,
+                                   np.ascontiguousarray(prev[None, :]), 1, best_x, rx, rc)
+            self._udeas_s += time.thread_time() - c0
+            pool.append(self._lm(frame.data, best_x)[0] if cfg.refine else best_x)
+        return (*self._select(frame, pool, prev), int(evals))
+
+    # --- output ---
+
+    def _result(self, seq, t, x, frame: P.Frame, loss, mp, fit_ms, used_mode, evals, missing, image_h) -> FitResult:
+        deg = np.round(P.to_degrees(x), 4).tolist()
+        variables = dict(zip(VARIABLE_NAMES, deg, strict=True))
+        variables["gamma"] = round(float(x[0] * frame.ppm0 * self.dims.body_height_m / image_h), 5)
+        angles = dict.fromkeys(JOINT_ANGLE_NAMES, 0.0)
+        for name, v in zip(FIXED_NAMES, np.round(self._fixed_deg, 4).tolist(), strict=True):
+            angles[name] = v
+        for name in VARIABLE_NAMES[4:]:
+            angles[name] = variables[name]
+        pts_b = np.empty((K.N_POINTS, 3))
+        pts_c = np.empty((K.N_POINTS, 3))
+        K.model_points(x, frame.data, pts_b, pts_c)
+        cam = np.round(pts_c[:12], 5).tolist()
+        j3 = {"mid_hip": (0.0, 0.0, 0.0)}
+        for name, row in zip(BODY_LANDMARK_NAMES, cam, strict=True):
+            j3[name] = tuple(row)
+        extra = {"mode": used_mode, "projection": "perspective" if frame.perspective else "orthographic",
+                 "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
+                 "udeas_ms": float(f"{self._udeas_s * 1e3:.4g}")}
+        if missing:
+            extra["missing"] = missing
+            extra["unobserved"] = _unobserved(missing)
+        return FitResult(seq=seq, t=t, ok=True, loss=float(f"{loss:.6g}"), fit_ms=float(f"{fit_ms:.4g}"),
+                         variables=variables, joint_angles_deg=angles, joints_3d=j3, extra=extra)
+
+
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except (TypeError, ValueError):
+        return False
+
+
+def _intrinsics(intr) -> tuple[float, float, float, float] | None:
+    if intr is None:
+        return None
+    if all(hasattr(intr, k) for k in ("fx", "fy", "cx", "cy")):
+        vals = (intr.fx, intr.fy, intr.cx, intr.cy)
+    else:
+        vals = tuple(intr)
+    if len(vals) != 4 or not all(_finite(v) for v in vals) or vals[0] <= 0 or vals[1] <= 0:
+        raise ValueError(f"intrinsics must be (fx, fy, cx, cy) with fx, fy > 0, got {intr!r}")
+    return tuple(float(v) for v in vals)
+
+
+_DEPENDS = {  # variables that only these landmarks observe
+    "left_elbow": ("theta_sh_l", "phi_sh_l"), "right_elbow": ("theta_sh_r", "phi_sh_r"),
+    "left_wrist": ("theta_el_l",), "right_wrist": ("theta_el_r",),
+    "left_knee": ("theta_hp_l", "phi_hp_l"), "right_knee": ("theta_hp_r", "phi_hp_r"),
+    "left_ankle": ("theta_kn_l",), "right_ankle": ("theta_kn_r",),
+}
+
+
+def _unobserved(missing: list[str]) -> list[str]:
+    out: list[str] = []
+    for name in missing:
+        out.extend(_DEPENDS.get(name, ()))
+    return out
+
+
+__all__ = ["BODY_LANDMARKS", "Fitter"]

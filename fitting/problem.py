@@ -1,0 +1,254 @@
+"""One frame's fitting problem: landmark weights, the reference scale, the packed ``data`` array of the
+kernels, the uDEAS search boxes and the orientation seeds.
+
+Normalized image units: pixels relative to the weighted landmark centroid, divided by
+``scale_px = ppm0 * H`` (the reference scale in pixels per metre times the body height), so a 2D error of
+0.01 is 1 % of the apparent body height. The variable ``x[0]`` is the size factor relative to ppm0;
+the reported gamma is the apparent standing-body height over the image height,
+``x[0] * ppm0 * H / image_height``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fitting import kernels as K
+from fitting.body import BodyDimensions
+from fitting.config import FitConfig
+from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS, body_angles_from_rotation
+
+DEG = math.pi / 180.0
+
+# Search boxes in degrees (gamma relative to the reference scale), eq. (6) order.
+#                 gamma  tbd   pbd   sbd   ttr  ptr  str  thl  tkl  thr  tkr   tsl  tel   tsr  ter  phl  phr  psl  psr
+PAPER_LO = np.array([0.7, -10, -10, -90, -20, -40, -30, -20, 0, -20, 0, -180, 0, -180, 0, -40, -40, -40, -40.0])
+PAPER_HI = np.array([1.6, 10, 10, 90, 90, 40, 30, 90, 90, 90, 90, 180, 90, 180, 90, 40, 40, 40, 40.0])
+WIDE_LO = np.array([0.7, -100, -90, -180, -30, -40, -40, -30, 0, -30, 0, -180, 0, -180, 0, -50, -50, -90, -90.0])
+WIDE_HI = np.array([1.6, 100, 90, 180, 90, 40, 40, 130, 160, 130, 160, 180, 160, 180, 160, 40, 40, 40, 40.0])
+# Joint limits of the refinement (hard clamps) and of video-mode windows.
+LIMIT_LO = np.array([0.5, -180, -90, -360, -40, -50, -50, -40, 0, -40, 0, -200, 0, -200, 0, -60, -60, -100, -100.0])
+LIMIT_HI = np.array([2.5, 180, 90, 360, 100, 50, 50, 140, 165, 140, 165, 200, 165, 200, 165, 50, 50, 50, 50.0])
+
+# Pose prior of the refinement with noisy landmarks (fitting.fitter._select, docs/body-model.md): rows of
+# (x_k - x_partner - mu_k) / sigma_k, degrees; sigma 0 = no row. Left/right symmetry of the limbs and a
+# straight spine: it breaks the depth ambiguity of noisy limbs without pulling a pose toward a fixed one.
+#                    gamma tbd pbd sbd ttr ptr str thl tkl thr tkr tsl tel tsr ter phl phr psl psr
+PRIOR_MU = np.array([0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0.0])
+PRIOR_SIG = np.array([0, 0, 0, 0, 0, 15, 15, 20, 20, 0, 0, 30, 30, 0, 0, 15, 0, 20, 0.0])
+PRIOR_PARTNER = np.array([-1, -1, -1, -1, -1, -1, -1, 9, 10, -1, -1, 13, 14, -1, -1, 16, -1, 18, -1.0])
+
+# Segments for the reference scale: pairs of BODY_LANDMARKS rows and their length field.
+_SCALE_SEGMENTS = (
+    ((0, 1), "shoulder"), ((6, 7), "hip"), ((0, 2), "upper_arm_m"), ((1, 3), "upper_arm_m"),
+    ((6, 8), "thigh_m"), ((7, 9), "thigh_m"), ((8, 10), "shank_m"), ((9, 11), "shank_m"),
+)
+
+
+def to_radians(x_deg: np.ndarray) -> np.ndarray:
+    """eq. (6) vector in degrees (gamma unitless) -> kernel units (radians)."""
+    x = np.asarray(x_deg, dtype=np.float64) * DEG
+    x[..., 0] = np.asarray(x_deg)[..., 0]
+    return x
+
+
+PRIOR_MU_RAD = None  # set below (needs to_radians)
+PRIOR_SIG_RAD = None
+
+
+def to_degrees(x_rad: np.ndarray) -> np.ndarray:
+    x = np.asarray(x_rad, dtype=np.float64) / DEG
+    x[..., 0] = np.asarray(x_rad)[..., 0]
+    return x
+
+
+def landmark_weights(landmarks: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """(12 x 2 pixel positions, 12 weights, names of the unusable landmarks) of the body landmarks.
+
+    A landmark is unusable when x, y or visibility is not finite or visibility < visibility_drop; weights
+    rise linearly from 0.05 at visibility_drop to 1 at visibility_full.
+    """
+    rows = landmarks[_BODY_IDX]
+    xy = rows[:, :2].copy()
+    vis = rows[:, 3]
+    bad = ~(np.isfinite(xy).all(axis=1) & np.isfinite(vis))
+    vis = np.where(bad, -1.0, vis)
+    bad |= vis < cfg.visibility_drop
+    span = max(cfg.visibility_full - cfg.visibility_drop, 1e-6)
+    w = np.clip((vis - cfg.visibility_drop) / span, 0.05, 1.0)
+    w[bad] = 0.0
+    xy[bad] = 0.0
+    missing = [BODY_LANDMARK_NAMES[i] for i in np.flatnonzero(bad)]
+    return xy, w, missing
+
+
+_BODY_IDX = np.array(BODY_LANDMARKS)
+
+
+def reference_scale(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions) -> float:
+    """Pixels per metre: the largest ratio of a projected segment to its length (projection only shortens).
+
+    Returns 0 when no segment is usable.
+    """
+    lengths = {"shoulder": 2 * dims.shoulder_half_m, "hip": 2 * dims.hip_half_m, "upper_arm_m": dims.upper_arm_m,
+               "thigh_m": dims.thigh_m, "shank_m": dims.shank_m}
+    best = 0.0
+    for (a, b), key in _SCALE_SEGMENTS:
+        if w[a] > 0 and w[b] > 0:
+            best = max(best, float(np.hypot(*(xy[a] - xy[b]))) / lengths[key])
+    # the trunk: mid-hip to mid-shoulder
+    if w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0:
+        d = 0.5 * (xy[0] + xy[1]) - 0.5 * (xy[6] + xy[7])
+        best = max(best, float(np.hypot(*d)) / dims.trunk_m)
+    return best
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A packed frame: ``data`` for the kernels and what is needed to map results back to pixels."""
+
+    data: np.ndarray
+    ppm0: float            # reference pixels per metre
+    scale_px: float        # ppm0 * body height: pixels per normalized unit
+    centroid_px: np.ndarray
+    weights: np.ndarray
+    perspective: bool
+
+
+def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, ppm0: float,
+         intrinsics: tuple[float, float, float, float] | None = None,
+         fixed_deg: np.ndarray | None = None) -> Frame:
+    """Build the kernels' data array of one frame (see fitting.kernels D_* layout)."""
+    data = np.zeros(K.D_SIZE)
+    h = dims.body_height_m
+    scale_px = ppm0 * h
+    sw = w.sum()
+    centroid = (w[:, None] * xy).sum(axis=0) / sw
+    data[K.D_OBS:K.D_OBS + 24] = ((xy - centroid) / scale_px).ravel()
+    data[K.D_W:K.D_W + 12] = w
+    data[K.D_DIMS:K.D_DIMS + K.N_DIMS] = dims.as_array()
+    if fixed_deg is not None:
+        data[K.D_FIXED:K.D_FIXED + K.N_FIXED] = np.asarray(fixed_deg) * DEG
+    perspective = intrinsics is not None
+    if perspective:
+        fx, fy, cx, cy = intrinsics
+        # camera-centred normalized coordinates = data obs + offset
+        data[K.D_PROJ:K.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (centroid[0] - cx) / scale_px,
+                                       (centroid[1] - cy) / scale_px)
+    lw = K.D_LW
+    data[lw + K.LW_COM] = cfg.w_com
+    data[lw + K.LW_SYM] = cfg.w_sym
+    data[lw + K.LW_SAG_TR] = cfg.w_sag_tr
+    data[lw + K.LW_COR_TR] = cfg.w_cor_tr
+    data[lw + K.LW_TRAN_TR] = cfg.w_tran_tr
+    data[lw + K.LW_SAG_SH] = cfg.w_sag_sh
+    data[lw + K.LW_COR_SH] = cfg.w_cor_sh
+    data[lw + K.LW_NULL] = cfg.w_null
+    data[lw + K.LW_PRIOR_TR] = cfg.prior_lumbar
+    data[lw + K.LW_PRIOR_HP] = cfg.prior_hip
+    data[lw + K.LW_PRIOR_UP] = cfg.prior_pelvis_upright
+    data[lw + K.LW_COM_MODE] = K.COM_FEET if cfg.com_mode == "feet" else K.COM_SUPPORT
+    data[lw + K.LW_CONTACT] = cfg.com_contact
+    data[lw + K.LW_MARGIN] = cfg.com_margin
+    data[lw + K.LW_SEAT] = 1.0 if cfg.com_mode == "support" else 0.0
+    data[lw + K.LW_LIMIT] = cfg.w_limit
+    data[lw + K.LW_COR_HP] = cfg.w_cor_hp
+    data[K.D_TH:K.D_TH + K.N_TH] = np.array([cfg.tr_flexion_min_deg, cfg.tr_lateral_deg, cfg.tr_twist_deg,
+                                             cfg.sh_flexion_min_deg, cfg.sh_adduction_max_deg,
+                                             cfg.hp_adduction_max_deg]) * DEG
+    data[K.D_LIM_LO:K.D_LIM_LO + K.N_VAR] = to_radians(LIMIT_LO)
+    data[K.D_LIM_HI:K.D_LIM_HI + K.N_VAR] = to_radians(LIMIT_HI)
+    return Frame(data, ppm0, scale_px, centroid, w, perspective)
+
+
+def image_box(cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]:
+    """uDEAS search box of image mode (kernel units)."""
+    lo, hi = (PAPER_LO, PAPER_HI) if cfg.bounds == "paper" else (WIDE_LO, WIDE_HI)
+    return to_radians(lo), to_radians(hi)
+
+
+def video_box(prev: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]:
+    """+- the window around the previous solution (kernel units), knees and elbows never below 0."""
+    win = cfg.video_window_deg * DEG
+    lo = prev - win
+    hi = prev + win
+    lo[0] = prev[0] * (1 - cfg.video_window_gamma)
+    hi[0] = prev[0] * (1 + cfg.video_window_gamma)
+    lim_lo, lim_hi = to_radians(LIMIT_LO), to_radians(LIMIT_HI)
+    lo = np.maximum(lo, lim_lo)
+    hi = np.minimum(hi, lim_hi)
+    return lo, hi
+
+
+def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Starting vectors (kernel units) from the hips and shoulders, assuming a straight lumbar spine.
+
+    The hip line gives the pelvis's left axis and mid-hip -> mid-shoulder the torso's up axis up to the sign
+    of their depth (orthographic mirror): two seeds, limbs straight down, gamma 1.
+    """
+    d = frame.data
+    w = frame.weights
+    if not (w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0):
+        return np.zeros((0, K.N_VAR))
+    obs = d[K.D_OBS:K.D_OBS + 24].reshape(12, 2)
+    h = dims.body_height_m
+    a = (obs[6] - obs[7]) * h / (2 * dims.hip_half_m)      # left axis, projected (unit length if parallel)
+    a2 = (obs[0] - obs[1]) * h / (2 * dims.shoulder_half_m)
+    a = 0.5 * (a + a2)
+    b = (0.5 * (obs[0] + obs[1]) - 0.5 * (obs[6] + obs[7])) * h / dims.trunk_m
+    na, nb = np.hypot(*a), np.hypot(*b)
+    ya_mag = math.sqrt(max(0.0, 1.0 - min(na, 1.0) ** 2))
+    zb_mag = math.sqrt(max(0.0, 1.0 - min(nb, 1.0) ** 2))
+    candidates = []
+    for ya in (ya_mag, -ya_mag):
+        if ya_mag > 0.2:
+            # orthogonality a.b + ya zb = 0 fixes the sign of zb
+            zb = math.copysign(zb_mag, -float(a @ b) / ya)
+            candidates.append((ya, zb))
+        else:
+            candidates.extend([(ya, zb_mag), (ya, -zb_mag)])
+    seeds = []
+    for ya, zb in candidates:
+        ey = (float(a[0]), float(a[1]), ya)
+        ny = math.sqrt(ey[0] ** 2 + ey[1] ** 2 + ey[2] ** 2)
+        if ny < 1e-6:
+            continue
+        ey = (ey[0] / ny, ey[1] / ny, ey[2] / ny)
+        ez = (float(b[0]), float(b[1]), zb)
+        dot = ez[0] * ey[0] + ez[1] * ey[1] + ez[2] * ey[2]
+        ez = (ez[0] - dot * ey[0], ez[1] - dot * ey[1], ez[2] - dot * ey[2])
+        nz = math.sqrt(ez[0] ** 2 + ez[1] ** 2 + ez[2] ** 2)
+        if nz < 1e-6:
+            continue
+        ez = (ez[0] / nz, ez[1] / nz, ez[2] / nz)
+        ex = (ey[1] * ez[2] - ey[2] * ez[1], ey[2] * ez[0] - ey[0] * ez[2], ey[0] * ez[1] - ey[1] * ez[0])
+        r = np.array([[ex[0], ey[0], ez[0]], [ex[1], ey[1], ez[1]], [ex[2], ey[2], ez[2]]])
+        t, p, s = body_angles_from_rotation(r)
+        x = np.zeros(K.N_VAR)
+        x[0] = 1.0
+        x[K.X_TBD], x[K.X_PBD], x[K.X_SBD] = t * DEG, p * DEG, s * DEG
+        seeds.append(np.clip(x, lo, hi))
+    return np.array(seeds) if seeds else np.zeros((0, K.N_VAR))
+
+
+SEED_WINDOW_DEG = 30.0
+
+
+def restart_boxes(lo: np.ndarray, hi: np.ndarray, seeds: np.ndarray, restarts: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """One uDEAS box per restart: a seeded restart searches its body angles within +-30 deg of the seed
+    (a hypothesis), the others the whole box."""
+    los = np.repeat(lo[None, :], restarts, axis=0)
+    his = np.repeat(hi[None, :], restarts, axis=0)
+    w = SEED_WINDOW_DEG * DEG
+    for r, seed in enumerate(seeds[:restarts]):
+        for k in (K.X_TBD, K.X_PBD, K.X_SBD):
+            los[r, k] = seed[k] - w
+            his[r, k] = seed[k] + w
+    return los, his
+
+
+PRIOR_MU_RAD = to_radians(PRIOR_MU)
+PRIOR_SIG_RAD = to_radians(PRIOR_SIG)

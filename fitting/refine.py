@@ -1,0 +1,311 @@
+"""Local refinement after uDEAS, the pelvis-tilt (null-space) projection and the limb hypotheses. numba,
+``cache=True``.
+
+* :func:`levenberg_marquardt`: minimizes the sum of squared residuals of
+  :func:`fitting.kernels.residuals_jacobian` (weighted mean squared 2D error plus squared penalty hinges,
+  plus the prior rows when the prior weight is set) with Marquardt's diagonal damping, clamping every
+  variable to the joint limits.
+* :func:`pelvis_projection`: moves along the exact null direction (theta_bd + d, theta_tr - d,
+  theta_hp_l + d, theta_hp_r + d), which changes no landmark, to the minimum of the pelvis-tilt prior.
+* :func:`limb_from_observation` / :func:`limb_flip`: a limb solved from its 2D landmarks for a chosen depth
+  sign of its upper segment (analytic starts; the depth mirror of trap 2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fitting import kernels as K
+
+
+@njit(cache=True)
+def cholesky_solve(a, b, out):
+    """Solve a out = b for a symmetric positive definite ``a`` (n x n); returns False if not SPD."""
+    n = a.shape[0]
+    low = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i + 1):
+            acc = a[i, j]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            if i == j:
+                if acc <= 0.0:
+                    return False
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, j] = acc / low[j, j]
+    y = np.empty(n)
+    for i in range(n):
+        acc = b[i]
+        for k in range(i):
+            acc -= low[i, k] * y[k]
+        y[i] = acc / low[i, i]
+    for i in range(n - 1, -1, -1):
+        acc = y[i]
+        for k in range(i + 1, n):
+            acc -= low[k, i] * out[k]
+        out[i] = acc / low[i, i]
+    return True
+
+
+@njit(cache=True)
+def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
+    """Refine ``x0`` inside [lo, hi]; returns (final sum of squares, iterations, evaluations)."""
+    n = x0.size
+    m = K.n_residuals()
+    res = np.empty(m)
+    jac = np.empty((m, n))
+    res_new = np.empty(m)
+    dummy = np.empty((1, 1))
+    x = x0.copy()
+    for k in range(n):
+        x[k] = min(max(x[k], lo[k]), hi[k])
+    K.residuals_jacobian(x, data, res, jac, True)
+    cost = K.sum_sq(res)
+    evals = 1
+    lam = 1e-3
+    a = np.empty((n, n))
+    g = np.empty(n)
+    step = np.empty(n)
+    x_new = np.empty(n)
+    it = 0
+    cols = np.empty(n, dtype=np.int64)
+    while it < max_iter:
+        it += 1
+        # normal equations over the non-zero entries of each row (landmark rows are dense, hinge and prior
+        # rows have one or two)
+        for i in range(n):
+            g[i] = 0.0
+            for j in range(n):
+                a[i, j] = 0.0
+        for r in range(m):
+            nz = 0
+            for i in range(n):
+                if jac[r, i] != 0.0:
+                    cols[nz] = i
+                    nz += 1
+            if nz == 0:
+                continue
+            rr = res[r]
+            for p in range(nz):
+                i = cols[p]
+                ji = jac[r, i]
+                g[i] += ji * rr
+                for q in range(p + 1):
+                    a[i, cols[q]] += ji * jac[r, cols[q]]
+        for i in range(n):
+            for j in range(i):
+                a[j, i] = a[i, j]
+        improved = False
+        for _ in range(12):
+            damped = a.copy()
+            for i in range(n):
+                damped[i, i] += lam * max(a[i, i], 1e-9) + 1e-12
+            for i in range(n):
+                g[i] = -g[i]
+            ok = cholesky_solve(damped, g, step)
+            for i in range(n):
+                g[i] = -g[i]
+            if not ok:
+                lam *= 4.0
+                continue
+            for k in range(n):
+                x_new[k] = min(max(x[k] + step[k], lo[k]), hi[k])
+            K.residuals_jacobian(x_new, data, res_new, dummy, False)
+            evals += 1
+            c_new = K.sum_sq(res_new)
+            if c_new < cost:
+                improved = True
+                break
+            lam *= 4.0
+        if not improved:
+            break
+        gain = cost - c_new
+        for k in range(n):
+            x[k] = x_new[k]
+        cost = c_new
+        lam = max(lam / 3.0, 1e-9)
+        K.residuals_jacobian(x, data, res, jac, True)
+        evals += 1
+        if gain <= 1e-13 + 1e-7 * cost:
+            break
+    for k in range(n):
+        out_x[k] = x[k]
+    return cost, it, evals
+
+
+@njit(cache=True)
+def data_mse(x, data):
+    """Weighted mean squared 2D residual of the landmarks (normalized units squared)."""
+    res = np.empty(K.n_residuals())
+    dummy = np.empty((1, 1))
+    K.residuals_jacobian(x, data, res, dummy, False)
+    acc = 0.0
+    for i in range(2 * K.N_LM):
+        acc += res[i] * res[i]
+    return acc
+
+
+@njit(cache=True)
+def _prior_along(x, d, data, lim_lo, lim_hi, upright):
+    lw = K.D_LW
+    t_tr = x[K.X_TTR] - d
+    t_hl = x[K.X_THP_L] + d
+    t_hr = x[K.X_THP_R] + d
+    t_bd = x[K.X_TBD] + d
+    up = data[lw + K.LW_PRIOR_UP] * upright
+    c = math.cos(t_bd) * math.cos(x[K.X_PBD])
+    c = min(max(c, -1.0), 1.0)
+    acc = data[lw + K.LW_PRIOR_TR] * abs(t_tr) + data[lw + K.LW_PRIOR_HP] * (abs(t_hl) + abs(t_hr))
+    acc += up * math.acos(c)
+    # the paper's lumbar penalty and the joint limits keep the choice plausible
+    acc += data[lw + K.LW_SAG_TR] * 100.0 * K.p_sn(t_tr, data[K.D_TH])
+    big = 1000.0
+    acc += big * (K.p_d(t_tr, lim_lo[K.X_TTR], lim_hi[K.X_TTR]) + K.p_d(t_hl, lim_lo[K.X_THP_L], lim_hi[K.X_THP_L])
+                  + K.p_d(t_hr, lim_lo[K.X_THP_R], lim_hi[K.X_THP_R]) + K.p_d(t_bd, lim_lo[K.X_TBD], lim_hi[K.X_TBD]))
+    return acc
+
+
+@njit(cache=True)
+def pelvis_projection(x, data, lim_lo, lim_hi):
+    """The d minimizing the pelvis-tilt prior along the null direction; ``x`` is updated in place."""
+    # the torso's orientation does not change along the null direction
+    upright = K.torso_uprightness(x)
+    best_d = 0.0
+    best = _prior_along(x, 0.0, data, lim_lo, lim_hi, upright)
+    step = math.pi / 180.0
+    d = -math.pi
+    while d <= math.pi:
+        c = _prior_along(x, d, data, lim_lo, lim_hi, upright)
+        if c < best - 1e-12:
+            best = c
+            best_d = d
+        d += step
+    # the minimum of a piecewise-linear prior sits on a breakpoint: try them exactly
+    for cand in (x[K.X_TTR], -x[K.X_THP_L], -x[K.X_THP_R], -x[K.X_TBD]):
+        c = _prior_along(x, cand, data, lim_lo, lim_hi, upright)
+        if c < best - 1e-12:
+            best = c
+            best_d = cand
+    # golden-section polish around the best grid point (the tilt term is smooth when phi_bd != 0)
+    a = best_d - step
+    b = best_d + step
+    gr = 0.6180339887498949
+    for _ in range(30):
+        c1 = b - gr * (b - a)
+        c2 = a + gr * (b - a)
+        if _prior_along(x, c1, data, lim_lo, lim_hi, upright) < _prior_along(x, c2, data, lim_lo, lim_hi, upright):
+            b = c2
+        else:
+            a = c1
+    mid = 0.5 * (a + b)
+    if _prior_along(x, mid, data, lim_lo, lim_hi, upright) < best - 1e-12:
+        best_d = mid
+    x[K.X_TBD] += best_d
+    x[K.X_TTR] -= best_d
+    x[K.X_THP_L] += best_d
+    x[K.X_THP_R] += best_d
+    return best_d
+
+
+LIMB_ARM_L, LIMB_ARM_R, LIMB_LEG_L, LIMB_LEG_R = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def _mt_v(r, v0, v1, v2):
+    """r^T v for a row-major 9-tuple r."""
+    return (r[0] * v0 + r[3] * v1 + r[6] * v2, r[1] * v0 + r[4] * v1 + r[7] * v2,
+            r[2] * v0 + r[5] * v1 + r[8] * v2)
+
+
+@njit(cache=True)
+def limb_from_observation(x, data, limb, sign_u, out):
+    """``out`` = ``x`` with one limb's three angles solved from its observed 2D landmarks (analytic seed).
+
+    The observed 2D vectors root->middle and middle->end (scaled to metres with the size factor) give the
+    segment directions up to the sign of their depth; ``sign_u`` picks the upper segment's, and the lower
+    segment's is the one that best lies in the hinge plane. Segments longer in 2D than the model are
+    clipped to the image plane.
+    """
+    for k in range(x.size):
+        out[k] = x[k]
+    arm = limb <= LIMB_ARM_R
+    k = limb % 2
+    s = 1.0 if k == 0 else -1.0
+    d = K.D_DIMS
+    h = data[d + K.DM_H]
+    if arm:
+        i0, i1, i2 = K.P_SH_L + k, K.P_EL_L + k, K.P_WR_L + k
+        l1, l2 = data[d + K.DM_UA], data[d + K.DM_FA]
+        r_root = K.mm(K.body_rot(x[K.X_TBD], x[K.X_PBD], x[K.X_SBD]),
+                      K.mm(K.mm(K.ry(x[K.X_TTR]), K.rx(-x[K.X_PTR])), K.rz(x[K.X_STR])))
+        xt, xp, xj = (K.X_TSH_L, K.X_PSH_L, K.X_TEL_L) if k == 0 else (K.X_TSH_R, K.X_PSH_R, K.X_TEL_R)
+    else:
+        i0, i1, i2 = K.P_HP_L + k, K.P_KN_L + k, K.P_AN_L + k
+        l1, l2 = data[d + K.DM_TH], data[d + K.DM_SK]
+        r_root = K.body_rot(x[K.X_TBD], x[K.X_PBD], x[K.X_SBD])
+        xt, xp, xj = (K.X_THP_L, K.X_PHP_L, K.X_TKN_L) if k == 0 else (K.X_THP_R, K.X_PHP_R, K.X_TKN_R)
+    if data[K.D_W + i0] <= 0.0 or data[K.D_W + i1] <= 0.0:
+        return
+    g = x[K.X_GAMMA]
+    o = K.D_OBS
+    ux = (data[o + 2 * i1] - data[o + 2 * i0]) * h / g
+    uy = (data[o + 2 * i1 + 1] - data[o + 2 * i0 + 1]) * h / g
+    q = ux * ux + uy * uy
+    if q > l1 * l1:
+        f = l1 / math.sqrt(q)
+        ux *= f
+        uy *= f
+        q = l1 * l1
+    uz = sign_u * math.sqrt(l1 * l1 - q)
+    a = _mt_v(r_root, ux / l1, uy / l1, uz / l1)
+    phi = math.asin(min(1.0, max(-1.0, -s * a[1])))
+    theta = math.atan2(a[0], -a[2])
+    out[xt] = theta
+    out[xp] = phi
+    if data[K.D_W + i2] <= 0.0:
+        return
+    vx = (data[o + 2 * i2] - data[o + 2 * i1]) * h / g
+    vy = (data[o + 2 * i2 + 1] - data[o + 2 * i1 + 1]) * h / g
+    q = vx * vx + vy * vy
+    if q > l2 * l2:
+        f = l2 / math.sqrt(q)
+        vx *= f
+        vy *= f
+        q = l2 * l2
+    vz = math.sqrt(l2 * l2 - q)
+    r_up = K.mm(K.mm(r_root, K.ry(-theta)), K.rx(-s * phi))
+    best_j = 0.0
+    best_off = 1e300
+    for sv in (1.0, -1.0):
+        b = _mt_v(r_up, vx / l2, vy / l2, sv * vz / l2)
+        j = math.atan2(b[0], -b[2]) if arm else math.atan2(-b[0], -b[2])
+        off = abs(b[1]) + (0.0 if j >= 0.0 else -j)
+        if off < best_off:
+            best_off = off
+            best_j = j
+    out[xj] = max(best_j, 0.0)
+
+
+@njit(cache=True)
+def limb_depth_sign(x, data, limb):
+    """Sign of the camera depth of the limb's upper segment (root -> middle joint) in the model."""
+    pts_b = np.empty((K.N_POINTS, 3))
+    pts_c = np.empty((K.N_POINTS, 3))
+    K.model_points(x, data, pts_b, pts_c)
+    k = limb % 2
+    if limb <= LIMB_ARM_R:
+        dz = pts_c[K.P_EL_L + k, 2] - pts_c[K.P_SH_L + k, 2]
+    else:
+        dz = pts_c[K.P_KN_L + k, 2] - pts_c[K.P_HP_L + k, 2]
+    return 1.0 if dz >= 0.0 else -1.0
+
+
+@njit(cache=True)
+def limb_flip(x, data, limb, out):
+    """The limb re-solved from its 2D landmarks with the opposite depth of its upper segment (the mirror
+    hypothesis of trap 2), the rest of ``x`` kept."""
+    limb_from_observation(x, data, limb, -limb_depth_sign(x, data, limb), out)

@@ -1,0 +1,154 @@
+"""Writing RealSense recordings (ROS 2 ``.db3``, what librealsense 2.59 records) from frames, with
+pyrealsense2's software device and recorder; the RealSense source plays them back like a camera.
+
+Colour is stored as bgr8 and depth as z16, both losslessly (checked bit-exact by the tests). Timestamps are
+the frames' capture times in milliseconds from the first frame, domain ``hardware_clock``; frame numbers are
+the frames' ``seq``, so a replay shows the same numbers and gaps.
+
+Depth may have its own intrinsics and an extrinsic transform to colour (a raw depth stream, as a camera
+delivers it); ``posed record`` writes depth already aligned to colour (same intrinsics, identity transform).
+Note: ``rs.extrinsics()`` starts with an all-zero rotation; an unset rotation makes alignment map all depth to
+0, so the identity is always written explicitly.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hal.errors import SourceUnsupported
+from hal.frame import Intrinsics
+from hal.realsense import import_rs
+
+IDENTITY_ROTATION = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+
+
+class Db3Writer:
+    """Record colour (+ depth) frames into a ``.db3`` RealSense recording.
+
+    ``depth_scale`` None records colour only. ``depth_intrinsics`` default: the colour intrinsics (depth
+    already aligned); ``depth_to_colour`` = (rotation 9 values row-major, translation 3 values in metres),
+    default identity.
+    """
+
+    def __init__(self, path: str | os.PathLike, intrinsics: Intrinsics, fps: float,
+                 depth_scale: float | None = None, depth_intrinsics: Intrinsics | None = None,
+                 depth_to_colour: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
+                 serial: str = "posed-recording", name: str = "posed recording") -> None:
+        self.path = Path(path)
+        if self.path.suffix.lower() != ".db3":
+            raise SourceUnsupported(f"{self.path}: librealsense 2.59 records ROS 2 .db3 files only; name the "
+                                    "output NAME.db3", str(self.path))
+        rs = import_rs()
+        self._rs = rs
+        if self.path.exists():
+            self.path.unlink()  # the recorder refuses to append
+        self.intrinsics = intrinsics
+        self.depth_intrinsics = depth_intrinsics or intrinsics
+        rate = max(1, int(round(fps)))
+        dev = rs.software_device()
+        dev.register_info(rs.camera_info.name, name)
+        dev.register_info(rs.camera_info.serial_number, serial)
+        self._depth_sensor = None
+        self._depth_profile = None
+        if depth_scale is not None:
+            ds = dev.add_sensor("Depth")
+            self._depth_profile = ds.add_video_stream(
+                _video_stream(rs, rs.stream.depth, 0, self.depth_intrinsics, rate, rs.format.z16, 2))
+            ds.add_read_only_option(rs.option.depth_units, float(depth_scale))
+            self._depth_sensor = ds
+        cs = dev.add_sensor("Color")
+        self._colour_profile = cs.add_video_stream(
+            _video_stream(rs, rs.stream.color, 1, intrinsics, rate, rs.format.bgr8, 3))
+        self._colour_sensor = cs
+        if self._depth_profile is not None:
+            rotation, translation = depth_to_colour or (IDENTITY_ROTATION, (0.0, 0.0, 0.0))
+            ext = rs.extrinsics()
+            ext.rotation = [float(v) for v in rotation]
+            ext.translation = [float(v) for v in translation]
+            self._depth_profile.register_extrinsics_to(self._colour_profile, ext)
+        self._device = dev
+        self._recorder: Any = rs.recorder(str(self.path), dev)
+        self._sensors = [s for s in (self._depth_sensor, cs) if s is not None]
+        for sensor, profile in ((self._depth_sensor, self._depth_profile), (cs, self._colour_profile)):
+            if sensor is not None:
+                sensor.open(profile)
+                sensor.start(_ignore)
+        self.depth_scale = depth_scale
+        self.frames = 0
+
+    def write(self, image: np.ndarray, depth: np.ndarray | None, t_ms: float, number: int) -> None:
+        """Add one colour image (BGR uint8, H x W x 3) and its depth (uint16 on the depth grid, or None)."""
+        rs = self._rs
+        w, h = self.intrinsics.width, self.intrinsics.height
+        if image.shape != (h, w, 3) or image.dtype != np.uint8:
+            raise ValueError(f"colour image must be {h}x{w}x3 uint8, got {image.shape} {image.dtype}")
+        if depth is not None and self._depth_sensor is not None:
+            dw, dh = self.depth_intrinsics.width, self.depth_intrinsics.height
+            if depth.shape != (dh, dw) or depth.dtype != np.uint16:
+                raise ValueError(f"depth must be {dh}x{dw} uint16, got {depth.shape} {depth.dtype}")
+            f = rs.software_video_frame()
+            f.pixels = np.ascontiguousarray(depth)
+            f.bpp = 2
+            f.stride = dw * 2
+            f.timestamp = float(t_ms)
+            f.domain = rs.timestamp_domain.hardware_clock
+            f.frame_number = int(number)
+            f.profile = self._depth_profile.as_video_stream_profile()
+            f.depth_units = float(self.depth_scale or 0.001)
+            self._depth_sensor.on_video_frame(f)
+        f = rs.software_video_frame()
+        f.pixels = np.ascontiguousarray(image)
+        f.bpp = 3
+        f.stride = w * 3
+        f.timestamp = float(t_ms)
+        f.domain = rs.timestamp_domain.hardware_clock
+        f.frame_number = int(number)
+        f.profile = self._colour_profile.as_video_stream_profile()
+        self._colour_sensor.on_video_frame(f)
+        self.frames += 1
+
+    def close(self) -> None:
+        """Stop the sensors and finish the file (the recorder writes its index when released)."""
+        if self._recorder is None:
+            return
+        for sensor in self._sensors:
+            try:
+                sensor.stop()
+                sensor.close()
+            except RuntimeError:
+                pass
+        self._recorder = None
+        self._sensors = []
+        self._device = None
+
+    def __enter__(self) -> Db3Writer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _ignore(_frame: Any) -> None:
+    """Sensor callback: the recorder taps the frames; nothing else needs them."""
+
+
+def _video_stream(rs: Any, kind: Any, uid: int, k: Intrinsics, fps: int, fmt: Any, bpp: int) -> Any:
+    intr = rs.intrinsics()
+    intr.width, intr.height = int(k.width), int(k.height)
+    intr.fx, intr.fy, intr.ppx, intr.ppy = float(k.fx), float(k.fy), float(k.cx), float(k.cy)
+    intr.model = rs.distortion.none
+    intr.coeffs = [0.0] * 5
+    vs = rs.video_stream()
+    vs.type = kind
+    vs.index = 0
+    vs.uid = uid
+    vs.width, vs.height = int(k.width), int(k.height)
+    vs.fps = fps
+    vs.bpp = bpp
+    vs.fmt = fmt
+    vs.intrinsics = intr
+    return vs

@@ -1,0 +1,480 @@
+"""Intel RealSense colour + depth through pyrealsense2, live or from a recording (.db3, .bag).
+
+pyrealsense2 is imported only here, and only when a RealSense source is opened, so the daemon runs without
+it on other sources. Live and playback share one code path (``rs.pipeline`` + ``rs.align``); only the start
+(``enable_device`` vs ``enable_device_from_file``), the clock mapping and the end of the stream differ.
+
+Per frame: the colour image (BGR), depth aligned to colour by ``rs.align(rs.stream.color)`` (uint16, units of
+``depth_scale`` metres, from the depth sensor), the colour intrinsics (valid for the aligned depth too).
+Playback repeats frames in non-real-time mode (the syncer emits one set per stream's frame), so frames are
+de-duplicated by colour frame number.
+
+Timestamps: live frames stamped on ``global_time``/``system_time`` (host clock, ms) are mapped from wall to
+monotonic time; ``hardware_clock`` stamps go through :class:`hal.clock.DeviceClock`. Playback: ``t = t_start +
+(ts - ts_first)`` as for every file (see :mod:`hal.replay`), paced by the recorded stamps when ``realtime``;
+playback itself runs with ``set_real_time(False)`` so that no frame is skipped.
+
+Recovery (live): each read that gets no frame within its timeout raises SourceTimeout and is counted; after
+``timeouts_before_reopen`` in a row the pipeline is stopped and started again; if the camera is gone reads
+raise SourceDisconnected while it is looked for with exponential backoff (``reconnect_initial_s`` doubling to
+``reconnect_max_s``); after ``failures_before_reset`` failed starts in a row the camera gets a
+``hardware_reset()`` (it drops off USB and comes back after a few seconds). A native hang or crash inside
+librealsense cannot be caught here: run the capture in its own process (the daemon does) and watch it.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from hal.clock import DeviceClock, wall_to_monotonic
+from hal.config import SourceConfig
+from hal.errors import (
+    EndOfStream,
+    SourceCorrupt,
+    SourceDisconnected,
+    SourceNotFound,
+    SourceTimeout,
+    SourceUnsupported,
+)
+from hal.frame import Frame, Intrinsics
+from hal.source import Source
+
+# After hardware_reset() the camera re-enumerates; touching it too soon has crashed librealsense
+# (realsenseai/librealsense#11304), so the next start waits at least this long.
+RESET_SETTLE_S = 5.0
+# Playback waits for frames in slices this long, checking in between whether the file has ended.
+PLAYBACK_SLICE_S = 0.05
+
+
+def import_rs() -> Any:
+    """The pyrealsense2 module, or SourceUnsupported saying how to get it."""
+    try:
+        import pyrealsense2 as rs
+    except ImportError as exc:
+        raise SourceUnsupported(
+            f"pyrealsense2 cannot be imported ({exc}): install it (`pip install pyrealsense2`, x86_64 wheels; "
+            "it needs the system library libusb-1.0-0) or use a v4l2: or file: source", "realsense:") from exc
+    return rs
+
+
+class RealSenseSource(Source):
+    """A RealSense camera (``playback=None``) or a RealSense recording played through the same pipeline.
+
+    ``pipeline_factory`` (default ``rs.pipeline``; must return an ``rs.pipeline``, e.g. a subclass) is the seam
+    for tests that script stalls around the real pipeline. ``info`` adds serial, device name, size, fps, depth scale, intrinsics and the counters
+    timeouts, reopens, reopen_failures, hardware_resets, disconnects, duplicates, passes.
+    """
+
+    kind = "realsense"
+
+    def __init__(self, config: SourceConfig, playback: str | None = None,
+                 pipeline_factory: Callable[[], Any] | None = None, clock=time.monotonic, sleep=time.sleep) -> None:
+        super().__init__(config, f"file:{playback}" if playback else f"realsense:{config.serial}")
+        self.playback = playback
+        self._pipeline_factory = pipeline_factory
+        self._clock = clock
+        self._sleep = sleep
+        self._rs: Any = None
+        self._pipe: Any = None
+        self.serial = ""
+        self.device_name = ""
+        self.intrinsics: Intrinsics | None = None
+        self.depth_scale = 0.0
+        self.size = (0, 0)
+        self.fps = 0.0
+        self.colour_format = ""
+        self.counters.update(timeouts=0, reopens=0, reopen_failures=0, hardware_resets=0, disconnects=0,
+                             duplicates=0, passes=0)
+
+    # -- Source -------------------------------------------------------------------------------------------
+    def _open(self) -> None:
+        self._rs = import_rs()
+        if self.playback is not None:
+            if not os.path.isfile(self.playback):
+                raise SourceNotFound(f"{self.playback}: no such RealSense recording; check source.path", self.name)
+        else:
+            self._find_device()
+        self._consecutive_timeouts = 0
+        self._failures = 0
+        self._backoff = self.config.reconnect_initial_s
+        self._next_attempt = 0.0
+        self._last_number: int | None = None
+        self._first_number: int | None = None
+        self._seq_offset = 0
+        self._last_seq = -1
+        self._t_start: float | None = None
+        self._t_offset = 0.0
+        self._ts_first: float | None = None
+        self._last_rel = 0.0
+        self._pass_frames = 0
+        self._pending: Frame | None = None
+        self._ended = False
+        self._clock_map = DeviceClock()
+        self._start()
+
+    def _close(self) -> None:
+        self._stop()
+
+    def _describe(self) -> dict[str, Any]:
+        return {"serial": self.serial, "device": self.device_name, "playback": self.playback,
+                "width": self.size[0], "height": self.size[1], "fps": self.fps, "has_depth": self._has_depth(),
+                "depth_scale": self.depth_scale, "colour_format": self.colour_format,
+                "depth_alignment": getattr(self, "_depth_mode", "none"),
+                "intrinsics": self.intrinsics.to_json() if self.intrinsics else None,
+                "realtime": self.config.realtime if self.playback else True}
+
+    def _has_depth(self) -> bool:
+        return self.depth_scale > 0.0
+
+    # -- device and pipeline ------------------------------------------------------------------------------
+    def _serials(self) -> list[str]:
+        rs = self._rs
+        out = []
+        for dev in rs.context().query_devices():
+            if dev.supports(rs.camera_info.serial_number):
+                out.append(dev.get_info(rs.camera_info.serial_number))
+        return out
+
+    def _find_device(self) -> None:
+        serials = self._serials()
+        if not serials:
+            raise SourceNotFound(
+                "no RealSense camera found: plug one into a USB 3 port (check it with `rs-enumerate-devices`, "
+                "or `lsusb` for vendor 8086), or use a v4l2: or file: source", self.name)
+        if self.config.serial and self.config.serial not in serials:
+            raise SourceNotFound(f"RealSense {self.config.serial} not found; connected: {', '.join(serials)}; set "
+                                 "source.serial to one of them, or empty for the first camera", self.name)
+
+    def _start(self) -> None:
+        rs = self._rs
+        c = self.config
+        pipe = (self._pipeline_factory or rs.pipeline)()  # a factory must return an rs.pipeline (subclass)
+        cfg = rs.config()
+        if self.playback is not None:
+            cfg.enable_device_from_file(self.playback, repeat_playback=False)
+        else:
+            if c.serial:
+                cfg.enable_device(c.serial)
+            cfg.enable_stream(rs.stream.color, c.width, c.height, rs.format.bgr8, int(round(c.fps)))
+            if c.depth:
+                cfg.enable_stream(rs.stream.depth, c.width, c.height, rs.format.z16, int(round(c.fps)))
+        try:
+            if self.playback is not None:
+                # Non-real-time must be set before streaming starts: a file recorded faster than real time
+                # otherwise floods the queues at start and its first frames are dropped.
+                resolved = cfg.resolve(rs.pipeline_wrapper(pipe))
+                resolved.get_device().as_playback().set_real_time(False)
+            profile = pipe.start(cfg)
+        except RuntimeError as exc:
+            if self.playback is not None:
+                raise SourceCorrupt(f"{self.playback}: librealsense cannot play this recording ({exc}); it may be "
+                                    "truncated or corrupt — record it again (posed record -o NAME.db3)",
+                                    self.name) from exc
+            raise SourceNotFound(
+                f"RealSense {c.serial or '(first camera)'}: cannot start colour {c.width}x{c.height}@{c.fps:g}"
+                f"{' + depth' if c.depth else ''} ({exc}); check the modes with `rs-enumerate-devices`, try "
+                "640x480@30, and that no other program holds the camera", self.name) from exc
+        try:
+            self._configure(pipe, profile)
+        except Exception:
+            _stop_quietly(pipe)
+            raise
+        self._pipe = pipe
+        self.state = "streaming"
+
+    def _configure(self, pipe: Any, profile: Any) -> None:
+        rs = self._rs
+        dev = profile.get_device()
+        if self.playback is not None:
+            dev.as_playback().set_real_time(False)
+        streams = {s.stream_type(): s for s in profile.get_streams()}
+        colour = streams.get(rs.stream.color)
+        if colour is None:
+            raise SourceUnsupported(f"{self.name}: no colour stream (streams: "
+                                    f"{', '.join(str(s) for s in streams) or 'none'}); hal needs colour", self.name)
+        vsp = colour.as_video_stream_profile()
+        k = vsp.get_intrinsics()
+        self.intrinsics = Intrinsics(float(k.fx), float(k.fy), float(k.ppx), float(k.ppy), int(k.width),
+                                     int(k.height))
+        self.size = (int(vsp.width()), int(vsp.height()))
+        self.fps = float(vsp.fps())
+        self.colour_format = str(colour.format()).split(".")[-1]
+        if self.colour_format not in _CONVERSIONS:
+            raise SourceUnsupported(f"{self.name}: colour format {self.colour_format} is not supported (use one of "
+                                    f"{', '.join(_CONVERSIONS)})", self.name)
+        self.depth_scale = 0.0
+        self._depth_mode = "none"
+        self._align = None
+        depth = streams.get(rs.stream.depth)
+        if self.config.depth and depth is not None:
+            self.depth_scale = float(dev.first_depth_sensor().get_depth_scale())
+            if _same_grid(depth, colour):
+                self._depth_mode = "raw"  # recorded already aligned (posed record): keep it bit-exact
+            else:
+                self._depth_mode = "align"
+                self._align = rs.align(rs.stream.color)
+        for key, attr in ((rs.camera_info.serial_number, "serial"), (rs.camera_info.name, "device_name")):
+            if dev.supports(key):  # a software/played-back device may lack some infos
+                setattr(self, attr, dev.get_info(key))
+        self._playback_dev = dev.as_playback() if self.playback is not None else None
+
+    def _stop(self) -> None:
+        pipe, self._pipe = self._pipe, None
+        if pipe is not None:
+            _stop_quietly(pipe)
+
+    def _hardware_reset(self) -> None:
+        self.count("hardware_resets")
+        if self.playback is not None:
+            return  # nothing to reset; counted so the escalation is visible in info
+        rs = self._rs
+        try:
+            for dev in rs.context().query_devices():
+                ser = dev.get_info(rs.camera_info.serial_number) if dev.supports(rs.camera_info.serial_number) else ""
+                if not self.config.serial or ser == self.config.serial:
+                    dev.hardware_reset()
+                    break
+        except RuntimeError:
+            pass
+        self._next_attempt = max(self._next_attempt, self._clock() + RESET_SETTLE_S)
+
+    def _device_present(self) -> bool:
+        if self.playback is not None:
+            return os.path.isfile(self.playback)
+        try:
+            serials = self._serials()
+        except RuntimeError:
+            return False
+        return bool(serials) and (not self.config.serial or self.config.serial in serials)
+
+    def _schedule_retry(self) -> None:
+        self._next_attempt = max(self._next_attempt, self._clock() + self._backoff)
+        self._backoff = min(self._backoff * 2.0, self.config.reconnect_max_s)
+
+    def _reconnect(self, deadline: float) -> None:
+        """Called while there is no pipeline: try to start one when the backoff allows, else wait and raise."""
+        now = self._clock()
+        if now < self._next_attempt:
+            self._sleep(max(0.0, min(self._next_attempt, deadline) - now))
+            if self._clock() < self._next_attempt:
+                raise self._disconnected("waiting to reconnect")
+        if not self._device_present():
+            if self.state != "disconnected":
+                self.count("disconnects")
+            self.state = "disconnected"
+            self._schedule_retry()
+            raise self._disconnected("camera not found")
+        try:
+            self._start()
+        except (SourceNotFound, SourceCorrupt, SourceUnsupported, RuntimeError) as exc:
+            self.count("reopen_failures")
+            self._failures += 1
+            self.state = "reconnecting"
+            if self._failures >= self.config.failures_before_reset:
+                self._failures = 0
+                self._hardware_reset()
+            self._schedule_retry()
+            raise self._disconnected(f"re-open failed: {exc}") from exc
+        self.count("reopens")
+        self._failures = 0
+        self._backoff = self.config.reconnect_initial_s
+        self._consecutive_timeouts = 0
+        if self.playback is None:
+            self._last_number = None  # a restarted camera may count its frames from 0 again
+            self._first_number = None
+            self._seq_offset = self._last_seq + 1
+            self._clock_map = DeviceClock()
+
+    def _disconnected(self, why: str) -> SourceDisconnected:
+        wait = max(0.0, self._next_attempt - self._clock())
+        return SourceDisconnected(
+            f"{self.name}: camera unavailable ({why}); retrying in {wait:.1f} s — check the USB cable and port; "
+            "reading resumes by itself when it is back", self.name)
+
+    def _lost(self, exc: Exception) -> SourceDisconnected:
+        self._stop()
+        self.count("disconnects")
+        self.state = "disconnected"
+        self._next_attempt = self._clock()
+        return SourceDisconnected(f"{self.name}: the camera stopped ({exc}); reconnecting — check the USB cable",
+                                  self.name)
+
+    def _timed_out(self, timeout_s: float) -> SourceTimeout:
+        self._consecutive_timeouts += 1
+        self.count("timeouts")
+        n, limit = self._consecutive_timeouts, self.config.timeouts_before_reopen
+        if n >= limit:
+            self._stop()
+            self.state = "reconnecting"
+            self._next_attempt = self._clock()
+            return SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s, {n} times in a row; re-opening "
+                                 "the camera", self.name)
+        return SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s ({n} in a row; re-open after "
+                             f"{limit})", self.name)
+
+    # -- reading ------------------------------------------------------------------------------------------
+    def _read(self, timeout_s: float) -> Frame:
+        now = self._clock()
+        deadline = now + timeout_s
+        if self._t_start is None:
+            self._t_start = now
+        if self._pending is None:
+            self._pending = self._next_frame(deadline, timeout_s)
+        frame = self._pending
+        if self.playback is not None and self.config.realtime:
+            wait = frame.t - self._clock()
+            if wait > 0:
+                self._sleep(min(wait, max(0.0, deadline - self._clock())))
+                if self._clock() < frame.t - 1e-4:
+                    raise SourceTimeout(f"{self.name}: the next frame is due in {frame.t - self._clock():.2f} s, "
+                                        f"after the {timeout_s:.2f} s read timeout (a gap in the recording)",
+                                        self.name)
+        self._pending = None
+        self._consecutive_timeouts = 0
+        return frame
+
+    def _next_frame(self, deadline: float, timeout_s: float) -> Frame:
+        if self._ended:
+            raise EndOfStream(f"{self.name}: end of the recording (set source.loop=true to replay it again)",
+                              self.name)
+        while True:
+            if self._pipe is None:
+                self._reconnect(deadline)
+            remaining = deadline - self._clock()
+            if remaining <= 0:
+                raise self._timed_out(timeout_s)
+            step = min(remaining, PLAYBACK_SLICE_S) if self.playback is not None else remaining
+            try:
+                ok, frames = self._pipe.try_wait_for_frames(max(1, int(step * 1000)))
+            except RuntimeError as exc:
+                raise self._lost(exc) from exc
+            if not ok:
+                if self.playback is not None and self._playback_finished():
+                    self._end_of_file()
+                continue
+            arrival = self._clock()
+            frame = self._to_frame(frames, arrival)
+            if frame is not None:
+                return frame
+
+    def _playback_finished(self) -> bool:
+        rs = self._rs
+        try:
+            return self._playback_dev.current_status() == rs.playback_status.stopped
+        except RuntimeError:
+            return True
+
+    def _end_of_file(self) -> None:
+        if not self.config.loop or self._pass_frames == 0:
+            self._ended = True
+            self._stop()
+            self.state = "ended"
+            raise EndOfStream(f"{self.name}: the recording ended after {self.counters['frames']} frames (set "
+                              "source.loop=true or ?loop=true to replay it again)", self.name)
+        self._stop()
+        self._t_offset += self._last_rel + 1.0 / (self.fps or self.config.fps)
+        self._seq_offset = self._last_seq + 1
+        self._last_number = None
+        self._pass_frames = 0
+        self.count("passes")
+        self._start()
+
+    def _to_frame(self, frames: Any, arrival: float) -> Frame | None:
+        colour = frames.get_color_frame()
+        if not colour:
+            return None
+        number = int(colour.get_frame_number())
+        last = self._last_number
+        if last is not None and (number <= last if self.playback is not None else number == last):
+            self.count("duplicates")
+            return None
+        depth = None
+        if self._depth_mode != "none" and frames.get_depth_frame():
+            if self._align is not None:
+                frames = self._align.process(frames)
+                colour = frames.get_color_frame()
+            d = frames.get_depth_frame()
+            if d:
+                depth = np.array(np.asanyarray(d.get_data()), dtype=np.uint16, copy=True)
+        image = _CONVERSIONS[self.colour_format](np.asanyarray(colour.get_data()))
+        if depth is not None and depth.shape != image.shape[:2]:
+            depth = None  # never hand out depth that is not on the colour grid
+        if self.playback is None and last is not None and number < last:
+            self._seq_offset = self._last_seq + 1  # the camera restarted its frame counter by itself
+            self._first_number = number
+        self._last_number = number
+        if self._first_number is None:
+            self._first_number = number
+        t = self._timestamp(colour, arrival)
+        if self.playback is not None:
+            seq = self._seq_offset + number
+        else:
+            seq = self._seq_offset + number - self._first_number
+        self._last_seq = seq
+        self._pass_frames += 1
+        return Frame(image=image, depth=depth, depth_scale=self.depth_scale if depth is not None else 0.0, t=t,
+                     seq=seq, intrinsics=self.intrinsics)
+
+    def _timestamp(self, colour: Any, arrival: float) -> float:
+        rs = self._rs
+        ts_s = float(colour.get_timestamp()) / 1000.0
+        if self.playback is not None:
+            if self._ts_first is None:
+                self._ts_first = ts_s
+            rel = max(0.0, ts_s - self._ts_first)
+            self._last_rel = rel
+            assert self._t_start is not None
+            return self._t_start + self._t_offset + rel
+        domain = colour.get_frame_timestamp_domain()
+        if domain in (rs.timestamp_domain.global_time, rs.timestamp_domain.system_time):
+            return min(wall_to_monotonic(ts_s), arrival)
+        return self._clock_map.map(ts_s, arrival)
+
+
+def _same_grid(depth: Any, colour: Any) -> bool:
+    """True when the depth stream already lies on the colour pixel grid (same intrinsics, identity pose)."""
+    try:
+        kd = depth.as_video_stream_profile().get_intrinsics()
+        kc = colour.as_video_stream_profile().get_intrinsics()
+        ext = depth.get_extrinsics_to(colour)
+    except RuntimeError:
+        return False
+    same_k = (kd.width, kd.height) == (kc.width, kc.height) and all(
+        abs(a - b) < 1e-3 for a, b in ((kd.fx, kc.fx), (kd.fy, kc.fy), (kd.ppx, kc.ppx), (kd.ppy, kc.ppy)))
+    no_distortion = not any(kd.coeffs) and not any(kc.coeffs)
+    identity = np.allclose(np.asarray(ext.rotation, float), np.eye(3).ravel(), atol=1e-6) and np.allclose(
+        np.asarray(ext.translation, float), 0.0, atol=1e-6)
+    return bool(same_k and no_distortion and identity)
+
+
+def _stop_quietly(pipe: Any) -> None:
+    try:
+        pipe.stop()
+    except RuntimeError:
+        pass
+
+
+def _copy(image: np.ndarray) -> np.ndarray:
+    return np.array(image, dtype=np.uint8, copy=True)
+
+
+def _cvt(code_name: str) -> Callable[[np.ndarray], np.ndarray]:
+    def convert(image: np.ndarray) -> np.ndarray:
+        import cv2
+
+        return cv2.cvtColor(image, getattr(cv2, code_name))
+    return convert
+
+
+_CONVERSIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "bgr8": _copy,
+    "rgb8": _cvt("COLOR_RGB2BGR"),
+    "bgra8": _cvt("COLOR_BGRA2BGR"),
+    "rgba8": _cvt("COLOR_RGBA2BGR"),
+    "yuyv": _cvt("COLOR_YUV2BGR_YUYV"),
+}

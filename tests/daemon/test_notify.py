@@ -1,0 +1,42 @@
+"""sd_notify over a real AF_UNIX datagram socket: path and abstract addresses, watchdog interval rules."""
+
+import os
+import socket
+import uuid
+
+from daemon.notify import Notifier
+
+
+def test_no_socket_means_no_op():
+    n = Notifier({})
+    assert not n.enabled and n.ready() is False and n.watchdog_interval_s is None
+
+
+def test_path_socket_receives_messages(tmp_path):
+    path = str(tmp_path / "notify.sock")
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind(path)
+        n = Notifier({"NOTIFY_SOCKET": path, "WATCHDOG_USEC": "4000000"})
+        assert n.watchdog_interval_s == 2.0
+        assert n.ready("warm") and n.watchdog() and n.stopping()
+        got = [sock.recv(4096).decode() for _ in range(3)]
+    assert got == ["READY=1\nSTATUS=warm", "WATCHDOG=1", "STOPPING=1"]
+
+
+def test_abstract_socket():
+    name = f"posed-test-{uuid.uuid4().hex}"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind("\0" + name)
+        n = Notifier({"NOTIFY_SOCKET": "@" + name})
+        assert n.status("hello")
+        assert sock.recv(4096) == b"STATUS=hello"
+
+
+def test_watchdog_pid_of_another_process_disables_pings():
+    assert Notifier({"WATCHDOG_USEC": "1000000", "WATCHDOG_PID": "1"}).watchdog_interval_s is None
+    assert Notifier({"WATCHDOG_USEC": "1000000", "WATCHDOG_PID": str(os.getpid())}).watchdog_interval_s == 0.5
+
+
+def test_unreachable_socket_reports_without_raising(tmp_path):
+    n = Notifier({"NOTIFY_SOCKET": str(tmp_path / "absent.sock")})
+    assert n.ready() is False and "cannot notify" in n.last_error

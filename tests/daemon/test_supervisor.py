@@ -1,0 +1,158 @@
+"""The supervisor with real stage processes (the trivial stages of plan_stages.py): restarts after kill -9
+and SIGSTOP, escalation, fatal errors, sd_notify order, and a clean, quick SIGTERM shutdown."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.daemon.harness import Harness, NotifyListener
+
+STAGES = ("capture", "landmarks", "fitting", "publisher")
+
+
+@pytest.fixture
+def harness(tmp_path):
+    made = []
+
+    def make(*overrides, **kw):
+        h = Harness(tmp_path, *overrides, **kw)
+        made.append(h)
+        return h
+
+    yield make
+    for h in made:
+        if h.proc.poll() is None:
+            h.proc.kill()
+            h.proc.communicate()
+
+
+def _ready(s):
+    return s["ready"] and s["stages"]["publisher"]["frames"] > 5
+
+
+def _own_segments(pid: int) -> list[str]:
+    return [p.name for p in Path("/dev/shm").glob(f"posed-{pid}-*")]
+
+
+def test_kill_each_stage_restarts_it_and_publishing_resumes(harness):
+    h = harness("pipeline.max_restarts=10")
+    h.wait_for(_ready, 30, "all stages ready")
+    for stage in STAGES:
+        before = h.latest()
+        old_pid = before["stages"][stage]["pid"]
+        published = before["stages"]["publisher"]["frames"]
+        t_kill = time.monotonic()
+        os.kill(old_pid, signal.SIGKILL)
+
+        def restarted(s, stage=stage, old_pid=old_pid):
+            st = s["stages"][stage]
+            return st["pid"] != old_pid and st["alive"] and st["state"] == "running"
+
+        s = h.wait_for(restarted, 10, f"{stage} restarted")
+        took = time.monotonic() - t_kill
+        assert took < 3.0, f"{stage} took {took:.2f} s to come back"
+        assert s["stages"][stage]["restarts"] == 1
+        base = published if stage != "publisher" else 0
+        h.wait_for(lambda s, base=base: s["stages"]["publisher"]["frames"] > base + 5, 5,
+                   f"frames flowing again after killing {stage}")
+    assert h.proc.poll() is None
+    assert h.latest()["restarts"] == 4
+    code, _, err, took = h.stop()
+    assert code == 0, err
+    assert took < 5.0
+    assert _own_segments(h.proc.pid) == []
+
+
+def test_sigstop_is_detected_as_stuck_and_restarted(harness):
+    h = harness("pipeline.stuck_after_s=1.0")
+    h.wait_for(_ready, 30, "all stages ready")
+    old = h.latest()["stages"]["fitting"]["pid"]
+    t0 = time.monotonic()
+    os.kill(old, signal.SIGSTOP)
+    try:
+        h.wait_for(lambda s: s["stages"]["fitting"]["pid"] != old and s["stages"]["fitting"]["state"] == "running",
+                   10, "the stopped stage replaced")
+    finally:
+        try:
+            os.kill(old, signal.SIGCONT)
+        except ProcessLookupError:
+            pass
+    assert time.monotonic() - t0 < 4.0
+    time.sleep(0.2)
+    with pytest.raises(ProcessLookupError):
+        os.kill(old, 0)                              # the stuck process was killed, not left behind
+    code, _, err, _ = h.stop()
+    assert code == 0, err
+
+
+def test_notify_sequence_and_watchdog(harness, tmp_path):
+    listener = NotifyListener(str(tmp_path / "notify.sock"))
+    try:
+        h = harness(env={"NOTIFY_SOCKET": listener.sock.getsockname(), "WATCHDOG_USEC": "600000"})
+        h.wait_for(_ready, 30, "all stages ready")
+        time.sleep(1.5)
+        code, _, err, took = h.stop()
+        time.sleep(0.2)
+    finally:
+        listener.close()
+    assert code == 0, err
+    assert took < 5.0
+    messages = [m for _, m in listener.messages]
+    kinds = [m.splitlines()[0].split("=")[0] for m in messages]
+    first_ready = kinds.index("READY")
+    assert "WATCHDOG" not in kinds[:first_ready], "no watchdog ping before READY=1"
+    assert kinds.count("READY") == 1
+    assert kinds[-1] == "STOPPING"
+    assert kinds.count("WATCHDOG") >= 3                         # every 0.3 s for about 1.5 s
+    assert any(m.startswith("STATUS=running:") and "fps" in m for m in messages)
+
+
+def test_escalation_stops_watchdog_pings(harness, tmp_path):
+    listener = NotifyListener(str(tmp_path / "notify.sock"))
+    try:
+        h = harness("pipeline.max_restarts=1",
+                    env={"NOTIFY_SOCKET": listener.sock.getsockname(), "WATCHDOG_USEC": "400000"})
+        h.wait_for(_ready, 30, "all stages ready")
+        for _ in range(2):
+            pid = h.latest()["stages"]["publisher"]["pid"]
+            os.kill(pid, signal.SIGKILL)
+            h.wait_for(lambda s, pid=pid: s["stages"]["publisher"]["pid"] != pid
+                       and s["stages"]["publisher"]["alive"], 10, "restart")
+        h.wait_for(lambda s: s["state"] == "escalated", 5, "escalation")
+        t_esc = time.monotonic()
+        time.sleep(1.0)
+        assert h.proc.poll() is None
+        code, _, _, _ = h.stop()
+    finally:
+        listener.close()
+    assert code == 0
+    later = [m for t, m in listener.messages if t > t_esc]
+    assert not any(m.startswith("WATCHDOG=1") for m in later), later
+    assert any(m.startswith("STATUS=escalated") for _, m in listener.messages)
+    pings = [t for t, m in listener.messages if m.startswith("WATCHDOG=1")]
+    assert pings, "pings were sent while healthy"
+
+
+def test_escalation_without_systemd_exits_70(harness):
+    h = harness("pipeline.max_restarts=1")
+    h.wait_for(_ready, 30, "all stages ready")
+    for stage in ("capture", "fitting"):
+        pid = h.latest()["stages"][stage]["pid"]
+        os.kill(pid, signal.SIGKILL)
+        time.sleep(0.3)
+    code, out, _, _ = h.stop(sig=0, timeout=15)   # it stops by itself
+    assert code == 70
+    assert "daemon_escalated" in out and "exiting with 70" in out
+
+
+def test_fatal_stage_error_exits_78_with_the_fix(harness):
+    h = harness(fatal=True)
+    code, out, err, _ = h.stop(sig=0, timeout=30)
+    assert code == 78
+    assert "the test model is missing" in err and "posed models fetch" in err
+    assert _own_segments(h.proc.pid) == []

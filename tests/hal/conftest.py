@@ -1,0 +1,85 @@
+"""Shared fixtures of the hal tests: the real squat video and a RealSense recording made from it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from hal.frame import Intrinsics
+
+SQUAT_FRAMES = 65
+SQUAT_FPS = 5.0
+
+
+@pytest.fixture(scope="session")
+def squat_video(shared_data: Path) -> Path:
+    path = shared_data / "reference" / "tfjs_pose_squats" / "pose_squats.mp4"
+    assert path.is_file(), f"missing real test video {path}"
+    return path
+
+
+@pytest.fixture(scope="session")
+def squat_frames(squat_video: Path) -> list[np.ndarray]:
+    """Every frame of the squat video decoded once with plain OpenCV (the reference for the sources)."""
+    cap = cv2.VideoCapture(str(squat_video), cv2.CAP_FFMPEG)
+    frames = []
+    while True:
+        ok, image = cap.read()
+        if not ok:
+            break
+        frames.append(image)
+    cap.release()
+    assert len(frames) == SQUAT_FRAMES
+    return frames
+
+
+# The synthetic RGB-D camera of the .db3 recording: colour is the squat video at 360x640 (portrait), depth a
+# half-resolution stream with half the focal length, 15 mm to the left of the colour camera (like a D435).
+COLOUR_K = Intrinsics(fx=420.0, fy=421.0, cx=181.0, cy=318.0, width=360, height=640)
+DEPTH_K = Intrinsics(fx=210.0, fy=210.5, cx=89.75, cy=158.75, width=180, height=320)
+DEPTH_TO_COLOUR_T = (0.015, 0.0, 0.0)
+DEPTH_SCALE = 0.001
+WALL_MM, BOX_MM = 3000, 1500
+DB3_FRAMES = 6
+TS0_MS = 1000.0
+
+
+def box_rect(i: int) -> tuple[int, int, int, int]:
+    """Depth-pixel rectangle (v0, v1, u0, u1) of the near box in frame i (it moves 4 px right per frame)."""
+    return 90, 230, 50 + 4 * i, 110 + 4 * i
+
+
+def synthetic_depth(i: int) -> np.ndarray:
+    depth = np.full((DEPTH_K.height, DEPTH_K.width), WALL_MM, np.uint16)
+    v0, v1, u0, u1 = box_rect(i)
+    depth[v0:v1, u0:u1] = BOX_MM
+    return depth
+
+
+@dataclass(frozen=True)
+class Db3Recording:
+    path: Path
+    colour: list[np.ndarray]      # BGR frames as recorded
+    pts_ms: list[float]
+
+
+@pytest.fixture(scope="session")
+def squat_db3(tmp_path_factory: pytest.TempPathFactory, squat_frames: list[np.ndarray]) -> Db3Recording:
+    """A small RealSense recording made by pyrealsense2's software device + recorder from the real video."""
+    from hal.db3 import Db3Writer
+
+    path = tmp_path_factory.mktemp("db3") / "squat.db3"
+    colour = [cv2.resize(f, (COLOUR_K.width, COLOUR_K.height), interpolation=cv2.INTER_AREA)
+              for f in squat_frames[10:10 + DB3_FRAMES]]
+    pts = [i * 1000.0 / SQUAT_FPS for i in range(DB3_FRAMES)]
+    rotation = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    with Db3Writer(path, COLOUR_K, SQUAT_FPS, depth_scale=DEPTH_SCALE, depth_intrinsics=DEPTH_K,
+                   depth_to_colour=(rotation, DEPTH_TO_COLOUR_T), serial="000000000042", name="squat test") as w:
+        for i, image in enumerate(colour):
+            w.write(image, synthetic_depth(i), TS0_MS + pts[i], i)
+    assert path.stat().st_size > 0
+    return Db3Recording(path, colour, pts)
