@@ -39,3 +39,17 @@ class DeviceClock:
 def wall_to_monotonic(unix_s: float) -> float:
     """Monotonic seconds of a Unix time taken on this machine (for timestamps on the host's system clock)."""
     return unix_s - (time.time() - time.monotonic())
+
+
+def wait_until_due(t_due: float, deadline: float, timeout_s: float, name: str, clock, sleep) -> None:
+    """Real-time replay: sleep until a frame's capture time ``t_due`` (seconds, monotonic clock), but never
+    past the read's ``deadline``; raise SourceTimeout when the frame is due after the read timeout."""
+    from hal.errors import SourceTimeout
+
+    wait = t_due - clock()
+    if wait <= 0:
+        return
+    sleep(min(wait, max(0.0, deadline - clock())))
+    if clock() < t_due - 1e-4:
+        raise SourceTimeout(f"{name}: the next frame is due in {t_due - clock():.2f} s, "
+                            f"after the {timeout_s:.2f} s read timeout (a gap in the recording)", name)

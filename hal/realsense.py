@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from hal.clock import DeviceClock, wall_to_monotonic
+from hal.clock import DeviceClock, wait_until_due, wall_to_monotonic
 from hal.config import SourceConfig
 from hal.errors import (
     EndOfStream,
@@ -327,13 +327,7 @@ class RealSenseSource(Source):
             self._pending = self._next_frame(deadline, timeout_s)
         frame = self._pending
         if self.playback is not None and self.config.realtime:
-            wait = frame.t - self._clock()
-            if wait > 0:
-                self._sleep(min(wait, max(0.0, deadline - self._clock())))
-                if self._clock() < frame.t - 1e-4:
-                    raise SourceTimeout(f"{self.name}: the next frame is due in {frame.t - self._clock():.2f} s, "
-                                        f"after the {timeout_s:.2f} s read timeout (a gap in the recording)",
-                                        self.name)
+            wait_until_due(frame.t, deadline, timeout_s, self.name, self._clock, self._sleep)
         self._pending = None
         self._consecutive_timeouts = 0
         return frame

@@ -20,8 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from hal.clock import wait_until_due
 from hal.config import SourceConfig
-from hal.errors import EndOfStream, SourceTimeout
+from hal.errors import EndOfStream
 from hal.frame import Frame, Intrinsics
 from hal.sidecar import Timestamps, read_sidecar, sidecar_path
 from hal.source import Source
@@ -120,13 +121,7 @@ class ReplaySource(Source):
             self._pending = self._produce(deadline)
         frame = self._pending
         if self.config.realtime:
-            wait = frame.t - self._clock()
-            if wait > 0:
-                self._sleep(min(wait, max(0.0, deadline - self._clock())))
-                if self._clock() < frame.t - 1e-4:
-                    raise SourceTimeout(f"{self.name}: the next frame is due in {frame.t - self._clock():.2f} s, "
-                                        f"after the {timeout_s:.2f} s read timeout (a gap in the recording)",
-                                        self.name)
+            wait_until_due(frame.t, deadline, timeout_s, self.name, self._clock, self._sleep)
         self._pending = None
         return frame
 
