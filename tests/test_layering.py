@@ -14,8 +14,9 @@ ALLOWED = {
     "hal": {"numpy", "cv2", "pyrealsense2", "hal"},
     "landmarks": {"numpy", "cv2", "onnxruntime", "landmarks"},
 }
-# The model converter and its fetcher run only at `posed models fetch`, never in the daemon.
-CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers"}
+# The model converter and its fetcher run only at `posed models fetch`, and its check against LiteRT (the
+# test extra) only in tests and `posed bench convert`; never in the daemon.
+CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers", "ai_edge_litert"}
 
 
 def imported_roots(path: Path) -> set[str]:

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
 from daemon.commands import config_from_args
 from daemon.falls.bench import run_bench
+from daemon.preflight import shared_data
 
 TARGETS = {"recall": 0.95, "false_alarms": 0, "median_latency_s": 1.0}
 
@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     splits = ("tune", "heldout", "cmu") if args.split == "all" else (args.split,)
-    shared = Path(os.environ.get("POSED_SHARED_DATA", Path(__file__).resolve().parents[2].parent / "shared" / "data"))
+    shared = shared_data()
 
     def progress(o):
         if not args.json:

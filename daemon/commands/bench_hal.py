@@ -17,11 +17,11 @@ import cv2
 import numpy as np
 
 import hal
+from daemon.preflight import SQUAT_VIDEO, shared_data
 from hal.db3 import Db3Writer
 from hal.frame import Intrinsics
 
-SQUAT = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "reference" / "tfjs_pose_squats" / \
-    "pose_squats.mp4"
+SQUAT = shared_data() / SQUAT_VIDEO
 
 
 def _drain(src: hal.Source) -> int:

@@ -4,7 +4,9 @@ Both back ends get the same input tensors, built from the frames of a real video
 the shared test data): the detector's letterboxed frames and the landmark model's ROI crops from a tracking
 run. Reported per thread count: milliseconds per call of each model (median), the ratio onnx/LiteRT, and the
 whole stage per frame (crop, inference, decode, smoothing) in tracking mode and in detection mode (detector
-every frame). LiteRT (``ai-edge-litert``) comes with the test extra: ``pip install -e '.[test]'``.
+every frame). The landmark model is timed as shipped (converted without the segmentation head, which posed
+never reads) and, for comparison, converted in memory with all five outputs, as LiteRT runs it. LiteRT
+(``ai-edge-litert``) comes with the test extra: ``pip install -e '.[test]'``.
 """
 
 from __future__ import annotations
@@ -22,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from daemon.commands import add_config_args, config_from_args
+from daemon.preflight import SQUAT_VIDEO, shared_data
 
 MEDIAPIPE_TRACKING_MS = 33.0  # MediaPipe 0.10.21's own pipeline, median per frame, tracking (measured once)
-DEFAULT_VIDEO = "reference/tfjs_pose_squats/pose_squats.mp4"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -79,20 +81,17 @@ class LiteRTLandmarkModel:
         return self._outputs(lms.reshape(195), float(flag.reshape(-1)[0]), heatmap[0], world.reshape(117))
 
 
-def _landmark_model_without_segmentation(path: Path, settings):
-    """The landmark ONNX with the segmentation head cut off (in memory), or None without the ``onnx`` package."""
+def _landmark_model_full_graph(tflite: Path, onnx_path: Path, settings):
+    """The landmark model converted with all five outputs, segmentation head included (in memory), for
+    comparison with the shipped model, which leaves it out; None without the converter's packages."""
     try:
-        import onnx
-        from onnx import utils as onnx_utils
+        from landmarks.convert import convert
     except ImportError:
         return None
     from landmarks.runtime import OnnxLandmarkModel
 
-    model = onnx.load(str(path))
-    keep = [o.name for o in model.graph.output if [d.dim_value for d in o.type.tensor_type.shape.dim][1:]
-            not in ([256, 256, 1], [1, 256, 256])]
-    pruned = onnx_utils.Extractor(model).extract_model([i.name for i in model.graph.input], keep)
-    return OnnxLandmarkModel(path, settings, model=pruned.SerializeToString())
+    full = convert(tflite.read_bytes(), tflite.stem)
+    return OnnxLandmarkModel(onnx_path, settings, model=full.SerializeToString())
 
 
 # -- measurement helpers --------------------------------------------------------------------------------------
@@ -175,8 +174,7 @@ def run(args: argparse.Namespace) -> int:
     except ModelMissingError as exc:
         print(f"posed bench landmarks: {exc}", file=sys.stderr)
         return 2
-    shared = Path(os.environ.get("POSED_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
-    video = Path(args.video) if args.video else shared / DEFAULT_VIDEO
+    video = Path(args.video) if args.video else shared_data() / SQUAT_VIDEO
     frames = _read_frames(video, args.frames)
     if not frames:
         print(f"posed bench landmarks: no frames from {video} (give --video PATH)", file=sys.stderr)
@@ -210,11 +208,11 @@ def run(args: argparse.Namespace) -> int:
         onnx_lm = OnnxLandmarkModel(paths.landmark_onnx, settings)
         lite_det = LiteRTDetector(paths.detector_tflite, threads)
         lite_lm = LiteRTLandmarkModel(paths.landmark_tflite, threads)
-        pruned = _landmark_model_without_segmentation(paths.landmark_onnx, settings)
+        full = _landmark_model_full_graph(paths.landmark_tflite, paths.landmark_onnx, settings)
 
         lm_runners = {"onnx": onnx_lm, "litert": lite_lm}
-        if pruned is not None:
-            lm_runners["onnx_no_segmentation"] = pruned
+        if full is not None:
+            lm_runners["onnx_full_graph"] = full
         lm_ms = _time_calls(lm_runners, crops, args.passes)
         det_ms = _time_calls({"onnx": onnx_det, "litert": lite_det}, det_inputs, args.passes)
         entry: dict = {
@@ -223,10 +221,10 @@ def run(args: argparse.Namespace) -> int:
             "detector": {"onnx_ms": det_ms["onnx"], "litert_ms": det_ms["litert"],
                          "ratio": _ratio(det_ms["onnx"], det_ms["litert"])},
         }
-        if pruned is not None:
-            entry["landmark_model_no_segmentation"] = {
-                "onnx_ms": lm_ms["onnx_no_segmentation"], "litert_ms": lm_ms["litert"],
-                "ratio": _ratio(lm_ms["onnx_no_segmentation"], lm_ms["litert"])}
+        if full is not None:
+            entry["landmark_model_full_graph"] = {
+                "onnx_ms": lm_ms["onnx_full_graph"], "litert_ms": lm_ms["litert"],
+                "ratio": _ratio(lm_ms["onnx_full_graph"], lm_ms["litert"])}
 
         cfg = replace(base, threads=threads)
         stages: dict = {}
@@ -234,9 +232,8 @@ def run(args: argparse.Namespace) -> int:
             mode_cfg = replace(cfg, tracking=tracking)
             landmarkers = {"onnx": PoseLandmarker(mode_cfg, detector=onnx_det, landmark_model=onnx_lm),
                            "litert": PoseLandmarker(mode_cfg, detector=lite_det, landmark_model=lite_lm)}
-            if pruned is not None and tracking:
-                landmarkers["onnx_no_segmentation"] = PoseLandmarker(mode_cfg, detector=onnx_det,
-                                                                     landmark_model=pruned)
+            if full is not None and tracking:
+                landmarkers["onnx_full_graph"] = PoseLandmarker(mode_cfg, detector=onnx_det, landmark_model=full)
             stages[mode] = _time_stages(landmarkers, frames, args.passes, 30.0)
             stages[mode]["ratio"] = _ratio(stages[mode]["onnx"]["ms"], stages[mode]["litert"]["ms"])
         entry["stage_per_frame"] = stages
@@ -261,8 +258,8 @@ def _print_table(report: dict) -> None:
     print(f"{'threads':>7}  {'what':36s} {'onnx':>8} {'litert':>8} {'ratio':>6}")
     for threads, e in report["threads"].items():
         rows = [("landmark model", e["landmark_model"]), ("detector", e["detector"])]
-        if "landmark_model_no_segmentation" in e:
-            rows.append(("landmark model, no segmentation head", e["landmark_model_no_segmentation"]))
+        if "landmark_model_full_graph" in e:
+            rows.append(("landmark model, with segmentation head", e["landmark_model_full_graph"]))
         for name, r in rows:
             print(f"{threads:>7}  {name:36s} {r['onnx_ms']:8.2f} {r['litert_ms']:8.2f} {r['ratio']:6.2f}")
         for mode, s in e["stage_per_frame"].items():
@@ -270,8 +267,8 @@ def _print_table(report: dict) -> None:
                   f"{s['ratio']:6.2f}")
             steps = ", ".join(f"{k} {v:.2f}" for k, v in s["onnx"]["steps_ms"].items())
             print(f"{'':>7}    onnx steps: {steps}")
-            if "onnx_no_segmentation" in s:
-                print(f"{'':>7}    onnx without segmentation head: {s['onnx_no_segmentation']['ms']:.2f}")
+            if "onnx_full_graph" in s:
+                print(f"{'':>7}    onnx with the segmentation head: {s['onnx_full_graph']['ms']:.2f}")
         t = e["targets"]
         print(f"{'':>7}  targets: landmark model onnx <= LiteRT: {'met' if t['landmark_model_onnx_le_litert'] else 'MISSED'}"
               f"; tracking stage < MediaPipe {report['mediapipe_tracking_ms']:.0f} ms: "

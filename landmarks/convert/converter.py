@@ -4,12 +4,16 @@ Supports exactly the operators those two models contain: CONV_2D, DEPTHWISE_CONV
 RESIZE_BILINEAR, RESHAPE, CONCATENATION, DEPTH_TO_SPACE, LOGISTIC, and DEQUANTIZE (float16 weights) /
 DENSIFY (sparse weights), which are folded into float32 constants. Inputs and outputs keep their TFLite
 names, shapes (NHWC) and element order; inside, rank-4 activations run in NCHW (see ``onnx_graph``).
+
+``outputs`` selects which TFLite outputs the ONNX model computes; operators that feed none of them are left
+out. posed converts the landmark model without its segmentation head (``Identity_2``, a 256×256 person mask
+the pipeline never reads), which is about 45% of the model's time on a CPU (docs/models.md).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 import numpy as np
 import onnx
@@ -20,7 +24,7 @@ from landmarks.convert.densify import densify
 from landmarks.convert.onnx_graph import NCHW, NHWC, TO_NCHW, OnnxGraph, value_info
 from landmarks.convert.tflite_graph import Graph, Operator, Tensor, read_graph
 
-CONVERTER_VERSION = "1"
+CONVERTER_VERSION = "2"  # 2: outputs can be selected; unused operators are pruned
 OPSET = 17
 IR_VERSION = 8  # onnxruntime >= 1.14 reads it
 NHWC_AXIS_TO_NCHW = {0: 0, 1: 2, 2: 3, 3: 1}
@@ -34,10 +38,35 @@ class UnsupportedOperatorError(ConversionError):
     """The model uses an operator this converter does not implement."""
 
 
+def select_outputs(graph: Graph, outputs: Collection[str] | None, model_name: str) -> tuple[int, ...]:
+    """Tensor indices of the requested graph outputs, in the graph's order (all when ``outputs`` is None)."""
+    if outputs is None:
+        return graph.outputs
+    names = {graph.tensors[i].name: i for i in graph.outputs}
+    unknown = sorted(set(outputs) - names.keys())
+    if unknown or not outputs:
+        raise ConversionError(f"{model_name}: cannot select output(s) {unknown or '(none)'}; "
+                              f"the model's outputs are {', '.join(names)}")
+    return tuple(i for i in graph.outputs if graph.tensors[i].name in outputs)
+
+
+def needed_operators(graph: Graph, outputs: tuple[int, ...]) -> tuple[Operator, ...]:
+    """The operators that contribute to ``outputs`` (tensor indices), in graph order."""
+    needed = set(outputs)
+    keep = []
+    for op in reversed(graph.operators):
+        if needed.intersection(op.outputs):
+            keep.append(op)
+            needed.update(i for i in op.inputs if i >= 0)
+    return tuple(reversed(keep))
+
+
 class _Converter:
-    def __init__(self, graph: Graph, model_name: str) -> None:
+    def __init__(self, graph: Graph, model_name: str, outputs: Collection[str] | None = None) -> None:
         self.g = graph
         self.model_name = model_name
+        self.outputs = select_outputs(graph, outputs, model_name)
+        self.operators = needed_operators(graph, self.outputs)
         self.out = OnnxGraph()
         self.consts: dict[int, np.ndarray] = {}  # tensor index -> constant, TFLite layout, dense
         self.const_values: dict[tuple[int, str], str] = {}  # (tensor index, layout) -> initializer name
@@ -238,7 +267,7 @@ class _Converter:
         handlers: dict[str, Callable[[Operator], None]] = {
             name: getattr(self, f"op_{name}") for name in SUPPORTED_OPS
         }
-        unknown = sorted({op.name for op in self.g.operators if op.name not in handlers})
+        unknown = sorted({op.name for op in self.operators if op.name not in handlers})
         if unknown:
             raise UnsupportedOperatorError(
                 f"{self.model_name}: unsupported TFLite operator(s) {', '.join(unknown)} "
@@ -252,12 +281,12 @@ class _Converter:
             inputs.append(value_info(t.name, t.shape))
             self.out._names.add(t.name)
             self.out.bind(i, t.name, NHWC)
-        output_names = {self.tensor(i).name for i in self.g.outputs}
+        output_names = {self.tensor(i).name for i in self.outputs}
         self.out._names.update(output_names)
-        for op in self.g.operators:
+        for op in self.operators:
             handlers[op.name](op)
         outputs = []
-        for i in self.g.outputs:
+        for i in self.outputs:
             t = self.tensor(i)
             if not self.out.has(i):
                 raise ConversionError(f"{self.model_name}: output {t.name!r} is not computed by the graph")
@@ -297,10 +326,12 @@ SUPPORTED_OPS = (
 )
 
 
-def convert(tflite_bytes: bytes, model_name: str = "model") -> onnx.ModelProto:
+def convert(tflite_bytes: bytes, model_name: str = "model",
+            outputs: Collection[str] | None = None) -> onnx.ModelProto:
     """Convert the bytes of a ``.tflite`` file to an ONNX model (opset 17, float32).
 
-    Raises ``UnsupportedOperatorError`` naming the operator(s) and the model, ``ConversionError`` for
+    ``outputs``: names of the TFLite outputs to keep (None = all); the operators only the others need are
+    dropped. Raises ``UnsupportedOperatorError`` naming the operator(s) and the model, ``ConversionError`` for
     anything else the converter cannot express, ``TFLiteFormatError`` for a corrupt file.
     """
-    return _Converter(read_graph(tflite_bytes), model_name).run()
+    return _Converter(read_graph(tflite_bytes), model_name, outputs).run()

@@ -57,13 +57,21 @@ class PinnedModel:
     sha256: str
     size: int
     onnx_name: str
+    outputs: tuple[str, ...] | None = None  # TFLite outputs the ONNX model keeps (None = all)
 
+
+# The landmark model's outputs: Identity = 39 landmarks in crop pixels, Identity_1 = pose flag,
+# Identity_2 = 256x256 segmentation logits, Identity_3 = 64x64x39 heatmap, Identity_4 = 39 world landmarks.
+# posed never reads the segmentation mask, and computing it is about 45% of the model's time, so the
+# converted model leaves it out.
+LANDMARK_OUTPUTS = ("Identity", "Identity_1", "Identity_3", "Identity_4")
 
 PINNED = (
     PinnedModel(DETECTOR_TFLITE, "mediapipe/modules/pose_detection/pose_detection.tflite",
                 "9ba9dd3d42efaaba86b4ff0122b06f29c4122e756b329d89dca1e297fd8f866c", 2_959_046, DETECTOR_ONNX),
     PinnedModel(LANDMARK_TFLITE, "mediapipe/modules/pose_landmark/pose_landmark_full.tflite",
-                "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f", 6_440_512, LANDMARK_ONNX),
+                "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f", 6_440_512, LANDMARK_ONNX,
+                LANDMARK_OUTPUTS),
 )
 
 
@@ -243,12 +251,13 @@ def _kept_tflite(paths: ModelPaths) -> tuple[dict[str, bytes], dict] | None:
     return data, source or {"kind": "folder", "path": str(paths.models_dir.resolve())}
 
 
-def _smoke_test(name: str, onnx_bytes: bytes, tflite_bytes: bytes) -> None:
+def _smoke_test(name: str, onnx_bytes: bytes, tflite_bytes: bytes, outputs: tuple[str, ...] | None) -> None:
     """Load the converted model in onnxruntime and check its outputs' names and shapes on zeros."""
     import onnxruntime as ort
 
     graph = read_graph(tflite_bytes)
-    want = {graph.tensors[i].name: graph.tensors[i].shape for i in graph.outputs}
+    want = {graph.tensors[i].name: graph.tensors[i].shape for i in graph.outputs
+            if outputs is None or graph.tensors[i].name in outputs}
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = 1
     sess = ort.InferenceSession(onnx_bytes, opts, providers=["CPUExecutionProvider"])
@@ -304,11 +313,11 @@ def fetch_models(models_dir: str | os.PathLike, source: str | os.PathLike | None
     converted = {}
     for pin in PINNED:
         t = time.perf_counter()
-        model = convert(data[pin.name], pin.name.removesuffix(".tflite"))
+        model = convert(data[pin.name], pin.name.removesuffix(".tflite"), pin.outputs)
         converted[pin.onnx_name] = model.SerializeToString()
         seconds[f"convert {pin.name}"] = time.perf_counter() - t
         t = time.perf_counter()
-        _smoke_test(pin.onnx_name, converted[pin.onnx_name], data[pin.name])
+        _smoke_test(pin.onnx_name, converted[pin.onnx_name], data[pin.name], pin.outputs)
         seconds[f"check {pin.onnx_name}"] = time.perf_counter() - t
         say(f"converted {pin.name} -> {pin.onnx_name} ({len(converted[pin.onnx_name]) / 1e6:.1f} MB)")
 
@@ -320,7 +329,7 @@ def fetch_models(models_dir: str | os.PathLike, source: str | os.PathLike | None
         files[pin.name] = {"sha256": pin.sha256, "bytes": len(data[pin.name]), "member": pin.member}
         blob = converted[pin.onnx_name]
         files[pin.onnx_name] = {"sha256": _sha256(blob), "bytes": len(blob), "converted_from": pin.name,
-                                "opset": OPSET}
+                                "opset": OPSET, "outputs": list(pin.outputs) if pin.outputs else "all"}
     manifest = {
         "format": MANIFEST_FORMAT,
         "converter_version": CONVERTER_VERSION,

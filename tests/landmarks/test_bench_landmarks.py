@@ -12,7 +12,7 @@ def test_bench_json_has_both_back_ends_per_thread_count(models_dir, monkeypatch,
     assert main(["bench", "landmarks", "--json", "--frames", "3", "--passes", "1", "--threads", "1"]) == 0
     report = json.loads(capsys.readouterr().out)
     entry = report["threads"]["1"]
-    for model in ("landmark_model", "detector"):
+    for model in ("landmark_model", "landmark_model_full_graph", "detector"):
         r = entry[model]
         assert r["onnx_ms"] > 0 and r["litert_ms"] > 0
         assert r["ratio"] == pytest.approx(r["onnx_ms"] / r["litert_ms"])

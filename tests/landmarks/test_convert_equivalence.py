@@ -1,11 +1,18 @@
 """The converted pose models (the ONNX files in the models folder, run by onnxruntime) against the original
-TFLite files run by LiteRT, on a real image and on random input.
+TFLite files run by LiteRT, on real images and on random input.
 
-Float32 rounding differs between any two kernel libraries; LiteRT's own XNNPACK and built-in kernels disagree
-by up to ~1 on the segmentation logits (|values| up to ~1700) and up to ~6e-3 px on the landmarks. So:
-* on the real image every output is within 1e-3 absolute of LiteRT (segmentation: after the sigmoid);
-* on every input every output is within max(1e-3, 3 x the XNNPACK-vs-built-in spread of LiteRT itself)
-  (converter bugs show up 10^4-10^6 times larger: a wrong resize mode or SAME-pad side gives 50-1700).
+Target: 1e-3 absolute on every output the converted models keep (the landmark model is converted without its
+segmentation head, see landmarks/convert/fetch.py). Where float32 itself cannot reach it, the test says so
+and holds the output to LiteRT's own reproducibility instead:
+* pose.jpg and the sitting image: every output within 1e-3 of LiteRT (built-in kernels), no exception;
+* every input (five real images, four random ones): every output within max(1e-3, 2 x the disagreement of
+  LiteRT's own XNNPACK and built-in kernels on that input and output). Outputs with values in the hundreds
+  move by more than 1e-3 under float32 rounding alone: the detector's box regressors (up to ~860 input
+  pixels) on the squat frames and the landmarks (mostly z) on random input (up to ~700 crop pixels), where
+  LiteRT's two kernel sets disagree with each other by 1.1-5.8e-3;
+* against the exact (float64) evaluation of the same graph, onnxruntime is no further off than LiteRT's
+  kernels are (`posed bench convert` and docs/models.md have the numbers).
+Converter bugs show up 10^4-10^6 times larger (a wrong resize mode or SAME-pad side gives 50-1700).
 """
 
 from __future__ import annotations
@@ -17,51 +24,40 @@ import numpy as np
 import onnx
 import onnxruntime as ort
 import pytest
-from ai_edge_litert.interpreter import Interpreter, OpResolverType
 
 from landmarks.convert import convert
+from landmarks.convert.equivalence import ExactModel, diff_outputs, litert_outputs, model_input, random_input
+from landmarks.convert.fetch import PINNED
 from landmarks.convert.tflite_graph import read_graph
 
-MODELS = {"detector": ("pose_detection", 224, "signed"), "landmark": ("pose_landmark_full", 256, "unit")}
-SEGMENTATION = "Identity_2"  # landmark model: segmentation logits
+MODELS = {"detector": "pose_detection", "landmark": "pose_landmark_full"}
+KEPT = {pin.name.removesuffix(".tflite"): pin.outputs for pin in PINNED}
+STRICT_IMAGES = ("pose.jpg", "sitting")
+REAL_IMAGES = (*STRICT_IMAGES, "squat frame 0", "squat frame 32", "squat frame 64")  # bench: every 16th
+RANDOM_INPUTS = ("random 0", "random 1", "random 2", "random 3")
 
 
-def sigmoid(v: np.ndarray) -> np.ndarray:
-    return 0.5 * (1.0 + np.tanh(0.5 * v.astype(np.float64)))
+@pytest.fixture(scope="module")
+def images(shared_data) -> dict[str, np.ndarray]:
+    """The real test images, BGR: MediaPipe's pose.jpg, the sitting image and three squat video frames."""
+    ref = shared_data / "reference"
+    out = {"pose.jpg": cv2.imread(str(ref / "mediapipe_pose_jpg" / "pose.jpg")),
+           "sitting": cv2.imread(str(ref / "mediapipe_samples_ios_sitting" / "test_image.jpg"))}
+    cap = cv2.VideoCapture(str(ref / "tfjs_pose_squats" / "pose_squats.mp4"))
+    for index in range(65):
+        ok, frame = cap.read()
+        assert ok, f"pose_squats.mp4 ends at frame {index}"
+        if index in (0, 32, 64):
+            out[f"squat frame {index}"] = frame
+    cap.release()
+    assert all(v is not None for v in out.values()), f"shared test images missing: {out.keys()}"
+    return out
 
 
-def real_input(shared_data, size: int, value_range: str) -> np.ndarray:
-    """pose.jpg as MediaPipe feeds it: detector = whole frame letterboxed (zero border), [-1, 1];
-    landmark = square crop around the person, [0, 1]; RGB, NHWC."""
-    bgr = cv2.imread(str(shared_data / "reference" / "mediapipe_pose_jpg" / "pose.jpg"))
-    assert bgr is not None, "pose.jpg missing from the shared data"
-    rgb = np.ascontiguousarray(bgr[:, :, ::-1])
-    h, w = rgb.shape[:2]
-    if value_range == "signed":
-        scale = size / max(h, w)
-        resized = cv2.resize(rgb, (round(w * scale), round(h * scale)), interpolation=cv2.INTER_LINEAR)
-        canvas = np.zeros((size, size, 3), np.uint8)
-        top, left = (size - resized.shape[0]) // 2, (size - resized.shape[1]) // 2
-        canvas[top:top + resized.shape[0], left:left + resized.shape[1]] = resized
-        x = canvas.astype(np.float32) / 127.5 - 1.0
-    else:
-        side = min(h, w)
-        crop = rgb[(h - side) // 2:(h + side) // 2, (w - side) // 2:(w + side) // 2]
-        x = cv2.resize(crop, (size, size), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
-    return x[None]
-
-
-def random_input(size: int, value_range: str, seed: int) -> np.ndarray:
-    lo = -1.0 if value_range == "signed" else 0.0
-    return np.random.default_rng(seed).uniform(lo, 1.0, (1, size, size, 3)).astype(np.float32)
-
-
-def litert(path, x, resolver) -> dict[str, np.ndarray]:
-    it = Interpreter(model_path=str(path), experimental_op_resolver_type=resolver, num_threads=1)
-    it.allocate_tensors()
-    it.set_tensor(it.get_input_details()[0]["index"], x)
-    it.invoke()
-    return {d["name"]: it.get_tensor(d["index"]).copy() for d in it.get_output_details()}
+def make_input(images, key: str, source: str) -> np.ndarray:
+    if source.startswith("random"):
+        return random_input(MODELS[key], int(source.split()[-1]))
+    return model_input(images[source], MODELS[key])
 
 
 @pytest.fixture(scope="module")
@@ -69,59 +65,78 @@ def sessions(models_dir):
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = 1
     return {key: ort.InferenceSession(str(models_dir / f"{name}.onnx"), opts, providers=["CPUExecutionProvider"])
-            for key, (name, _, _) in MODELS.items()}
+            for key, name in MODELS.items()}
 
 
-def compare(models_dir, sessions, key, x):
-    name = MODELS[key][0]
+def compare(models_dir, sessions, key, x, exact=None):
+    """onnxruntime vs LiteRT (both kernel sets) on ``x``, one OutputDiff per kept output."""
+    name = MODELS[key]
     tfl = models_dir / f"{name}.tflite"
-    builtin = litert(tfl, x, OpResolverType.BUILTIN_WITHOUT_DEFAULT_DELEGATES)
-    xnnpack = litert(tfl, x, OpResolverType.AUTO)
     sess = sessions[key]
     got = dict(zip([o.name for o in sess.get_outputs()], sess.run(None, {"input_1": x}), strict=True))
-    assert set(got) == set(builtin)
-    return builtin, xnnpack, got
+    builtin = litert_outputs(tfl, x, "built-in")
+    assert set(got) == set(KEPT[name] or builtin)
+    return diff_outputs(got, builtin, litert_outputs(tfl, x, "XNNPACK"), exact)
 
 
 @pytest.mark.parametrize("key", MODELS)
-def test_real_image_every_output_within_1e3(models_dir, sessions, shared_data, key):
-    _, size, value_range = MODELS[key]
-    builtin, xnnpack, got = compare(models_dir, sessions, key, real_input(shared_data, size, value_range))
-    report = {}
-    for out, ref in builtin.items():
-        assert got[out].shape == ref.shape, out
-        if out == SEGMENTATION and key == "landmark":
-            diff = np.abs(sigmoid(got[out]) - sigmoid(ref)).max()
-        else:
-            diff = np.abs(got[out] - ref).max()
-        report[out] = diff
-        assert diff <= 1e-3, f"{key} {out}: max |onnx - litert| = {diff:.3g}"
-    print(key, {k: f"{v:.2g}" for k, v in report.items()})
+@pytest.mark.parametrize("source", STRICT_IMAGES)
+def test_real_image_every_output_within_1e3(models_dir, sessions, images, key, source):
+    for d in compare(models_dir, sessions, key, make_input(images, key, source)):
+        assert d.onnx_vs_builtin <= 1e-3, f"{key} {d.output} on {source}: |onnx - litert| = {d.onnx_vs_builtin:.3g}"
 
 
 @pytest.mark.parametrize("key", MODELS)
-@pytest.mark.parametrize("source", ["real", "random0", "random1"])
-def test_within_litert_own_kernel_spread(models_dir, sessions, shared_data, key, source):
-    _, size, value_range = MODELS[key]
-    x = (real_input(shared_data, size, value_range) if source == "real"
-         else random_input(size, value_range, int(source[-1])))
-    builtin, xnnpack, got = compare(models_dir, sessions, key, x)
-    for out, ref in builtin.items():
-        spread = np.abs(xnnpack[out] - ref).max()
-        tol = max(1e-3, 3.0 * spread)
-        for other, label in ((ref, "built-in"), (xnnpack[out], "XNNPACK")):
-            diff = np.abs(got[out] - other).max()
-            assert diff <= tol, (f"{key} {out} on {source}: |onnx - litert {label}| = {diff:.3g} > {tol:.3g} "
-                                 f"(litert's own spread {spread:.3g})")
+@pytest.mark.parametrize("source", REAL_IMAGES + RANDOM_INPUTS)
+def test_within_1e3_or_litert_own_reproducibility(models_dir, sessions, images, key, source):
+    for d in compare(models_dir, sessions, key, make_input(images, key, source)):
+        tol = max(1e-3, 2.0 * d.litert_spread)
+        assert d.worst <= tol, (f"{key} {d.output} on {source}: |onnx - litert| = {d.worst:.3g} > {tol:.3g} "
+                                f"(litert's own XNNPACK vs built-in: {d.litert_spread:.3g})")
+
+
+@pytest.mark.parametrize("key", MODELS)
+@pytest.mark.parametrize("source", ["squat frame 32", "random 1"])
+def test_as_close_to_the_exact_result_as_litert_is(models_dir, sessions, images, key, source):
+    """Against the exact (float64) evaluation of the converted graph, onnxruntime's float32 result is no
+    further off than 1.5x the worse of LiteRT's two kernel sets (whose own errors exceed 1e-3 on these
+    inputs); LiteRT within 1e-2 of it also checks the graph's maths independently."""
+    x = make_input(images, key, source)
+    exact = ExactModel(onnx.load(str(models_dir / f"{MODELS[key]}.onnx")))(x)
+    for d in compare(models_dir, sessions, key, x, exact):
+        err = d.exact_error
+        assert err["built-in"] <= 1e-2 and err["XNNPACK"] <= 1e-2, (d.output, err)
+        assert err["onnx"] <= max(1e-3, 1.5 * err["built-in"], 1.5 * err["XNNPACK"]), (d.output, err)
+
+
+def test_pruning_the_segmentation_head_changes_no_kept_output(models_dir, images):
+    """The converter's output selection only drops operators: the full conversion (all five outputs) and
+    the shipped one agree bit for bit on the outputs they share, and the full one has the extra output."""
+    name = MODELS["landmark"]
+    full = convert((models_dir / f"{name}.tflite").read_bytes(), name)
+    shipped = onnx.load(str(models_dir / f"{name}.onnx"))
+    assert [o.name for o in full.graph.output] == ["Identity", "Identity_1", "Identity_2", "Identity_3",
+                                                   "Identity_4"]
+    assert [o.name for o in shipped.graph.output] == list(KEPT[name])
+    assert len(shipped.graph.node) < len(full.graph.node)
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = 1
+    x = make_input(images, "landmark", "pose.jpg")
+    a = ort.InferenceSession(full.SerializeToString(), opts, providers=["CPUExecutionProvider"])
+    b = ort.InferenceSession(shipped.SerializeToString(), opts, providers=["CPUExecutionProvider"])
+    kept = list(KEPT[name])
+    for out, va, vb in zip(kept, a.run(kept, {"input_1": x}), b.run(kept, {"input_1": x}), strict=True):
+        np.testing.assert_array_equal(va, vb, err_msg=out)
 
 
 @pytest.mark.parametrize("key", MODELS)
 def test_interface_is_the_tflite_one(models_dir, sessions, key):
-    name = MODELS[key][0]
+    name = MODELS[key]
     graph = read_graph((models_dir / f"{name}.tflite").read_bytes())
     sess = sessions[key]
     want_in = [(graph.tensors[i].name, list(graph.tensors[i].shape)) for i in graph.inputs]
-    want_out = [(graph.tensors[i].name, list(graph.tensors[i].shape)) for i in graph.outputs]
+    want_out = [(graph.tensors[i].name, list(graph.tensors[i].shape)) for i in graph.outputs
+                if KEPT[name] is None or graph.tensors[i].name in KEPT[name]]
     assert [(i.name, i.shape) for i in sess.get_inputs()] == want_in
     assert [(o.name, o.shape) for o in sess.get_outputs()] == want_out
     assert all(i.type == "tensor(float)" for i in sess.get_inputs())
@@ -131,8 +146,8 @@ def test_interface_is_the_tflite_one(models_dir, sessions, key):
 def test_shipped_onnx_is_what_this_converter_makes(models_dir, key):
     """A fresh conversion is byte-identical to the file in the models folder (conversion is deterministic;
     a converter change without a CONVERTER_VERSION bump shows up here)."""
-    name = MODELS[key][0]
-    model = convert((models_dir / f"{name}.tflite").read_bytes(), name)
+    name = MODELS[key]
+    model = convert((models_dir / f"{name}.tflite").read_bytes(), name, KEPT[name])
     fresh = model.SerializeToString()
     shipped = (models_dir / f"{name}.onnx").read_bytes()
     assert hashlib.sha256(fresh).hexdigest() == hashlib.sha256(shipped).hexdigest(), (

@@ -13,7 +13,7 @@ import pytest
 import tflite
 from ai_edge_litert.interpreter import Interpreter, OpResolverType
 
-from landmarks.convert import SUPPORTED_OPS, UnsupportedOperatorError, convert
+from landmarks.convert import SUPPORTED_OPS, ConversionError, UnsupportedOperatorError, convert
 from landmarks.convert.tflite_graph import TFLiteFormatError
 
 T = tflite.TensorType
@@ -408,6 +408,35 @@ def test_block_sparse_weights_match_litert():
     x = rand(1, 3, 3, i)
     assert_same(model, [x])
     np.testing.assert_allclose(run_onnx(model, [x])[0][0], np.einsum("nhwi,oi->nhwo", x, w[:, 0, 0]), atol=1e-5)
+
+
+# ---- output selection -------------------------------------------------------------------------------
+def _two_heads():
+    """x -> ADD c -> y (head 1); x -> TANH -> LOGISTIC -> z (head 2, with an operator posed cannot convert)."""
+    tensors = [Tensor("x", (1, 4)), Tensor("c", (4,), data=rand(4)), Tensor("y", (1, 4)), Tensor("t", (1, 4)),
+               Tensor("z", (1, 4)), Tensor("w", (4,), data=rand(4))]
+    ops = [Op(OP.ADD, [0, 1], [2], (OPT.AddOptions, {"FusedActivationFunction": ACT.NONE})),
+           Op(OP.TANH, [0], [3]), Op(OP.ADD, [3, 5], [4], (OPT.AddOptions, {"FusedActivationFunction": ACT.NONE}))]
+    return build_tflite(tensors, ops, [0], [2, 4])
+
+
+def test_selected_outputs_drop_the_operators_only_the_others_need():
+    model = _two_heads()
+    with pytest.raises(UnsupportedOperatorError, match="TANH"):
+        convert(model, "two_heads")  # all outputs: the TANH head is needed
+    onnx_model = convert(model, "two_heads", outputs=["y"])
+    assert [o.name for o in onnx_model.graph.output] == ["y"]
+    assert [n.op_type for n in onnx_model.graph.node] == ["Add", "Identity"]
+    assert len(onnx_model.graph.initializer) == 1  # w fed only the dropped head
+    x = rand(1, 4)
+    sess = ort.InferenceSession(onnx_model.SerializeToString(), providers=["CPUExecutionProvider"])
+    np.testing.assert_allclose(sess.run(None, {"x": x})[0], run_litert(model, [x])[0], atol=0)
+
+
+@pytest.mark.parametrize("outputs", [["nope"], ["y", "Identity_9"], []])
+def test_selecting_an_unknown_output_lists_the_model_outputs(outputs):
+    with pytest.raises(ConversionError, match=r"two_heads: cannot select output.*the model's outputs are y, z"):
+        convert(_two_heads(), "two_heads", outputs=outputs)
 
 
 # ---- what is not supported -----------------------------------------------------------------------------

@@ -16,7 +16,8 @@ def test_models_load_and_give_outputs_in_canonical_shapes(models_dir):
     out = lm(np.zeros((1, 256, 256, 3), np.float32))
     assert out.landmarks.shape == (195,) and out.heatmap.shape == (64, 64, 39) and out.world.shape == (117,)
     assert 0.0 <= out.pose_flag <= 1.0  # already a probability (the model ends with a logistic)
-    assert "Identity_2" not in lm._outputs  # segmentation is never fetched
+    assert len(lm.session.get_outputs()) == 4  # converted without the segmentation head
+    assert all(o.shape != [1, 256, 256, 1] for o in lm.session.get_outputs())
 
 
 def test_a_corrupt_model_file_is_reported_with_the_fix(tmp_path):

@@ -1,0 +1,126 @@
+"""How far the converted ONNX models are from the original TFLite models, output by output.
+
+Three float32 results of the same model on the same input tensor — onnxruntime on the ONNX file, LiteRT's
+built-in kernels and LiteRT's XNNPACK delegate (MediaPipe's own runtime) on the ``.tflite`` file — and, on
+request, the exact result: the converted graph evaluated in float64 by onnx's reference evaluator. Used by
+``posed bench convert`` and the equivalence tests. LiteRT (``ai-edge-litert``) is a test extra; it is
+imported only when called.
+
+Inputs follow MediaPipe: the detector sees the whole frame letterboxed to 224×224 (zero border) in [-1, 1];
+the landmark model a 256×256 square crop in [0, 1]; RGB, NHWC float32, batch 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import onnx
+from onnx import numpy_helper
+
+KERNELS = ("built-in", "XNNPACK")
+MODEL_INPUTS = {"pose_detection": (224, -1.0), "pose_landmark_full": (256, 0.0)}  # side, lowest value
+
+
+def model_input(bgr: np.ndarray, model: str) -> np.ndarray:
+    """A BGR image as ``model`` ("pose_detection" or "pose_landmark_full") is fed: the detector gets the whole
+    frame letterboxed, the landmark model the centre square; (1, side, side, 3) float32."""
+    if model not in MODEL_INPUTS:
+        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODEL_INPUTS)}")
+    side, lo = MODEL_INPUTS[model]
+    rgb = np.ascontiguousarray(bgr[:, :, ::-1])
+    h, w = rgb.shape[:2]
+    if lo < 0:
+        scale = side / max(h, w)
+        resized = cv2.resize(rgb, (round(w * scale), round(h * scale)), interpolation=cv2.INTER_LINEAR)
+        canvas = np.zeros((side, side, 3), np.uint8)
+        top, left = (side - resized.shape[0]) // 2, (side - resized.shape[1]) // 2
+        canvas[top:top + resized.shape[0], left:left + resized.shape[1]] = resized
+        return (canvas.astype(np.float32) / 127.5 - 1.0)[None]
+    s = min(h, w)
+    crop = rgb[(h - s) // 2:(h + s) // 2, (w - s) // 2:(w + s) // 2]
+    return (cv2.resize(crop, (side, side), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0)[None]
+
+
+def random_input(model: str, seed: int) -> np.ndarray:
+    """Uniform noise over the model's input range, (1, side, side, 3) float32, from ``seed``."""
+    side, lo = MODEL_INPUTS[model]
+    return np.random.default_rng(seed).uniform(lo, 1.0, (1, side, side, 3)).astype(np.float32)
+
+
+def litert_outputs(tflite_path: Path, x: np.ndarray, kernels: str) -> dict[str, np.ndarray]:
+    """Every output of the ``.tflite`` model on ``x`` by LiteRT, 1 thread; ``kernels`` "built-in" or
+    "XNNPACK"."""
+    from ai_edge_litert.interpreter import Interpreter, OpResolverType
+
+    resolvers = {"built-in": OpResolverType.BUILTIN_WITHOUT_DEFAULT_DELEGATES, "XNNPACK": OpResolverType.AUTO}
+    if kernels not in resolvers:
+        raise ValueError(f"unknown LiteRT kernels {kernels!r}; choose one of {', '.join(resolvers)}")
+    it = Interpreter(model_path=str(tflite_path), experimental_op_resolver_type=resolvers[kernels], num_threads=1)
+    it.allocate_tensors()
+    it.set_tensor(it.get_input_details()[0]["index"], x)
+    it.invoke()
+    return {d["name"]: it.get_tensor(d["index"]).copy() for d in it.get_output_details()}
+
+
+def float64_model(model: onnx.ModelProto) -> onnx.ModelProto:
+    """A copy of ``model`` with every float32 initializer, input, output and value made float64."""
+    m = onnx.ModelProto()
+    m.CopyFrom(model)
+    for init in m.graph.initializer:
+        if init.data_type == onnx.TensorProto.FLOAT:
+            init.CopyFrom(numpy_helper.from_array(numpy_helper.to_array(init).astype(np.float64), init.name))
+    for v in [*m.graph.input, *m.graph.output, *m.graph.value_info]:
+        if v.type.tensor_type.elem_type == onnx.TensorProto.FLOAT:
+            v.type.tensor_type.elem_type = onnx.TensorProto.DOUBLE
+    return m
+
+
+class ExactModel:
+    """The converted graph evaluated in float64 (onnx.reference; ~1 s per call on these models)."""
+
+    def __init__(self, model: onnx.ModelProto) -> None:
+        from onnx.reference import ReferenceEvaluator
+
+        self.input = model.graph.input[0].name
+        self.outputs = [o.name for o in model.graph.output]
+        self._evaluator = ReferenceEvaluator(float64_model(model))
+
+    def __call__(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        values = self._evaluator.run(self.outputs, {self.input: x.astype(np.float64)})
+        return dict(zip(self.outputs, values, strict=True))
+
+
+@dataclass(frozen=True)
+class OutputDiff:
+    """Max absolute differences on one output for one input (units of the output)."""
+
+    output: str
+    onnx_vs_builtin: float
+    onnx_vs_xnnpack: float
+    litert_spread: float  # LiteRT built-in vs XNNPACK: float32's own reproducibility on this output
+    max_abs_value: float
+    exact_error: dict[str, float] | None = None  # "onnx", "built-in", "XNNPACK" vs the float64 result
+
+    @property
+    def worst(self) -> float:
+        return max(self.onnx_vs_builtin, self.onnx_vs_xnnpack)
+
+
+def diff_outputs(onnx_out: dict[str, np.ndarray], builtin: dict[str, np.ndarray], xnnpack: dict[str, np.ndarray],
+                 exact: dict[str, np.ndarray] | None = None) -> list[OutputDiff]:
+    """One :class:`OutputDiff` per onnxruntime output (the ONNX model may keep fewer outputs than LiteRT's)."""
+    rows = []
+    for name, value in onnx_out.items():
+        ref, other = builtin[name], xnnpack[name]
+        if value.shape != ref.shape:
+            raise ValueError(f"output {name}: onnx shape {value.shape} != TFLite shape {ref.shape}")
+        errors = None
+        if exact is not None:
+            errors = {label: float(np.abs(v - exact[name]).max())
+                      for label, v in (("onnx", value), ("built-in", ref), ("XNNPACK", other))}
+        rows.append(OutputDiff(name, float(np.abs(value - ref).max()), float(np.abs(value - other).max()),
+                               float(np.abs(ref - other).max()), float(np.abs(ref).max()), errors))
+    return rows
