@@ -11,12 +11,13 @@ import cv2
 import numpy as np
 import pytest
 
+from daemon import conformance
 from landmarks.config import LandmarkConfig
 from landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points, unrotate_points
 from landmarks.recording import LandmarkFrame
 
-BODY = [11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28]
-COCO_TO_MP = [0, 2, 5, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28]
+BODY = list(conformance.BODY)
+COCO_TO_MP = list(conformance.COCO_TO_MP)
 
 
 def _pbtxt_blocks(path: Path, block: str) -> list[dict]:
@@ -42,17 +43,7 @@ def pose_jpg(shared_data):
 
 @pytest.fixture(scope="module")
 def squat_frames(shared_data):
-    cap = cv2.VideoCapture(str(shared_data / "reference" / "tfjs_pose_squats" / "pose_squats.mp4"))
-    frames = []
-    while True:
-        ok, image = cap.read()
-        if not ok:
-            break
-        frames.append(image)
-    cap.release()
-    expected = np.array(json.loads((shared_data / "reference" / "tfjs_pose_squats" /
-                                    "pose_squats.full.json").read_text()))
-    return frames, expected
+    return conformance.squat_video(shared_data)
 
 
 def _fresh(landmarker):
@@ -165,28 +156,9 @@ def test_static_mode_detects_every_frame_without_smoothing(models_dir, squat_fra
 
 # -- other images --------------------------------------------------------------------------------------------------
 
-def _sitting(shared_data):
-    d = shared_data / "reference" / "mediapipe_samples_ios_sitting"
-    image = cv2.imread(str(d / "test_image.jpg"))
-    h, w = image.shape[:2]
-    full = np.array(json.loads((d / "expected_landmarks.json").read_text())["full"])[:, :2] * [w, h]
-    return image, full
-
-
-def _coco(shared_data):
-    d = shared_data / "images" / "coco_cc_by"
-    image = cv2.imread(str(d / "coco_val2017_000000000785.jpg"))
-    ann = json.loads((d / "coco_val2017_000000000785_keypoints.json").read_text())["annotations"][0]
-    kps = np.array(ann["keypoints"], float).reshape(17, 3)
-    assert (kps[:, 2] > 0).all()
-    expected = np.full((33, 2), np.nan)
-    expected[COCO_TO_MP] = kps[:, :2]
-    torso = float(np.linalg.norm(kps[5, :2] - kps[12, :2]))  # left shoulder to right hip
-    return image, expected, torso
-
-
 def test_sitting_image_matches_the_full_model_reference(landmarker, shared_data, record_property):
-    image, expected = _sitting(shared_data)
+    ref = conformance.sitting(shared_data)
+    image, expected = ref.image, ref.expected
     h, w = image.shape[:2]
     lms = _fresh(landmarker).process(image, 0.0, 0).landmarks
     assert lms is not None
@@ -196,11 +168,11 @@ def test_sitting_image_matches_the_full_model_reference(landmarker, shared_data,
 
 
 def test_coco_785_pck_against_human_labels(landmarker, shared_data, record_property):
-    image, expected, torso = _coco(shared_data)
-    lms = _fresh(landmarker).process(image, 0.0, 0).landmarks
+    ref = conformance.coco_785(shared_data)
+    lms = _fresh(landmarker).process(ref.image, 0.0, 0).landmarks
     assert lms is not None
-    err = np.linalg.norm(lms[COCO_TO_MP, :2] - expected[COCO_TO_MP], axis=1)
-    pck = float(np.mean(err <= 0.2 * torso))
+    err = np.linalg.norm(lms[COCO_TO_MP, :2] - ref.expected[COCO_TO_MP], axis=1)
+    pck = float(np.mean(err <= ref.tolerance_px))  # 0.2 x torso
     record_property("coco785_pck02_torso", pck)
     record_property("coco785_mean_px", float(err.mean()))
     assert pck >= 0.9  # measured 16 of 17 (the left ankle is off by ~25 px, torso 106 px)
@@ -220,16 +192,10 @@ def test_point_rotation_helpers_match_cv2_rotate():
 
 @pytest.mark.parametrize("degrees", [90, -90, 180])
 @pytest.mark.parametrize("which", ["pose", "sitting", "coco"])
-def test_rotated_copies_are_still_found(landmarker, pose_jpg, shared_data, which, degrees, record_property):
-    if which == "pose":
-        image, expected, _ = pose_jpg
-        expected, idx, tol = np.array(expected["EXPECTED_POSE_LANDMARKS"], float), list(range(33)), 15.0
-    elif which == "sitting":
-        image, expected = _sitting(shared_data)
-        idx, tol = BODY, 0.03 * image.shape[1]
-    else:
-        image, expected, torso = _coco(shared_data)
-        idx, tol = COCO_TO_MP, 0.2 * torso
+def test_rotated_copies_are_still_found(landmarker, shared_data, which, degrees, record_property):
+    ref = {"pose": conformance.pose_jpg, "sitting": conformance.sitting, "coco": conformance.coco_785}[which](
+        shared_data)
+    image, expected, idx, tol = ref.image, ref.expected, list(ref.indices), ref.tolerance_px
     h, w = image.shape[:2]
     result = _fresh(landmarker).process_full(rotate_image(image, degrees), 0.0, 0)
     assert result.frame.landmarks is not None, f"{which} rotated {degrees} deg: nobody found"
