@@ -18,7 +18,7 @@ import pytest
 
 from daemon.cli import main
 from landmarks.convert.converter import CONVERTER_VERSION
-from landmarks.convert.fetch import PINNED, FetchError, _write_error, fetch_models
+from landmarks.convert.fetch import PINNED, FetchError, _write_error, fetch_models, up_to_date
 from landmarks.models import (
     ENV_MODELS_DIR,
     MODEL_FILES,
@@ -201,6 +201,22 @@ def test_fetch_reconverts_from_kept_tflite_without_network(fetched, tmp_path, mo
     assert result.changed
     assert result.manifest["source"] == json.loads((fetched / "manifest.json").read_text())["source"]
     verify_models(find_models(folder), include_tflite=True)
+    assert (folder / "pose_landmark_full.onnx").read_bytes() == (fetched / "pose_landmark_full.onnx").read_bytes()
+
+
+def test_a_folder_from_an_older_converter_is_converted_again_offline(fetched, tmp_path, monkeypatch):
+    """Converter 1 shipped the landmark model with its segmentation head: such a folder is out of date and
+    the next fetch re-converts the kept TFLite files without a download."""
+    offline_env(monkeypatch)
+    folder = copy_of(fetched, tmp_path)
+    manifest = json.loads((folder / "manifest.json").read_text())
+    manifest["converter_version"] = "1"
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    assert up_to_date(find_models(folder)) is None
+    result = fetch_models(folder)
+    assert result.changed and result.manifest["converter_version"] == CONVERTER_VERSION
+    assert result.manifest["files"]["pose_landmark_full.onnx"]["outputs"] == [
+        "Identity", "Identity_1", "Identity_3", "Identity_4"]
     assert (folder / "pose_landmark_full.onnx").read_bytes() == (fetched / "pose_landmark_full.onnx").read_bytes()
 
 
