@@ -8,8 +8,9 @@ process killed with SIGKILL could leave taken, so the watchdog can kill and rest
     header  4 int64  [lock (odd while writing), written id, consumed id, length]
     data    capacity bytes
 
-The writer bumps ``lock`` to odd, writes data and ids, and bumps it to even; a reader copies the bytes and
-keeps them only when ``lock`` was even and unchanged (one writer and one reader per mailbox; x86-64 ordering).
+The writer makes ``lock`` odd (``|= 1``: a writer killed mid-write leaves it odd, and the next write must still
+end even), writes data and ids, and bumps it to even; a reader copies the bytes and keeps them only when
+``lock`` was even and unchanged (one writer and one reader per mailbox; x86-64 ordering).
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ class Mailbox:
         with self._wlock:
             hdr = self._hdr
             dropped = int(hdr[1]) > int(hdr[2])
-            hdr[0] += 1
+            hdr[0] |= 1
             self._data[: len(blob)] = np.frombuffer(blob, np.uint8)
             hdr[3] = len(blob)
             hdr[1] += 1

@@ -93,7 +93,7 @@ class FrameRing:
         slot = self._next
         self._next = (self._next + 1) % self.spec.slots
         hdr = self._hdr[slot]
-        hdr[0] += 1                                   # odd: being written
+        hdr[0] |= 1                                   # odd: being written (already odd if a writer died here)
         hdr[1:5] = (seq, w, h, int(has_depth))
         self._times[slot] = (t_capture, depth_scale)
         self._images[slot, : h * w * 3] = image.reshape(-1)

@@ -46,6 +46,18 @@ def test_overwritten_slot_reads_as_none_and_newest_survives():
         ring.close()
 
 
+def test_a_writer_killed_mid_write_does_not_spoil_the_slot():
+    ring = FrameRing.create(slots=1, capacity_px=16 * 16, with_depth=False)
+    try:
+        ref = ring.write(_frame(16, 16, 1), seq=1, t_capture=1.0)
+        ring._hdr[0][0] += 1              # what a writer SIGKILLed between its two lock bumps leaves: odd
+        assert ring.read(ref) is None     # a half-written frame is never read
+        ref = ring.write(_frame(16, 16, 2), seq=2, t_capture=2.0)   # the restarted writer
+        assert ring.read(ref)[0][5, 5, 0] == 2
+    finally:
+        ring.close()
+
+
 def test_frame_larger_than_slot_names_the_setting():
     ring = FrameRing.create(slots=2, capacity_px=100, with_depth=False)
     try:
