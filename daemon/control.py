@@ -65,10 +65,4 @@ class Control:
         self.board.detach()
         for box in self.mailboxes.values():
             box.detach()
-        if self._owner:
-            shm.destroy(self._segment)
-        else:
-            try:
-                self._segment.close()
-            except (BufferError, OSError):
-                pass
+        shm.release(self._segment, self._owner)

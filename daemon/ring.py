@@ -124,10 +124,4 @@ class FrameRing:
     def close(self) -> None:
         """Detach; the owner (supervisor) also unlinks the segment."""
         self._hdr = self._times = self._images = self._depths = None  # release the buffer views
-        if self._owner:
-            shm.destroy(self._segment)
-        else:
-            try:
-                self._segment.close()
-            except (BufferError, OSError):
-                pass
+        shm.release(self._segment, self._owner)

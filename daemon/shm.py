@@ -46,14 +46,20 @@ def _no_register(name: str, rtype: str) -> None:
 
 def destroy(segment: shared_memory.SharedMemory) -> None:
     """Close and unlink a segment this process created (idempotent)."""
+    release(segment, owner=True)
+
+
+def release(segment: shared_memory.SharedMemory, owner: bool) -> None:
+    """Detach from a segment; its ``owner`` (the process that created it) also unlinks it (idempotent)."""
     try:
         segment.close()
     except (BufferError, OSError):
         pass
-    try:
-        segment.unlink()
-    except FileNotFoundError:
-        pass
+    if owner:
+        try:
+            segment.unlink()
+        except FileNotFoundError:
+            pass
 
 
 def remove_stale(shm_dir: Path = _SHM_DIR) -> list[str]:
