@@ -3,14 +3,16 @@
 numba's ``cache=True`` keys each cached function on its own source file's timestamp only: a kernel in
 ``udeas.py`` that inlines ``kernels.pose_loss`` keeps its old machine code after ``kernels.py`` changes.
 Before the kernels are first compiled or loaded, :func:`ensure_fresh` hashes every kernel source file and,
-when the hash differs from the one stored beside the cache, deletes the fitting package's cache files.
-Only this package's own ``__pycache__`` entries are touched.
+when the hash differs from the one stored beside the cache, deletes the fitting package's cache files. It
+does so in every folder numba may keep them in, found with numba's own cache locators: ``$NUMBA_CACHE_DIR``
+(the systemd unit sets it; numba names the subfolder ``fitting_<sha1 of the package path>``), the package's
+``__pycache__`` and the user-wide cache numba falls back to when that is not writable. Only the kernel
+modules' ``.nbi``/``.nbc`` files are touched.
 """
 
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
@@ -18,12 +20,15 @@ KERNEL_MODULES = ("kernels", "udeas", "refine")
 _done = False
 
 
-def _cache_dir() -> Path:
-    override = os.environ.get("NUMBA_CACHE_DIR")
-    if override:
-        # numba mirrors the source path below NUMBA_CACHE_DIR
-        return Path(override) / _HERE.relative_to(_HERE.anchor)
-    return _HERE / "__pycache__"
+def _cache_dirs() -> list[Path]:
+    """The folders numba may cache this package's kernels in, in numba's order of preference."""
+    from numba.core import caching, config
+
+    source = str(_HERE / "kernels.py")
+    locators = [caching.InTreeCacheLocator, caching.UserWideCacheLocator]
+    if config.CACHE_DIR:
+        locators.insert(0, caching.UserProvidedCacheLocator)
+    return [Path(cls(ensure_fresh, source).get_cache_path()) for cls in locators]
 
 
 def sources_hash() -> str:
@@ -40,16 +45,25 @@ def ensure_fresh() -> None:
         return
     _done = True
     try:
-        cache = _cache_dir()
-        stamp = cache / "numba-kernels.sha256"
         digest = sources_hash()
-        if stamp.is_file() and stamp.read_text().strip() == digest:
-            return
-        if cache.is_dir():
-            for path in cache.iterdir():
-                if path.suffix in (".nbi", ".nbc") and path.name.split(".", 1)[0] in KERNEL_MODULES:
-                    path.unlink(missing_ok=True)
-        cache.mkdir(parents=True, exist_ok=True)
-        stamp.write_text(digest + "\n")
-    except OSError:
-        pass  # a read-only install: numba falls back to compiling in memory
+        caches = _cache_dirs()
+    except (OSError, AttributeError):  # unreadable sources, or a numba without these locators
+        return
+    stamped = False
+    for cache in caches:
+        stamp = cache / "numba-kernels.sha256"
+        try:
+            if stamp.is_file() and stamp.read_text().strip() == digest:
+                stamped = True
+                continue
+            if cache.is_dir():
+                for path in cache.iterdir():
+                    if path.suffix in (".nbi", ".nbc") and path.name.split(".", 1)[0] in KERNEL_MODULES:
+                        path.unlink(missing_ok=True)
+            elif stamped:
+                continue  # numba will not get this far down its list: leave no empty folder
+            cache.mkdir(parents=True, exist_ok=True)
+            stamp.write_text(digest + "\n")
+            stamped = True
+        except OSError:
+            continue  # not writable: numba will not cache there either
