@@ -103,9 +103,5 @@ class Mailbox:
             if message is not None:
                 return message
 
-    def reset(self) -> None:
-        """Forget any waiting message (the supervisor, before starting a stage again)."""
-        self._hdr[2] = self._hdr[1]
-
     def detach(self) -> None:
         self._hdr = self._data = None

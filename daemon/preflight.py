@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from daemon.config import Config
+from hal.registry import is_landmark_recording
 
 ROOT = Path(__file__).resolve().parent.parent
 SQUAT_VIDEO = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"
@@ -53,7 +54,7 @@ def check(cfg: Config) -> list[str]:
     if cfg.zenoh.config_file and not Path(cfg.zenoh.config_file).is_file():
         problems.append(f"zenoh.config_file: {cfg.zenoh.config_file} does not exist; give a Zenoh JSON5 "
                         "config or leave it empty")
-    if not (src.type == "file" and src.path.endswith(".landmarks.jsonl")):
+    if not (src.type == "file" and is_landmark_recording(src.path)):
         from landmarks.models import ModelMissingError, find_models
 
         try:

@@ -26,8 +26,7 @@ import signal
 import sys
 import time
 import traceback
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 from daemon import clock, logs, procstat, shm
 from daemon.config import EX_CONFIG, Config
@@ -37,6 +36,8 @@ from daemon.notify import Notifier
 from daemon.ring import FrameRing
 from daemon.stages.base import EXIT_FATAL, StageArgs, stage_main
 from daemon.watchdog import RestartPolicy, verdict
+from hal import registry
+from hal.uri import to_uri
 
 EX_SOFTWARE = 70   # escalated without a systemd watchdog to do the restart
 TICK_S = 0.1
@@ -54,7 +55,7 @@ class StageSpec:
 
 
 def is_landmark_recording(cfg: Config) -> bool:
-    return cfg.source.type == "file" and cfg.source.path.endswith(".landmarks.jsonl")
+    return cfg.source.type == "file" and registry.is_landmark_recording(cfg.source.path)
 
 
 def default_plan(cfg: Config) -> tuple[StageSpec, ...]:
@@ -75,7 +76,6 @@ class _Slot:
     restart_at: float | None = None
     restarts: int = 0
     last_reason: str = ""
-    exitcodes: list = field(default_factory=list)
 
 
 class Supervisor:
@@ -140,18 +140,13 @@ class Supervisor:
         if any(s.uses_ring for s in self.plan):
             src = self.config.source
             capacity = max(self.config.pipeline.frame_max_pixels, src.width * src.height)
-            depth = src.type == "realsense" or src.path.endswith((".bag", ".db3"))
+            depth = src.type == "realsense" or registry.is_realsense_recording(src.path)
             self.ring = FrameRing.create(self.config.pipeline.ring_slots, capacity, depth)
         self.log.info("daemon_start", robot=self.config.robot_id, stages=list(names),
-                      source=self._source_text(), watchdog_s=self.notifier.watchdog_interval_s)
+                      source=to_uri(self.config.source), watchdog_s=self.notifier.watchdog_interval_s)
         now = clock.now()
         for slot in self._slots.values():
             self._spawn(slot, now)
-
-    def _source_text(self) -> str:
-        s = self.config.source
-        return {"file": f"file:{s.path}", "v4l2": f"v4l2:{s.device}", "realsense": f"realsense:{s.serial}"}.get(
-            s.type, s.type)
 
     def _spawn(self, slot: _Slot, now: float) -> None:
         spec = slot.spec
@@ -228,7 +223,6 @@ class Supervisor:
                 continue
             if alive:
                 _kill(proc)
-            slot.exitcodes.append(proc.exitcode)
             slot.restarts += 1
             slot.last_reason = f"{v.kind}: {v.reason}"
             delay = self.policy.delay(name, now)
@@ -375,7 +369,7 @@ class Supervisor:
             "drops": total_drops,
             "restarts": self.policy.total,
             "camera": {**self._camera_info, "state": cap_row.camera if cap_row else CAMERA_STATES[0],
-                       "source": self._source_text()},
+                       "source": to_uri(self.config.source)},
             "stages": stages,
             "supervisor": sup,
             "memory_mb": round(total_pss, 1),
@@ -442,12 +436,3 @@ def _pss(s: procstat.ProcSample) -> float:
     return s.rss_mb if math.isnan(s.pss_mb) else s.pss_mb
 
 
-def state_dir(config: Config) -> Path:
-    """Where events and history live: pipeline.state_dir, else $STATE_DIRECTORY (systemd), else
-    $XDG_STATE_HOME/posed (default ~/.local/state/posed)."""
-    if config.pipeline.state_dir:
-        return Path(config.pipeline.state_dir)
-    if os.environ.get("STATE_DIRECTORY"):
-        return Path(os.environ["STATE_DIRECTORY"].split(":")[0])
-    base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
-    return Path(base) / "posed"

@@ -28,6 +28,11 @@ def is_landmark_recording(path: str | os.PathLike) -> bool:
     return str(path).lower().endswith(LANDMARKS_SUFFIX)
 
 
+def is_realsense_recording(path: str | os.PathLike) -> bool:
+    """True for a RealSense recording (``.db3`` or ``.bag``, any case), which carries depth."""
+    return Path(path).suffix.lower() in REALSENSE_EXTENSIONS
+
+
 def _open_realsense(config: SourceConfig) -> Source:
     from hal.realsense import RealSenseSource
 
@@ -59,7 +64,7 @@ def open_file(config: SourceConfig) -> Source:
         from hal.images import ImageFolderSource
 
         return ImageFolderSource(config, path)
-    if suffix in REALSENSE_EXTENSIONS:
+    if is_realsense_recording(p):
         from hal.realsense import RealSenseSource
 
         return RealSenseSource(config, playback=path)
