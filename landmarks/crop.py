@@ -21,6 +21,8 @@ import math
 import cv2
 import numpy as np
 
+from landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT
+from landmarks.decode import CROP_SIZE
 from landmarks.roi import Roi
 
 
@@ -50,7 +52,7 @@ def letterbox_roi(width: int, height: int) -> tuple[Roi, tuple[float, float, flo
     return Roi(width / 2, height / 2, side, 0.0), (pad_x, pad_y, pad_x, pad_y)
 
 
-def detector_input(image_bgr: np.ndarray, size: int = 224) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+def detector_input(image_bgr: np.ndarray, size: int = DETECTOR_INPUT) -> tuple[np.ndarray, tuple[float, float, float, float]]:
     """Detector tensor (1, size, size, 3) float32 RGB in [−1, 1] and the letterbox padding."""
     h, w = image_bgr.shape[:2]
     roi, padding = letterbox_roi(w, h)
@@ -61,7 +63,7 @@ def detector_input(image_bgr: np.ndarray, size: int = 224) -> tuple[np.ndarray, 
     return tensor[None], padding
 
 
-def landmark_input(image_bgr: np.ndarray, roi: Roi, size: int = 256) -> np.ndarray:
+def landmark_input(image_bgr: np.ndarray, roi: Roi, size: int = CROP_SIZE) -> np.ndarray:
     """Landmark-model tensor (1, size, size, 3) float32 RGB in [0, 1] from the rotated ROI."""
     patch = warp_roi(image_bgr, roi, size, cv2.BORDER_REPLICATE)
     tensor = cv2.cvtColor(patch, cv2.COLOR_BGR2RGB).astype(np.float32)

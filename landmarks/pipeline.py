@@ -35,6 +35,8 @@ from landmarks.models import default_models_dir, find_models, verify_models
 from landmarks.recording import LandmarkFrame
 from landmarks.roi import Roi, roi_from_alignment
 from landmarks.runtime import (
+    DETECTOR_INPUT,
+    LANDMARK_INPUT,
     DetectorRunner,
     LandmarkRunner,
     OnnxDetector,
@@ -159,8 +161,8 @@ class PoseLandmarker:
 
     def warmup(self) -> None:
         """Run both models once so the first real frame does not pay for allocation and kernel selection."""
-        self.detector(np.zeros((1, 224, 224, 3), np.float32))
-        self.landmark_model(np.zeros((1, 256, 256, 3), np.float32))
+        self.detector(np.zeros((1, DETECTOR_INPUT, DETECTOR_INPUT, 3), np.float32))
+        self.landmark_model(np.zeros((1, LANDMARK_INPUT, LANDMARK_INPUT, 3), np.float32))
 
     def process(self, image_bgr: np.ndarray, t: float, seq: int) -> LandmarkFrame:
         """Landmarks of the person in ``image_bgr`` (H×W×3 uint8 BGR) captured at ``t`` seconds."""
@@ -247,8 +249,7 @@ class PoseLandmarker:
 
         body = image_lms[:NUM_BODY_LANDMARKS]
         aux = image_lms[AUX_START:AUX_END + 1]
-        body_s, aux_s, world_s, world_vis = self.smoother.apply(t, body, aux, world[:NUM_BODY_LANDMARKS],
-                                                                body[:, 3])
+        body_s, aux_s, world_s, world_vis = self.smoother.apply(t, body, aux, world[:NUM_BODY_LANDMARKS])
         next_roi = roi_from_alignment(aux_s[0, :2], aux_s[1, :2])
         self._roi = next_roi
         timings["smoothing"] = (time.perf_counter() - t3) * 1e3

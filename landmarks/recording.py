@@ -191,12 +191,6 @@ class RecordingProblem:
         return f"{self.path}:{self.line}: {self.message}"
 
 
-def read_header(path: str | os.PathLike) -> RecordingHeader:
-    """Read only the header of a recording."""
-    with _open(path) as fh:
-        return _parse_header(fh.readline(), str(path))
-
-
 def iter_recording(path: str | os.PathLike) -> tuple[RecordingHeader, Iterator[LandmarkFrame | RecordingProblem]]:
     """Open a recording: its header and a lazy stream of frames, with problems in place of bad lines."""
     fh = _open(path)

@@ -30,9 +30,6 @@ class Roi:
     size: float
     rotation: float
 
-    def to_json(self) -> dict:
-        return {"cx": self.cx, "cy": self.cy, "size": self.size, "rotation": self.rotation}
-
     def corners(self) -> np.ndarray:
         """The four corners in image pixels, (4, 2): crop top-left, top-right, bottom-right, bottom-left."""
         c, s = math.cos(self.rotation), math.sin(self.rotation)

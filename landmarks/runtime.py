@@ -21,11 +21,10 @@ from typing import NamedTuple, Protocol
 import numpy as np
 import onnxruntime as ort
 
+from landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT
+from landmarks.anchors import NUM_ANCHORS
+from landmarks.decode import CROP_SIZE as LANDMARK_INPUT
 from landmarks.models import ModelCorruptError, ModelMissingError
-
-DETECTOR_INPUT = 224
-LANDMARK_INPUT = 256
-NUM_ANCHORS = 2254
 
 
 class ModelLoadError(ModelCorruptError):

@@ -102,9 +102,9 @@ class OneEuro:
 class PoseSmoother:
     """Smooths image landmarks, auxiliary landmarks and world landmarks of consecutive frames.
 
-    ``apply`` takes the unfiltered (33, 5) image landmarks in pixels, the (2, 5) auxiliary landmarks, the
-    (33, 3) world landmarks and the (33,) visibilities to use for the world landmarks, and returns the three
-    filtered arrays. ``smooth_landmarks=False`` leaves the image and world landmarks alone (MediaPipe's
+    ``apply`` takes the unfiltered (33, 5) image landmarks in pixels, the (2, 5) auxiliary landmarks and the
+    (33, 3) world landmarks, and returns the three filtered arrays and the world landmarks' visibility, which
+    is the image landmarks' (MediaPipe filters the same values twice, in two calculators). ``smooth_landmarks=False`` leaves the image and world landmarks alone (MediaPipe's
     ``smooth_landmarks``); the auxiliary landmarks, which steer the next ROI, are always filtered.
     """
 
@@ -112,18 +112,16 @@ class PoseSmoother:
         self.smooth_landmarks = smooth_landmarks
         self.visibility = LowPass(VISIBILITY_ALPHA)
         self.landmarks = OneEuro(LANDMARK_PARAMS)
-        self.world_visibility = LowPass(VISIBILITY_ALPHA)
         self.world = OneEuro(WORLD_PARAMS)
         self.aux_visibility = LowPass(VISIBILITY_ALPHA)
         self.aux = OneEuro(AUX_PARAMS)
 
     def reset(self) -> None:
-        for f in (self.visibility, self.landmarks, self.world_visibility, self.world, self.aux_visibility,
-                  self.aux):
+        for f in (self.visibility, self.landmarks, self.world, self.aux_visibility, self.aux):
             f.reset()
 
-    def apply(self, t: float, landmarks: np.ndarray, aux: np.ndarray, world: np.ndarray,
-              world_visibility: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def apply(self, t: float, landmarks: np.ndarray, aux: np.ndarray,
+              world: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Returns ``(landmarks (33, 5), aux (2, 5), world (33, 3), world_visibility (33,))`` filtered."""
         object_scale = alignment_size(aux[0, :2], aux[1, :2])
         scaled = object_scale >= MIN_OBJECT_SCALE
@@ -135,12 +133,11 @@ class PoseSmoother:
             aux_out[:, :3] = self.aux.apply(t, aux[:, :3], value_scale)
 
         if not self.smooth_landmarks:
-            return landmarks.copy(), aux_out, world.copy(), np.array(world_visibility, dtype=np.float64)
+            return landmarks.copy(), aux_out, world.copy(), np.array(landmarks[:, 3], dtype=np.float64)
 
         out = landmarks.copy()
         out[:, 3] = self.visibility.apply(landmarks[:, 3])
         if scaled:
             out[:, :3] = self.landmarks.apply(t, landmarks[:, :3], value_scale)
-        world_vis = self.world_visibility.apply(world_visibility)
         world_out = self.world.apply(t, world, 1.0)
-        return out, aux_out, world_out, world_vis
+        return out, aux_out, world_out, out[:, 3].copy()

@@ -15,10 +15,6 @@ import sys
 from dataclasses import asdict
 
 TARGET = 1e-3
-REAL_IMAGES = {
-    "pose.jpg": "reference/mediapipe_pose_jpg/pose.jpg",
-    "sitting": "reference/mediapipe_samples_ios_sitting/test_image.jpg",
-}
 SQUAT_FRAMES = (0, 16, 32, 48, 64)
 
 
@@ -29,25 +25,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _real_inputs() -> dict:
-    import cv2
-
-    from daemon.preflight import SQUAT_VIDEO, shared_data
+    """pose.jpg, the sitting image and every 16th frame of the squat video (BGR), from the shared test data."""
+    from daemon import conformance
+    from daemon.preflight import shared_data
 
     root = shared_data()
-    images = {}
-    for name, rel in REAL_IMAGES.items():
-        image = cv2.imread(str(root / rel))
-        if image is None:
-            raise FileNotFoundError(f"{root / rel} is missing or unreadable (set POSED_SHARED_DATA)")
-        images[name] = image
-    cap = cv2.VideoCapture(str(root / SQUAT_VIDEO))
-    for index in range(max(SQUAT_FRAMES) + 1):
-        ok, frame = cap.read()
-        if not ok:
-            raise FileNotFoundError(f"{root / SQUAT_VIDEO} has no frame {index} (set POSED_SHARED_DATA)")
-        if index in SQUAT_FRAMES:
-            images[f"squat frame {index}"] = frame
-    cap.release()
+    images = {ref.name: ref.image for ref in (conformance.pose_jpg(root), conformance.sitting(root))}
+    frames, _ = conformance.squat_video(root)
+    images.update({f"squat frame {i}": frames[i] for i in SQUAT_FRAMES})
     return images
 
 

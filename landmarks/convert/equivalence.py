@@ -6,8 +6,9 @@ request, the exact result: the converted graph evaluated in float64 by onnx's re
 ``posed bench convert`` and the equivalence tests. LiteRT (``ai-edge-litert``) is a test extra; it is
 imported only when called.
 
-Inputs follow MediaPipe: the detector sees the whole frame letterboxed to 224×224 (zero border) in [-1, 1];
-the landmark model a 256×256 square crop in [0, 1]; RGB, NHWC float32, batch 1.
+Real inputs are built as the pipeline builds them (:mod:`landmarks.crop`): the detector sees the whole frame
+letterboxed to 224×224 (zero border) in [-1, 1]; the landmark model the centred square of the frame at
+256×256 in [0, 1]; RGB, NHWC float32, batch 1.
 """
 
 from __future__ import annotations
@@ -15,33 +16,27 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import onnx
 from onnx import numpy_helper
 
-KERNELS = ("built-in", "XNNPACK")
-MODEL_INPUTS = {"pose_detection": (224, -1.0), "pose_landmark_full": (256, 0.0)}  # side, lowest value
+from landmarks.anchors import INPUT_SIZE
+from landmarks.crop import detector_input, landmark_input
+from landmarks.decode import CROP_SIZE
+from landmarks.roi import Roi
+
+MODEL_INPUTS = {"pose_detection": (INPUT_SIZE, -1.0), "pose_landmark_full": (CROP_SIZE, 0.0)}  # side, lowest
 
 
 def model_input(bgr: np.ndarray, model: str) -> np.ndarray:
     """A BGR image as ``model`` ("pose_detection" or "pose_landmark_full") is fed: the detector gets the whole
-    frame letterboxed, the landmark model the centre square; (1, side, side, 3) float32."""
-    if model not in MODEL_INPUTS:
-        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODEL_INPUTS)}")
-    side, lo = MODEL_INPUTS[model]
-    rgb = np.ascontiguousarray(bgr[:, :, ::-1])
-    h, w = rgb.shape[:2]
-    if lo < 0:
-        scale = side / max(h, w)
-        resized = cv2.resize(rgb, (round(w * scale), round(h * scale)), interpolation=cv2.INTER_LINEAR)
-        canvas = np.zeros((side, side, 3), np.uint8)
-        top, left = (side - resized.shape[0]) // 2, (side - resized.shape[1]) // 2
-        canvas[top:top + resized.shape[0], left:left + resized.shape[1]] = resized
-        return (canvas.astype(np.float32) / 127.5 - 1.0)[None]
-    s = min(h, w)
-    crop = rgb[(h - s) // 2:(h + s) // 2, (w - s) // 2:(w + s) // 2]
-    return (cv2.resize(crop, (side, side), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0)[None]
+    frame letterboxed, the landmark model the centred square; (1, side, side, 3) float32."""
+    if model == "pose_detection":
+        return detector_input(bgr)[0]
+    if model == "pose_landmark_full":
+        h, w = bgr.shape[:2]
+        return landmark_input(bgr, Roi(w / 2, h / 2, min(w, h), 0.0))
+    raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODEL_INPUTS)}")
 
 
 def random_input(model: str, seed: int) -> np.ndarray:

@@ -33,11 +33,11 @@ from landmarks.models import (
     LANDMARK_TFLITE,
     MANIFEST,
     MANIFEST_FORMAT,
-    MODEL_FILES,
     ModelMissingError,
     ModelPaths,
     read_manifest,
     sha256_file,
+    verify_models,
 )
 
 MEDIAPIPE_VERSION = "0.10.21"
@@ -213,25 +213,17 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 def up_to_date(paths: ModelPaths) -> dict | None:
     """The manifest when the folder is complete, made by this converter version from the pinned TFLite
-    files, and every file matches its recorded sha256; else None."""
+    files, and every file matches its recorded size and sha256; else None."""
     try:
         manifest = read_manifest(paths)
+        if manifest.get("converter_version") != CONVERTER_VERSION:
+            return None
+        files = manifest["files"]
+        if any(files.get(pin.name, {}).get("sha256") != pin.sha256 for pin in PINNED):
+            return None
+        return verify_models(paths, include_tflite=True)
     except ModelMissingError:
         return None
-    if manifest.get("converter_version") != CONVERTER_VERSION:
-        return None
-    files = manifest["files"]
-    for pin in PINNED:
-        if files.get(pin.name, {}).get("sha256") != pin.sha256:
-            return None
-    for name in MODEL_FILES:
-        entry = files.get(name)
-        path = paths.models_dir / name
-        if not isinstance(entry, dict) or not path.is_file() or path.stat().st_size != entry.get("bytes"):
-            return None
-        if sha256_file(path) != entry.get("sha256"):
-            return None
-    return manifest
 
 
 def _kept_tflite(paths: ModelPaths) -> tuple[dict[str, bytes], dict] | None:

@@ -52,9 +52,6 @@ class OnnxGraph:
     def has(self, tensor: int) -> bool:
         return tensor in self._values
 
-    def layouts(self, tensor: int) -> dict[str, str]:
-        return self._values[tensor]
-
     def value(self, tensor: int, layout: str) -> str:
         """The ONNX value of ``tensor`` in ``layout``, transposing (once) when needed."""
         held = self._values[tensor]

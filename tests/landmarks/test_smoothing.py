@@ -91,38 +91,38 @@ def _frame(offset=0.0, aux_gap=100.0):
     lms[:, 3] = 0.9
     lms[:, 4] = 0.95
     aux = np.array([[300 + offset, 400, 0, 0.9, 0.9], [300 + offset, 400 - aux_gap, 0, 0.9, 0.9]])
-    return lms, aux, np.ones((33, 3)) * 0.1, lms[:, 3].copy()
+    return lms, aux, np.ones((33, 3)) * 0.1
 
 
 def test_pose_smoother_first_frame_passes_through_and_reset_forgets():
     s = PoseSmoother()
-    lms, aux, world, vis = _frame()
-    out, aux_out, world_out, vis_out = s.apply(0.0, lms, aux, world, vis)
+    lms, aux, world = _frame()
+    out, aux_out, world_out, vis_out = s.apply(0.0, lms, aux, world)
     assert np.allclose(out, lms) and np.allclose(aux_out, aux) and np.allclose(world_out, world)
-    lms2, aux2, world2, _ = _frame(offset=40.0)
+    lms2, aux2, world2 = _frame(offset=40.0)
     lms2[:, 3] = 0.1
-    out2, aux2_out, _, _ = s.apply(1 / 30, lms2, aux2, world2, lms2[:, 3])
+    out2, aux2_out, _, vis2_out = s.apply(1 / 30, lms2, aux2, world2)
     assert (out2[:, 0] < lms2[:, 0]).all() and (out2[:, 0] > lms[:, 0]).all()
     assert np.allclose(out2[:, 3], 0.1 * 0.1 + 0.9 * 0.9)            # visibility low-pass
+    assert np.array_equal(vis2_out, out2[:, 3])                      # the world landmarks' visibility
     assert (np.abs(aux2_out[:, 0] - aux[:, 0]) < np.abs(out2[:, 0] - lms[:, 0]).min()).all()  # aux heavier
     s.reset()
-    out3, _, _, _ = s.apply(2 / 30, lms2, aux2, world2, lms2[:, 3])
+    out3, _, _, _ = s.apply(2 / 30, lms2, aux2, world2)
     assert np.allclose(out3, lms2)
 
 
 def test_pose_smoother_bypasses_a_degenerate_object_scale():
     s = PoseSmoother()
-    lms, aux, world, vis = _frame(aux_gap=0.0)
-    s.apply(0.0, lms, aux, world, vis)
-    lms2, aux2, world2, vis2 = _frame(offset=40.0, aux_gap=0.0)
-    out, aux_out, _, _ = s.apply(1 / 30, lms2, aux2, world2, vis2)
+    s.apply(0.0, *_frame(aux_gap=0.0))
+    lms2, aux2, world2 = _frame(offset=40.0, aux_gap=0.0)
+    out, aux_out, _, _ = s.apply(1 / 30, lms2, aux2, world2)
     assert np.allclose(out[:, :3], lms2[:, :3]) and np.allclose(aux_out[:, :3], aux2[:, :3])
 
 
 def test_pose_smoother_off_still_filters_the_aux_landmarks():
     s = PoseSmoother(smooth_landmarks=False)
     s.apply(0.0, *_frame())
-    lms2, aux2, world2, vis2 = _frame(offset=40.0)
-    out, aux_out, world_out, _ = s.apply(1 / 30, lms2, aux2, world2, vis2)
+    lms2, aux2, world2 = _frame(offset=40.0)
+    out, aux_out, world_out, _ = s.apply(1 / 30, lms2, aux2, world2)
     assert np.array_equal(out, lms2) and np.array_equal(world_out, world2)
     assert (aux_out[:, 0] < aux2[:, 0]).all()
