@@ -98,14 +98,18 @@ class StageRuntime:
         if lossless and box.pending():
             step = self.row.get("step_started")
             self.row.set("step_started", float("nan"))     # waiting is not being busy
-            while box.pending():
-                self.beat()
-                self.check_stop()
-                time.sleep(0.0005)
+            self.wait_taken()
             if not math.isnan(step):
                 self.row.set("step_started", clock.now())
         if box.put(message):
             self.row.add("drops")
+
+    def wait_taken(self) -> None:
+        """Wait (beating, and stopping when asked) until the next stage has taken the last message."""
+        while self.output.pending():
+            self.beat()
+            self.check_stop()
+            time.sleep(0.0005)
 
     def report(self, **info: Any) -> None:
         """Tell the supervisor something (camera info, a fatal error) through this stage's report mailbox."""

@@ -22,8 +22,6 @@ carries ``t_read`` (when the frame was read), from which latency is measured.
 
 from __future__ import annotations
 
-import time
-
 from daemon import clock
 from daemon.messages import LandmarkMsg
 from daemon.stages.base import StageRuntime, sleep_until
@@ -52,15 +50,6 @@ class _Thinner:
         return True
 
 
-def _wait_taken(rt: StageRuntime) -> None:
-    """Backpressure for unpaced replays: wait until the reader took the last message."""
-    box = rt.output
-    while box.pending():
-        rt.beat()
-        rt.check_stop()
-        time.sleep(0.0005)
-
-
 def run(rt: StageRuntime) -> None:
     import hal
     from hal.errors import EndOfStream, SourceError, SourceNotFound, SourceTimeout, SourceUnsupported
@@ -82,16 +71,9 @@ def run(rt: StageRuntime) -> None:
                     source.open()
                 except SourceUnsupported as exc:
                     rt.fatal(str(exc), fix="check the source section (source.type, source.path, source.device)")
-                except SourceNotFound as exc:
-                    if src_cfg.type == "file":
-                        rt.fatal(str(exc), fix="check source.path (or --source file:PATH)")
-                    source = _failed_open(rt, source, exc, failures)
-                    failures += 1
-                    if not reported_ready:
-                        reported_ready = True
-                        rt.ready()
-                    continue
                 except SourceError as exc:
+                    if isinstance(exc, SourceNotFound) and src_cfg.type == "file":
+                        rt.fatal(str(exc), fix="check source.path (or --source file:PATH)")
                     source = _failed_open(rt, source, exc, failures)
                     failures += 1
                     if not reported_ready:
@@ -131,7 +113,7 @@ def run(rt: StageRuntime) -> None:
                 rt.skip()
                 continue
             if not paced:
-                _wait_taken(rt)
+                rt.wait_taken()
             with rt.step():
                 t0 = clock.now()
                 ref = rt.ring.write(frame.image, frame.seq, frame.t, frame.depth,
@@ -211,7 +193,7 @@ def run_recording(rt: StageRuntime) -> None:
                 rt.skip()
                 continue
             if not src.realtime:
-                _wait_taken(rt)
+                rt.wait_taken()
             with rt.step():
                 t_read = clock.now()
                 t_capture = t_start + (item.t - t_first)      # the recording's time line
