@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, fields
 
 SHOULDER_WIDTH = 0.209  # shoulder landmark distance / body height (BlazePose world landmarks, see above)
 HIP_WIDTH = 0.115       # hip landmark distance / body height
@@ -85,9 +85,6 @@ class BodyDimensions:
     def leg_m(self) -> float:
         """l_leg = l_fe + l_tb + l_ca (paper, after eq. 8): hip to sole."""
         return self.thigh_m + self.shank_m + self.ankle_height_m
-
-    def scaled(self, factor: float) -> BodyDimensions:
-        return BodyDimensions(**{k: v * factor for k, v in asdict(self).items()})
 
     def as_array(self):
         """The lengths in field order, for the numba kernels (see ``fitting.kernels.DIM_*``)."""
@@ -187,8 +184,3 @@ def dimensions_for(height_m: float, calibration: str = "") -> BodyDimensions:
     if calibration:
         return read_calibration(calibration)
     return BodyDimensions.from_height(height_m)
-
-
-def with_lengths(dims: BodyDimensions, **lengths: float) -> BodyDimensions:
-    """A copy with some lengths replaced (metres)."""
-    return replace(dims, **lengths)

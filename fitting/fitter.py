@@ -51,8 +51,6 @@ class Fitter:
         # a bad calibration file raises CalibrationError here (a configuration error, not a frame error)
         self.dims: BodyDimensions = dimensions_for(self.config.body_height_m, self.config.calibration)
         self._work = K.empty_work()
-        self._lim_lo = P.to_radians(P.LIMIT_LO)
-        self._lim_hi = P.to_radians(P.LIMIT_HI)
         self._fixed_deg = np.zeros(K.N_FIXED)  # the joint angles that are not estimated (FIXED_NAMES), degrees
         self.reset()
 
@@ -168,21 +166,22 @@ class Fitter:
             return FitResult.failure(seq, t, f"fit rejected: {what}; the landmarks do not fit a person",
                                      loss=float(loss), fit_ms=fit_ms)
         self._prev_x, self._prev_ppm, self._prev_t = x.copy(), ppm0, t
-        return self._result(seq, t, x, frame, loss, mp, fit_ms, used_mode, evals, missing, height)
+        return self._result(seq, t, x, frame, loss, mp, fit_ms, used_mode, evals, missing, gamma)
 
     def _lm(self, data: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, float]:
         out = np.empty(K.N_VAR)
-        cost = refine.levenberg_marquardt(x, self._lim_lo, self._lim_hi, data, self.config.refine_iterations, out)[0]
+        cost = refine.levenberg_marquardt(x, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self.config.refine_iterations, out)[0]
         return out, float(cost)
 
     def _score(self, frame: P.Frame, x: np.ndarray) -> tuple[np.ndarray, float, float]:
         """Set the pelvis tilt by its prior and evaluate the loss: (x, loss, mpjpe)."""
         out = x.copy()
-        refine.pelvis_projection(out, frame.data, self._lim_lo, self._lim_hi)
+        refine.pelvis_projection(out, frame.data, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD)
         loss, mp = K.pose_loss_terms(out, frame.data, self._work)[:2]
         return out, float(loss), float(mp)
 
-    def _select(self, frame: P.Frame, pool: list[np.ndarray], prev: np.ndarray | None = None
+    def _select(self, frame: P.Frame, pool: list[np.ndarray], prev: np.ndarray | None = None,
+                scored: list[tuple[np.ndarray, float, float]] | None = None, mse: list[float] | None = None
                 ) -> tuple[np.ndarray, float, float]:
         """The best of refined candidates.
 
@@ -191,14 +190,18 @@ class Fitter:
         noise estimated from the best residual (MAP; zero for an exact fit): in video mode the previous
         frame's solution (``video_smoothing``), in image mode left/right symmetry (``pose_prior``). The
         smallest prior-weighted cost wins.
+
+        ``scored`` (``_score`` of each pool entry) and ``mse`` (``refine.data_mse`` of each), when the caller
+        already has them, save evaluating them again.
         """
         cfg = self.config
-        scored = [self._score(frame, x) for x in pool]
+        if scored is None:
+            scored = [self._score(frame, x) for x in pool]
         best = min(scored, key=lambda s: s[1])
         weight = cfg.video_smoothing if prev is not None else cfg.pose_prior
         if not (cfg.refine and weight > 0):
             return best
-        f_min = min(refine.data_mse(x, frame.data) for x in pool)
+        f_min = min(mse if mse is not None else (refine.data_mse(x, frame.data) for x in pool))
         # landmark noise variance per coordinate from the residual (3 degrees of freedom: 24 coordinates,
         # 19 variables, 2 translations), capped: a poor fit is a model mismatch rather than noise
         sigma2 = min(4.0 * f_min, cfg.pose_prior_max_noise ** 2)
@@ -249,14 +252,10 @@ class Fitter:
         seeds = P.orientation_seeds(frame, self.dims, lo, hi) if cfg.seed_orientation else np.zeros((0, K.N_VAR))
         seeds = seeds[: cfg.restarts]
         los, his = P.restart_boxes(lo, hi, seeds, cfg.restarts)
-        inits = np.ascontiguousarray(seeds) if len(seeds) else np.zeros((1, K.N_VAR))
-        n = K.N_VAR
-        best_x = np.empty(n)
-        rx = np.empty((cfg.restarts, n))
-        rc = np.empty(cfg.restarts)
         c0 = time.thread_time()
-        _, evals = udeas.udeas(udeas.PROBLEM_POSE, los, his, cfg.restarts, cfg.row_init, cfg.row_max, cfg.seed,
-                               frame.data, self._work, inits, len(seeds), best_x, rx, rc)
+        best_x, _, evals, rx, rc = udeas.minimize(udeas.PROBLEM_POSE, los, his, restarts=cfg.restarts,
+                                                  m0=cfg.row_init, mf=cfg.row_max, seed=cfg.seed, data=frame.data,
+                                                  work=self._work, x_init=seeds)
         self._udeas_s += time.thread_time() - c0
         if not cfg.refine:
             return (*self._score(frame, best_x), int(evals))
@@ -269,17 +268,21 @@ class Fitter:
                 picked.append(rx[i].copy())
         if cfg.analytic_seeds:
             picked = self._analytic(frame, seeds) + picked
-        pool = []
+        pool: list[np.ndarray] = []
+        mse: list[float] = []  # refine.data_mse of each pool entry
         exact = False
         for cand in picked:
             x = self._lm(frame.data, cand)[0]
             pool.append(x)
-            if refine.data_mse(x, frame.data) < EXACT_MSE:
+            mse.append(refine.data_mse(x, frame.data))
+            if mse[-1] < EXACT_MSE:
                 exact = True  # an exact fit: the other candidates cannot fit better
                 break
+        scored = None  # _score of each pool entry, once the mirrors need them
         if cfg.limb_mirrors:
             # each limb's depth mirror in turn, from the best so far (two wrong limbs get fixed one by one)
-            lead, lead_loss = min((self._score(frame, x) for x in pool), key=lambda s: s[1])[:2]
+            scored = [self._score(frame, x) for x in pool]
+            lead, lead_loss = min(scored, key=lambda s: s[1])[:2]
             trial = np.empty(K.N_VAR)
             tried = set()
             for _ in range(MIRROR_PASSES):
@@ -294,13 +297,14 @@ class Fitter:
                     tried.add(key)
                     x = self._lm(frame.data, trial)[0]
                     pool.append(x)
-                    scored = self._score(frame, x)
-                    if scored[1] < lead_loss:
-                        lead, lead_loss = scored[:2]
+                    mse.append(refine.data_mse(x, frame.data))
+                    scored.append(self._score(frame, x))
+                    if scored[-1][1] < lead_loss:
+                        lead, lead_loss = scored[-1][:2]
                         improved = True
                 if not improved:
                     break
-        return (*self._select(frame, pool), int(evals))
+        return (*self._select(frame, pool, scored=scored, mse=mse), int(evals))
 
     def _video(self, frame: P.Frame, prev: np.ndarray) -> tuple[np.ndarray, float, float, int]:
         """Paper section 4: uDEAS within +-video_window_deg of the previous solution. The refinement from
@@ -317,26 +321,20 @@ class Fitter:
         evals = 0
         if cfg.video_restarts > 0:
             lo, hi = P.video_box(prev, cfg)
-            n = K.N_VAR
-            best_x = np.empty(n)
-            rx = np.empty((cfg.video_restarts, n))
-            rc = np.empty(cfg.video_restarts)
-            lo = np.ascontiguousarray(np.broadcast_to(lo, (cfg.video_restarts, n)))
-            hi = np.ascontiguousarray(np.broadcast_to(hi, (cfg.video_restarts, n)))
             c0 = time.thread_time()
-            _, evals = udeas.udeas(udeas.PROBLEM_POSE, lo, hi, cfg.video_restarts, cfg.video_row_init,
-                                   cfg.video_row_max, cfg.seed, frame.data, self._work,
-                                   np.ascontiguousarray(prev[None, :]), 1, best_x, rx, rc)
+            best_x, _, evals = udeas.minimize(udeas.PROBLEM_POSE, lo, hi, restarts=cfg.video_restarts,
+                                              m0=cfg.video_row_init, mf=cfg.video_row_max, seed=cfg.seed,
+                                              data=frame.data, work=self._work, x_init=prev)[:3]
             self._udeas_s += time.thread_time() - c0
             pool.append(self._lm(frame.data, best_x)[0] if cfg.refine else best_x)
         return (*self._select(frame, pool, prev), int(evals))
 
     # --- output ---
 
-    def _result(self, seq, t, x, frame: P.Frame, loss, mp, fit_ms, used_mode, evals, missing, image_h) -> FitResult:
+    def _result(self, seq, t, x, frame: P.Frame, loss, mp, fit_ms, used_mode, evals, missing, gamma) -> FitResult:
         deg = np.round(P.to_degrees(x), 4).tolist()
         variables = dict(zip(VARIABLE_NAMES, deg, strict=True))
-        variables["gamma"] = round(float(x[0] * frame.ppm0 * self.dims.body_height_m / image_h), 5)
+        variables["gamma"] = round(gamma, 5)
         angles = dict.fromkeys(JOINT_ANGLE_NAMES, 0.0)
         for name, v in zip(FIXED_NAMES, np.round(self._fixed_deg, 4).tolist(), strict=True):
             angles[name] = v

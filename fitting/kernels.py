@@ -1,6 +1,7 @@
 """numba kernels of the fit: forward kinematics, the loss of the paper's section 4.2 and the least-squares
-residuals with their analytic Jacobian. Pure functions of their arrays, ``cache=True``; each is tested
-against the NumPy reference in :mod:`fitting.kinematics` / :mod:`fitting.loss_reference`.
+residuals with their analytic Jacobian. Pure functions of their arrays, ``cache=True``; the forward
+kinematics is tested against the NumPy reference in :mod:`fitting.kinematics`, the loss terms against the
+NumPy references in ``tests/fitting/test_loss.py`` and the Jacobian against finite differences.
 
 Vector layouts (all angles radians inside the kernels):
 
@@ -603,19 +604,6 @@ def com_deviation(pts_c, r0, data):
 
 
 @njit(cache=True)
-def pelvis_tilt(theta, phi, psi):
-    """Angle between the pelvis up axis and the world up axis (camera -y), radians."""
-    r = body_rot(theta, phi, psi)
-    # up axis of the pelvis in camera axes = column z of R; world up = (0, -1, 0)
-    c = -r[5]
-    if c > 1.0:
-        c = 1.0
-    elif c < -1.0:
-        c = -1.0
-    return math.acos(c)
-
-
-@njit(cache=True)
 def torso_uprightness(x):
     """cos of the torso's inclination from vertical, clipped at 0 (1 upright, 0 horizontal or below)."""
     r = mm(body_rot(x[X_TBD], x[X_PBD], x[X_SBD]), mm(mm(ry(x[X_TTR]), rx(-x[X_PTR])), rz(x[X_STR])))
@@ -945,15 +933,6 @@ def sum_sq(res):
     for v in res:
         acc += v * v
     return acc
-
-
-def fk_points_numpy_layout() -> dict[str, int]:
-    """Names of the model point rows, for tests and docs."""
-    return {"left_shoulder": P_SH_L, "right_shoulder": P_SH_R, "left_elbow": P_EL_L, "right_elbow": P_EL_R,
-            "left_wrist": P_WR_L, "right_wrist": P_WR_R, "left_hip": P_HP_L, "right_hip": P_HP_R,
-            "left_knee": P_KN_L, "right_knee": P_KN_R, "left_ankle": P_AN_L, "right_ankle": P_AN_R,
-            "left_heel": P_HEEL_L, "right_heel": P_HEEL_R, "left_foot_index": P_TOE_L,
-            "right_foot_index": P_TOE_R, "head": P_HEAD, "mid_shoulder": P_MIDSH, "com": P_COM}
 
 
 def empty_work() -> np.ndarray:

@@ -35,9 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fitting.body import SEGMENT_MASS, BodyDimensions
-from fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES
-
-BODY_ANGLE_NAMES = ("theta_bd", "phi_bd", "psi_bd")
+from fitting.result import BODY_ANGLE_NAMES, JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES
 
 # Camera axes of the pelvis axes in the neutral pose (columns: x_B, y_B, z_B in C).
 R0 = np.array([[0.0, 1.0, 0.0],
@@ -143,14 +141,6 @@ class Pose:
             out[name] = self.angle(name)
         return out
 
-    @classmethod
-    def from_variables(cls, variables: Mapping[str, float], fixed: Mapping[str, float] | None = None) -> Pose:
-        """A pose from the 19 variables; the 8 joint angles that are not variables come from ``fixed`` (or 0)."""
-        joints = dict(fixed or {})
-        for name in VARIABLE_NAMES[4:]:
-            joints[name] = float(variables[name])
-        return cls(joints, float(variables["theta_bd"]), float(variables["phi_bd"]), float(variables["psi_bd"]))
-
 
 def _r(deg: float) -> float:
     return math.radians(deg)
@@ -162,8 +152,6 @@ class Skeleton:
 
     landmarks: np.ndarray          # (33, 3) MediaPipe order
     com: np.ndarray                # (3,) whole-body centre of mass
-    segment_com: dict              # name -> ((3,), mass fraction)
-    frames: dict                   # name -> 3x3 rotation (B from segment)
 
 
 def skeleton(pose: Pose, dims: BodyDimensions) -> Skeleton:
@@ -171,16 +159,13 @@ def skeleton(pose: Pose, dims: BodyDimensions) -> Skeleton:
     j = pose.joints
     h = dims.body_height_m
     pts = np.zeros((33, 3))
-    frames: dict[str, np.ndarray] = {}
-    seg: dict[str, tuple[np.ndarray, float]] = {}
+    seg: dict[str, tuple[np.ndarray, float]] = {}  # segment -> (centre of mass, mass fraction)
 
     r_tr = rot_y(_r(j["theta_tr"])) @ rot_x(-_r(j["phi_tr"])) @ rot_z(_r(j["psi_tr"]))
-    frames["torso"] = r_tr
     mid_sh = r_tr @ np.array([0.0, 0.0, dims.trunk_m])
     seg["trunk"] = (0.5 * mid_sh, SEGMENT_MASS["trunk"][0])
 
     r_hd = r_tr @ rot_y(_r(j["theta_hd"])) @ rot_z(_r(j["psi_hd"]))
-    frames["head"] = r_hd
     for idx, off in _HEAD_POINTS.items():
         pts[idx] = mid_sh + r_hd @ (np.array(off) * h)
     seg["head"] = (mid_sh + r_hd @ np.array([0.0, 0.0, _EAR_HEIGHT * h]), SEGMENT_MASS["head"][0])
@@ -195,7 +180,6 @@ def skeleton(pose: Pose, dims: BodyDimensions) -> Skeleton:
         pts[i_sh], pts[i_el], pts[i_wr] = sh, el, wr
         for idx, key in ((i_pk, "pinky"), (i_ix, "index"), (i_th, "thumb")):
             pts[idx] = wr + r_fa @ (np.array(_HAND_POINTS[key]) * h)
-        frames[f"upper_arm_{side}"], frames[f"forearm_{side}"] = r_ua, r_fa
         m_ua, c_ua = SEGMENT_MASS["upper_arm"]
         m_fa, c_fa = SEGMENT_MASS["forearm"]
         m_hn, c_hn = SEGMENT_MASS["hand"]
@@ -214,7 +198,6 @@ def skeleton(pose: Pose, dims: BodyDimensions) -> Skeleton:
         heel = an + r_ft @ np.array([-0.25 * dims.foot_length_m, 0.0, -dims.ankle_height_m])
         toe = an + r_ft @ np.array([0.75 * dims.foot_length_m, 0.0, -dims.ankle_height_m])
         pts[i_hp], pts[i_kn], pts[i_an], pts[i_he], pts[i_ft] = hp, kn, an, heel, toe
-        frames[f"thigh_{side}"], frames[f"shank_{side}"], frames[f"foot_{side}"] = r_th, r_sk, r_ft
         m_th, c_th = SEGMENT_MASS["thigh"]
         m_sk, c_sk = SEGMENT_MASS["shank"]
         m_ft, _ = SEGMENT_MASS["foot"]
@@ -224,7 +207,7 @@ def skeleton(pose: Pose, dims: BodyDimensions) -> Skeleton:
 
     total = sum(m for _, m in seg.values())
     com = sum(p * m for p, m in seg.values()) / total
-    return Skeleton(pts, com, seg, frames)
+    return Skeleton(pts, com)
 
 
 def foot_com_offset(dims: BodyDimensions) -> np.ndarray:
@@ -251,7 +234,3 @@ def joints_3d(pose: Pose, dims: BodyDimensions) -> dict[str, tuple[float, float,
     for name, idx in zip(BODY_LANDMARK_NAMES, BODY_LANDMARKS, strict=True):
         out[name] = tuple(float(v) for v in cam[idx])
     return out
-
-
-def center_of_mass_camera(pose: Pose, dims: BodyDimensions) -> np.ndarray:
-    return to_camera(skeleton(pose, dims).com, pose)

@@ -54,8 +54,11 @@ def to_radians(x_deg: np.ndarray) -> np.ndarray:
     return x
 
 
-PRIOR_MU_RAD = None  # set below (needs to_radians)
-PRIOR_SIG_RAD = None
+# The limits and the pose prior in kernel units (radians; gamma unitless).
+LIMIT_LO_RAD = to_radians(LIMIT_LO)
+LIMIT_HI_RAD = to_radians(LIMIT_HI)
+PRIOR_MU_RAD = to_radians(PRIOR_MU)
+PRIOR_SIG_RAD = to_radians(PRIOR_SIG)
 
 
 def to_degrees(x_rad: np.ndarray) -> np.ndarray:
@@ -158,8 +161,8 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
     data[K.D_TH:K.D_TH + K.N_TH] = np.array([cfg.tr_flexion_min_deg, cfg.tr_lateral_deg, cfg.tr_twist_deg,
                                              cfg.sh_flexion_min_deg, cfg.sh_adduction_max_deg,
                                              cfg.hp_adduction_max_deg]) * DEG
-    data[K.D_LIM_LO:K.D_LIM_LO + K.N_VAR] = to_radians(LIMIT_LO)
-    data[K.D_LIM_HI:K.D_LIM_HI + K.N_VAR] = to_radians(LIMIT_HI)
+    data[K.D_LIM_LO:K.D_LIM_LO + K.N_VAR] = LIMIT_LO_RAD
+    data[K.D_LIM_HI:K.D_LIM_HI + K.N_VAR] = LIMIT_HI_RAD
     return Frame(data, ppm0, scale_px, centroid, w, perspective)
 
 
@@ -176,10 +179,7 @@ def video_box(prev: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]
     hi = prev + win
     lo[0] = prev[0] * (1 - cfg.video_window_gamma)
     hi[0] = prev[0] * (1 + cfg.video_window_gamma)
-    lim_lo, lim_hi = to_radians(LIMIT_LO), to_radians(LIMIT_HI)
-    lo = np.maximum(lo, lim_lo)
-    hi = np.minimum(hi, lim_hi)
-    return lo, hi
+    return np.maximum(lo, LIMIT_LO_RAD), np.minimum(hi, LIMIT_HI_RAD)
 
 
 def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -248,7 +248,3 @@ def restart_boxes(lo: np.ndarray, hi: np.ndarray, seeds: np.ndarray, restarts: i
             los[r, k] = seed[k] - w
             his[r, k] = seed[k] + w
     return los, his
-
-
-PRIOR_MU_RAD = to_radians(PRIOR_MU)
-PRIOR_SIG_RAD = to_radians(PRIOR_SIG)

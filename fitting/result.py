@@ -13,6 +13,9 @@ VARIABLE_NAMES = (
     "theta_el_r", "phi_hp_l", "phi_hp_r", "phi_sh_l", "phi_sh_r",
 )
 
+# The three body angles (orientation of the pelvis in camera axes), degrees; also among VARIABLE_NAMES.
+BODY_ANGLE_NAMES = ("theta_bd", "phi_bd", "psi_bd")
+
 # The model's 23 joint angles (paper section 2.2), Vicon sign convention.
 JOINT_ANGLE_NAMES = (
     "theta_hd", "psi_hd",

@@ -24,13 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fitting.body import BodyDimensions
-from fitting.kinematics import (
-    BODY_LANDMARK_NAMES,
-    BODY_LANDMARKS,
-    Pose,
-    body_rotation,
-    skeleton,
-)
+from fitting.kinematics import Pose, joints_3d, landmarks_camera
 from fitting.result import FitResult
 
 __all__ = [
@@ -176,9 +170,7 @@ class Placement:
 
 def _world_points(pose_: Pose, dims: BodyDimensions, placement: Placement, depth: float, floor_y: float):
     """Camera-axes world points (33, 3): the lowest landmark on the floor, the anchor at the placement."""
-    sk = skeleton(pose_, dims)
-    r = body_rotation(pose_.theta_bd, pose_.phi_bd, pose_.psi_bd)
-    pts = sk.landmarks @ r.T
+    pts = landmarks_camera(pose_, dims)
     ref = 0.5 * (pts[27] + pts[28]) if placement.anchor == "feet" else np.zeros(3)
     root = np.array([placement.x_m - ref[0], floor_y - pts[:, 1].max(), depth + placement.z_m - ref[2]])
     return pts + root, root
@@ -251,14 +243,8 @@ def apparent_gamma(dims: BodyDimensions, image_size: tuple[int, int], camera: Ca
 
 def ground_truth(pose_: Pose, dims: BodyDimensions, gamma: float = 1.0, seq: int = 0, t: float = 0.0) -> FitResult:
     """The FitResult a perfect fit of ``pose_`` would give (joints_3d in camera axes, metres, mid-hip origin)."""
-    sk = skeleton(pose_, dims)
-    r = body_rotation(pose_.theta_bd, pose_.phi_bd, pose_.psi_bd)
-    cam = sk.landmarks @ r.T
-    j3 = {"mid_hip": (0.0, 0.0, 0.0)}
-    for name, idx in zip(BODY_LANDMARK_NAMES, BODY_LANDMARKS, strict=True):
-        j3[name] = tuple(float(v) for v in cam[idx])
     return FitResult(seq=seq, t=t, ok=True, loss=0.0, variables=pose_.variables(gamma),
-                     joint_angles_deg=dict(pose_.joints), joints_3d=j3)
+                     joint_angles_deg=dict(pose_.joints), joints_3d=joints_3d(pose_, dims))
 
 
 # --- motion sequences ----------------------------------------------------------------------------------
