@@ -7,17 +7,13 @@ import json
 import sys
 from pathlib import Path
 
-from daemon.commands import config_from_args
-from daemon.falls.bench import run_bench
-from daemon.preflight import shared_data
+from daemon.commands import add_config_args, config_from_args
 
 TARGETS = {"recall": 0.95, "false_alarms": 0, "median_latency_s": 1.0}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", metavar="FILE", help="config file (default: the embedded config.yaml)")
-    parser.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
-                        help="override one config key, e.g. --set falls.fall_velocity_rel=1.0")
+    add_config_args(parser, source=False)
     parser.add_argument("--split", choices=("tune", "heldout", "cmu", "all"), default="all",
                         help="which scenarios (tune: used to choose thresholds; heldout: never used to tune)")
     parser.add_argument("--only", default="", metavar="TEXT", help="only scenarios whose name contains TEXT")
@@ -30,6 +26,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from daemon.falls.bench import run_bench  # not at import: `posed` imports every bench module to list it
+    from daemon.preflight import shared_data
+
     cfg = config_from_args(args)
     splits = ("tune", "heldout", "cmu") if args.split == "all" else (args.split,)
     shared = shared_data()

@@ -34,13 +34,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-TARGETS = {
-    ("paper_poses", "image", 0.0): "image mode, noise-free: <= 3 deg at <= 2 ms/frame",
-    ("paper_poses", "image", 0.01): "image mode, noise 1% of height: <= 7 deg",
-    ("motion", "video", 0.0): "video mode, noise-free: <= 1 deg at <= 0.5 ms/frame",
-}
-
-
 def markdown(report: dict) -> str:
     """The report as Markdown tables (the shape of docs/bench/fit.md)."""
     m = report["machine"]

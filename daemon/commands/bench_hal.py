@@ -1,7 +1,6 @@
 """hal throughput: squat-video decode, RGB-D .db3 write/playback, recording, real-time pacing.
 
-Run: ``.venv/bin/python -m tests.hal.bench_hal [--json]``. Written in the ``posed bench`` form
-(``add_arguments`` / ``run``) so that it can move to ``daemon/commands/bench_hal.py`` unchanged.
+Run: ``posed bench hal [--json] [--video PATH]``.
 """
 
 from __future__ import annotations
@@ -18,10 +17,7 @@ import numpy as np
 
 import hal
 from daemon.preflight import SQUAT_VIDEO, shared_data
-from hal.db3 import Db3Writer
 from hal.frame import Intrinsics
-
-SQUAT = shared_data() / SQUAT_VIDEO
 
 
 def _drain(src: hal.Source) -> int:
@@ -34,7 +30,11 @@ def _drain(src: hal.Source) -> int:
             return n
 
 
-def measure(video: Path = SQUAT, repeats: int = 5) -> dict[str, float]:
+def measure(video: Path | None = None, repeats: int = 5) -> dict[str, float]:
+    """Decode, .db3 and recording speeds on ``video`` (default: the squat video)."""
+    from hal.db3 import Db3Writer  # not at import: `posed` imports every bench module to list it
+
+    video = shared_data() / SQUAT_VIDEO if video is None else video
     out: dict[str, float] = {}
     rates = []
     for _ in range(repeats):
@@ -101,7 +101,7 @@ def measure(video: Path = SQUAT, repeats: int = 5) -> dict[str, float]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--video", type=Path, default=SQUAT, help="video to decode (default: the squat video)")
+    parser.add_argument("--video", type=Path, default=None, help="video to decode (default: the squat video)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -112,10 +112,3 @@ def run(args: argparse.Namespace) -> int:
         for key, value in result.items():
             print(f"{key:40s} {value}")
     return 0
-
-
-if __name__ == "__main__":
-    p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("--json", action="store_true")
-    add_arguments(p)
-    raise SystemExit(run(p.parse_args()))

@@ -16,14 +16,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import subprocess
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
+from daemon.commands import add_config_args
+from daemon.commands._child import free_endpoint, run_command, stop
 from daemon.stats import percentile_summary
 
 TARGET_PUBLISHED = 0.99
@@ -32,6 +32,7 @@ TARGET_UNPACED_FPS = 20.0
 GROWTH_LIMIT_MB = 10.0
 BENCH_SIZE = (640, 480)
 BENCH_FPS = 10.0
+STOP_TIMEOUT_S = 15.0   # for the daemon's clean shutdown after SIGTERM, before SIGKILL
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,8 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--phase", choices=("paced", "unpaced", "both"), default="both")
     parser.add_argument("--source", metavar="PATH", help="a video to replay instead of the squat video (used as is)")
     parser.add_argument("--warmup", type=float, default=3.0, help="seconds after the first pose before measuring")
-    parser.add_argument("--config", metavar="FILE", help="config file (default: the embedded config.yaml)")
-    parser.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
+    add_config_args(parser, source=False)
 
 
 def bench_video() -> Path:
@@ -103,33 +103,17 @@ class _Collector:
             self.statuses.append((time.monotonic(), obj))
 
 
-def _free_endpoint() -> str:
-    import socket
-
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return f"tcp/127.0.0.1:{port}"
-
-
 def run_phase(name: str, video: Path, args: argparse.Namespace) -> dict:
-    import zenoh
-
     from daemon.commands.watch import open_viewer
 
     paced = name == "paced"
-    endpoint = _free_endpoint()
+    endpoint = free_endpoint()
     state = tempfile.mkdtemp(prefix="posed-bench-")
-    cmd = [sys.executable, "-m", "daemon.cli", "run", "--source", f"file:{video}",
-           "--set", "source.loop=true", "--set", f"source.realtime={'true' if paced else 'false'}",
-           "--set", f"pipeline.target_fps={BENCH_FPS if paced else 60}", "--set", f"zenoh.listen=[{endpoint}]",
-           "--set", "zenoh.connect=[]", "--set", "zenoh.mode=peer", "--set", f"pipeline.state_dir={state}",
-           "--set", "robot_id=bench", "--set", "pipeline.status_period_s=1", "--set", "logging.format=json"]
-    if args.config:
-        cmd += ["--config", args.config]
-    for o in args.overrides:
-        cmd += ["--set", o]
+    cmd = run_command(["source.loop=true", f"source.realtime={'true' if paced else 'false'}",
+                       f"pipeline.target_fps={BENCH_FPS if paced else 60}", f"zenoh.listen=[{endpoint}]",
+                       "zenoh.connect=[]", "zenoh.mode=peer", f"pipeline.state_dir={state}", "robot_id=bench",
+                       "pipeline.status_period_s=1", "logging.format=json"],
+                      args.config, f"file:{video}", args.overrides)
     log = open(os.path.join(state, "daemon.log"), "w")
     err = open(os.path.join(state, "daemon.err"), "w")
     daemon = subprocess.Popen(cmd, stdout=log, stderr=err)
@@ -159,15 +143,8 @@ def run_phase(name: str, video: Path, args: argparse.Namespace) -> dict:
                 poses = [p for t, p in col.poses if t_start <= t < t_end]
                 statuses = [s for t, s in col.statuses if t >= t_start]
             del keep
-            _ = zenoh
     finally:
-        if daemon.poll() is None:
-            daemon.send_signal(signal.SIGTERM)
-        try:
-            daemon.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            daemon.kill()
-            daemon.wait()
+        stop(daemon, STOP_TIMEOUT_S)
         log.close()
         err.close()
     return summarize(name, poses, status0, statuses, args.duration, daemon.returncode)

@@ -5,47 +5,34 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 
+from daemon.commands import add_config_args
+from daemon.commands._child import free_endpoint, run_command, stop
+
+STOP_TIMEOUT_S = 10.0   # for the daemon's clean shutdown after SIGTERM, before SIGKILL
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("demo", help="run the daemon on the embedded demo input for a while and show its output")
     parser.add_argument("--seconds", type=float, default=20.0, help="how long to publish (default 20)")
-    parser.add_argument("--config", metavar="FILE", help="config file (default: the embedded config.yaml)")
+    add_config_args(parser, source=False)
     parser.add_argument("--source", metavar="URI", help="input instead of the embedded demo video")
-    parser.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
     parser.set_defaults(func=_demo)
-
-
-def _free_port() -> int:
-    import socket
-
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def _demo(args: argparse.Namespace) -> int:
     from daemon.commands.watch import open_viewer
     from daemon.viewer import Summary, subscribe
 
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = free_endpoint()
     state = tempfile.mkdtemp(prefix="posed-demo-")
-    cmd = [sys.executable, "-m", "daemon.cli", "run", "--set", "source.loop=true",
-           "--set", f"zenoh.listen=[{endpoint}]", "--set", "zenoh.connect=[]", "--set", "zenoh.mode=peer",
-           "--set", f"pipeline.state_dir={state}", "--set", "robot_id=demo", "--set", "logging.format=json"]
-    if args.config:
-        cmd += ["--config", args.config]
-    if args.source:
-        cmd += ["--source", args.source]
-    for o in args.overrides:
-        cmd += ["--set", o]
+    cmd = run_command(["source.loop=true", f"zenoh.listen=[{endpoint}]", "zenoh.connect=[]", "zenoh.mode=peer",
+                       f"pipeline.state_dir={state}", "robot_id=demo", "logging.format=json"],
+                      args.config, args.source, args.overrides)
     log_path = os.path.join(state, "daemon.log")
     print(f"posed demo: starting the daemon (log: {log_path}); listening on {endpoint}", flush=True)
     err_path = os.path.join(state, "daemon.err")
@@ -81,13 +68,7 @@ def _demo(args: argparse.Namespace) -> int:
             if daemon.poll() is not None:
                 return _failed(daemon, "the daemon stopped early", err_path)
     finally:
-        if daemon.poll() is None:
-            daemon.send_signal(signal.SIGTERM)
-        try:
-            daemon.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            daemon.kill()
-            daemon.wait()
+        stop(daemon, STOP_TIMEOUT_S)
     final = summary.final()
     lat = final["latency_ms"]
     knee = final["knee_deg"]
@@ -108,11 +89,8 @@ def _listening(endpoint: str) -> bool:
 
 
 def _failed(daemon: subprocess.Popen, what: str, err_path: str) -> int:
-    try:
-        daemon.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        daemon.kill()
-        daemon.wait()
+    """Stop the daemon (it may still be running when it never came up) and show its stderr."""
+    stop(daemon, STOP_TIMEOUT_S)
     print(f"posed demo: {what} (exit status {daemon.returncode})", file=sys.stderr)
     with open(err_path) as fh:
         err = fh.read()

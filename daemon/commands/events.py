@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from daemon.commands import add_config_args, config_from_args
-from daemon.falls.journal import EventJournal
 from daemon.falls.paths import events_path
 from daemon.falls.timeparse import parse_time
 
@@ -17,7 +17,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_config_args(parser, source=False)
     parser.add_argument("--since", metavar="TIME", help="from this time: 2h, 7d, today, 2024-05-01T14:00, ...")
     parser.add_argument("--until", metavar="TIME", help="up to this time (same forms as --since)")
-    parser.add_argument("--limit", type=int, default=None, metavar="N", help="only the newest N messages")
+    parser.add_argument("--limit", type=int, default=None, metavar="N",
+                        help="only the newest N messages (of those --unacked and the times select)")
     parser.add_argument("--unacked", action="store_true", help="only messages not yet acknowledged")
     parser.add_argument("--journal", metavar="FILE", help="journal file (default: events.sqlite3 in the state dir)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -25,31 +26,27 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from daemon.falls.journal import EventJournal, JournalError  # not at import: it pulls in structlog
+
     try:
         since = parse_time(args.since) if args.since else None
         until = parse_time(args.until) if args.until else None
     except ValueError as exc:
         print(f"posed events: {exc}", file=sys.stderr)
         return 2
-    if args.journal:
-        from pathlib import Path
-
-        path = Path(args.journal)
-    else:
-        path = events_path(config_from_args(args).pipeline)
+    path = Path(args.journal) if args.journal else events_path(config_from_args(args).pipeline)
     if not path.is_file():
         if args.json:
             print(json.dumps({"journal": str(path), "events": []}))
         else:
             print(f"no event journal at {path} yet (the daemon creates it with its first fall event)")
         return 0
-    journal = EventJournal(path)
     try:
-        stored = journal.query(since, until, args.limit)
-    finally:
-        journal.close()
-    if args.unacked:
-        stored = [s for s in stored if s.acked_at is None]
+        with EventJournal(path, readonly=True) as journal:
+            stored = journal.query(since, until, args.limit, unacked=args.unacked)
+    except (JournalError, FileNotFoundError) as exc:
+        print(f"posed events: {exc}", file=sys.stderr)
+        return 1
     if args.json:
         print(json.dumps({"journal": str(path), "events": [s.to_json() for s in stored]}))
         return 0

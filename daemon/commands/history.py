@@ -6,11 +6,15 @@ import argparse
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from daemon.commands import add_config_args, config_from_args
-from daemon.falls.history import ANGLE_COLUMNS, AngleHistory
 from daemon.falls.paths import history_path
 from daemon.falls.timeparse import iso, parse_time
+
+if TYPE_CHECKING:
+    from daemon.falls.history import AngleHistory
+    from daemon.settings import PipelineConfig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,11 +32,20 @@ def add_range_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", metavar="FILE", help="history file (default: history.sqlite3 in the state dir)")
 
 
-def open_history(args: argparse.Namespace) -> tuple[AngleHistory, float | None, float | None]:
-    """Parse --since/--until/--db and open the history read-only (raises ValueError/FileNotFoundError)."""
+def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = None
+                 ) -> tuple[AngleHistory, float | None, float | None]:
+    """Parse --since/--until/--db and open the history read-only (raises ValueError/FileNotFoundError).
+
+    ``pipeline``: the config's pipeline section when the caller has loaded it (else it is loaded here when
+    there is no --db)."""
+    from daemon.falls.history import AngleHistory  # not at import: it pulls in structlog
+
     since = parse_time(args.since) if args.since else None
     until = parse_time(args.until) if args.until else None
-    path = Path(args.db) if args.db else history_path(config_from_args(args).pipeline)
+    if args.db:
+        path = Path(args.db)
+    else:
+        path = history_path(pipeline if pipeline is not None else config_from_args(args).pipeline)
     return AngleHistory(path, readonly=True), since, until
 
 
@@ -60,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _summary(hist: AngleHistory, since, until, out) -> None:
+    from daemon.falls.history import ANGLE_COLUMNS
+
     rows = list(hist.rows(since, until))
     if not rows:
         print("no joint angles stored for that time range", file=out)

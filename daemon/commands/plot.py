@@ -6,15 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
-import cv2
-import numpy as np
-
-from daemon.commands import config_from_args
+from daemon.commands import add_config_args, config_from_args
 from daemon.commands.history import add_range_args, open_history
 from daemon.falls.angleplot import PANELS, Mark, draw_history
-from daemon.falls.history import ANGLE_COLUMNS
-from daemon.falls.journal import EventJournal
-from daemon.falls.paths import events_path
+from daemon.falls.paths import EVENTS_FILE, events_path
 from daemon.falls.timeparse import iso
 
 
@@ -22,8 +17,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("plot", help="draw stored data as a PNG")
     what = parser.add_subparsers(dest="what", metavar="WHAT", required=True)
     hist = what.add_parser("history", help="joint-angle trajectories (like the paper's Figures 12 and 16)")
-    hist.add_argument("--config", metavar="FILE", help="config file (default: the embedded config.yaml)")
-    hist.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
+    add_config_args(hist, source=False)
     add_range_args(hist)
     hist.add_argument("--panels", default="torso,sagittal",
                       help=f"comma-separated panels: {', '.join(PANELS)}, or angle names joined by '+' "
@@ -35,6 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def parse_panels(spec: str) -> list[tuple[str, tuple[str, ...]]]:
+    from daemon.falls.history import ANGLE_COLUMNS  # not at import: it pulls in structlog
+
     panels = []
     for item in filter(None, (s.strip() for s in spec.split(","))):
         if item in PANELS:
@@ -52,9 +48,20 @@ def parse_panels(spec: str) -> list[tuple[str, tuple[str, ...]]]:
 
 
 def run(args: argparse.Namespace) -> int:
+    import cv2
+    import numpy as np
+
+    from daemon.falls.history import ANGLE_COLUMNS
+    from daemon.falls.journal import EventJournal, JournalError
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".png":
+        print(f"posed plot history: {out} must end in .png", file=sys.stderr)
+        return 2
     try:
         panels = parse_panels(args.panels)
-        hist, since, until = open_history(args)
+        pipeline = None if args.db else config_from_args(args).pipeline
+        hist, since, until = open_history(args, pipeline)
     except (ValueError, FileNotFoundError) as exc:
         print(f"posed plot history: {exc}", file=sys.stderr)
         return 2
@@ -71,19 +78,17 @@ def run(args: argparse.Namespace) -> int:
     angles = {name: data[:, 4 + i] for i, name in enumerate(ANGLE_COLUMNS)}
     marks: list[Mark] = []
     if not args.no_events:
-        path = Path(args.db).with_name("events.sqlite3") if args.db else events_path(config_from_args(args).pipeline)
+        path = Path(args.db).with_name(EVENTS_FILE) if args.db else events_path(pipeline)
         if path.is_file():
-            journal = EventJournal(path)
             try:
-                marks = [Mark(s.wall, s.event.state) for s in journal.query(wall[0], wall[-1])]
-            finally:
-                journal.close()
+                with EventJournal(path, readonly=True) as journal:
+                    marks = [Mark(s.wall, s.event.state) for s in journal.query(wall[0], wall[-1])]
+            except (JournalError, FileNotFoundError) as exc:
+                print(f"posed plot history: {exc}; --no-events draws the angles without the event marks",
+                      file=sys.stderr)
+                return 1
     image = draw_history(wall, angles, panels, marks, title=f"joint angles from {iso(wall[0])} UTC",
                          width=args.width)
-    out = Path(args.output)
-    if out.suffix.lower() != ".png":
-        print(f"posed plot history: {out} must end in .png", file=sys.stderr)
-        return 2
     if not cv2.imwrite(str(out), image):
         print(f"posed plot history: cannot write {out} (does the folder exist and is it writable?)",
               file=sys.stderr)

@@ -17,6 +17,9 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from fitting.result import JOINT_3D_NAMES
+from landmarks.recording import LANDMARK_NAMES
+
 
 def rot_x(deg: float) -> np.ndarray:
     a = math.radians(deg)
@@ -100,15 +103,7 @@ def body_axes(yaw: float, pitch: float, roll: float) -> np.ndarray:
 
 
 # indices of our joint dictionary -> MediaPipe landmark numbers
-MP = {
-    "nose": 0, "left_eye_inner": 1, "left_eye": 2, "left_eye_outer": 3, "right_eye_inner": 4, "right_eye": 5,
-    "right_eye_outer": 6, "left_ear": 7, "right_ear": 8, "mouth_left": 9, "mouth_right": 10,
-    "left_shoulder": 11, "right_shoulder": 12, "left_elbow": 13, "right_elbow": 14, "left_wrist": 15,
-    "right_wrist": 16, "left_pinky": 17, "right_pinky": 18, "left_index": 19, "right_index": 20,
-    "left_thumb": 21, "right_thumb": 22, "left_hip": 23, "right_hip": 24, "left_knee": 25, "right_knee": 26,
-    "left_ankle": 27, "right_ankle": 28, "left_heel": 29, "right_heel": 30, "left_foot_index": 31,
-    "right_foot_index": 32,
-}
+MP = {name: i for i, name in enumerate(LANDMARK_NAMES)}
 # contact spheres (point, radius as a fraction of H) used to rest the body on the floor
 FLOOR_CONTACTS = (("left_heel", 0.012), ("right_heel", 0.012), ("left_foot_index", 0.012),
                   ("right_foot_index", 0.012), ("left_knee", 0.03), ("right_knee", 0.03), ("pelvis", 0.06),
@@ -257,9 +252,7 @@ class Camera:
     def joints_camera(self, joints: dict[str, np.ndarray]) -> dict[str, tuple[float, float, float]]:
         """The fit-result ``joints_3d`` of a perfect fit: camera axes, origin at the mid-hip (m)."""
         mid = self.to_camera(0.5 * (joints["left_hip"] + joints["right_hip"]))
-        names = ("left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
-                 "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle")
         out = {"mid_hip": (0.0, 0.0, 0.0)}
-        for n in names:
+        for n in JOINT_3D_NAMES[1:]:
             out[n] = tuple(float(v) for v in self.to_camera(joints[n]) - mid)
         return out

@@ -102,7 +102,6 @@ class FallDetector:
         self._up_start: float | None = None      # up again since (while down)
         self._event: _Event | None = None
         self._last_result: FitResult | None = None
-        self.last_features: FrameFeatures | None = None
         self.last_sample: Sample | None = None
 
     # ------------------------------------------------------------------ calibration inputs
@@ -144,7 +143,6 @@ class FallDetector:
         feats = measure(result, landmarks, image_size, camera, self._gravity, self.cfg.min_visibility,
                         self.cfg.upright_knee_deg, self.cfg.camera_roll_deg, fit_frame)
         sample = self._sample(feats) if feats is not None else None
-        self.last_features = feats
         self.last_sample = sample
         if sample is not None:
             self._last_result = result
@@ -161,10 +159,8 @@ class FallDetector:
         return out
 
     def _reset_tracking(self) -> None:
-        self._samples.clear()
+        self._gap()
         self._last_valid_t = None
-        self._descent = None
-        self._floor_start = self._lying_start = self._up_start = None
 
     def _gap(self) -> None:
         """Lost for longer than max_gap_s: forget motion (velocities, dwell), keep state and event."""

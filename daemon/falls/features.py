@@ -20,14 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
 from fitting.result import FitResult
 
 # joints_3d name -> MediaPipe landmark index
-LANDMARK_INDEX = {
-    "left_shoulder": 11, "right_shoulder": 12, "left_elbow": 13, "right_elbow": 14, "left_wrist": 15,
-    "right_wrist": 16, "left_hip": 23, "right_hip": 24, "left_knee": 25, "right_knee": 26, "left_ankle": 27,
-    "right_ankle": 28,
-}
+LANDMARK_INDEX = dict(zip(BODY_LANDMARK_NAMES, BODY_LANDMARKS, strict=True))
 TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
 # Anthropometric ratios (Winter, Biomechanics and Motor Control of Human Movement, 4th ed., table 4.1):
 # hip joint 0.530 H, knee 0.285 H, ankle 0.039 H above the floor; thigh 0.245 H, shank 0.246 H.
@@ -95,7 +92,6 @@ class FrameFeatures:
     offsets_down: dict[str, float]   # each joint's offset below the mid-hip along gravity (m)
     trunk_incl_deg: float        # mid-hip -> mid-shoulder against up; 0 upright, 90 horizontal
     leg_length: float            # fitted thigh + shank (m), mean of the two sides
-    distance: float              # Z of the mid-hip (m)
     bbox_aspect: float           # width / height of the visible landmarks, roll-corrected
     flexion: dict[str, float]    # theta_hp_l/r, theta_kn_l/r (deg)
     upright_legs: bool           # hips and knees nearly straight (standing-reference candidate)
@@ -157,7 +153,6 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
                     np.array([joints[n] - mid_hip for n in names]) @ r_fit.T, camera)
     if pelvis is None:
         return None
-    z = float(pelvis[2])
     d_fit = r_fit.T @ d_c
     offsets = {n: float((v - mid_hip) @ d_fit) for n, v in joints.items()}
     trunk = 0.5 * (joints["left_shoulder"] + joints["right_shoulder"]) - mid_hip
@@ -184,5 +179,4 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
     flex = {k: float(ja[k]) for k in ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r") if k in ja}
     upright_legs = bool(flex) and all(abs(v) < upright_knee_deg for v in flex.values())
     return FrameFeatures(t=result.t, below_camera_pelvis=float(pelvis @ d_c), below_camera_ankles=below_ankles,
-                         offsets_down=offsets, trunk_incl_deg=incl, leg_length=leg, distance=z,
-                         bbox_aspect=aspect, flexion=flex, upright_legs=upright_legs)
+                         offsets_down=offsets, trunk_incl_deg=incl, leg_length=leg, bbox_aspect=aspect, flexion=flex, upright_legs=upright_legs)

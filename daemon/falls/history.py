@@ -20,14 +20,14 @@ import sqlite3
 import threading
 import time
 from collections.abc import Iterable, Iterator
-from datetime import UTC, datetime
 from pathlib import Path
 
 from daemon import logs
+from daemon.clock import iso
 from daemon.falls.config import FallsConfig
+from fitting.kinematics import BODY_ANGLE_NAMES
 from fitting.result import JOINT_ANGLE_NAMES, FitResult
 
-BODY_ANGLE_NAMES = ("theta_bd", "phi_bd", "psi_bd")
 ANGLE_COLUMNS = JOINT_ANGLE_NAMES + BODY_ANGLE_NAMES
 CSV_HEADER = ("wall_time", "wall", "t", "seq", "level", *ANGLE_COLUMNS)
 
@@ -160,7 +160,7 @@ class AngleHistory:
         writer.writerow(CSV_HEADER)
         n = 0
         for wall, t, seq, level, *values in self.rows(since, until):
-            writer.writerow([datetime.fromtimestamp(wall, UTC).isoformat(timespec="milliseconds"), repr(wall),
+            writer.writerow([iso(wall), repr(wall),
                              repr(t), seq, level, *("" if v is None else repr(v) for v in values)])
             n += 1
         return n

@@ -25,6 +25,7 @@ from daemon.contracts import FallEvent
 from daemon.falls.config import HookConfig, HooksConfig
 
 _STOP = object()
+KEEP_OUTCOMES = 200   # HookRunner.outcomes keeps this many of the latest runs
 
 
 def event_environment(event: FallEvent) -> dict[str, str]:
@@ -69,7 +70,6 @@ class _Worker:
         self.hook = hook
         self.cfg = cfg
         self.queue: queue.Queue = queue.Queue()
-        self.busy = threading.Event()
         self._outcomes = outcomes
         self._stopping = threading.Event()
         self.log = logs.get("hooks", hook=index, program=hook.argv[0] if hook.argv else "")
@@ -82,13 +82,11 @@ class _Worker:
             if item is _STOP:
                 self.queue.task_done()
                 return
-            self.busy.set()
             try:
                 self._deliver(item)
             except Exception as exc:  # a bug here must not kill the worker
                 self.log.error("hook_worker_error", error=repr(exc), event_id=item.id)
             finally:
-                self.busy.clear()
                 self.queue.task_done()
 
     def _deliver(self, event: FallEvent) -> None:
@@ -174,14 +172,14 @@ class HookRunner:
     def __init__(self, cfg: HooksConfig) -> None:
         self.cfg = cfg
         self._lock = threading.Lock()
-        self.outcomes: list[HookOutcome] = []  # the last ``cfg.keep_outcomes`` runs, newest last
+        self.outcomes: list[HookOutcome] = []  # the last KEEP_OUTCOMES runs, newest last
         self._workers = [_Worker(i, h, cfg, self._record) for i, h in enumerate(cfg.on_event)]
         self._closed = False
 
     def _record(self, outcome: HookOutcome) -> None:
         with self._lock:
             self.outcomes.append(outcome)
-            del self.outcomes[: max(0, len(self.outcomes) - 200)]
+            del self.outcomes[: max(0, len(self.outcomes) - KEEP_OUTCOMES)]
 
     def submit(self, event: FallEvent) -> None:
         """Queue the event for every hook; never blocks, never raises."""

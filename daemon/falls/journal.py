@@ -11,6 +11,10 @@ When the disk is full, the file is not writable or the database is corrupt, the 
 log line, keeps the messages in memory (they are still returned by ``unacknowledged`` and ``query``) and
 writes them on the next call, or on ``retry()``. A corrupt file is moved aside (``*.corrupt-<unix time>``)
 after salvaging the unacknowledged rows that can still be read, and a fresh journal is started.
+
+``EventJournal(path, readonly=True)`` is for readers other than the daemon (``posed events``, ``posed plot``):
+it opens the file read-only, creates nothing, never moves a file aside and never logs; a file it cannot read
+raises ``JournalError`` naming the file and the fix.
 """
 
 from __future__ import annotations
@@ -22,10 +26,10 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from datetime import UTC, datetime
 from pathlib import Path
 
 from daemon import logs
+from daemon.clock import iso
 from daemon.contracts import FallEvent
 
 _SCHEMA = """
@@ -45,10 +49,6 @@ CREATE INDEX IF NOT EXISTS messages_unacked ON messages (acked_at) WHERE acked_a
 """
 
 
-def _iso(unix: float) -> str:
-    return datetime.fromtimestamp(unix, UTC).isoformat(timespec="milliseconds")
-
-
 @dataclass(frozen=True)
 class StoredEvent:
     """One journalled message and its delivery state (times are unix seconds)."""
@@ -66,17 +66,23 @@ class StoredEvent:
 
 
 class JournalError(RuntimeError):
-    """The journal cannot be used at all (raised only by ``EventJournal(path, strict=True)``)."""
+    """The journal cannot be used at all (raised by ``EventJournal(path, strict=True)`` and by a read-only
+    journal that cannot read its file)."""
 
 
 class EventJournal:
     """SQLite journal of fall-event messages; thread-safe (the publisher and Zenoh callbacks share it)."""
 
     def __init__(self, path: str | os.PathLike, strict: bool = False, clock=time.time,
-                 connect: Callable[[Path], sqlite3.Connection] | None = None) -> None:
+                 connect: Callable[[Path], sqlite3.Connection] | None = None, readonly: bool = False) -> None:
         """``connect`` opens the file (default: ``sqlite3.connect`` with a 5 s busy timeout); tests pass one
-        that limits the file's size to meet a real SQLITE_FULL."""
+        that limits the file's size to meet a real SQLITE_FULL.
+
+        ``readonly``: only read an existing journal (raises FileNotFoundError when there is none, JournalError
+        when it cannot be read); the writing methods then raise JournalError.
+        """
         self.path = Path(path)
+        self._readonly = readonly
         self._clock = clock
         self._connect = connect or _default_connect
         self._lock = threading.RLock()
@@ -86,6 +92,9 @@ class EventJournal:
         self._pending_marks: list[tuple[str, str | None, str, float]] = []
         self.last_error: str = ""
         self._log = logs.get("journal", path=str(self.path))
+        if readonly:
+            self._db = _open_readonly(self.path)
+            return
         with self._lock:
             self._open()
         if strict and self._db is None:
@@ -98,9 +107,7 @@ class EventJournal:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             db = self._connect(self.path)
             try:
-                db.execute("PRAGMA journal_mode=WAL")
-                db.execute("PRAGMA synchronous=FULL")
-                db.executescript(_SCHEMA)
+                _prepare(db)
                 db.execute("SELECT count(*) FROM messages").fetchone()
             except sqlite3.DatabaseError:
                 db.close()
@@ -137,9 +144,7 @@ class EventJournal:
         self._db = None
         try:
             db = self._connect(self.path)
-            db.execute("PRAGMA journal_mode=WAL")
-            db.execute("PRAGMA synchronous=FULL")
-            db.executescript(_SCHEMA)
+            _prepare(db)
             self._db = db
             self.last_error = ""
         except (sqlite3.DatabaseError, OSError) as exc2:
@@ -150,7 +155,7 @@ class EventJournal:
     def _salvage(self) -> list[StoredEvent]:
         out: list[StoredEvent] = []
         try:
-            db = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=1.0)
+            db = sqlite3.connect(_readonly_uri(self.path), uri=True, timeout=1.0)
             try:
                 rows = db.execute("SELECT body, wall, published_at, acked_at FROM messages "
                                   "WHERE acked_at IS NULL").fetchall()
@@ -172,12 +177,19 @@ class EventJournal:
             self._log.error("journal_unavailable", error=message, fix=hint,
                             kept_in_memory=len(self._pending))
         self.last_error = message
+        self._close_db()
+
+    def _close_db(self) -> None:
         if self._db is not None:
             try:
                 self._db.close()
             except sqlite3.Error:
                 pass
         self._db = None
+
+    def _check_writable(self) -> None:
+        if self._readonly:
+            raise JournalError(f"the event journal {self.path} was opened read-only")
 
     @property
     def healthy(self) -> bool:
@@ -192,6 +204,7 @@ class EventJournal:
 
     def retry(self) -> bool:
         """Try again to open the file and write what waits in memory; True when everything is on disk."""
+        self._check_writable()
         with self._lock:
             if self._db is None:
                 self._open()
@@ -241,10 +254,11 @@ class EventJournal:
 
         Never raises on storage trouble: the message is then kept in memory, logged, and written later.
         """
+        self._check_writable()
         with self._lock:
             now = self._clock()
             if not event.wall_time:
-                event = replace(event, wall_time=_iso(now))
+                event = replace(event, wall_time=iso(now))
             item = StoredEvent(event, now, None, None)
             self._pending[(event.id, event.state)] = item
             if self._db is None:
@@ -261,6 +275,7 @@ class EventJournal:
 
         Returns how many messages were acknowledged (0 for an unknown id).
         """
+        self._check_writable()
         with self._lock:
             known = sum(1 for k, v in self._pending.items() if k[0] == event_id and v.acked_at is None
                         and (state is None or k[1] == state))
@@ -278,6 +293,7 @@ class EventJournal:
             return known
 
     def _record(self, event_id: str, state: str | None, column: str) -> None:
+        self._check_writable()
         with self._lock:
             now = self._clock()
             for key, item in list(self._pending.items()):
@@ -304,9 +320,9 @@ class EventJournal:
         return [s.event for s in self._select("published_at IS NULL", (), None)]
 
     def query(self, since: float | None = None, until: float | None = None,
-              limit: int | None = None) -> list[StoredEvent]:
-        """Messages journalled between two unix times (inclusive), oldest first, at most ``limit``
-        (the newest ``limit`` when more match)."""
+              limit: int | None = None, unacked: bool = False) -> list[StoredEvent]:
+        """Messages journalled between two unix times (inclusive), only the unacknowledged ones when
+        ``unacked``, oldest first, at most ``limit`` (the newest ``limit`` when more match)."""
         where, args = [], []
         if since is not None:
             where.append("wall >= ?")
@@ -314,6 +330,8 @@ class EventJournal:
         if until is not None:
             where.append("wall <= ?")
             args.append(until)
+        if unacked:
+            where.append("acked_at IS NULL")
         return self._select(" AND ".join(where) or "1", tuple(args), limit)
 
     def get(self, event_id: str) -> list[StoredEvent]:
@@ -324,6 +342,8 @@ class EventJournal:
         with self._lock:
             rows: dict[tuple[str, str], StoredEvent] = {}
             if self._db is None:
+                if self._readonly:
+                    raise JournalError(f"the event journal {self.path} is closed")
                 self._open()
                 self._flush()
             if self._db is not None:
@@ -335,6 +355,8 @@ class EventJournal:
                         event = FallEvent.from_json(json.loads(body))
                         rows[(event.id, event.state)] = StoredEvent(event, wall, pub, ack)
                 except sqlite3.DatabaseError as exc:
+                    if self._readonly:
+                        raise JournalError(_read_error(self.path, exc)) from exc
                     self._fail("cannot read the event journal", exc)
             for key, item in self._pending.items():
                 if _matches(item, where, args):
@@ -346,13 +368,9 @@ class EventJournal:
 
     def close(self) -> None:
         with self._lock:
-            self._flush()
-            if self._db is not None:
-                try:
-                    self._db.close()
-                except sqlite3.Error:
-                    pass
-            self._db = None
+            if not self._readonly:
+                self._flush()
+            self._close_db()
 
     def __enter__(self) -> EventJournal:
         return self
@@ -363,6 +381,50 @@ class EventJournal:
 
 def _default_connect(path: Path) -> sqlite3.Connection:
     return sqlite3.connect(path, timeout=5.0, isolation_level=None, check_same_thread=False)
+
+
+def _prepare(db: sqlite3.Connection) -> None:
+    """The daemon's settings (WAL, fsync on every commit) and the tables, on a freshly opened file."""
+    db.execute("PRAGMA journal_mode=WAL")
+    db.execute("PRAGMA synchronous=FULL")
+    db.executescript(_SCHEMA)
+
+
+def _readonly_uri(path: Path) -> str:
+    return path.absolute().as_uri() + "?mode=ro"
+
+
+def _open_readonly(path: Path) -> sqlite3.Connection:
+    """Open an existing journal for reading only: nothing is created, nothing is moved aside."""
+    if not path.is_file():
+        raise FileNotFoundError(f"no event journal at {path}: the daemon creates it with its first fall event; "
+                                "check pipeline.state_dir")
+    try:
+        db = sqlite3.connect(_readonly_uri(path), uri=True, timeout=5.0, isolation_level=None,
+                             check_same_thread=False)
+    except sqlite3.Error as exc:
+        raise JournalError(_read_error(path, exc)) from exc
+    try:
+        db.execute("SELECT count(*) FROM messages").fetchone()
+    except sqlite3.Error as exc:
+        db.close()
+        raise JournalError(_read_error(path, exc)) from exc
+    return db
+
+
+def _read_error(path: Path, exc: sqlite3.Error) -> str:
+    """What went wrong reading ``path`` read-only, and what to do about it."""
+    text = str(exc).lower()
+    if isinstance(exc, sqlite3.DatabaseError) and _is_corrupt(exc):
+        fix = (f"the file is damaged; the daemon moves it aside and starts a new journal the next time it opens "
+               f"it; to look at what is left: sqlite3 {path} .recover")
+    elif "no such table" in text:
+        fix = "this is not an event journal (no messages table); check --journal or pipeline.state_dir"
+    elif "unable to open" in text or "readonly" in text or "permission" in text:
+        fix = f"make {path} and its folder readable by this user (pipeline.state_dir)"
+    else:
+        fix = "check the file and pipeline.state_dir"
+    return f"cannot read the event journal {path}: {exc}; {fix}"
 
 
 class _transaction:
@@ -396,6 +458,8 @@ def _matches(item: StoredEvent, where: str, args: tuple) -> bool:
         i += 1
     if "wall <= ?" in where:
         ok = ok and item.wall <= args[i]
+    if "acked_at IS NULL" in where:
+        ok = ok and item.acked_at is None
     return ok
 
 

@@ -13,7 +13,7 @@ the segment (the body topples over them); otherwise the pelvis moves to the key'
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -70,8 +70,6 @@ class Scenario:
     seed: int = 0
     dropouts: tuple[tuple[float, float], ...] = ()   # capture-time intervals with no landmarks
     start_xy: tuple[float, float] = (0.0, 3.0)
-    group: str = ""
-    tags: tuple[str, ...] = ()
 
     @property
     def duration(self) -> float:
@@ -372,8 +370,8 @@ def walk(path: list[tuple[float, float]], speed: float = 1.1, start_pause: float
 
 
 def make(name: str, kind: str, motion: tuple[list[Key], Truth], view: float, distance: float, cam_height: float,
-         tilt: float, seed: int, group: str, facing_offset: float = 0.0, fps: float = 10.0,
-         dropouts=(), start_xy=None, noise_frac: float = 0.01, tags=()) -> Scenario:
+         tilt: float, seed: int, facing_offset: float = 0.0, fps: float = 10.0,
+         dropouts=(), start_xy=None, noise_frac: float = 0.01) -> Scenario:
     """Place the person ``distance`` m in front of a camera; ``view`` is the direction the camera sees the
     person from, in degrees around them (0: the person faces the camera, 90: their left side, 180: back)."""
     keys, truth = motion
@@ -383,7 +381,7 @@ def make(name: str, kind: str, motion: tuple[list[Key], Truth], view: float, dis
         start_xy = (0.0, distance)
     return Scenario(name=name, kind=kind, keys=keys, truth=truth,
                     camera=Camera(z=cam_height, tilt=tilt), fps=fps, seed=seed, dropouts=tuple(dropouts),
-                    start_xy=start_xy, group=group, noise_frac=noise_frac, tags=tuple(tags))
+                    start_xy=start_xy, noise_frac=noise_frac)
 
 
 @dataclass(frozen=True)
@@ -416,7 +414,7 @@ def catalogue(split: str = "tune") -> list[Scenario]:
     def add(name, kind, motion, view, dist, cam, **kw):
         nonlocal seed
         seed += 1
-        out.append(make(f"{split}/{name}", kind, motion, view, dist, cam[0], cam[1], seed, split, **kw))
+        out.append(make(f"{split}/{name}", kind, motion, view, dist, cam[0], cam[1], seed, **kw))
 
     cams, dists, views = sp.cams, sp.distances, sp.views
     # falls: direction x origin x speed x view
@@ -441,7 +439,7 @@ def catalogue(split: str = "tune") -> list[Scenario]:
         motion = fall_from_standing("sideways", list(sp.speeds.values())[0], 1.0)
         ti = motion[1].t_impact
         add(f"fall/occluded-at-impact/v{int(view)}", "fall", motion, view, dist, cam,
-            dropouts=((ti - 0.25, ti + 0.25),), tags=("dropout",))
+            dropouts=((ti - 0.25, ti + 0.25),))
     # daily activities: each at every ADL speed, alternating views and cameras
     for ai, (aname, s) in enumerate(sp.adl_speeds.items()):
         for vi, view in enumerate(views[:2]):
@@ -466,11 +464,3 @@ def catalogue(split: str = "tune") -> list[Scenario]:
         add(f"adl/walk-out-towards/c{vi}", "adl", walk([(0.3, dist + 1.0), (0.3, 0.6)], speed=0.9), 0.0, dist, cam,
             start_xy=(0.3, dist + 1.0), facing_offset=-180.0)
     return out
-
-
-def detector_run(sc: Scenario, detector_update: Callable[[FitResult, np.ndarray | None], list]) -> list:
-    """Feed a scenario's perfect fits to ``detector_update(result, landmarks)``; returns all messages."""
-    events = []
-    for fr in frames(sc):
-        events += detector_update(truth_result(fr, sc.camera), fr.landmarks)
-    return events

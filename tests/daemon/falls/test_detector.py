@@ -73,7 +73,7 @@ def long_fall(after: float, get_up: bool, seed: int = 3, dropouts=()) -> Scenari
         keys = keys + [Key(t + 1.0, SIT.with_(pitch=-10, hip_flex_l=80, hip_flex_r=80, knee_l=70, knee_r=70)),
                        Key(t + 2.0, Pose(knee_l=90, knee_r=90, hip_flex_l=10, hip_flex_r=60, trunk_flex=10)),
                        Key(t + 3.0, STAND), Key(t + 6.0, STAND, ease="hold")]
-    return make("long-fall", "fall", (keys, truth), 30.0, 3.0, 1.0, 12.0, seed, "test", dropouts=dropouts)
+    return make("long-fall", "fall", (keys, truth), 30.0, 3.0, 1.0, 12.0, seed, dropouts=dropouts)
 
 
 def test_alarm_after_configured_time_then_recovered():
@@ -102,7 +102,7 @@ def test_losing_sight_after_a_fall_does_not_hide_the_alarm():
 
 def test_a_few_lost_frames_neither_cause_nor_hide():
     standing = make("stand", "adl", ([Key(0.0, STAND), Key(6.0, STAND, ease="hold")], Truth("adl")),
-                    0.0, 3.0, 1.0, 12.0, 5, "test", dropouts=((1.0, 1.4), (2.0, 2.3), (4.0, 4.5)))
+                    0.0, 3.0, 1.0, 12.0, 5, dropouts=((1.0, 1.4), (2.0, 2.3), (4.0, 4.5)))
     assert run(standing) == []
     sc = long_fall(after=3.0, get_up=False)
     ti = sc.truth.t_impact
@@ -120,7 +120,7 @@ def test_replay_gives_the_same_events():
 
 def test_single_bad_frame_is_ignored():
     sc = make("stand", "adl", ([Key(0.0, STAND), Key(5.0, STAND, ease="hold")], Truth("adl")), 0.0, 3.0, 1.0, 12.0,
-              9, "test")
+              9)
     lying = TUNE["tune/fall/found-lying-sideways/v30"]
     bad = next(f for f in frames(lying) if f.seq == 10)
     det = FallDetector(replace(FallsConfig(), camera_tilt_deg=12.0, camera_height_m=1.0), "r1", fit_frame="camera")

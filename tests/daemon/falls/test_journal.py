@@ -11,8 +11,10 @@ import textwrap
 import time
 from pathlib import Path
 
+import pytest
+
 from daemon.contracts import FallEvent
-from daemon.falls.journal import EventJournal
+from daemon.falls.journal import EventJournal, JournalError
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -148,3 +150,36 @@ def test_concurrent_reader_sees_committed_events(tmp_path):
         with EventJournal(path) as reader:
             assert [e.id for e in reader.unacknowledged()] == ["e1"]
         assert time.monotonic() - t0 < 5
+
+
+def test_readonly_reads_without_creating_or_moving_anything(tmp_path, capsys):
+    path = tmp_path / "events.sqlite3"
+    with EventJournal(path) as writer:
+        writer.append(event())
+    with EventJournal(path, readonly=True) as reader:
+        assert [e.id for e in reader.unacknowledged()] == ["e1"]
+        with pytest.raises(JournalError, match="read-only"):
+            reader.append(event("alarm"))
+        with pytest.raises(JournalError, match="read-only"):
+            reader.acknowledge("e1")
+    with EventJournal(path) as writer:
+        assert [e.state for e in writer.unacknowledged()] == ["falling"]
+
+    missing = tmp_path / "state" / "events.sqlite3"
+    with pytest.raises(FileNotFoundError, match=str(missing)):
+        EventJournal(missing, readonly=True)
+    assert not missing.parent.exists()
+
+    corrupt = tmp_path / "corrupt.sqlite3"
+    corrupt.write_bytes(b"this is not a database" * 100)
+    with pytest.raises(JournalError, match="cannot read the event journal .*corrupt.sqlite3.*recover"):
+        EventJournal(corrupt, readonly=True)
+    assert corrupt.read_bytes() == b"this is not a database" * 100
+    assert not list(tmp_path.glob("*.corrupt-*"))
+    assert capsys.readouterr().out == ""            # a reader never logs
+
+    other = tmp_path / "other.sqlite3"
+    sqlite3.connect(other).close()                  # an empty database: no tables
+    with pytest.raises(JournalError, match="not an event journal"):
+        EventJournal(other, readonly=True)
+    assert sqlite3.connect(other).execute("SELECT count(*) FROM sqlite_master").fetchone()[0] == 0
