@@ -82,7 +82,6 @@ class Db3Writer:
 
     def write(self, image: np.ndarray, depth: np.ndarray | None, t_ms: float, number: int) -> None:
         """Add one colour image (BGR uint8, H x W x 3) and its depth (uint16 on the depth grid, or None)."""
-        rs = self._rs
         w, h = self.intrinsics.width, self.intrinsics.height
         if image.shape != (h, w, 3) or image.dtype != np.uint8:
             raise ValueError(f"colour image must be {h}x{w}x3 uint8, got {image.shape} {image.dtype}")
@@ -90,26 +89,27 @@ class Db3Writer:
             dw, dh = self.depth_intrinsics.width, self.depth_intrinsics.height
             if depth.shape != (dh, dw) or depth.dtype != np.uint16:
                 raise ValueError(f"depth must be {dh}x{dw} uint16, got {depth.shape} {depth.dtype}")
-            f = rs.software_video_frame()
-            f.pixels = np.ascontiguousarray(depth)
-            f.bpp = 2
-            f.stride = dw * 2
-            f.timestamp = float(t_ms)
-            f.domain = rs.timestamp_domain.hardware_clock
-            f.frame_number = int(number)
-            f.profile = self._depth_profile.as_video_stream_profile()
-            f.depth_units = float(self.depth_scale or 0.001)
-            self._depth_sensor.on_video_frame(f)
+            self._send(self._depth_sensor, self._depth_profile, depth, 2, t_ms, number,
+                       depth_units=float(self.depth_scale or 0.001))
+        self._send(self._colour_sensor, self._colour_profile, image, 3, t_ms, number)
+        self.frames += 1
+
+    def _send(self, sensor: Any, profile: Any, pixels: np.ndarray, bpp: int, t_ms: float, number: int,
+              depth_units: float | None = None) -> None:
+        """Hand one image (``bpp`` bytes per pixel, of the size of ``profile``) to a software sensor, stamped
+        ``t_ms`` milliseconds (hardware clock) and frame ``number``; depth frames carry ``depth_units`` (m)."""
+        rs = self._rs
         f = rs.software_video_frame()
-        f.pixels = np.ascontiguousarray(image)
-        f.bpp = 3
-        f.stride = w * 3
+        f.pixels = np.ascontiguousarray(pixels)
+        f.bpp = bpp
+        f.stride = pixels.shape[1] * bpp
         f.timestamp = float(t_ms)
         f.domain = rs.timestamp_domain.hardware_clock
         f.frame_number = int(number)
-        f.profile = self._colour_profile.as_video_stream_profile()
-        self._colour_sensor.on_video_frame(f)
-        self.frames += 1
+        f.profile = profile.as_video_stream_profile()
+        if depth_units is not None:
+            f.depth_units = depth_units
+        sensor.on_video_frame(f)
 
     def close(self) -> None:
         """Stop the sensors and finish the file (the recorder writes its index when released)."""

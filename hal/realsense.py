@@ -31,17 +31,17 @@ from typing import Any
 
 import numpy as np
 
-from hal.clock import DeviceClock, wait_until_due, wall_to_monotonic
+from hal.clock import DeviceClock, wall_to_monotonic
 from hal.config import SourceConfig
 from hal.errors import (
     EndOfStream,
     SourceCorrupt,
     SourceDisconnected,
     SourceNotFound,
-    SourceTimeout,
     SourceUnsupported,
 )
 from hal.frame import Frame, Intrinsics
+from hal.replay import Timeline
 from hal.source import Source
 
 # After hardware_reset() the camera re-enumerates; touching it too soon has crashed librealsense
@@ -105,15 +105,7 @@ class RealSenseSource(Source):
         self._next_attempt = 0.0
         self._last_number: int | None = None
         self._first_number: int | None = None
-        self._seq_offset = 0
-        self._last_seq = -1
-        self._t_start: float | None = None
-        self._t_offset = 0.0
-        self._ts_first: float | None = None
-        self._last_rel = 0.0
-        self._pass_frames = 0
-        self._pending: Frame | None = None
-        self._ended = False
+        self._timeline = Timeline(self.name, self._clock, self._sleep)
         self._clock_map = DeviceClock()
         self._start()
 
@@ -287,7 +279,7 @@ class RealSenseSource(Source):
         if self.playback is None:
             self._last_number = None  # a restarted camera may count its frames from 0 again
             self._first_number = None
-            self._seq_offset = self._last_seq + 1
+            self._timeline.continue_seq()
             self._clock_map = DeviceClock()
 
     def _disconnected(self, why: str) -> SourceDisconnected:
@@ -304,36 +296,25 @@ class RealSenseSource(Source):
         return SourceDisconnected(f"{self.name}: the camera stopped ({exc}); reconnecting — check the USB cable",
                                   self.name)
 
-    def _timed_out(self, timeout_s: float) -> SourceTimeout:
-        self._consecutive_timeouts += 1
-        self.count("timeouts")
-        n, limit = self._consecutive_timeouts, self.config.timeouts_before_reopen
-        if n >= limit:
-            self._stop()
-            self.state = "reconnecting"
-            self._next_attempt = self._clock()
-            return SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s, {n} times in a row; re-opening "
-                                 "the camera", self.name)
-        return SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s ({n} in a row; re-open after "
-                             f"{limit})", self.name)
+    def _reopen_soon(self) -> None:
+        """Too many timeouts in a row: stop the pipeline; the next read starts it again."""
+        self._stop()
+        self.state = "reconnecting"
+        self._next_attempt = self._clock()
 
     # -- reading ------------------------------------------------------------------------------------------
     def _read(self, timeout_s: float) -> Frame:
-        now = self._clock()
-        deadline = now + timeout_s
-        if self._t_start is None:
-            self._t_start = now
-        if self._pending is None:
-            self._pending = self._next_frame(deadline, timeout_s)
-        frame = self._pending
-        if self.playback is not None and self.config.realtime:
-            wait_until_due(frame.t, deadline, timeout_s, self.name, self._clock, self._sleep)
-        self._pending = None
+        frame = self._timeline.read(timeout_s, lambda deadline: self._next_frame(deadline, timeout_s),
+                                    realtime=self.playback is not None and self.config.realtime)
         self._consecutive_timeouts = 0
         return frame
 
+    def _frame_period(self) -> float:
+        """Seconds between two frames: the colour stream's rate, else ``source.fps``."""
+        return 1.0 / (self.fps or self.config.fps)
+
     def _next_frame(self, deadline: float, timeout_s: float) -> Frame:
-        if self._ended:
+        if self._timeline.ended:
             raise EndOfStream(f"{self.name}: end of the recording (set source.loop=true to replay it again)",
                               self.name)
         while True:
@@ -341,7 +322,7 @@ class RealSenseSource(Source):
                 self._reconnect(deadline)
             remaining = deadline - self._clock()
             if remaining <= 0:
-                raise self._timed_out(timeout_s)
+                raise self._timed_out(timeout_s, self._reopen_soon)
             step = min(remaining, PLAYBACK_SLICE_S) if self.playback is not None else remaining
             try:
                 ok, frames = self._pipe.try_wait_for_frames(max(1, int(step * 1000)))
@@ -364,17 +345,13 @@ class RealSenseSource(Source):
             return True
 
     def _end_of_file(self) -> None:
-        if not self.config.loop or self._pass_frames == 0:
-            self._ended = True
-            self._stop()
+        looping = self._timeline.end_of_pass(self.config.loop, self._frame_period)
+        self._stop()
+        if not looping:
             self.state = "ended"
             raise EndOfStream(f"{self.name}: the recording ended after {self.counters['frames']} frames (set "
                               "source.loop=true or ?loop=true to replay it again)", self.name)
-        self._stop()
-        self._t_offset += self._last_rel + 1.0 / (self.fps or self.config.fps)
-        self._seq_offset = self._last_seq + 1
         self._last_number = None
-        self._pass_frames = 0
         self.count("passes")
         self._start()
 
@@ -399,18 +376,13 @@ class RealSenseSource(Source):
         if depth is not None and depth.shape != image.shape[:2]:
             depth = None  # never hand out depth that is not on the colour grid
         if self.playback is None and last is not None and number < last:
-            self._seq_offset = self._last_seq + 1  # the camera restarted its frame counter by itself
+            self._timeline.continue_seq()  # the camera restarted its frame counter by itself
             self._first_number = number
         self._last_number = number
         if self._first_number is None:
             self._first_number = number
         t = self._timestamp(colour, arrival)
-        if self.playback is not None:
-            seq = self._seq_offset + number
-        else:
-            seq = self._seq_offset + number - self._first_number
-        self._last_seq = seq
-        self._pass_frames += 1
+        seq = self._timeline.add_frame(number if self.playback is not None else number - self._first_number)
         return Frame(image=image, depth=depth, depth_scale=self.depth_scale if depth is not None else 0.0, t=t,
                      seq=seq, intrinsics=self.intrinsics)
 
@@ -418,12 +390,7 @@ class RealSenseSource(Source):
         rs = self._rs
         ts_s = float(colour.get_timestamp()) / 1000.0
         if self.playback is not None:
-            if self._ts_first is None:
-                self._ts_first = ts_s
-            rel = max(0.0, ts_s - self._ts_first)
-            self._last_rel = rel
-            assert self._t_start is not None
-            return self._t_start + self._t_offset + rel
+            return self._timeline.time_at(self._timeline.since_first(ts_s))
         domain = colour.get_frame_timestamp_domain()
         if domain in (rs.timestamp_domain.global_time, rs.timestamp_domain.system_time):
             return min(wall_to_monotonic(ts_s), arrival)

@@ -150,24 +150,18 @@ class _Db3Sink(_Sink):
         self.writer.close()
 
 
-def _open_sink(path: Path, first: Frame, fps: float, source: str) -> _Sink:
-    suffix = path.suffix.lower()
-    if suffix == ".db3":
-        return _Db3Sink(path, first, fps, source)
-    if suffix in VIDEO_CODECS:
-        return _VideoSink(path, first, fps, source)
-    if suffix == "":
-        return _ImageSink(path, first, fps, source)
-    raise SourceUnsupported(f"{path}: cannot record to {suffix!r}; use .mkv (lossless), .avi, .mp4, .db3 "
-                            "(RealSense, with depth) or a folder name", str(path))
-
-
-def check_output(path: str) -> None:
-    """Raise SourceUnsupported early for an output name ``record`` cannot write."""
+def check_output(path: str) -> type[_Sink]:
+    """The sink that writes the output name ``path`` (by its suffix); SourceUnsupported for a name ``record``
+    cannot write, so callers can refuse it before opening the source."""
     suffix = Path(path).suffix.lower()
-    if suffix and suffix != ".db3" and suffix not in VIDEO_CODECS:
-        raise SourceUnsupported(f"{path}: cannot record to {suffix!r}; use .mkv (lossless), .avi, .mp4, .db3 "
-                                "(RealSense, with depth) or a folder name", path)
+    if suffix == ".db3":
+        return _Db3Sink
+    if suffix in VIDEO_CODECS:
+        return _VideoSink
+    if suffix == "":
+        return _ImageSink
+    raise SourceUnsupported(f"{path}: cannot record to {suffix!r}; use .mkv (lossless), .avi, .mp4, .db3 "
+                            "(RealSense, with depth) or a folder name", path)
 
 
 def record(source: Source, output: str, seconds: float | None = None, max_frames: int | None = None,
@@ -175,7 +169,7 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
     """Read frames from an open ``source`` into ``output`` until ``seconds`` pass, ``max_frames`` are written,
     the recording ends or ``should_stop()`` is true. Timeouts, unplugs and corrupt frames are counted and
     recording goes on; the file is finished in every case."""
-    check_output(output)
+    sink_type = check_output(output)
     path = Path(output)
     fps = float(source.info.get("fps") or source.config.fps)
     start = clock()
@@ -208,7 +202,7 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
                 problems[key] = problems.get(key, 0) + 1
                 continue
             if sink is None:
-                sink = _open_sink(path, frame, fps, source.name)
+                sink = sink_type(path, frame, fps, source.name)
             sink.write(frame)
             frames += 1
     except KeyboardInterrupt:

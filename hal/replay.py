@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import abc
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -57,6 +58,85 @@ def as_bgr(image: np.ndarray) -> np.ndarray:
     return image
 
 
+def fourcc_text(value: float | None) -> str:
+    """The four characters of an OpenCV ``CAP_PROP_FOURCC`` value ("MJPG", "FFV1"), or "" when it is unknown."""
+    code = int(value) if value and value > 0 else 0
+    return "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)).strip("\0 ") if code else ""
+
+
+class Timeline:
+    """The time line of one replay, from ``open()``: start, pending frame, real-time pacing, passes.
+
+    A frame ``rel`` seconds after the recording's first frame gets ``t = t_start + t_offset + rel`` (monotonic
+    seconds; ``t_start`` is the first read, ``t_offset`` the length of the passes before) and
+    ``seq = seq_offset + seq_in_pass``. Used by :class:`ReplaySource` and by RealSense playback (a
+    live RealSense camera uses only the seq part and the pending frame).
+    """
+
+    def __init__(self, name: str, clock: Callable[[], float], sleep: Callable[[float], None]) -> None:
+        self.name = name
+        self._clock = clock
+        self._sleep = sleep
+        self.t_start: float | None = None
+        self.t_offset = 0.0                      # seconds: duration of the passes before this one
+        self.seq_offset = 0                      # added to the seq within this pass
+        self.first_stamp: float | None = None    # seconds: the recording's first timestamp (PTS, device time)
+        self.last_rel = 0.0
+        self.last_seq = -1
+        self.pass_frames = 0
+        self.pending: Frame | None = None        # produced, not yet handed out (its read timed out waiting)
+        self.ended = False
+
+    def read(self, timeout_s: float, produce: Callable[[float], Frame], realtime: bool) -> Frame:
+        """The pending frame, else ``produce(deadline)``; with ``realtime`` held back until its ``t`` (but not
+        past ``timeout_s``: then SourceTimeout and the frame stays pending). The first call starts the line."""
+        now = self._clock()
+        deadline = now + timeout_s
+        if self.t_start is None:
+            self.t_start = now
+        if self.pending is None:
+            self.pending = produce(deadline)
+        frame = self.pending
+        if realtime:
+            wait_until_due(frame.t, deadline, timeout_s, self.name, self._clock, self._sleep)
+        self.pending = None
+        return frame
+
+    def since_first(self, stamp_s: float) -> float:
+        """Seconds from the recording's first timestamp to ``stamp_s`` (the first call sets it; never < 0)."""
+        if self.first_stamp is None:
+            self.first_stamp = stamp_s
+        return max(0.0, stamp_s - self.first_stamp)
+
+    def time_at(self, rel: float) -> float:
+        """Monotonic ``t`` (seconds) of the frame ``rel`` seconds after the recording's first one, in this pass."""
+        assert self.t_start is not None
+        self.last_rel = rel
+        return self.t_start + self.t_offset + rel
+
+    def add_frame(self, seq_in_pass: int) -> int:
+        """Count a frame of this pass; its ``seq`` over all passes."""
+        self.pass_frames += 1
+        self.last_seq = self.seq_offset + seq_in_pass
+        return self.last_seq
+
+    def continue_seq(self) -> None:
+        """Seq from now on continues after the last one handed out (a new pass, a restarted frame counter)."""
+        self.seq_offset = self.last_seq + 1
+
+    def end_of_pass(self, loop: bool, frame_period: Callable[[], float]) -> bool:
+        """The recording ran out. With ``loop`` and frames in this pass, start the next one: its time line
+        continues ``frame_period()`` seconds after the last frame, and seq after the last seq; True. Otherwise
+        the replay has ``ended``; False."""
+        if not loop or self.pass_frames == 0:
+            self.ended = True
+            return False
+        self.t_offset += self.last_rel + frame_period()
+        self.continue_seq()
+        self.pass_frames = 0
+        return True
+
+
 class ReplaySource(Source):
     """Base of the file replay sources. Subclasses implement ``_open_media``, ``_close_media``,
     ``_rewind`` and ``_next_raw(deadline) -> (image BGR, index, pts_s | None)``."""
@@ -91,15 +171,7 @@ class ReplaySource(Source):
         self._open_media()
         side = sidecar_path(self.path)
         self.sidecar = read_sidecar(side) if side.is_file() else None
-        self._t_start: float | None = None
-        self._t_offset = 0.0     # duration of the passes before this one
-        self._seq_offset = 0     # seq added in this pass
-        self._pts_first: float | None = None
-        self._last_rel = 0.0
-        self._last_seq = -1
-        self._pass_frames = 0
-        self._pending: Frame | None = None
-        self._ended = False
+        self._timeline = Timeline(self.name, self._clock, self._sleep)
         self.state = "streaming"
 
     def _close(self) -> None:
@@ -113,55 +185,38 @@ class ReplaySource(Source):
                 "sidecar": self.sidecar.path if self.sidecar else None}
 
     def _read(self, timeout_s: float) -> Frame:
-        now = self._clock()
-        deadline = now + timeout_s
-        if self._t_start is None:
-            self._t_start = now
-        if self._pending is None:
-            self._pending = self._produce(deadline)
-        frame = self._pending
-        if self.config.realtime:
-            wait_until_due(frame.t, deadline, timeout_s, self.name, self._clock, self._sleep)
-        self._pending = None
-        return frame
+        return self._timeline.read(timeout_s, self._produce, self.config.realtime)
 
     # -- internals ----------------------------------------------------------------------------------------
     def _frame_period(self) -> float:
         return 1.0 / self.nominal_fps if self.nominal_fps > 0 else 1.0 / self.config.fps
 
     def _produce(self, deadline: float) -> Frame:
-        if self._ended:
+        line = self._timeline
+        if line.ended:
             raise EndOfStream(f"{self.name}: end of the recording (set source.loop=true or ?loop=true to "
                               "replay it again)", self.name)
         while True:
             try:
                 image, index, pts = self._next_raw(deadline)
             except MediaEnd:
-                if not self.config.loop or self._pass_frames == 0:
-                    self._ended = True
+                if not line.end_of_pass(self.config.loop, self._frame_period):
                     self.state = "ended"
-                    what = "has no readable frames" if self.counters["passes"] == 0 and self._pass_frames == 0 \
+                    what = "has no readable frames" if self.counters["passes"] == 0 and line.pass_frames == 0 \
                         else "ended"
                     raise EndOfStream(f"{self.name}: the recording {what} after {self.counters['frames']} "
                                       "frames (set source.loop=true or ?loop=true to replay it again)",
                                       self.name) from None
-                self._t_offset += self._last_rel + self._frame_period()
-                self._seq_offset = self._last_seq + 1
-                self._pass_frames = 0
                 self.count("passes")
                 self._rewind()
                 continue
-            rel, seq = self._timing(index, pts)
-            self._pass_frames += 1
-            self._last_rel = rel
-            self._last_seq = self._seq_offset + seq
-            assert self._t_start is not None
+            rel, seq_in_pass = self._timing(index, pts)
+            t, seq = line.time_at(rel), line.add_frame(seq_in_pass)
             intr = config_intrinsics(self.config, image.shape[1], image.shape[0])
             if intr is None and self.sidecar is not None and self.sidecar.intrinsics is not None:
                 si = self.sidecar.intrinsics
                 intr = si.scaled(image.shape[1], image.shape[0])
-            return Frame(image=image, depth=None, depth_scale=0.0, t=self._t_start + self._t_offset + rel,
-                         seq=self._last_seq, intrinsics=intr)
+            return Frame(image=image, depth=None, depth_scale=0.0, t=t, seq=seq, intrinsics=intr)
 
     def _timing(self, index: int, pts: float | None) -> tuple[float, int]:
         """(seconds since the first frame, seq within this pass) of the frame at file ``index``."""
@@ -171,7 +226,5 @@ class ReplaySource(Source):
                 seq, rel = hit
                 return rel, seq
         if pts is not None:
-            if self._pts_first is None:
-                self._pts_first = pts
-            return max(0.0, pts - self._pts_first), index
+            return self._timeline.since_first(pts), index
         return index * self._frame_period(), index

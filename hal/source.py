@@ -9,10 +9,11 @@ raises a :class:`hal.errors.SourceError`.
 from __future__ import annotations
 
 import abc
+from collections.abc import Callable
 from typing import Any
 
 from hal.config import SourceConfig
-from hal.errors import SourceError
+from hal.errors import SourceError, SourceTimeout
 from hal.frame import Frame
 
 
@@ -27,6 +28,7 @@ class Source(abc.ABC):
         self._is_open = False
         self.state = "closed"
         self.counters: dict[str, int] = {"frames": 0}
+        self._consecutive_timeouts = 0  # reads in a row that got no frame (cameras; see _timed_out)
 
     # -- public API ---------------------------------------------------------------------------------------
     @property
@@ -81,6 +83,19 @@ class Source(abc.ABC):
     # -- for subclasses -----------------------------------------------------------------------------------
     def count(self, key: str, n: int = 1) -> None:
         self.counters[key] = self.counters.get(key, 0) + n
+
+    def _timed_out(self, timeout_s: float, reopen: Callable[[], None]) -> SourceTimeout:
+        """Count a read that got no frame within ``timeout_s`` seconds (counter ``timeouts``); after
+        ``source.timeouts_before_reopen`` of them in a row call ``reopen()``. Returns the error to raise."""
+        self._consecutive_timeouts += 1
+        self.count("timeouts")
+        n, limit = self._consecutive_timeouts, self.config.timeouts_before_reopen
+        if n >= limit:
+            reopen()
+            return SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s, {n} times in a row; re-opening "
+                                 "the camera", self.name)
+        return SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s ({n} in a row; re-open after "
+                             f"{limit})", self.name)
 
     @abc.abstractmethod
     def _open(self) -> None: ...

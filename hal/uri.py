@@ -21,6 +21,10 @@ from hal.errors import SourceUnsupported
 FAULT_KEYS = ("drop", "stall_at", "stall_s", "disconnect_at", "disconnect_s", "corrupt_at", "seed")
 _HINTS = typing.get_type_hints(SourceConfig)
 _FIELDS = {f.name: f for f in dataclasses.fields(SourceConfig)}
+# Scheme -> the SourceConfig field that holds what follows "scheme:".
+TARGET_FIELDS = {"realsense": "serial", "v4l2": "device", "file": "path"}
+# Fields a URI query may not set: the scheme and the targets are the URI itself.
+_NOT_IN_QUERY = ("type", *TARGET_FIELDS.values())
 
 
 def parse_uri(uri: str, base: SourceConfig | None = None) -> SourceConfig:
@@ -30,7 +34,7 @@ def parse_uri(uri: str, base: SourceConfig | None = None) -> SourceConfig:
     if not sep or scheme not in SOURCE_TYPES:
         raise SourceUnsupported(f"{uri!r} is not a source URI; use realsense:[SERIAL], v4l2:/dev/videoN or "
                                 "file:PATH", uri)
-    key = {"realsense": "serial", "v4l2": "device", "file": "path"}[scheme]
+    key = TARGET_FIELDS[scheme]
     if scheme == "v4l2" and not rest:
         raise SourceUnsupported("v4l2: needs a device, e.g. v4l2:/dev/video0 or v4l2:0", uri)
     if scheme == "file" and not rest:
@@ -43,7 +47,7 @@ def split_query(config: SourceConfig) -> SourceConfig:
 
     A file path that exists with its ``?`` is taken as it is.
     """
-    key = {"realsense": "serial", "v4l2": "device", "file": "path"}.get(config.type)
+    key = TARGET_FIELDS.get(config.type)
     if key is None:
         return config
     value = getattr(config, key)
@@ -53,10 +57,10 @@ def split_query(config: SourceConfig) -> SourceConfig:
     changes: dict[str, typing.Any] = {key: head}
     for name, raw in parse_qsl(query, keep_blank_values=True, strict_parsing=False):
         field = f"fault_{name}" if name in FAULT_KEYS else name
-        if field not in _FIELDS or field in ("type", "path", "device", "serial"):
+        if field not in _FIELDS or field in _NOT_IN_QUERY:
             raise SourceUnsupported(
                 f"unknown option {name!r} in the source URI; valid: {', '.join(FAULT_KEYS)} or a source.* key "
-                f"({', '.join(sorted(set(_FIELDS) - {'type', 'path', 'device', 'serial'}))})", value)
+                f"({', '.join(sorted(set(_FIELDS) - set(_NOT_IN_QUERY)))})", value)
         changes[field] = _parse_value(name, raw, _HINTS[field], value)
         _check_limits(name, changes[field], _FIELDS[field].metadata, value)
     try:

@@ -33,9 +33,9 @@ import cv2
 import numpy as np
 
 from hal.config import SourceConfig
-from hal.errors import SourceDisconnected, SourceError, SourceNotFound, SourceTimeout
+from hal.errors import SourceDisconnected, SourceError, SourceNotFound
 from hal.frame import Frame
-from hal.replay import as_bgr, config_intrinsics
+from hal.replay import as_bgr, config_intrinsics, fourcc_text
 from hal.source import Source
 
 CaptureFactory = Callable[[Any, int], Any]
@@ -50,11 +50,6 @@ def device_target(device: str) -> int | str:
     """An index for ``"0"``, else the path as given."""
     text = device.strip()
     return int(text) if text.isdigit() else text
-
-
-def _fourcc_text(value: float) -> str:
-    code = int(value) if value and value > 0 else 0
-    return "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)).strip("\0 ") if code else ""
 
 
 class V4L2Source(Source):
@@ -99,7 +94,7 @@ class V4L2Source(Source):
         self.accepted = {
             "width": int(cap.get(cv2.CAP_PROP_FRAME_WIDTH) or 0), "height": int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
                                                                             or 0),
-            "fps": float(cap.get(cv2.CAP_PROP_FPS) or 0.0), "fourcc": _fourcc_text(cap.get(cv2.CAP_PROP_FOURCC)),
+            "fps": float(cap.get(cv2.CAP_PROP_FPS) or 0.0), "fourcc": fourcc_text(cap.get(cv2.CAP_PROP_FOURCC)),
             "buffer_size": int(cap.get(cv2.CAP_PROP_BUFFERSIZE) or 0)}
         return cap
 
@@ -236,16 +231,12 @@ class V4L2Source(Source):
                 self._cond.wait(remaining)
             if self.state in ("disconnected", "reconnecting"):
                 raise self._disconnected()
-            self._consecutive_timeouts += 1
-            self.count("timeouts")
-            n, limit = self._consecutive_timeouts, self.config.timeouts_before_reopen
-            if n >= limit:
-                self._consecutive_timeouts = 0
-                self._reopen_requested = True
-                raise SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s, {n} times in a row; re-opening "
-                                    "the camera", self.name)
-            raise SourceTimeout(f"{self.name}: no frame within {timeout_s:.2f} s ({n} in a row; re-open after "
-                                f"{limit})", self.name)
+            raise self._timed_out(timeout_s, self._request_reopen)
+
+    def _request_reopen(self) -> None:
+        """Too many timeouts in a row: the reader thread closes and opens the camera after its current read."""
+        self._consecutive_timeouts = 0
+        self._reopen_requested = True
 
     def _disconnected(self) -> SourceDisconnected:
         wait = max(0.0, self._next_attempt - self._clock())

@@ -16,7 +16,7 @@ import numpy as np
 
 from hal.config import SourceConfig
 from hal.errors import SourceCorrupt, SourceNotFound
-from hal.replay import MediaEnd, ReplaySource, as_bgr
+from hal.replay import MediaEnd, ReplaySource, as_bgr, fourcc_text
 
 # Reads tried after a decode failure before the rest of the file is given up (FFmpeg needed 10 on a
 # damaged 5 fps H.264 test file; each failed read costs well under a millisecond).
@@ -47,8 +47,7 @@ class VideoFileSource(ReplaySource):
         fps = cap.get(cv2.CAP_PROP_FPS)
         self.nominal_fps = float(fps) if fps and fps > 0 and np.isfinite(fps) else 0.0
         self.size = (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
-        fourcc = int(cap.get(cv2.CAP_PROP_FOURCC))
-        self.codec = "".join(chr((fourcc >> (8 * i)) & 0xFF) for i in range(4)).strip("\0 ") if fourcc > 0 else ""
+        self.codec = fourcc_text(cap.get(cv2.CAP_PROP_FOURCC))
         self._skip = 0           # frames the decoder lost so far (file index = decoded position + skip)
         self._bad_from: int | None = None
         self._bad_reads = 0
@@ -124,7 +123,7 @@ class VideoFileSource(ReplaySource):
         assert first is not None
         index = pos + self._skip
         if pts is not None and self.nominal_fps > 0:
-            index = max(index, round((pts - (self._pts_first or 0.0)) * self.nominal_fps))
+            index = max(index, round((pts - (self._timeline.first_stamp or 0.0)) * self.nominal_fps))
             self._skip = index - pos
         self._bad_from = None
         self._held = (image, index, pts)
