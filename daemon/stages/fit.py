@@ -16,7 +16,6 @@ RESET_GAP_S = 1.0
 
 def run(rt: StageRuntime) -> None:
     from fitting.fitter import Fitter
-
     from fitting.result import FitResult
 
     with rt.step():
