@@ -27,7 +27,7 @@ demo: models
 	$(BIN)/posed demo
 
 lint: $(STAMP)
-	$(BIN)/ruff check daemon hal landmarks fitting tests
+	$(BIN)/ruff check daemon hal landmarks fitting falls bench tests
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -1,5 +1,5 @@
 """The ``posed`` command line. Each subcommand is a module of :mod:`daemon.commands` with a
-``register(subparsers)`` function; ``posed bench NAME`` runs ``daemon.commands.bench_NAME``."""
+``register(subparsers)`` function; ``posed bench NAME`` runs ``bench.commands.NAME`` (loaded only then)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import sys
 
 from daemon import commands
 from daemon.config import EX_CONFIG
-from daemon.configload import ConfigError
+from daemon.config.load import ConfigError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -20,7 +20,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
-        if info.name.startswith("bench_") or info.name.startswith("_"):
+        if info.name.startswith("_"):
             continue
         module = importlib.import_module(f"{commands.__name__}.{info.name}")
         module.register(sub)

@@ -1,17 +1,68 @@
-"""Messages between the landmark, fitting and publisher stages (small frozen dataclasses, pickled into the
-mailboxes). ``t_capture`` is the capture timestamp (monotonic clock) of the frame; ``stamps`` collects
-``(mark, monotonic time)`` pairs along the way for the per-stage timings the pose topic carries.
-``t_origin`` is where latency counts from: the capture timestamp, except for unpaced replays, whose capture
-timestamps follow the recording's time line while frames are read as fast as the pipeline takes them (then
-it is the time the capture stage read the frame)."""
+"""The small frozen messages the daemon's processes exchange; pixels never travel in them.
+
+* :class:`FrameRef` (capture -> landmarks): names a slot of the shared-memory ring.
+* :class:`LandmarkMsg` (landmarks -> fitting) and :class:`FitMsg` (fitting -> publisher), pickled into the
+  mailboxes; ``stamps`` collects ``(mark, monotonic time)`` pairs for the per-stage timings the pose topic
+  carries.
+* :class:`StageHealth`: each stage's heartbeat.
+
+``t_capture`` is the capture timestamp (seconds on the daemon's one monotonic clock) and travels end to end;
+it is the only clock used for fall timing. ``t_origin`` is where latency counts from: the capture timestamp,
+except for unpaced replays, whose capture timestamps follow the recording's time line while frames are read
+as fast as the pipeline takes them (then it is the time the capture stage read the frame)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from fitting.result import FitResult
 from landmarks.recording import LandmarkFrame
+
+STAGES = ("capture", "landmarks", "fitting", "publisher")
+
+
+@dataclass(frozen=True)
+class FrameRef:
+    """A captured frame waiting in the shared-memory ring."""
+
+    slot: int
+    seq: int
+    t_capture: float
+    width: int
+    height: int
+    has_depth: bool = False
+    intrinsics: tuple[float, float, float, float] | None = None   # fx, fy, cx, cy in pixels, when known
+    t_read: float | None = None   # monotonic time the capture stage read it, set only for unpaced replays
+                                  # (whose t_capture follows the recording): latency is measured from it
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, obj: dict) -> FrameRef:
+        return cls(**{k: obj[k] for k in ("slot", "seq", "t_capture", "width", "height")},
+                   has_depth=bool(obj.get("has_depth", False)))
+
+
+@dataclass(frozen=True)
+class StageHealth:
+    """Heartbeat of one stage process: when it last beat and when its current step began (None = idle)."""
+
+    stage: str
+    pid: int
+    beat: float
+    step_started: float | None
+    frames: int
+    drops: int = 0
+    state: str = "running"
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, obj: dict) -> StageHealth:
+        return cls(**obj)
 
 
 @dataclass(frozen=True)

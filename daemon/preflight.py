@@ -2,13 +2,14 @@
 
 ``source.path`` empty (``type: file``) means the embedded demo input: the real squat video of the shared test
 data (tfjs-models' ``pose_squats.mp4``) when it is there, else a landmark recording the project generates
-(``fitting.simulate``'s squat sequence) in the cache dir.
+(``bench.simulate``'s squat sequence) in the cache dir.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 from daemon.config import Config
@@ -27,21 +28,21 @@ def cache_dir() -> Path:
     return Path(base.split(":")[0]) / "posed"
 
 
-def default_input() -> Path:
-    """The embedded demo input: the real squat video if present, else a generated landmark recording."""
+def default_input(make_recording: Callable[[Path], Path]) -> Path:
+    """The embedded demo input: the real squat video if present, else the landmark recording that
+    ``make_recording(path)`` writes (the CLI passes ``bench.demo_recording.ensure_demo_recording``: the
+    daemon itself never loads the offline package)."""
     video = shared_data() / SQUAT_VIDEO
     if video.is_file():
         return video
-    from daemon.demo_recording import ensure_demo_recording
-
-    return ensure_demo_recording(cache_dir() / "demo_squats.landmarks.jsonl")
+    return make_recording(cache_dir() / "demo_squats.landmarks.jsonl")
 
 
-def resolve_source(cfg: Config) -> Config:
+def resolve_source(cfg: Config, make_recording: Callable[[Path], Path]) -> Config:
     """``cfg`` with an empty file path replaced by the embedded demo input."""
     if cfg.source.type != "file" or cfg.source.path:
         return cfg
-    return dataclasses.replace(cfg, source=dataclasses.replace(cfg.source, path=str(default_input())))
+    return dataclasses.replace(cfg, source=dataclasses.replace(cfg.source, path=str(default_input(make_recording))))
 
 
 def check(cfg: Config) -> list[str]:

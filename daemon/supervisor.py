@@ -4,7 +4,7 @@ It creates the shared memory (the control segment with the health board and mail
 ring), spawns the stage processes (spawn context), and then loops every 0.1 s:
 
 * the watchdog: a dead stage, or one stuck (busy on one step too long, no heartbeat), is killed and started
-  again after a backoff (:mod:`daemon.watchdog`); more than ``pipeline.max_restarts`` restarts within
+  again after a backoff (:mod:`daemon.proc.watchdog`); more than ``pipeline.max_restarts`` restarts within
   ``pipeline.restart_window_s`` escalates: WATCHDOG=1 stops so systemd restarts the unit (without a systemd
   watchdog the supervisor exits with 70 instead);
 * readiness: READY=1 once every stage has warmed up (models loaded, numba kernels compiled); only then may
@@ -28,14 +28,15 @@ import time
 import traceback
 from dataclasses import dataclass
 
-from daemon import clock, logs, procstat, shm
+from daemon import clock, logs
 from daemon.config import EX_CONFIG, Config
-from daemon.control import DOORBELLS, Control
-from daemon.health import CAMERA_STATES
-from daemon.notify import Notifier
-from daemon.ring import FrameRing
+from daemon.proc import procstat, shm
+from daemon.proc.control import DOORBELLS, Control
+from daemon.proc.health import CAMERA_STATES
+from daemon.proc.notify import Notifier
+from daemon.proc.ring import FrameRing
+from daemon.proc.watchdog import RestartPolicy, verdict
 from daemon.stages.base import EXIT_FATAL, StageArgs, stage_main
-from daemon.watchdog import RestartPolicy, verdict
 from hal import registry
 from hal.uri import to_uri
 

@@ -66,11 +66,10 @@ class Fitter:
 
     def warmup(self) -> None:
         """Compile (or load from the numba cache) every kernel by fitting a simulated frame in both modes."""
-        from fitting import simulate
+        from fitting.warmup import warmup_landmarks
 
-        pose = simulate.pose("stand_arms_front", 30.0)
-        lm = simulate.render(pose, dims=self.dims)
-        noisy = simulate.render(pose, dims=self.dims, noise_px=3.0, seed=1)
+        lm = warmup_landmarks(self.dims)
+        noisy = warmup_landmarks(self.dims, noise_px=3.0, seed=1)
         saved = (self._prev_x, self._prev_ppm, self._prev_t, self._err_ref)
         self.reset()
         self.fit(lm, 0, 0.0, (640, 480), mode="image")

@@ -1,5 +1,11 @@
-"""Dependency direction: daemon -> hal, landmarks, fitting; nothing imports daemon; each package imports
-only what its layer allows (checked on the source, so a lazy import inside a function counts too)."""
+"""Dependency direction (docs/architecture.md, "The house"):
+
+    daemon -> hal, landmarks, fitting, falls        falls -> fitting (its public result types)
+    bench (offline) -> anything                     only the CLI -> bench, and lazily (inside a function)
+    nothing -> daemon (but bench, which drives it)
+
+Each runtime package imports only what its layer allows; checked on the source, so a lazy import inside a
+function counts too."""
 
 import ast
 import sys
@@ -13,43 +19,65 @@ ALLOWED = {
     "fitting": {"numpy", "numba", "fitting"},
     "hal": {"numpy", "cv2", "pyrealsense2", "hal"},
     "landmarks": {"numpy", "cv2", "onnxruntime", "landmarks"},
+    "falls": {"numpy", "falls", "fitting"},
 }
-# The model converter and its fetcher run only at `posed models fetch`, and its check against LiteRT (the
-# test extra) only in tests and `posed bench convert`; never in the daemon.
-CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers", "ai_edge_litert"}
+RUNTIME = ("daemon", "hal", "landmarks", "fitting", "falls")
+# The model converter and its fetcher run only at `posed models fetch`; never in the daemon.
+CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers"}
+# The command line may load the offline package, inside a function, when a command needs it.
+CLI = ("daemon/cli.py", "daemon/commands/")
 
 
-def imported_roots(path: Path) -> set[str]:
+def imports(path: Path) -> list[tuple[str, bool]]:
+    """(imported root package, at module level?) for every absolute import in ``path``."""
     tree = ast.parse(path.read_text(), str(path))
-    roots = set()
+    top = set(map(id, tree.body))
+    out = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            roots.update(alias.name.split(".")[0] for alias in node.names)
+            out += [(alias.name.split(".")[0], id(node) in top) for alias in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            roots.add(node.module.split(".")[0])
-    return roots
+            out.append((node.module.split(".")[0], id(node) in top))
+    return out
 
 
 def violations(package: str) -> list[str]:
     bad = []
     for path in sorted((ROOT / package).rglob("*.py")):
-        allowed = ALLOWED[package] | STDLIB
-        if package == "landmarks" and "convert" in path.parts:
-            allowed = allowed | CONVERTER_EXTRA
-        for root in sorted(imported_roots(path) - allowed):
-            bad.append(f"{path.relative_to(ROOT)} imports {root}")
+        rel = path.relative_to(ROOT).as_posix()
+        for root, module_level in sorted(set(imports(path))):
+            if package in ALLOWED:
+                allowed = ALLOWED[package] | STDLIB
+                if package == "landmarks" and "convert" in path.parts:
+                    allowed = allowed | CONVERTER_EXTRA
+                if root not in allowed:
+                    bad.append(f"{rel} imports {root}")
+            elif root == "bench" and (module_level or not rel.startswith(CLI)):
+                bad.append(f"{rel} imports bench" + (" at module level" if rel.startswith(CLI) else ""))
     return bad
 
 
-@pytest.mark.parametrize("package", sorted(ALLOWED))
+@pytest.mark.parametrize("package", RUNTIME)
 def test_package_imports_only_its_layer(package):
     assert (ROOT / package).is_dir()
     assert violations(package) == []
+
+
+def test_nothing_but_bench_imports_daemon():
+    for package in ("hal", "landmarks", "fitting", "falls"):
+        assert all(root != "daemon" for path in (ROOT / package).rglob("*.py") for root, _ in imports(path))
 
 
 def test_checker_catches_a_violation(tmp_path, monkeypatch):
     pkg = tmp_path / "fitting"
     pkg.mkdir()
     (pkg / "bad.py").write_text("import numpy\ndef f():\n    from daemon import config\n    import yaml\n")
+    cmd = tmp_path / "daemon" / "commands"
+    cmd.mkdir(parents=True)
+    (cmd / "lazy.py").write_text("def f():\n    from bench import fit\n")
+    (cmd / "eager.py").write_text("from bench import fit\n")
+    (tmp_path / "daemon" / "stage.py").write_text("def f():\n    import bench.simulate\n")
     monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
     assert violations("fitting") == ["fitting/bad.py imports daemon", "fitting/bad.py imports yaml"]
+    assert violations("daemon") == ["daemon/commands/eager.py imports bench at module level",
+                                    "daemon/stage.py imports bench"]

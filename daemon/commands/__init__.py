@@ -1,5 +1,6 @@
-"""One module per ``posed`` subcommand, each with ``register(subparsers)``; ``bench_*`` modules are the
-benchmarks run by ``posed bench NAME`` (each with ``add_arguments(parser)`` and ``run(args) -> int``)."""
+"""One module per ``posed`` subcommand, each with ``register(subparsers)``. The benchmarks run by
+``posed bench NAME`` are the modules of ``bench.commands`` (each with ``add_arguments(parser)`` and
+``run(args) -> int``)."""
 
 from __future__ import annotations
 

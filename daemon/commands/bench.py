@@ -1,22 +1,38 @@
-"""``posed bench NAME [--json]``: the benchmarks (speed, accuracy, memory targets live here, not in tests)."""
+"""``posed bench NAME [--json] [OPTIONS]``: the benchmarks (speed, accuracy, memory targets live here, not in
+tests). The benchmarks are offline code in the top-level ``bench`` package; it is loaded only when a benchmark
+is run (listing the names reads the folder, it imports nothing)."""
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import pkgutil
+from pathlib import Path
 
-from daemon import commands
+
+def names() -> list[str]:
+    """The benchmark names: the modules of ``bench.commands``, found without importing them."""
+    spec = importlib.util.find_spec("bench")
+    if spec is None or not spec.submodule_search_locations:
+        return []
+    folder = Path(next(iter(spec.submodule_search_locations))) / "commands"
+    return sorted(m.name for m in pkgutil.iter_modules([str(folder)]) if not m.name.startswith("_"))
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("bench", help="run a benchmark and print its numbers")
-    sub_benches = parser.add_subparsers(dest="bench", metavar="NAME", required=True)
-    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
-        if not info.name.startswith("bench_"):
-            continue
-        module = importlib.import_module(f"{commands.__name__}.{info.name}")
-        bench = sub_benches.add_parser(info.name[len("bench_"):], help=(module.__doc__ or "").strip().split("\n")[0])
-        bench.add_argument("--json", action="store_true", help="print one JSON object")
-        module.add_arguments(bench)
-        bench.set_defaults(func=module.run)
+    known = names()
+    parser = sub.add_parser("bench", help="run a benchmark and print its numbers",
+                            description=f"benchmarks: {', '.join(known)}; `posed bench NAME --help` for options")
+    parser.add_argument("name", choices=known, metavar="NAME", help=", ".join(known))
+    parser.add_argument("options", nargs=argparse.REMAINDER, help="the benchmark's own options")
+    parser.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    module = importlib.import_module(f"bench.commands.{args.name}")
+    parser = argparse.ArgumentParser(prog=f"posed bench {args.name}",
+                                     description=(module.__doc__ or "").strip().split("\n")[0])
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    module.add_arguments(parser)
+    return int(module.run(parser.parse_args(args.options)) or 0)

@@ -21,9 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_config_args(show)
     show.set_defaults(func=_show)
     actions.add_parser("template", help="print the documented default config (config.yaml)").set_defaults(
-        func=lambda a: print(__import__("daemon.configdoc").configdoc.template(), end=""))
+        func=lambda a: print(__import__("daemon.config.doc").config.doc.template(), end=""))
     actions.add_parser("doc", help="print the config reference (docs/config.md)").set_defaults(
-        func=lambda a: print(__import__("daemon.configdoc").configdoc.reference(), end=""))
+        func=lambda a: print(__import__("daemon.config.doc").config.doc.reference(), end=""))
 
 
 def _check(args: argparse.Namespace) -> int:

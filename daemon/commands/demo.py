@@ -25,8 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
+    from daemon.commands._viewer import Summary, subscribe
     from daemon.commands.watch import open_viewer
-    from daemon.viewer import Summary, subscribe
 
     endpoint = free_endpoint()
     state = tempfile.mkdtemp(prefix="posed-demo-")

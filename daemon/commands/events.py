@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 
 from daemon.commands import add_config_args, config_from_args
-from daemon.falls.paths import events_path
-from daemon.falls.timeparse import parse_time
+from daemon.config.paths import events_path
+from daemon.timeparse import parse_time
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from daemon.falls.journal import EventJournal, JournalError  # not at import: it pulls in structlog
+    from daemon.outbox.journal import EventJournal, JournalError  # not at import: it pulls in structlog
 
     try:
         since = parse_time(args.since) if args.since else None

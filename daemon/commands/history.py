@@ -9,12 +9,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from daemon.commands import add_config_args, config_from_args
-from daemon.falls.paths import history_path
-from daemon.falls.timeparse import iso, parse_time
+from daemon.config.paths import history_path
+from daemon.timeparse import iso, parse_time
 
 if TYPE_CHECKING:
-    from daemon.falls.history import AngleHistory
-    from daemon.settings import PipelineConfig
+    from daemon.config.sections import PipelineConfig
+    from daemon.history.store import AngleHistory
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,7 +38,7 @@ def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = Non
 
     ``pipeline``: the config's pipeline section when the caller has loaded it (else it is loaded here when
     there is no --db)."""
-    from daemon.falls.history import AngleHistory  # not at import: it pulls in structlog
+    from daemon.history.store import AngleHistory  # not at import: it pulls in structlog
 
     since = parse_time(args.since) if args.since else None
     until = parse_time(args.until) if args.until else None
@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _summary(hist: AngleHistory, since, until, out) -> None:
-    from daemon.falls.history import ANGLE_COLUMNS
+    from daemon.history.store import ANGLE_COLUMNS
 
     rows = list(hist.rows(since, until))
     if not rows:

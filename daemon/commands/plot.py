@@ -8,9 +8,9 @@ from pathlib import Path
 
 from daemon.commands import add_config_args, config_from_args
 from daemon.commands.history import add_range_args, open_history
-from daemon.falls.angleplot import PANELS, Mark, draw_history
-from daemon.falls.paths import EVENTS_FILE, events_path
-from daemon.falls.timeparse import iso
+from daemon.config.paths import EVENTS_FILE, events_path
+from daemon.history.plot import PANELS, Mark, draw_history
+from daemon.timeparse import iso
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def parse_panels(spec: str) -> list[tuple[str, tuple[str, ...]]]:
-    from daemon.falls.history import ANGLE_COLUMNS  # not at import: it pulls in structlog
+    from daemon.history.store import ANGLE_COLUMNS  # not at import: it pulls in structlog
 
     panels = []
     for item in filter(None, (s.strip() for s in spec.split(","))):
@@ -51,8 +51,8 @@ def run(args: argparse.Namespace) -> int:
     import cv2
     import numpy as np
 
-    from daemon.falls.history import ANGLE_COLUMNS
-    from daemon.falls.journal import EventJournal, JournalError
+    from daemon.history.store import ANGLE_COLUMNS
+    from daemon.outbox.journal import EventJournal, JournalError
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":

@@ -20,7 +20,7 @@ def _run(args: argparse.Namespace) -> int:
     from daemon.preflight import check, resolve_source
     from daemon.supervisor import Supervisor
 
-    cfg = resolve_source(config_from_args(args))
+    cfg = resolve_source(config_from_args(args), _demo_recording)
     problems = check(cfg)
     if problems:
         for p in problems:
@@ -29,3 +29,10 @@ def _run(args: argparse.Namespace) -> int:
         return EX_CONFIG
     logs.configure(cfg.logging.level, cfg.logging.format)
     return Supervisor(cfg).run()
+
+
+def _demo_recording(path):
+    """The generated demo input, made only when the real squat video is missing (offline code: loaded here)."""
+    from bench.demo_recording import ensure_demo_recording
+
+    return ensure_demo_recording(path)

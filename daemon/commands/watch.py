@@ -24,8 +24,8 @@ def open_viewer(endpoint: str, wait_s: float, quiet: bool = False):
     """A client session to ``endpoint``, retried for ``wait_s``; None with a message when it cannot connect."""
     import zenoh
 
-    from daemon.settings import ZenohConfig
-    from daemon.zenoh_session import build_config
+    from daemon.bus.session import build_config
+    from daemon.config.sections import ZenohConfig
 
     cfg = ZenohConfig(mode="client", listen=(), connect=(endpoint,))
     deadline = time.monotonic() + wait_s
@@ -44,7 +44,7 @@ def open_viewer(endpoint: str, wait_s: float, quiet: bool = False):
 
 
 def _watch(args: argparse.Namespace) -> int:
-    from daemon.viewer import Summary, subscribe
+    from daemon.commands._viewer import Summary, subscribe
 
     session = open_viewer(args.connect, args.wait)
     if session is None:

@@ -28,9 +28,9 @@ from typing import Any
 
 from daemon import clock, logs
 from daemon.config import Config
-from daemon.control import Control, ControlSpec
-from daemon.ring import FrameRing, RingSpec
-from daemon.stats import RateMeter, Window
+from daemon.proc.control import Control, ControlSpec
+from daemon.proc.ring import FrameRing, RingSpec
+from daemon.proc.stats import RateMeter, Window
 
 EXIT_FATAL = 78         # the stage cannot work with this config or installation: do not restart
 EXIT_FAILED = 1

@@ -26,10 +26,10 @@ import math
 import threading
 
 from daemon import clock
+from daemon.bus.session import ZenohConfigError, describe_open_error, open_session
+from daemon.bus.topics import Topics
 from daemon.messages import origin, timing_ms
 from daemon.stages.base import StageRuntime
-from daemon.topics import Topics
-from daemon.zenoh_session import ZenohConfigError, describe_open_error, open_session
 
 HISTORY_DEFAULT_LIMIT = 100
 HISTORY_MAX_LIMIT = 10000
@@ -81,7 +81,7 @@ def landmarks_message(msg) -> dict:
 
 def parse_history_parameters(params) -> tuple[float | None, float | None, int]:
     """since/until (unix seconds or ISO 8601 / relative forms) and limit from a query's parameters."""
-    from daemon.falls.timeparse import parse_time
+    from daemon.timeparse import parse_time
 
     def get(key):
         v = params.get(key) if params is not None else None
@@ -103,11 +103,11 @@ class Publisher:
     """The publisher's state; ``serve(rt)`` runs the loop."""
 
     def __init__(self, rt: StageRuntime, stack: contextlib.ExitStack) -> None:
-        from daemon.falls import paths
-        from daemon.falls.detector import FallDetector
-        from daemon.falls.history import AngleHistory
-        from daemon.falls.hooks import HookRunner
-        from daemon.falls.journal import EventJournal
+        from daemon.config import paths
+        from daemon.history.store import AngleHistory
+        from daemon.outbox.hooks import HookRunner
+        from daemon.outbox.journal import EventJournal
+        from falls.detector import FallDetector
 
         self.rt = rt
         self._stack = stack             # the session lives in the stage's ``with`` (closed on exit)

@@ -74,9 +74,9 @@ FATAL_PLAN = PLAN[:3] + (StageSpec("publisher", "tests.daemon.plan_stages:fatal"
 
 
 def fall_fits(rt: StageRuntime) -> None:
-    """Feeds the publisher FitMsgs of a scripted fall (daemon.falls.scenarios, perfect fits), without drops,
+    """Feeds the publisher FitMsgs of a scripted fall (bench.falls_scenarios, perfect fits), without drops,
     then idles. Capture times are the scenario's time line from the start of the stage."""
-    from daemon.falls import scenarios
+    from bench import falls_scenarios as scenarios
     from daemon.messages import FitMsg
     from landmarks.recording import CameraIntrinsics, LandmarkFrame
 

@@ -5,10 +5,10 @@ from pathlib import Path
 
 import pytest
 
-from daemon import configdoc
 from daemon.cli import main
 from daemon.config import EX_CONFIG, Config, load_config
-from daemon.configload import ConfigError
+from daemon.config import doc as configdoc
+from daemon.config.load import ConfigError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -27,7 +27,7 @@ def test_config_yaml_is_the_generated_template_and_docs_match():
 
 
 def test_every_key_is_documented():
-    from daemon.configload import describe
+    from daemon.config.load import describe
 
     for path, _type, _default, _limits, doc in describe(Config):
         assert doc, f"{path} has no doc"

@@ -2,7 +2,8 @@ import json
 
 import pytest
 
-from daemon.contracts import FallEvent, FrameRef, StageHealth
+from daemon.messages import FrameRef, StageHealth
+from falls import FallEvent
 from fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 
 

@@ -4,7 +4,7 @@ import os
 import socket
 import uuid
 
-from daemon.notify import Notifier
+from daemon.proc.notify import Notifier
 
 
 def test_no_socket_means_no_op():

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from daemon import shm
-from daemon.ring import FrameRing, FrameTooLarge
+from daemon.proc import shm
+from daemon.proc.ring import FrameRing, FrameTooLarge
 
 
 def _frame(h, w, value):
@@ -98,7 +98,7 @@ def test_no_resource_tracker_warning_after_children_attach(tmp_path):
     script = tmp_path / "life.py"
     script.write_text(
         "import multiprocessing, numpy as np\n"
-        "from daemon.ring import FrameRing\n"
+        "from daemon.proc.ring import FrameRing\n"
         "def child(spec, ref):\n"
         "    FrameRing.attach(spec).read(ref)\n"
         "if __name__ == '__main__':\n"

@@ -2,7 +2,7 @@
 
 import math
 
-from daemon.watchdog import RestartPolicy, verdict
+from daemon.proc.watchdog import RestartPolicy, verdict
 
 NAN = math.nan
 

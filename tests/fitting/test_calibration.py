@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from fitting import simulate as S
+from bench import simulate as S
 from fitting.body import BodyDimensions, CalibrationError, read_calibration, write_calibration
 from fitting.calibration import CalibrationFailed, calibrate
 from fitting.config import FitConfig

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from fitting import simulate as S
+from bench import simulate as S
 from landmarks.recording import CameraIntrinsics, LandmarkFrame, RecordingHeader, write_recording
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -81,8 +81,8 @@ def test_posed_calibrate(tmp_path):
 
 
 def test_bench_fit_report_structure():
-    from daemon.commands.bench_fit import markdown
-    from fitting import bench
+    from bench import fit as bench
+    from bench.commands.fit import markdown
     from fitting.config import FitConfig
 
     plan = bench.Plan(paper_yaws=(30.0,), floor_yaws=(90.0,), motion_yaws=(30.0,), seeds=(0,), motion_seeds=(0,),

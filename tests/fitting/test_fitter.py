@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from fitting import simulate as S
+from bench import simulate as S
 from fitting.config import FitConfig
 from fitting.fitter import Fitter
 from fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult

@@ -133,7 +133,7 @@ def test_pelvis_tilt_is_exactly_unobservable():
 
 @pytest.mark.parametrize("perspective", [False, True])
 def test_analytic_jacobian_matches_finite_differences(perspective):
-    from fitting import simulate as S
+    from bench import simulate as S
 
     cfg = FitConfig(w_limit=0.5)
     rng = np.random.default_rng(7 + perspective)

@@ -46,7 +46,7 @@ def ref_comd(pose: Pose, cfg: FitConfig):
 
 
 def frame_for(pose, cfg, noise=0.0, seed=0):
-    from fitting import simulate as S
+    from bench import simulate as S
 
     lm = S.render(pose, dims=DIMS, noise_px=noise, seed=seed)
     xy, w, _ = P.landmark_weights(lm, cfg)
@@ -60,7 +60,7 @@ def x_of(pose, gamma=1.0):
 @pytest.mark.parametrize("name", ["walk_left_forward", "sit_chair", "lying_side", "kneel"])
 @pytest.mark.parametrize("mode", ["feet", "support"])
 def test_loss_terms_match_reference(name, mode):
-    from fitting import simulate as S
+    from bench import simulate as S
 
     cfg = FitConfig(com_mode=mode)
     truth = S.pose(name, 25.0)
@@ -99,7 +99,7 @@ def test_penalty_functions_eqs_9_to_11():
 
 
 def test_truth_has_zero_2d_error_and_stable_poses_zero_com_deviation():
-    from fitting import simulate as S
+    from bench import simulate as S
 
     cfg = FitConfig()
     for name in S.PAPER_POSES + S.FLOOR_POSES:
@@ -114,8 +114,8 @@ def test_truth_has_zero_2d_error_and_stable_poses_zero_com_deviation():
 
 
 def test_perspective_loss_is_exact_at_the_truth():
-    from fitting import simulate as S
-    from fitting.simulate import Camera
+    from bench import simulate as S
+    from bench.simulate import Camera
 
     cfg = FitConfig()
     cam = Camera(model="pinhole", distance_m=2.5)

@@ -5,7 +5,7 @@ The reference is the exact result: the converted graph evaluated in float64 (onn
 every CPU. For every kept output on every input (five real images, four random ones per model), onnxruntime's
 max error against it must be (1) at most 1e-3 + 2e-5 x max|exact value of that output| and (2) no worse than
 1.5 x the worse of LiteRT's two kernel sets (built-in and XNNPACK, measured here, on this CPU) — below 4 float32
-ulps at 1.0 errors are rounding and cannot be ranked. landmarks/convert/equivalence.py holds the constants and
+ulps at 1.0 errors are rounding and cannot be ranked. bench/convert_equivalence.py holds the constants and
 their derivation; docs/models.md explains the criterion. A bound made of LiteRT's own spread measured on one
 machine is not used: float32 kernels differ between CPUs (AVX2 vs AVX-512, FMA paths).
 
@@ -22,9 +22,9 @@ import onnx
 import onnxruntime as ort
 import pytest
 
-from daemon import conformance
+from bench import conformance
+from bench.convert_equivalence import ExactModel, diff_outputs, litert_outputs, model_input, random_input
 from landmarks.convert import convert
-from landmarks.convert.equivalence import ExactModel, diff_outputs, litert_outputs, model_input, random_input
 from landmarks.convert.fetch import PINNED
 from landmarks.convert.tflite_graph import read_graph
 
@@ -83,7 +83,7 @@ def exact_models(models_dir):
 @pytest.mark.parametrize("key", MODELS)
 @pytest.mark.parametrize("source", REAL_IMAGES + RANDOM_INPUTS)
 def test_as_close_to_the_exact_result_as_litert_is(models_dir, sessions, exact_models, images, key, source):
-    """Criteria (1) and (2) of landmarks/convert/equivalence.py on every kept output; LiteRT within 1e-2 of the
+    """Criteria (1) and (2) of bench/convert_equivalence.py on every kept output; LiteRT within 1e-2 of the
     exact result also checks the graph's maths independently of the converter."""
     x = make_input(images, key, source)
     for d in compare(models_dir, sessions, key, x, exact_models[key](x)):

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from daemon import conformance
+from bench import conformance
 from landmarks.config import LandmarkConfig
 from landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points, unrotate_points
 from landmarks.recording import LandmarkFrame

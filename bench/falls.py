@@ -1,0 +1,206 @@
+"""The fall benchmark: scenarios -> 2D landmarks -> the real fit (video mode) -> the detector -> per-scenario
+detected / latency, and recall, false alarms and median latency per split.
+
+Cases: ``scenarios.catalogue("tune")`` (the thresholds were chosen looking at these),
+``scenarios.catalogue("heldout")`` (other speeds, views, distances, cameras and seeds; never used to tune),
+and the CMU clips 131_01 / 131_02 (real motion capture: walking with a deep crouch) seen by two cameras.
+
+A fall counts as detected by its first ``falling`` or ``on_floor`` message; latency = that message's
+``t_detect`` minus the impact time (for a person found lying: minus the first frame). A daily activity with
+any message is a false alarm.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from bench.bvh import cmu_landmark_world, read_bvh
+from bench.falls_body import Body, Camera
+from bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
+from falls.config import FallsConfig
+from falls.detector import FallDetector
+from fitting.result import FitResult
+
+DETECTING_STATES = ("falling", "on_floor")
+
+
+@dataclass
+class Case:
+    name: str
+    kind: str
+    split: str
+    camera: Camera
+    frames: list[Frame]
+    truth: Truth
+    body_height: float = 1.65
+
+
+@dataclass
+class Outcome:
+    name: str
+    kind: str
+    split: str
+    detected: bool
+    latency_s: float | None
+    states: list[str] = field(default_factory=list)
+    frames: int = 0
+    fit_failures: int = 0
+    fit_ms_mean: float = 0.0
+    min_pelvis_rel: float | None = None         # lowest relative pelvis height seen (median of 3 frames)
+    min_pelvis_rel_lying: float | None = None   # the same while the trunk was more than 60 deg from vertical
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "kind": self.kind, "split": self.split, "detected": self.detected,
+                "latency_s": None if self.latency_s is None else round(self.latency_s, 3),
+                "states": self.states, "frames": self.frames, "fit_failures": self.fit_failures,
+                "fit_ms_mean": round(self.fit_ms_mean, 2),
+                "min_pelvis_rel": None if self.min_pelvis_rel is None else round(self.min_pelvis_rel, 3),
+                "min_pelvis_rel_lying": None if self.min_pelvis_rel_lying is None else round(self.min_pelvis_rel_lying, 3)}
+
+
+def scenario_cases(split: str) -> list[Case]:
+    out = []
+    for sc in catalogue(split):
+        out.append(Case(sc.name, sc.kind, split, sc.camera, list(frames(sc)), sc.truth, sc.body.height))
+    return out
+
+
+def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed: int = 77) -> list[Case]:
+    """The two CMU clips, each seen from the side and at 45 degrees, 4 m from the middle of the path."""
+    out = []
+    for clip in ("131_01", "131_02"):
+        path = data_dir / f"{clip}.bvh"
+        if not path.is_file():
+            raise FileNotFoundError(f"{path} is missing: the CMU clips live in shared/data/mocap/cmu "
+                                    "(set POSED_SHARED_DATA or run from the project root)")
+        motion = read_bvh(path)
+        step = max(1, int(round(motion.fps / fps)))
+        idx = np.arange(0, motion.data.shape[0], step)
+        world = cmu_landmark_world(motion, idx)
+        pelvis = np.array([p["pelvis"][:2] for p in world])
+        centre = pelvis.mean(0)
+        heading = pelvis[-1] - pelvis[0]
+        heading = heading / max(float(np.linalg.norm(heading)), 1e-9)
+        side = np.array([-heading[1], heading[0]])
+        nose = max(p["nose"][2] for p in world[:3])
+        height = nose / 0.93
+        for view, direction in (("side", side), ("oblique", (side + heading) / math.sqrt(2))):
+            pos = centre + 4.0 * direction
+            d = centre - pos
+            cam = Camera(x=float(pos[0]), y=float(pos[1]), z=1.0, tilt=12.0,
+                         yaw=math.degrees(math.atan2(-d[0], d[1])))
+            rng = np.random.default_rng(seed + len(out))
+            body = Body(height)
+            fr = [Frame(k, k * step / motion.fps, cam.project(p, body, rng, noise_frac), p)
+                  for k, p in enumerate(world)]
+            out.append(Case(f"cmu/{clip}/{view}", "adl", "cmu", cam, fr, Truth("adl"), height))
+    return out
+
+
+def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int, int], dict], FitResult],
+             cfg: FallsConfig, fit_frame: str) -> Outcome:
+    cam = case.camera
+    image_size = (cam.width, cam.height)
+    det = FallDetector(replace(cfg, camera_tilt_deg=cam.tilt, camera_height_m=cam.z), "bench", fit_frame=fit_frame)
+    messages = []
+    failures = 0
+    fit_ms = []
+    recent: list = []
+    low = low_lying = None
+    for fr in case.frames:
+        result = fit(fr.landmarks, fr.seq, fr.t, image_size, cam.intrinsics) if fr.landmarks is not None \
+            else FitResult.failure(fr.seq, fr.t, "no person")
+        if fr.landmarks is not None and not result.ok:
+            failures += 1
+        if result.fit_ms is not None:
+            fit_ms.append(result.fit_ms)
+        messages += det.update(result, fr.landmarks, image_size, intrinsics=cam.intrinsics)
+        if det.last_sample is not None:
+            recent = (recent + [det.last_sample])[-3:]
+            h = float(np.median([x.h_rel for x in recent]))
+            incl = float(np.median([x.incl for x in recent]))
+            low = h if low is None else min(low, h)
+            if incl > 60:
+                low_lying = h if low_lying is None else min(low_lying, h)
+    first = next((m for m in messages if m.state in DETECTING_STATES), None)
+    latency = None
+    if first is not None and case.kind == "fall":
+        latency = first.t_detect - (case.truth.t_impact if case.truth.t_impact is not None else 0.0)
+    return Outcome(case.name, case.kind, case.split, first is not None, latency, [m.state for m in messages],
+                   len(case.frames), failures, float(np.mean(fit_ms)) if fit_ms else 0.0, low, low_lying)
+
+
+def summarise(outcomes: Iterable[Outcome]) -> dict:
+    outcomes = list(outcomes)
+    falls = [o for o in outcomes if o.kind == "fall"]
+    adl = [o for o in outcomes if o.kind == "adl"]
+    lat = [o.latency_s for o in falls if o.detected and o.latency_s is not None]
+    return {
+        "falls": len(falls), "adl": len(adl),
+        "recall": (sum(o.detected for o in falls) / len(falls)) if falls else None,
+        "false_alarms": sum(o.detected for o in adl),
+        "median_latency_s": round(statistics.median(lat), 3) if lat else None,
+        "max_latency_s": round(max(lat), 3) if lat else None,
+    }
+
+
+def real_fitter(fit_config=None, with_intrinsics: bool = True):
+    """``fit(landmarks, seq, t, image_size, intrinsics)`` through fitting.fitter.Fitter in video mode; with
+    intrinsics the fit projects through the pinhole (``fitting.projection: auto``), as with a RealSense."""
+    from fitting.config import FitConfig
+    from fitting.fitter import Fitter
+
+    fitter = Fitter(fit_config or FitConfig())
+    fitter.warmup()
+
+    def fit(landmarks, seq, t, image_size, intrinsics):
+        intr = (intrinsics["fx"], intrinsics["fy"], intrinsics["cx"], intrinsics["cy"]) if with_intrinsics else None
+        return fitter.fit(landmarks, seq, t, image_size, mode="video", intrinsics=intr)
+
+    fit.reset = fitter.reset  # type: ignore[attr-defined]
+    return fit
+
+
+def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
+              only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
+              fit_config=None, with_intrinsics: bool = True) -> dict:
+    cfg = cfg or FallsConfig()
+    cases: list[Case] = []
+    for split in splits:
+        if split == "cmu":
+            cases += cmu_cases(shared_data / "mocap" / "cmu")
+        else:
+            cases += scenario_cases(split)
+    if only:
+        cases = [c for c in cases if only in c.name]
+    outcomes = []
+    t0 = time.monotonic()
+    fit = real_fitter(fit_config, with_intrinsics) if fit_kind == "real" else None
+    fit_frame = "auto" if fit_kind == "real" else "camera"
+    for case in cases:
+        if fit_kind == "real":
+            fit.reset()  # type: ignore[union-attr]
+            fn = fit
+        else:
+            by_seq = {fr.seq: fr for fr in case.frames}
+
+            def fn(lm, seq, t, size, intr, by_seq=by_seq, cam=case.camera):
+                return truth_result(by_seq[seq], cam)
+
+        outcome = run_case(case, fn, cfg, fit_frame)
+        outcomes.append(outcome)
+        if progress:
+            progress(outcome)
+    report = {"scenarios": [o.to_json() for o in outcomes], **summarise(outcomes)}
+    report["splits"] = {s: summarise(o for o in outcomes if o.split == s) for s in dict.fromkeys(o.split for o in outcomes)}
+    report["fit"] = fit_kind if fit_kind != "real" else ("real, perspective (intrinsics given)" if with_intrinsics
+                                                         else "real, orthographic (no intrinsics)")
+    report["seconds"] = round(time.monotonic() - t0, 1)
+    return report

@@ -1,0 +1,116 @@
+"""What ``posed watch`` and ``posed demo`` show: the daemon's topics folded into one line per second."""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+
+from daemon.proc.stats import percentile_summary
+
+
+class Summary:
+    """Collects pose, status and event messages (from Zenoh callback threads) and renders a line per period."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._poses: list[dict] = []
+        self._received: list[float] = []
+        self.status: dict | None = None
+        self.events: list[dict] = []
+        self._new_events: list[dict] = []
+        self.all_latency_ms: list[float] = []
+        self.knee: list[float] = []
+        self.hip: list[float] = []
+        self.poses_total = 0
+        self.poses_ok = 0
+        self.first_pose_at: float | None = None
+
+    # -- callbacks --------------------------------------------------------------------------------------
+    def on_pose(self, sample) -> None:
+        obj = json.loads(sample.payload.to_string())
+        now = time.monotonic()
+        with self._lock:
+            self._poses.append(obj)
+            self._received.append(now)
+            self.poses_total += 1
+            if self.first_pose_at is None:
+                self.first_pose_at = now
+            lat = (obj.get("timing_ms") or {}).get("total")
+            if lat is not None:
+                self.all_latency_ms.append(float(lat))
+            if obj.get("ok"):
+                self.poses_ok += 1
+                ja = obj.get("joint_angles_deg") or {}
+                for key, store in (("theta_kn_l", self.knee), ("theta_kn_r", self.knee),
+                                   ("theta_hp_l", self.hip), ("theta_hp_r", self.hip)):
+                    if isinstance(ja.get(key), (int, float)) and math.isfinite(ja[key]):
+                        store.append(float(ja[key]))
+
+    def on_status(self, sample) -> None:
+        obj = json.loads(sample.payload.to_string())
+        with self._lock:
+            self.status = obj
+
+    def on_event(self, sample) -> None:
+        obj = json.loads(sample.payload.to_string())
+        with self._lock:
+            self.events.append(obj)
+            self._new_events.append(obj)
+
+    # -- rendering --------------------------------------------------------------------------------------
+    def take_period(self) -> tuple[list[dict], list[dict], dict | None]:
+        with self._lock:
+            poses, self._poses = self._poses, []
+            events, self._new_events = self._new_events, []
+            return poses, events, self.status
+
+    def line(self, elapsed_s: float, period_s: float = 1.0) -> list[str]:
+        """The lines for the period just ended: fall events first, then the one-line summary."""
+        poses, events, status = self.take_period()
+        out = [f"{elapsed_s:5.1f}s  FALL {e.get('state', '?'):9s} id {str(e.get('id', ''))[:8]}  "
+               f"confidence {e.get('confidence', 0):.2f}  features {','.join(e.get('features') or [])}"
+               for e in events]
+        parts = [f"{elapsed_s:5.1f}s"]
+        if not poses:
+            state = status.get("state", "?") if status else "waiting for the daemon"
+            parts.append(f"no poses ({state})")
+        else:
+            lat = [p["timing_ms"]["total"] for p in poses if (p.get("timing_ms") or {}).get("total") is not None]
+            ok = [p for p in poses if p.get("ok")]
+            parts.append(f"{len(poses) / period_s:5.1f} fps")
+            if lat:
+                s = percentile_summary(lat, 0)
+                parts.append(f"latency p50 {s['p50']:4.0f} ms p95 {s['p95']:4.0f} ms")
+            if ok:
+                ja = ok[-1].get("joint_angles_deg") or {}
+                parts.append("knee L {:5.1f} R {:5.1f}  hip L {:5.1f} R {:5.1f} deg".format(
+                    *(float(ja.get(k, math.nan)) for k in ("theta_kn_l", "theta_kn_r", "theta_hp_l", "theta_hp_r"))))
+            else:
+                parts.append(f"no person ({poses[-1].get('reason', '')})")
+            parts.append(f"seq {poses[-1].get('seq')}")
+        if status:
+            cam = (status.get("camera") or {}).get("state", "?")
+            parts.append(f"[{status.get('state')}, camera {cam}, drops {status.get('drops')}, "
+                         f"restarts {status.get('restarts')}, {status.get('memory_mb')} MB]")
+        out.append("  ".join(parts))
+        return out
+
+    def final(self) -> dict:
+        with self._lock:
+            lat = percentile_summary(self.all_latency_ms, 1)
+            knee = (min(self.knee), max(self.knee)) if self.knee else (None, None)
+            hip = (min(self.hip), max(self.hip)) if self.hip else (None, None)
+            span = (self._received[-1] - self._received[0]) if len(self._received) > 1 else 0.0
+            return {"poses": self.poses_total, "poses_ok": self.poses_ok,
+                    "fps": round((len(self._received) - 1) / span, 2) if span > 0 else 0.0,
+                    "latency_ms": lat, "knee_deg": knee, "hip_deg": hip, "events": len(self.events)}
+
+
+def subscribe(session, robot: str, summary: Summary) -> list:
+    """Declare the subscribers feeding ``summary``; keep the returned list referenced."""
+    root = f"posed/{robot}"
+    return [session.declare_subscriber(f"{root}/pose", summary.on_pose),
+            session.declare_subscriber(f"{root}/status", summary.on_status),
+            session.declare_subscriber(f"{root}/events/fall", summary.on_event)]

@@ -1,0 +1,237 @@
+"""Build frozen config dataclasses from plain YAML data, collecting every problem at once.
+
+The section dataclasses live in the packages that own them (``hal.config``, ``landmarks.config``,
+``fitting.config``, ``daemon.config.sections``) and use only the standard library: each field may carry
+``dataclasses.field(metadata=...)`` with these keys
+
+    doc      one-line meaning (shown in docs/config.md and in errors)
+    unit     unit of the value ("s", "deg", "px", ...)
+    range    (lo, hi) inclusive bounds for numbers; either may be None
+    choices  tuple of the allowed values
+    pattern  regular expression a string must match in full
+
+Supported field types: bool, int, float, str, ``X | None``, ``tuple[X, ...]``, nested dataclasses and
+``tuple[Dataclass, ...]`` (a YAML list of mappings). Unknown keys are rejected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import types
+import typing
+from typing import Any
+
+
+@dataclasses.dataclass(frozen=True)
+class ConfigProblem:
+    """One thing wrong with a config: its dotted key path and what is wrong."""
+
+    path: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.message}" if self.path else self.message
+
+
+class ConfigError(Exception):
+    """Raised with every problem found; ``str()`` lists them one per line, each prefixed by the file."""
+
+    def __init__(self, problems: list[ConfigProblem], origin: str = "config") -> None:
+        self.problems = list(problems)
+        self.origin = origin
+        super().__init__("\n".join(f"{origin}: {p}" for p in self.problems))
+
+
+_MISSING = dataclasses.MISSING
+
+
+def _type_name(tp: Any) -> str:
+    if tp is type(None):
+        return "null"
+    if isinstance(tp, type):
+        return {"str": "string", "int": "integer", "float": "number", "bool": "boolean"}.get(
+            tp.__name__, tp.__name__
+        )
+    return str(tp)
+
+
+def _fmt(value: Any) -> str:
+    return repr(value) if not isinstance(value, (dict, list)) else f"{type(value).__name__} {value!r}"
+
+
+def build(cls: type, data: Any, path: str, problems: list[ConfigProblem]) -> Any:
+    """Return an instance of dataclass ``cls`` from ``data`` (a mapping or None), appending problems.
+
+    Fields that are missing take their defaults; a field that is wrong is reported and replaced by its
+    default so that checking can go on and report everything.
+    """
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        problems.append(ConfigProblem(path, f"expected a mapping of keys, got {_fmt(data)}"))
+        data = {}
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    for key in data:
+        if key not in fields:
+            where = f"{path}.{key}" if path else str(key)
+            valid = ", ".join(fields)
+            problems.append(ConfigProblem(where, f"unknown key; valid keys here: {valid}"))
+    kwargs: dict[str, Any] = {}
+    for name, f in fields.items():
+        where = f"{path}.{name}" if path else name
+        if name in data:
+            before = len(problems)
+            value = _convert(hints[name], data[name], where, f.metadata, problems)
+            if len(problems) == before:
+                kwargs[name] = value
+                continue
+        if f.default is _MISSING and f.default_factory is _MISSING:  # type: ignore[misc]
+            if name not in data:
+                problems.append(ConfigProblem(where, "required key is missing"))
+            kwargs[name] = _placeholder(hints[name])
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:  # a cross-field check in __post_init__
+        problems.append(ConfigProblem(path, str(exc)))
+        return cls()
+
+
+def _placeholder(tp: Any) -> Any:
+    if dataclasses.is_dataclass(tp):
+        return tp()
+    return None
+
+
+def _convert(tp: Any, value: Any, path: str, meta: Any, problems: list[ConfigProblem]) -> Any:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = typing.get_args(tp)
+        if value is None and type(None) in args:
+            return None
+        non_none = [a for a in args if a is not type(None)]
+        if len(non_none) == 1:
+            return _convert(non_none[0], value, path, meta, problems)
+        problems.append(ConfigProblem(path, f"unsupported union type {tp}"))
+        return None
+    if dataclasses.is_dataclass(tp):
+        return build(tp, value, path, problems)
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)):
+            problems.append(ConfigProblem(path, f"expected a list, got {_fmt(value)}"))
+            return None
+        if len(args) == 2 and args[1] is Ellipsis:
+            items = [_convert(args[0], v, f"{path}[{i}]", {}, problems) for i, v in enumerate(value)]
+        else:
+            if len(value) != len(args):
+                problems.append(ConfigProblem(path, f"expected a list of {len(args)} items, got {len(value)}"))
+                return None
+            items = [_convert(a, v, f"{path}[{i}]", {}, problems) for i, (a, v) in enumerate(zip(args, value, strict=True))]
+        result = tuple(items)
+        _check_meta(result, path, meta, problems)
+        return result
+    if tp is bool:
+        if not isinstance(value, bool):
+            problems.append(ConfigProblem(path, f"{_fmt(value)} is not a boolean (use true or false)"))
+            return None
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            problems.append(ConfigProblem(path, f"{_fmt(value)} is not an integer"))
+            return None
+    elif tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            problems.append(ConfigProblem(path, f"{_fmt(value)} is not a number"))
+            return None
+        value = float(value)
+        if value != value:
+            problems.append(ConfigProblem(path, "NaN is not allowed"))
+            return None
+    elif tp is str:
+        if not isinstance(value, str):
+            problems.append(ConfigProblem(path, f"{_fmt(value)} is not a string"))
+            return None
+    else:
+        problems.append(ConfigProblem(path, f"unsupported field type {_type_name(tp)}"))
+        return None
+    _check_meta(value, path, meta, problems)
+    return value
+
+
+def _check_meta(value: Any, path: str, meta: Any, problems: list[ConfigProblem]) -> None:
+    choices = meta.get("choices") if meta else None
+    if choices is not None:
+        values = value if isinstance(value, tuple) else (value,)
+        for v in values:
+            if v not in choices:
+                problems.append(
+                    ConfigProblem(path, f"{v!r} is not one of: {', '.join(str(c) for c in choices)}")
+                )
+    rng = meta.get("range") if meta else None
+    if rng is not None and isinstance(value, (int, float)):
+        lo, hi = rng
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            unit = f" {meta['unit']}" if meta.get("unit") else ""
+            lo_s = "-inf" if lo is None else lo
+            hi_s = "inf" if hi is None else hi
+            problems.append(ConfigProblem(path, f"{value!r} is out of range [{lo_s}, {hi_s}]{unit}"))
+    pattern = meta.get("pattern") if meta else None
+    if pattern is not None and isinstance(value, str) and not re.fullmatch(pattern, value):
+        problems.append(ConfigProblem(path, f"{value!r} does not match the pattern {pattern}"))
+
+
+def apply_override(data: dict, assignment: str) -> ConfigProblem | None:
+    """Apply one ``key.path=value`` override (value parsed as YAML) to a raw config mapping in place."""
+    import yaml
+
+    if "=" not in assignment:
+        return ConfigProblem("--set", f"{assignment!r} is not of the form key.path=value")
+    key, _, raw = assignment.partition("=")
+    parts = [p for p in key.strip().split(".") if p]
+    if not parts:
+        return ConfigProblem("--set", f"{assignment!r} has an empty key")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError as exc:
+        return ConfigProblem(key, f"value {raw!r} is not valid YAML: {exc}")
+    node = data
+    for part in parts[:-1]:
+        child = node.get(part)
+        if child is None:
+            child = node[part] = {}
+        if not isinstance(child, dict):
+            return ConfigProblem(key, f"{part!r} is not a section")
+        node = child
+    node[parts[-1]] = value
+    return None
+
+
+def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str, str, str]]:
+    """Rows (key path, type, default, unit/range/choices, doc) for every leaf field, for docs/config.md."""
+    rows = []
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        path = f"{prefix}{f.name}"
+        tp = hints[f.name]
+        if dataclasses.is_dataclass(tp):
+            rows.extend(describe(tp, path + "."))
+            continue
+        default = f.default if f.default is not _MISSING else (
+            f.default_factory() if f.default_factory is not _MISSING else ""  # type: ignore[misc]
+        )
+        meta = f.metadata or {}
+        limits = []
+        if meta.get("unit"):
+            limits.append(meta["unit"])
+        if meta.get("range"):
+            lo, hi = meta["range"]
+            limits.append(f"[{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}]")
+        if meta.get("choices"):
+            limits.append("one of " + ", ".join(str(c) for c in meta["choices"]))
+        if meta.get("pattern"):
+            limits.append(f"pattern {meta['pattern']}")
+        type_s = str(tp).replace("typing.", "") if not isinstance(tp, type) else tp.__name__
+        rows.append((path, type_s, repr(default), "; ".join(limits), meta.get("doc", "")))
+    return rows

@@ -1,0 +1,97 @@
+"""The whole configuration: ``yaml.safe_load`` -> frozen dataclasses, every problem reported at once.
+
+``load_config(path, overrides=..., source=...)`` raises :class:`ConfigError` listing each problem with its
+key path, the bad value and the valid choices or range; ``posed config check`` exits 78 (EX_CONFIG) on it.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from daemon.config.load import ConfigError, ConfigProblem, apply_override, build
+from daemon.config.sections import HooksConfig, LoggingConfig, PipelineConfig, ZenohConfig
+from falls.config import FallsConfig
+from fitting.config import FitConfig
+from hal.config import SourceConfig
+from landmarks.config import LandmarkConfig
+
+EX_CONFIG = 78
+DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config.yaml"
+
+
+@dataclass(frozen=True)
+class Config:
+    """Root of config.yaml."""
+
+    robot_id: str = field(
+        default="robot1", metadata={"doc": "robot name used in every Zenoh key (posed/ROBOT/...)",
+                                    "pattern": r"[A-Za-z0-9_\-]+"}
+    )
+    source: SourceConfig = SourceConfig()
+    landmarks: LandmarkConfig = LandmarkConfig()
+    fitting: FitConfig = FitConfig()
+    pipeline: PipelineConfig = PipelineConfig()
+    zenoh: ZenohConfig = ZenohConfig()
+    falls: FallsConfig = FallsConfig()
+    hooks: HooksConfig = HooksConfig()
+    logging: LoggingConfig = LoggingConfig()
+
+
+def source_override(uri: str) -> tuple[dict, list[ConfigProblem]]:
+    """Translate a source URI (interfaces.md section 3) into ``source`` section keys."""
+    scheme, sep, rest = uri.partition(":")
+    if not sep:
+        return {}, [ConfigProblem("--source", f"{uri!r} is not a URI; use realsense:[SERIAL], "
+                                              "v4l2:/dev/videoN or file:PATH")]
+    if scheme == "realsense":
+        return {"type": "realsense", "serial": rest}, []
+    if scheme == "v4l2":
+        if not rest:
+            return {}, [ConfigProblem("--source", "v4l2: needs a device, e.g. v4l2:/dev/video0")]
+        return {"type": "v4l2", "device": rest}, []
+    if scheme == "file":
+        if not rest:
+            return {}, [ConfigProblem("--source", "file: needs a path, e.g. file:video.mp4")]
+        return {"type": "file", "path": rest}, []
+    return {}, [ConfigProblem("--source", f"{scheme!r} is not one of: realsense, v4l2, file")]
+
+
+def load_config(
+    path: str | os.PathLike | None = None,
+    overrides: list[str] | tuple[str, ...] = (),
+    source: str | None = None,
+) -> Config:
+    """Read, override and validate a config file (default: the embedded config.yaml)."""
+    path = Path(path) if path is not None else DEFAULT_CONFIG
+    origin = str(path.name if path == DEFAULT_CONFIG else path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError([ConfigProblem("", f"cannot read the config file: {exc.strerror}")], str(path)) from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError([ConfigProblem("", f"not valid YAML: {exc}")], origin) from exc
+    if data is None:
+        data = {}
+    problems: list[ConfigProblem] = []
+    if not isinstance(data, dict):
+        raise ConfigError([ConfigProblem("", "the top level must be a mapping of sections")], origin)
+    for assignment in overrides:
+        problem = apply_override(data, assignment)
+        if problem:
+            problems.append(problem)
+    if source:
+        keys, bad = source_override(source)
+        problems.extend(bad)
+        if keys:
+            section = data.get("source")
+            data["source"] = {**(section if isinstance(section, dict) else {}), **keys}
+    config = build(Config, data, "", problems)
+    if problems:
+        raise ConfigError(problems, origin)
+    return config

@@ -1,0 +1,199 @@
+"""Per-frame joint angles kept for caregivers: SQLite, rate-limited, downsampled when old, deleted when older.
+
+One row per kept frame: wall time (unix seconds; what ``--since/--until`` select on), the capture time ``t``
+and ``seq``, and the 23 joint angles plus the body angles (degrees, interfaces.md section 2). Rows are
+buffered and committed every ``falls.history_commit_every_s`` of capture time (WAL, ``synchronous=NORMAL``: a power loss
+may drop the last uncommitted seconds, never corrupts the file — the angles are a record, not an alarm).
+
+``maintain()`` (the publisher calls it about once a minute) averages rows older than
+``history_downsample_after_h`` into buckets of ``history_downsample_period_s`` (``level`` 1) and deletes rows older than
+``history_retention_days``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import sqlite3
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from daemon import logs
+from daemon.clock import iso
+from falls.config import FallsConfig
+from fitting.kinematics import BODY_ANGLE_NAMES
+from fitting.result import JOINT_ANGLE_NAMES, FitResult
+
+ANGLE_COLUMNS = JOINT_ANGLE_NAMES + BODY_ANGLE_NAMES
+CSV_HEADER = ("wall_time", "wall", "t", "seq", "level", *ANGLE_COLUMNS)
+
+_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS angles (wall REAL NOT NULL, t REAL NOT NULL, seq INTEGER NOT NULL, "
+    "level INTEGER NOT NULL DEFAULT 0, "
+    + ", ".join(f"{name} REAL" for name in ANGLE_COLUMNS)
+    + "); CREATE INDEX IF NOT EXISTS angles_wall ON angles (wall);"
+)
+
+
+class AngleHistory:
+    """Joint-angle history in one SQLite file; ``add`` is cheap (rate limit + buffer), thread-safe."""
+
+    def __init__(self, path: str | os.PathLike, cfg: FallsConfig | None = None, clock=time.time,
+                 readonly: bool = False) -> None:
+        self.path = Path(path)
+        self.cfg = cfg or FallsConfig()
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._buffer: list[tuple] = []
+        self._last_kept_t: float | None = None
+        self._last_commit_t: float | None = None
+        self._log = logs.get("history", path=str(self.path))
+        if readonly:
+            if not self.path.is_file():
+                raise FileNotFoundError(f"no joint-angle history at {self.path}: the daemon writes it while it "
+                                        "runs (falls.history_enabled); check pipeline.state_dir")
+            self._db = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, check_same_thread=False)
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False, timeout=5.0)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=NORMAL")
+            self._db.executescript(_SCHEMA)
+
+    def add(self, result: FitResult, wall: float | None = None) -> bool:
+        """Keep this frame's angles if the rate allows (capture time decides); True when kept."""
+        if not result.ok or not result.joint_angles_deg:
+            return False
+        with self._lock:
+            period = 1.0 / self.cfg.history_rate_hz
+            if self._last_kept_t is not None and result.t < self._last_kept_t + period - 1e-6 \
+                    and result.t >= self._last_kept_t:
+                return False
+            self._last_kept_t = result.t
+            values = [_num(result.joint_angles_deg.get(n)) for n in JOINT_ANGLE_NAMES]
+            values += [_num(result.variables.get(n)) for n in BODY_ANGLE_NAMES]
+            self._buffer.append((self._clock() if wall is None else wall, result.t, result.seq, 0, *values))
+            if self._last_commit_t is None:
+                self._last_commit_t = result.t
+            if abs(result.t - self._last_commit_t) >= self.cfg.history_commit_every_s:
+                self._commit()
+            return True
+
+    def flush(self) -> None:
+        """Write the buffered rows now."""
+        with self._lock:
+            self._commit()
+
+    def _commit(self) -> None:
+        if not self._buffer:
+            return
+        marks = ", ".join("?" * len(CSV_HEADER[1:]))
+        try:
+            with self._db:
+                self._db.execute("BEGIN")
+                self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, {', '.join(ANGLE_COLUMNS)}) "
+                                     f"VALUES ({marks})", self._buffer)
+        except sqlite3.Error as exc:
+            self._log.error("history_write_failed", error=str(exc), dropped=len(self._buffer),
+                            fix="free disk space or make pipeline.state_dir writable; the joint-angle history "
+                                "misses these rows (fall events are journalled separately)")
+        self._buffer.clear()
+        self._last_commit_t = self._last_kept_t
+
+    def maintain(self, now: float | None = None) -> dict:
+        """Downsample old rows and delete expired ones; returns counts."""
+        now = self._clock() if now is None else now
+        with self._lock:
+            self._commit()
+            cutoff_old = now - self.cfg.history_downsample_after_h * 3600.0
+            cutoff_gone = now - self.cfg.history_retention_days * 86400.0
+            bucket = self.cfg.history_downsample_period_s
+            avg = ", ".join(f"AVG({n})" for n in ANGLE_COLUMNS)
+            try:
+                with self._db:
+                    self._db.execute("BEGIN")
+                    deleted = self._db.execute("DELETE FROM angles WHERE wall < ?", (cutoff_gone,)).rowcount
+                    before = self._db.execute("SELECT count(*) FROM angles WHERE level = 0 AND wall < ?",
+                                              (cutoff_old,)).fetchone()[0]
+                    if before:
+                        self._db.execute(
+                            f"INSERT INTO angles (wall, t, seq, level, {', '.join(ANGLE_COLUMNS)}) "
+                            f"SELECT MIN(wall), MIN(t), MIN(seq), 1, {avg} FROM angles "
+                            "WHERE level = 0 AND wall < ? GROUP BY CAST(wall / ? AS INTEGER)",
+                            (cutoff_old, bucket))
+                        self._db.execute("DELETE FROM angles WHERE level = 0 AND wall < ?", (cutoff_old,))
+                    after = self._db.execute("SELECT count(*) FROM angles WHERE level = 1 AND wall < ?",
+                                             (cutoff_old,)).fetchone()[0]
+            except sqlite3.Error as exc:
+                self._log.error("history_maintenance_failed", error=str(exc),
+                                fix="check disk space and pipeline.state_dir")
+                return {"deleted": 0, "downsampled": 0}
+        return {"deleted": deleted, "downsampled": before, "old_rows": after}
+
+    def rows(self, since: float | None = None, until: float | None = None,
+             columns: Iterable[str] = ANGLE_COLUMNS) -> Iterator[tuple]:
+        """(wall, t, seq, level, *columns) rows in time order, between two unix times (inclusive)."""
+        columns = tuple(columns)
+        bad = [c for c in columns if c not in ANGLE_COLUMNS]
+        if bad:
+            raise ValueError(f"unknown angle(s) {', '.join(bad)}; known: {', '.join(ANGLE_COLUMNS)}")
+        with self._lock:
+            self._commit()
+            sql = f"SELECT wall, t, seq, level{''.join(', ' + c for c in columns)} FROM angles WHERE 1"
+            args: list[float] = []
+            if since is not None:
+                sql += " AND wall >= ?"
+                args.append(since)
+            if until is not None:
+                sql += " AND wall <= ?"
+                args.append(until)
+            rows = self._db.execute(sql + " ORDER BY wall, t", args).fetchall()
+        yield from rows
+
+    def export_csv(self, out: io.TextIOBase, since: float | None = None, until: float | None = None) -> int:
+        """Write CSV (header ``CSV_HEADER``; empty cell = unknown); returns the number of rows."""
+        writer = csv.writer(out, lineterminator="\n")
+        writer.writerow(CSV_HEADER)
+        n = 0
+        for wall, t, seq, level, *values in self.rows(since, until):
+            writer.writerow([iso(wall), repr(wall),
+                             repr(t), seq, level, *("" if v is None else repr(v) for v in values)])
+            n += 1
+        return n
+
+    def close(self) -> None:
+        with self._lock:
+            try:
+                self._commit()
+            except sqlite3.Error:
+                pass
+            self._db.close()
+
+    def __enter__(self) -> AngleHistory:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def read_csv(text: str) -> list[dict]:
+    """Parse an exported CSV back into dicts of floats (None for empty cells); the inverse of export_csv."""
+    out = []
+    for row in csv.DictReader(io.StringIO(text)):
+        rec: dict = {"wall_time": row["wall_time"], "wall": float(row["wall"]), "t": float(row["t"]),
+                     "seq": int(row["seq"]), "level": int(row["level"])}
+        for name in ANGLE_COLUMNS:
+            rec[name] = float(row[name]) if row[name] != "" else None
+        out.append(rec)
+    return out
+
+
+def _num(v) -> float | None:
+    if v is None:
+        return None
+    v = float(v)
+    return v if math.isfinite(v) else None

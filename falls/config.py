@@ -1,0 +1,131 @@
+"""Configuration of fall detection (section ``falls``).
+
+Every detector threshold's reason is given in docs/falls.md. "rel" values are fractions of the person's
+standing pelvis height (learned while they stand, otherwise the fitted leg length), so they hold for tall
+and short people and need no metric calibration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class FallsConfig:
+    """Fall detector thresholds; each one's reason is in docs/falls.md."""
+
+    enabled: bool = field(default=True, metadata={"doc": "run the fall detector"})
+    alarm_after_s: float = field(
+        default=10.0, metadata={"doc": "on the floor this long without recovering raises the alarm",
+                                "unit": "s", "range": (0.0, 600.0)}
+    )
+    camera_tilt_deg: float = field(
+        default=0.0, metadata={"doc": "camera pitch, down positive (for trunk inclination against gravity)",
+                               "unit": "deg", "range": (-90.0, 90.0)}
+    )
+    camera_roll_deg: float = field(
+        default=0.0, metadata={"doc": "camera roll about its optical axis, clockwise in the image positive",
+                               "unit": "deg", "range": (-90.0, 90.0)}
+    )
+    camera_height_m: float = field(
+        default=1.0, metadata={"doc": "camera height above the floor (set it for your robot); 0 = unknown: "
+                                      "the floor is then learned from a standing person only",
+                               "unit": "m", "range": (0.0, 5.0)}
+    )
+    camera_hfov_deg: float = field(
+        default=69.0, metadata={"doc": "horizontal field of view, used when the frame has no intrinsics "
+                                       "(69 = RealSense D4xx colour)", "unit": "deg", "range": (10.0, 170.0)}
+    )
+    learn_floor: bool = field(
+        default=True, metadata={"doc": "refine the floor height from the feet of a person standing upright"}
+    )
+    fall_velocity_rel: float = field(
+        default=1.2, metadata={"doc": "pelvis descent speed that marks a fall, standing pelvis heights per "
+                                      "second (1.2 = about 1 m/s)", "unit": "1/s", "range": (0.2, 10.0)}
+    )
+    floor_pelvis_rel: float = field(
+        default=0.22, metadata={"doc": "pelvis below this height (rel) is at floor level (sitting on the floor)",
+                                "range": (0.05, 0.9)}
+    )
+    lying_pelvis_rel: float = field(
+        default=0.35, metadata={"doc": "lying counts as on the floor with the pelvis below this height (rel); "
+                                       "a bed or sofa is higher", "range": (0.05, 1.0)}
+    )
+    lying_trunk_deg: float = field(
+        default=60.0, metadata={"doc": "trunk inclined more than this from vertical counts as lying",
+                                "unit": "deg", "range": (20.0, 90.0)}
+    )
+    lying_shoulder_rel: float = field(
+        default=0.60, metadata={"doc": "the mid-shoulder below this height (rel) counts as lying",
+                                "range": (0.1, 2.0)}
+    )
+    impact_window_s: float = field(
+        default=1.5, metadata={"doc": "a fast descent counts as a fall when floor level is reached within this",
+                               "unit": "s", "range": (0.2, 10.0)}
+    )
+    confirm_s: float = field(
+        default=0.3, metadata={"doc": "after a fast descent, the body stays at floor level this long before "
+                                      "the fall is reported", "unit": "s", "range": (0.0, 5.0)}
+    )
+    on_floor_confirm_s: float = field(
+        default=1.0, metadata={"doc": "lying at floor level without a fast descent (slow fall, found lying) "
+                                      "this long is reported", "unit": "s", "range": (0.1, 60.0)}
+    )
+    recover_s: float = field(
+        default=2.0, metadata={"doc": "up (pelvis high, trunk upright) this long after a fall counts as "
+                                      "recovered", "unit": "s", "range": (0.1, 600.0)}
+    )
+    recover_pelvis_rel: float = field(
+        default=0.45, metadata={"doc": "pelvis above this height (rel) is up", "range": (0.1, 1.5)}
+    )
+    recover_trunk_deg: float = field(
+        default=45.0, metadata={"doc": "trunk within this of vertical is up", "unit": "deg",
+                                "range": (5.0, 90.0)}
+    )
+    upright_trunk_deg: float = field(
+        default=20.0, metadata={"doc": "standing reference: trunk within this of vertical", "unit": "deg",
+                                "range": (1.0, 60.0)}
+    )
+    upright_knee_deg: float = field(
+        default=25.0, metadata={"doc": "standing reference: hips and knees flexed less than this",
+                                "unit": "deg", "range": (1.0, 90.0)}
+    )
+    velocity_window_s: float = field(
+        default=0.3, metadata={"doc": "pelvis velocity is the slope over this much capture time",
+                               "unit": "s", "range": (0.05, 2.0)}
+    )
+    max_gap_s: float = field(
+        default=1.0, metadata={"doc": "frames lost (no person, failed fit) up to this long are bridged",
+                               "unit": "s", "range": (0.0, 10.0)}
+    )
+    min_visibility: float = field(
+        default=0.5, metadata={"doc": "a landmark counts when its visibility and presence reach this; "
+                                      "shoulders and hips must count for a frame to be judged",
+                               "range": (0.0, 1.0)}
+    )
+    bbox_wide_ratio: float = field(
+        default=1.2, metadata={"doc": "supporting feature: landmark box wider than tall by this ratio",
+                               "range": (0.2, 10.0)}
+    )
+    flexion_rate_deg_s: float = field(
+        default=200.0, metadata={"doc": "supporting feature: hip or knee flexing faster than this (paper "
+                                        "Figure 16)", "unit": "deg/s", "range": (10.0, 5000.0)}
+    )
+    history_enabled: bool = field(default=True, metadata={"doc": "store per-frame joint angles in history.sqlite3 in the state dir"})
+    history_rate_hz: float = field(
+        default=5.0, metadata={"doc": "joint-angle history: frames kept per second (capture time)", "unit": "Hz", "range": (0.1, 60.0)}
+    )
+    history_commit_every_s: float = field(
+        default=5.0, metadata={"doc": "joint-angle history: rows are written in batches this far apart", "unit": "s",
+                               "range": (0.1, 600.0)}
+    )
+    history_downsample_after_h: float = field(
+        default=24.0, metadata={"doc": "joint-angle history: rows older than this are averaged into buckets", "unit": "h",
+                                "range": (0.0, 87600.0)}
+    )
+    history_downsample_period_s: float = field(
+        default=10.0, metadata={"doc": "joint-angle history: bucket length for old rows", "unit": "s", "range": (0.1, 86400.0)}
+    )
+    history_retention_days: float = field(
+        default=90.0, metadata={"doc": "joint-angle history: rows older than this are deleted", "unit": "d", "range": (0.01, 36500.0)}
+    )

@@ -1,0 +1,63 @@
+"""The CMU BVH reader and the benchmark's plumbing (the real-fit numbers live in docs/bench/falls.md)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from bench.bvh import CMU_UNIT_M, cmu_landmark_world, forward_kinematics, read_bvh
+from daemon.cli import main
+
+
+def test_cmu_bvh_parses_to_a_plausible_rigid_body(shared_data):
+    motion = read_bvh(shared_data / "mocap" / "cmu" / "131_01.bvh")
+    assert motion.data.shape == (994, 96) and abs(motion.fps - 120.0) < 0.01
+    pos, _rot, _ends = forward_kinematics(motion)
+    hip, knee = motion.index("LeftHip"), motion.index("LeftKnee")
+    thigh = np.linalg.norm(pos[:, knee] - pos[:, hip], axis=1) * CMU_UNIT_M
+    assert np.ptp(thigh) < 1e-9 and 0.35 < thigh[0] < 0.45        # a rigid thigh of a human length
+    world = cmu_landmark_world(motion, np.arange(0, 994, 12))
+    nose = world[0]["nose"][2]
+    assert 1.35 < nose < 1.7                                         # standing: nose ~0.93 H for H ~1.5-1.8 m
+    pelvis = np.array([p["pelvis"][2] for p in world])
+    crouch = int(np.argmin(pelvis))
+    assert 2.8 < crouch * 0.1 < 3.6 and pelvis[crouch] < 0.5 * pelvis[0]   # the deep crouch near 3.2 s
+    assert world[0]["left_hip"][0] > world[0]["right_hip"][0] - 1.0      # both hips mapped
+
+
+def test_bench_json_schema_with_ground_truth_fits(capsys):
+    code = main(["bench", "falls", "--truth", "--split", "cmu", "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert set(report) >= {"scenarios", "recall", "false_alarms", "median_latency_s"}
+    assert [s["name"] for s in report["scenarios"]] == ["cmu/131_01/side", "cmu/131_01/oblique",
+                                                        "cmu/131_02/side", "cmu/131_02/oblique"]
+    assert all(s["kind"] == "adl" and s["detected"] is False and s["latency_s"] is None
+               for s in report["scenarios"])
+    assert report["false_alarms"] == 0 and report["recall"] is None
+
+
+def test_bench_reports_falls_and_latency(capsys):
+    code = main(["bench", "falls", "--truth", "--split", "tune", "--only", "found-lying", "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert len(report["scenarios"]) == 6 and report["recall"] == 1.0
+    # found lying: reported on_floor_confirm_s (1 s) after the first frame; the exit status follows the targets
+    assert 0.9 <= report["median_latency_s"] <= 1.5
+    assert code == (0 if report["median_latency_s"] <= 1.0 else 1)
+
+
+def test_real_fit_detects_a_fall_and_not_lying_on_a_bed():
+    """End to end through fitting.fitter.Fitter (video mode, perspective): the detector's input as in the daemon."""
+    from bench.falls import real_fitter, run_case, scenario_cases
+    from falls.config import FallsConfig
+
+    cases = {c.name: c for c in scenario_cases("tune")
+             if c.name in ("tune/fall/standing-forward/fast-v100", "tune/adl/lie-on-bed-side/normal-v30")}
+    fit = real_fitter()
+    fall = run_case(cases["tune/fall/standing-forward/fast-v100"], fit, FallsConfig(), "auto")
+    fit.reset()
+    bed = run_case(cases["tune/adl/lie-on-bed-side/normal-v30"], fit, FallsConfig(), "auto")
+    assert fall.detected and fall.states[0] == "falling" and 0.0 <= fall.latency_s <= 1.0
+    assert not bed.detected and bed.states == []
+    assert bed.min_pelvis_rel_lying is not None and bed.min_pelvis_rel_lying > 0.45
