@@ -153,7 +153,7 @@ _TO_WORLD = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 def cmu_landmark_world(motion: Motion, frames: np.ndarray | None = None, unit_m: float = CMU_UNIT_M
                        ) -> list[dict[str, np.ndarray]]:
     """Per frame, the world points (metres, z up, feet on z = 0 at the first frame) that
-    :meth:`bench.falls_body.Camera.project` renders, named as in :data:`bench.falls_body.MP` plus
+    :meth:`bench.falls_body.WorldCamera.project` renders, named as in :data:`bench.falls_body.MP` plus
     ``pelvis``."""
     pos, rot, ends = forward_kinematics(motion, frames)
     idx = motion.index

@@ -20,12 +20,10 @@ import numpy as np
 import onnx
 from onnx import numpy_helper
 
-from landmarks.anchors import INPUT_SIZE
-from landmarks.crop import detector_input, landmark_input
-from landmarks.decode import CROP_SIZE
-from landmarks.roi import Roi
+from landmarks import DETECTOR_INPUT_SIZE, LANDMARK_INPUT_SIZE, Roi, detector_input, landmark_input
 
-MODEL_INPUTS = {"pose_detection": (INPUT_SIZE, -1.0), "pose_landmark_full": (CROP_SIZE, 0.0)}  # side, lowest
+MODEL_INPUTS = {"pose_detection": (DETECTOR_INPUT_SIZE, -1.0),  # side, lowest
+                "pose_landmark_full": (LANDMARK_INPUT_SIZE, 0.0)}
 
 
 def model_input(bgr: np.ndarray, model: str) -> np.ndarray:

@@ -16,7 +16,7 @@ def ensure_demo_recording(path: Path) -> Path:
     if path.is_file():
         return path
     from bench import simulate
-    from landmarks.recording import CameraIntrinsics, LandmarkFrame, RecordingHeader, write_recording
+    from landmarks import LandmarkFrame, RecordingHeader, write_recording
 
     camera = simulate.Camera(model="pinhole", distance_m=3.0)
     seq = simulate.sequence("squat")
@@ -29,7 +29,7 @@ def ensure_demo_recording(path: Path) -> Path:
             frames.append(LandmarkFrame(len(frames), round(t_offset + t, 4), landmarks))
         t_offset += seq.duration_s
     header = RecordingHeader(IMAGE_SIZE, FPS, source="posed demo: bench.simulate squat x3",
-                             camera=CameraIntrinsics(*camera.intrinsics(IMAGE_SIZE)))
+                             camera=camera.intrinsics(IMAGE_SIZE))
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     write_recording(tmp, header, frames)

@@ -22,11 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from bench.bvh import cmu_landmark_world, read_bvh
-from bench.falls_body import Body, Camera
+from bench.falls_body import Body, WorldCamera
 from bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
+from camera_model import Intrinsics
 from falls.config import FallsConfig
 from falls.detector import FallDetector
-from fitting.result import FitResult
+from fitting import FitResult
 
 DETECTING_STATES = ("falling", "on_floor")
 
@@ -36,7 +37,7 @@ class Case:
     name: str
     kind: str
     split: str
-    camera: Camera
+    camera: WorldCamera
     frames: list[Frame]
     truth: Truth
     body_height: float = 1.65
@@ -94,8 +95,8 @@ def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed:
         for view, direction in (("side", side), ("oblique", (side + heading) / math.sqrt(2))):
             pos = centre + 4.0 * direction
             d = centre - pos
-            cam = Camera(x=float(pos[0]), y=float(pos[1]), z=1.0, tilt=12.0,
-                         yaw=math.degrees(math.atan2(-d[0], d[1])))
+            cam = WorldCamera(x=float(pos[0]), y=float(pos[1]), z=1.0, tilt=12.0,
+                               yaw=math.degrees(math.atan2(-d[0], d[1])))
             rng = np.random.default_rng(seed + len(out))
             body = Body(height)
             fr = [Frame(k, k * step / motion.fps, cam.project(p, body, rng, noise_frac), p)
@@ -104,7 +105,7 @@ def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed:
     return out
 
 
-def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int, int], dict], FitResult],
+def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int, int], Intrinsics], FitResult],
              cfg: FallsConfig, fit_frame: str) -> Outcome:
     cam = case.camera
     image_size = (cam.width, cam.height)
@@ -154,15 +155,14 @@ def summarise(outcomes: Iterable[Outcome]) -> dict:
 def real_fitter(fit_config=None, with_intrinsics: bool = True):
     """``fit(landmarks, seq, t, image_size, intrinsics)`` through fitting.fitter.Fitter in video mode; with
     intrinsics the fit projects through the pinhole (``fitting.projection: auto``), as with a RealSense."""
-    from fitting.config import FitConfig
-    from fitting.fitter import Fitter
+    from fitting import FitConfig, Fitter
 
     fitter = Fitter(fit_config or FitConfig())
     fitter.warmup()
 
     def fit(landmarks, seq, t, image_size, intrinsics):
-        intr = (intrinsics["fx"], intrinsics["fy"], intrinsics["cx"], intrinsics["cy"]) if with_intrinsics else None
-        return fitter.fit(landmarks, seq, t, image_size, mode="video", intrinsics=intr)
+        return fitter.fit(landmarks, seq, t, image_size, mode="video",
+                          intrinsics=intrinsics if with_intrinsics else None)
 
     fit.reset = fitter.reset  # type: ignore[attr-defined]
     return fit

@@ -5,9 +5,10 @@ anthropometric table (fractions of body height H: hip joint 0.530 H, thigh 0.245
 0.039 H above the floor, shoulder 0.818 H, upper arm 0.186 H, forearm 0.146 H, foot 0.152 H). This is
 deliberately not the fitter's humanoid model: the fit then meets a body it was not built from.
 
-``Pose`` holds the joint angles (degrees) and the root (pelvis) orientation; ``place`` puts the body so that
-its lowest contact point rests on the floor or on a seat/bed surface; ``Camera.project`` gives the 33x5
-MediaPipe landmark array (pixels, relative depth, visibility, presence).
+``StickPose`` holds the stick body's joint angles (degrees) and root (pelvis) orientation (not the fitter's
+``fitting.kinematics.Pose``); ``place`` puts the body so that its lowest contact point rests on the floor or on a
+seat/bed surface (a ``RestingPlace``); ``WorldCamera.project`` gives the 33x5 MediaPipe landmark array (pixels,
+relative depth, visibility, presence) that a camera placed in the world sees.
 """
 
 from __future__ import annotations
@@ -17,8 +18,9 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from fitting.result import JOINT_3D_NAMES
-from landmarks.recording import LANDMARK_NAMES
+from camera_model import Intrinsics
+from fitting import JOINT_3D_NAMES
+from landmarks import LANDMARK_NAMES
 
 
 def rot_x(deg: float) -> np.ndarray:
@@ -40,8 +42,8 @@ def rot_z(deg: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Pose:
-    """Body posture, degrees (the root's axes: see ``body_axes``).
+class StickPose:
+    """The stick body's posture, degrees (the root's axes: see ``body_axes``).
 
     pitch: whole body tips forward (+) / backward (-) about the left-right axis; roll: tips to the body's
     left (+) / right (-); yaw: facing direction, degrees counter-clockwise from +y (north).
@@ -68,16 +70,16 @@ class Pose:
     head_flex: float = 0.0
     ankle: float = 0.0              # plantarflexion (toes away from the shin), both feet
 
-    def lerp(self, other: Pose, w: float) -> Pose:
-        return Pose(**{f.name: (1 - w) * getattr(self, f.name) + w * getattr(other, f.name) for f in fields(self)})
+    def lerp(self, other: StickPose, w: float) -> StickPose:
+        return StickPose(**{f.name: (1 - w) * getattr(self, f.name) + w * getattr(other, f.name) for f in fields(self)})
 
-    def with_(self, **kw) -> Pose:
+    def with_(self, **kw) -> StickPose:
         return replace(self, **kw)
 
 
 @dataclass(frozen=True)
-class Placement:
-    """Where the body rests: ground position of the pelvis and the surface under the trunk (m)."""
+class RestingPlace:
+    """Where the body rests in the world: ground position of the pelvis and the surface under the trunk (m)."""
 
     x: float = 0.0
     y: float = 0.0
@@ -114,7 +116,7 @@ SEAT_CONTACTS = (("pelvis", 0.06), ("buttocks", 0.03), ("chest", 0.065), ("left_
                  ("right_hip", 0.055), ("left_shoulder", 0.04), ("right_shoulder", 0.04), ("head", 0.06))
 
 
-def skeleton(pose: Pose, body: Body) -> dict[str, np.ndarray]:
+def skeleton(pose: StickPose, body: Body) -> dict[str, np.ndarray]:
     """Joint positions relative to the pelvis centre (world orientation, metres)."""
     H = body.height
     R = body_axes(pose.yaw, pose.pitch, pose.roll)
@@ -183,7 +185,7 @@ def rest_height(rel: dict[str, np.ndarray], body: Body, seat: float | None) -> f
     return z
 
 
-def place(pose: Pose, body: Body, where: Placement) -> dict[str, np.ndarray]:
+def place(pose: StickPose, body: Body, where: RestingPlace) -> dict[str, np.ndarray]:
     """World joint positions (metres) of the posture resting at ``where``."""
     rel = skeleton(pose, body)
     z = rest_height(rel, body, where.seat) + where.lift
@@ -192,9 +194,10 @@ def place(pose: Pose, body: Body, where: Placement) -> dict[str, np.ndarray]:
 
 
 @dataclass(frozen=True)
-class Camera:
-    """A pinhole camera at height ``z`` looking along azimuth ``yaw`` (deg from +y, counter-clockwise),
-    pitched down by ``tilt`` (deg)."""
+class WorldCamera:
+    """A pinhole camera placed in the world: at ``(x, y, z)`` (``z`` its height), looking along azimuth ``yaw``
+    (deg from +y, counter-clockwise), pitched down by ``tilt`` (deg); a ``width`` x ``height`` image of
+    horizontal field of view ``hfov`` (deg): its :attr:`intrinsics`."""
 
     x: float = 0.0
     y: float = 0.0
@@ -216,12 +219,12 @@ class Camera:
         object.__setattr__(self, "axes", np.stack([right, y_c, z_c]))
 
     @property
-    def f(self) -> float:
-        return (self.width / 2.0) / math.tan(math.radians(self.hfov) / 2.0)
+    def intrinsics(self) -> Intrinsics:
+        return Intrinsics.from_hfov(self.hfov, self.width, self.height)
 
     @property
-    def intrinsics(self) -> dict:
-        return {"fx": self.f, "fy": self.f, "cx": self.width / 2.0, "cy": self.height / 2.0}
+    def f(self) -> float:
+        return self.intrinsics.fx
 
     def to_camera(self, p_world: np.ndarray) -> np.ndarray:
         return (np.asarray(p_world, float) - np.array([self.x, self.y, self.z])) @ self.axes.T

@@ -18,18 +18,18 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from bench.falls_body import Body, Camera, Placement, Pose, place
-from fitting.result import FitResult
+from bench.falls_body import Body, RestingPlace, StickPose, WorldCamera, place
+from fitting import FitResult
 
-STAND = Pose()
-SIT = Pose(hip_flex_l=90, hip_flex_r=90, knee_l=90, knee_r=90, sh_flex_l=30, sh_flex_r=30, elbow_l=60,
-           elbow_r=60)
+STAND = StickPose()
+SIT = StickPose(hip_flex_l=90, hip_flex_r=90, knee_l=90, knee_r=90, sh_flex_l=30, sh_flex_r=30, elbow_l=60,
+                elbow_r=60)
 
 
 @dataclass(frozen=True)
 class Key:
     t: float
-    pose: Pose
+    pose: StickPose
     seat: float | None = None
     ease: str = "smooth"            # smooth (in-out), fall (accelerating), linear, hold
     anchor: str = "pelvis"          # pelvis: move to xy; feet: keep the feet where they were
@@ -63,7 +63,7 @@ class Scenario:
     kind: str
     keys: list[Key]
     truth: Truth
-    camera: Camera
+    camera: WorldCamera
     body: Body = field(default_factory=Body)
     fps: float = 10.0
     noise_frac: float = 0.01
@@ -123,22 +123,22 @@ def frames(sc: Scenario) -> Iterator[Frame]:
         seat = _seat(a.seat, b.seat, w)
         lift = a.lift * (1 - w) + b.lift * w
         if b.anchor == "feet":
-            probe = place(pose, sc.body, Placement(0.0, 0.0, seat, lift))
+            probe = place(pose, sc.body, RestingPlace(0.0, 0.0, seat, lift))
             feet = 0.5 * (probe["left_ankle"][:2] + probe["right_ankle"][:2])
             if seg_feet is None:
-                start = place(a.pose, sc.body, Placement(0.0, 0.0, a.seat, a.lift))
+                start = place(a.pose, sc.body, RestingPlace(0.0, 0.0, a.seat, a.lift))
                 seg_feet = seg_start_xy + 0.5 * (start["left_ankle"][:2] + start["right_ankle"][:2])
             xy = seg_feet - feet
         elif b.xy is not None:
             src = np.array(a.xy, float) if a.xy is not None else seg_start_xy
             xy = src * (1 - w) + np.array(b.xy, float) * w
-        joints = place(pose, sc.body, Placement(float(xy[0]), float(xy[1]), seat, lift))
+        joints = place(pose, sc.body, RestingPlace(float(xy[0]), float(xy[1]), seat, lift))
         lost = any(lo <= t < hi for lo, hi in sc.dropouts)
         lm = None if lost else sc.camera.project(joints, sc.body, rng, sc.noise_frac)
         yield Frame(k, t, lm, joints)
 
 
-def truth_result(frame: Frame, camera: Camera) -> FitResult:
+def truth_result(frame: Frame, camera: WorldCamera) -> FitResult:
     """A perfect fit of the frame (joints in camera axes, origin mid-hip) for tests of the detector alone."""
     if frame.landmarks is None:
         return FitResult.failure(frame.seq, frame.t, "no person")
@@ -164,23 +164,23 @@ def _angle(a: np.ndarray, b: np.ndarray) -> float:
 # Each returns (keys, truth). ``s`` scales the duration of the movement itself; ``side`` is +1/-1.
 
 
-def _lie(direction: str, side: float = 1.0) -> Pose:
+def _lie(direction: str, side: float = 1.0) -> StickPose:
     """The pose a fall ends in: prone (forward), supine (backward) or on the side."""
     if direction == "forward":
-        return Pose(pitch=88, hip_flex_l=0, hip_flex_r=-5, knee_l=15, knee_r=5, sh_flex_l=172, sh_flex_r=168,
-                    elbow_l=0, elbow_r=0, head_flex=-25, ankle=60)
+        return StickPose(pitch=88, hip_flex_l=0, hip_flex_r=-5, knee_l=15, knee_r=5, sh_flex_l=172, sh_flex_r=168,
+                         elbow_l=0, elbow_r=0, head_flex=-25, ankle=60)
     if direction == "backward":
-        return Pose(pitch=-86, hip_flex_l=20, hip_flex_r=10, knee_l=30, knee_r=15, sh_abd_l=70, sh_abd_r=60,
-                    elbow_l=20, elbow_r=20, head_flex=20, ankle=30)
-    return Pose(roll=86 * side, hip_flex_l=25, hip_flex_r=35, knee_l=40, knee_r=50, sh_flex_l=100, sh_flex_r=100,
-                sh_abd_l=0, sh_abd_r=0, elbow_l=50, elbow_r=60, ankle=30)
+        return StickPose(pitch=-86, hip_flex_l=20, hip_flex_r=10, knee_l=30, knee_r=15, sh_abd_l=70, sh_abd_r=60,
+                         elbow_l=20, elbow_r=20, head_flex=20, ankle=30)
+    return StickPose(roll=86 * side, hip_flex_l=25, hip_flex_r=35, knee_l=40, knee_r=50, sh_flex_l=100, sh_flex_r=100,
+                     sh_abd_l=0, sh_abd_r=0, elbow_l=50, elbow_r=60, ankle=30)
 
 
 def fall_from_standing(direction: str, s: float, side: float = 1.0, lead_in: float = 2.0,
                        after: float = 3.0) -> tuple[list[Key], Truth]:
     t0 = lead_in
-    stumble = Pose(trunk_flex=10 if direction == "forward" else -5, sh_flex_l=40, sh_flex_r=40, knee_l=10,
-                   knee_r=5, roll=8 * side if direction == "sideways" else 0.0)
+    stumble = StickPose(trunk_flex=10 if direction == "forward" else -5, sh_flex_l=40, sh_flex_r=40, knee_l=10,
+                        knee_r=5, roll=8 * side if direction == "sideways" else 0.0)
     d_fall = 0.75 * s
     keys = [Key(0.0, STAND), Key(t0, STAND, ease="hold"), Key(t0 + 0.25 * s, stumble),
             Key(t0 + 0.25 * s + d_fall, _lie(direction, side), ease="fall", anchor="feet"),
@@ -191,8 +191,8 @@ def fall_from_standing(direction: str, s: float, side: float = 1.0, lead_in: flo
 def fall_backward_via_sitting(s: float, lead_in: float = 2.0, after: float = 3.0) -> tuple[list[Key], Truth]:
     """Backward fall that lands on the buttocks first, then the back."""
     t0 = lead_in
-    seated = Pose(pitch=-15, hip_flex_l=80, hip_flex_r=75, knee_l=60, knee_r=50, sh_abd_l=40, sh_abd_r=40,
-                  sh_flex_l=30, sh_flex_r=30)
+    seated = StickPose(pitch=-15, hip_flex_l=80, hip_flex_r=75, knee_l=60, knee_r=50, sh_abd_l=40, sh_abd_r=40,
+                       sh_flex_l=30, sh_flex_r=30)
     keys = [Key(0.0, STAND), Key(t0, STAND, ease="hold"),
             Key(t0 + 0.55 * s, seated, ease="fall", anchor="feet"),
             Key(t0 + 0.55 * s + 0.45 * s, _lie("backward"), ease="fall"),
@@ -206,8 +206,8 @@ def fall_from_sitting(direction: str, s: float, side: float = 1.0, lead_in: floa
     t0 = lead_in
     if direction == "forward":  # slides onto the knees, then pitches forward onto the floor
         end = _lie("forward").with_(hip_flex_l=10, knee_l=40)
-        knees = Pose(pitch=30, hip_flex_l=60, hip_flex_r=55, knee_l=110, knee_r=100, trunk_flex=15,
-                     sh_flex_l=70, sh_flex_r=70)
+        knees = StickPose(pitch=30, hip_flex_l=60, hip_flex_r=55, knee_l=110, knee_r=100, trunk_flex=15,
+                          sh_flex_l=70, sh_flex_r=70)
     elif direction == "backward":  # slides off the front of the seat onto the back
         end = _lie("backward").with_(hip_flex_l=50, hip_flex_r=40, knee_l=70, knee_r=60)
         knees = None
@@ -229,9 +229,9 @@ def fall_from_sitting(direction: str, s: float, side: float = 1.0, lead_in: floa
 def collapse(s: float, side: float = 1.0, lead_in: float = 2.0, after: float = 3.0) -> tuple[list[Key], Truth]:
     """A slow fall: the knees give way, the person sinks to the floor and tips over onto the side."""
     t0 = lead_in
-    crouch = Pose(pitch=15, trunk_flex=15, hip_flex_l=75, hip_flex_r=70, knee_l=110, knee_r=100, sh_flex_l=30,
-                  sh_flex_r=20)
-    floor_sit = Pose(pitch=-10, hip_flex_l=75, hip_flex_r=70, knee_l=70, knee_r=60, sh_abd_l=30, sh_abd_r=30)
+    crouch = StickPose(pitch=15, trunk_flex=15, hip_flex_l=75, hip_flex_r=70, knee_l=110, knee_r=100, sh_flex_l=30,
+                       sh_flex_r=20)
+    floor_sit = StickPose(pitch=-10, hip_flex_l=75, hip_flex_r=70, knee_l=70, knee_r=60, sh_abd_l=30, sh_abd_r=30)
     end = _lie("sideways", side)
     keys = [Key(0.0, STAND), Key(t0, STAND, ease="hold"), Key(t0 + 1.2 * s, crouch, anchor="feet"),
             Key(t0 + 2.0 * s, floor_sit, ease="smooth"),
@@ -266,8 +266,8 @@ def plop_on_sofa(s: float, seat: float = 0.40) -> tuple[list[Key], Truth]:
 
 
 def bend_pick_up(s: float) -> tuple[list[Key], Truth]:
-    bend = Pose(pitch=35, trunk_flex=50, hip_flex_l=35, hip_flex_r=35, knee_l=15, knee_r=15, sh_flex_l=80,
-                sh_flex_r=75, head_flex=-20)
+    bend = StickPose(pitch=35, trunk_flex=50, hip_flex_l=35, hip_flex_r=35, knee_l=15, knee_r=15, sh_flex_l=80,
+                     sh_flex_r=75, head_flex=-20)
     keys = [Key(0.0, STAND), Key(1.5, STAND, ease="hold"), Key(1.5 + 1.0 * s, bend, anchor="feet"),
             Key(2.5 + 1.0 * s, bend, ease="hold"), Key(2.5 + 2.0 * s, STAND, anchor="feet"),
             Key(4.0 + 2.0 * s, STAND, ease="hold")]
@@ -275,8 +275,8 @@ def bend_pick_up(s: float) -> tuple[list[Key], Truth]:
 
 
 def squat(s: float, hold: float = 2.0) -> tuple[list[Key], Truth]:
-    deep = Pose(pitch=25, trunk_flex=15, hip_flex_l=120, hip_flex_r=120, knee_l=140, knee_r=140, sh_flex_l=80,
-                sh_flex_r=80)
+    deep = StickPose(pitch=25, trunk_flex=15, hip_flex_l=120, hip_flex_r=120, knee_l=140, knee_r=140, sh_flex_l=80,
+                     sh_flex_r=80)
     keys = [Key(0.0, STAND), Key(1.5, STAND, ease="hold"), Key(1.5 + 1.2 * s, deep, anchor="feet"),
             Key(1.5 + 1.2 * s + hold, deep, ease="hold"), Key(1.5 + 2.4 * s + hold, STAND, anchor="feet"),
             Key(2.5 + 2.4 * s + hold, STAND, ease="hold")]
@@ -285,11 +285,11 @@ def squat(s: float, hold: float = 2.0) -> tuple[list[Key], Truth]:
 
 def kneel(s: float, both: bool = True, hold: float = 3.0) -> tuple[list[Key], Truth]:
     if both:
-        down = Pose(knee_l=90, knee_r=90, hip_flex_l=5, hip_flex_r=5, trunk_flex=10, sh_flex_l=20, sh_flex_r=20)
-        mid = Pose(hip_flex_l=90, hip_flex_r=10, knee_l=90, knee_r=80, trunk_flex=10)
+        down = StickPose(knee_l=90, knee_r=90, hip_flex_l=5, hip_flex_r=5, trunk_flex=10, sh_flex_l=20, sh_flex_r=20)
+        mid = StickPose(hip_flex_l=90, hip_flex_r=10, knee_l=90, knee_r=80, trunk_flex=10)
     else:
-        down = Pose(hip_flex_l=85, knee_l=90, hip_flex_r=0, knee_r=90, trunk_flex=10, sh_flex_l=20)
-        mid = Pose(hip_flex_l=60, knee_l=70, knee_r=60, hip_flex_r=10, trunk_flex=20)
+        down = StickPose(hip_flex_l=85, knee_l=90, hip_flex_r=0, knee_r=90, trunk_flex=10, sh_flex_l=20)
+        mid = StickPose(hip_flex_l=60, knee_l=70, knee_r=60, hip_flex_r=10, trunk_flex=20)
     keys = [Key(0.0, STAND), Key(1.5, STAND, ease="hold"), Key(1.5 + 0.8 * s, mid, anchor="feet"),
             Key(1.5 + 1.6 * s, down), Key(1.5 + 1.6 * s + hold, down, ease="hold"),
             Key(1.5 + 2.4 * s + hold, mid), Key(1.5 + 3.2 * s + hold, STAND, anchor="feet"),
@@ -299,9 +299,9 @@ def kneel(s: float, both: bool = True, hold: float = 3.0) -> tuple[list[Key], Tr
 
 def lie_on_bed(s: float, bed: float = 0.50, supine: bool = False, side: float = 1.0) -> tuple[list[Key], Truth]:
     sit_edge = SIT.with_(sh_flex_l=10, sh_flex_r=10)
-    lie = (Pose(pitch=-85, hip_flex_l=10, hip_flex_r=5, knee_l=15, knee_r=10, sh_abd_l=20, sh_abd_r=20)
-           if supine else Pose(roll=85 * side, hip_flex_l=30, hip_flex_r=35, knee_l=40, knee_r=45, sh_flex_l=90,
-                               sh_flex_r=80, sh_abd_l=0, sh_abd_r=0, elbow_l=70, elbow_r=60))
+    lie = (StickPose(pitch=-85, hip_flex_l=10, hip_flex_r=5, knee_l=15, knee_r=10, sh_abd_l=20, sh_abd_r=20)
+           if supine else StickPose(roll=85 * side, hip_flex_l=30, hip_flex_r=35, knee_l=40, knee_r=45, sh_flex_l=90,
+                                    sh_flex_r=80, sh_abd_l=0, sh_abd_r=0, elbow_l=70, elbow_r=60))
     keys = [Key(0.0, STAND), Key(1.5, STAND, ease="hold"), Key(1.5 + 1.5 * s, sit_edge, seat=bed),
             Key(2.5 + 1.5 * s, sit_edge, seat=bed, ease="hold"), Key(2.5 + 3.5 * s, lie, seat=bed),
             Key(6.5 + 3.5 * s, lie, seat=bed, ease="hold")]
@@ -312,29 +312,29 @@ def exercise(kind: str, s: float, reps: int = 3) -> tuple[list[Key], Truth]:
     keys = [Key(0.0, STAND), Key(1.0, STAND, ease="hold")]
     t = 1.0
     if kind == "squats":
-        low = Pose(pitch=20, trunk_flex=10, hip_flex_l=95, hip_flex_r=95, knee_l=100, knee_r=100, sh_flex_l=90,
-                   sh_flex_r=90, elbow_l=0, elbow_r=0)
+        low = StickPose(pitch=20, trunk_flex=10, hip_flex_l=95, hip_flex_r=95, knee_l=100, knee_r=100, sh_flex_l=90,
+                        sh_flex_r=90, elbow_l=0, elbow_r=0)
         for _ in range(reps):
             keys += [Key(t + 0.8 * s, low, anchor="feet"), Key(t + 1.6 * s, STAND, anchor="feet")]
             t += 1.6 * s
     elif kind == "jumping_jacks":
-        wide = Pose(hip_abd_l=18, hip_abd_r=18, sh_abd_l=160, sh_abd_r=160, elbow_l=10, elbow_r=10)
+        wide = StickPose(hip_abd_l=18, hip_abd_r=18, sh_abd_l=160, sh_abd_r=160, elbow_l=10, elbow_r=10)
         for _ in range(reps * 2):
             keys += [Key(t + 0.25 * s, wide.with_(knee_l=10, knee_r=10), lift=0.10, ease="smooth"),
                      Key(t + 0.5 * s, wide), Key(t + 0.75 * s, STAND.with_(knee_l=10, knee_r=10), lift=0.10),
                      Key(t + 1.0 * s, STAND)]
             t += 1.0 * s
     elif kind == "toe_touches":
-        down = Pose(pitch=45, trunk_flex=45, hip_flex_l=45, hip_flex_r=45, sh_flex_l=90, sh_flex_r=90,
-                    head_flex=-10)
+        down = StickPose(pitch=45, trunk_flex=45, hip_flex_l=45, hip_flex_r=45, sh_flex_l=90, sh_flex_r=90,
+                         head_flex=-10)
         for _ in range(reps):
             keys += [Key(t + 1.0 * s, down, anchor="feet"), Key(t + 2.0 * s, STAND, anchor="feet")]
             t += 2.0 * s
     elif kind == "lunges":
         for i in range(reps):
             sgn = 1 if i % 2 == 0 else -1
-            lunge = Pose(hip_flex_l=85 if sgn > 0 else -10, hip_flex_r=85 if sgn < 0 else -10,
-                         knee_l=90 if sgn > 0 else 95, knee_r=90 if sgn < 0 else 95, trunk_flex=5)
+            lunge = StickPose(hip_flex_l=85 if sgn > 0 else -10, hip_flex_r=85 if sgn < 0 else -10,
+                              knee_l=90 if sgn > 0 else 95, knee_r=90 if sgn < 0 else 95, trunk_flex=5)
             keys += [Key(t + 0.9 * s, lunge), Key(t + 1.8 * s, STAND)]
             t += 1.8 * s
     else:
@@ -357,8 +357,8 @@ def walk(path: list[tuple[float, float]], speed: float = 1.1, start_pause: float
         for k in range(1, n + 1):
             sgn = 1 if phase % 2 == 0 else -1
             phase += 1
-            pose = Pose(yaw=yaw, hip_flex_l=20 * sgn, hip_flex_r=-20 * sgn, knee_l=10 + (25 if sgn < 0 else 0),
-                        knee_r=10 + (25 if sgn > 0 else 0), sh_flex_l=-15 * sgn, sh_flex_r=15 * sgn)
+            pose = StickPose(yaw=yaw, hip_flex_l=20 * sgn, hip_flex_r=-20 * sgn, knee_l=10 + (25 if sgn < 0 else 0),
+                             knee_r=10 + (25 if sgn > 0 else 0), sh_flex_l=-15 * sgn, sh_flex_r=15 * sgn)
             p = a_ + (b_ - a_) * k / n
             keys.append(Key(t + step, pose, xy=(float(p[0]), float(p[1])), ease="linear"))
             t += step
@@ -380,7 +380,7 @@ def make(name: str, kind: str, motion: tuple[list[Key], Truth], view: float, dis
     if start_xy is None:
         start_xy = (0.0, distance)
     return Scenario(name=name, kind=kind, keys=keys, truth=truth,
-                    camera=Camera(z=cam_height, tilt=tilt), fps=fps, seed=seed, dropouts=tuple(dropouts),
+                    camera=WorldCamera(z=cam_height, tilt=tilt), fps=fps, seed=seed, dropouts=tuple(dropouts),
                     start_xy=start_xy, noise_frac=noise_frac)
 
 

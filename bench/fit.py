@@ -24,10 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bench import simulate as S
-from fitting.config import FitConfig
-from fitting.fitter import Fitter
-from fitting.kinematics import BODY_LANDMARK_NAMES, Pose
-from fitting.result import VARIABLE_NAMES
+from fitting import BODY_LANDMARK_NAMES, VARIABLE_NAMES, FitConfig, Fitter, Pose
 
 ANGLES = VARIABLE_NAMES[1:]  # the 18 estimated joint and body angles
 HEIGHT_M = 1.60              # the paper's subject: average Korean woman in her twenties

@@ -23,9 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fitting.body import BodyDimensions
-from fitting.kinematics import Pose, joints_3d, landmarks_camera
-from fitting.result import FitResult
+from camera_model import Intrinsics
+from fitting import BodyDimensions, FitResult, Pose, joints_3d, landmarks_camera
 
 __all__ = [
     "FLOOR_POSES", "PAPER_POSES", "POSES", "SEQUENCE_NAMES", "Camera", "Placement", "Pose", "Sequence", "body_dimensions",
@@ -142,10 +141,11 @@ class Camera:
         if self.model == "pinhole" and self.distance_m <= 0.5:
             raise ValueError(f"distance_m {self.distance_m} is too close for a whole body (> 0.5 m)")
 
-    def intrinsics(self, image_size: tuple[int, int]) -> tuple[float, float, float, float]:
-        """(fx, fy, cx, cy) of the pinhole model for this image size."""
+    def intrinsics(self, image_size: tuple[int, int]) -> Intrinsics:
+        """The intrinsics of the pinhole model for this image size."""
         w, h = image_size
-        return (self.fx, self.fy, w / 2.0 if self.cx is None else self.cx, h / 2.0 if self.cy is None else self.cy)
+        return Intrinsics(self.fx, self.fy, w / 2.0 if self.cx is None else self.cx,
+                          h / 2.0 if self.cy is None else self.cy, w, h)
 
 
 FILL = 0.6  # default orthographic scale: a standing body spans this fraction of the image height
@@ -208,7 +208,8 @@ def render(
         z = s * (pts[:, 2] - root[2])
     else:
         cam_h = 1.0 if camera.height_m is None else camera.height_m
-        fx, fy, cx, cy = camera.intrinsics(image_size)
+        k = camera.intrinsics(image_size)
+        fx, fy, cx, cy = k.fx, k.fy, k.cx, k.cy
         pts, root = _world_points(pose_, dims, placement, camera.distance_m, cam_h)
         if (pts[:, 2] < 0.05).any():
             raise ValueError("part of the body is behind the camera; increase Camera.distance_m")

@@ -14,13 +14,37 @@ _LEVELS = {"debug": logging.DEBUG, "info": logging.INFO, "warning": logging.WARN
 _configured: tuple[str, str] | None = None
 
 
+class _Live:
+    """``sys.stdout`` or ``sys.stderr`` as it is when a line is written (not when logging was configured): a
+    process whose stream is replaced later (a test's capture, a redirect) never writes to a closed one."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def write(self, text: str) -> int:
+        return getattr(sys, self.name).write(text)
+
+    def flush(self) -> None:
+        getattr(sys, self.name).flush()
+
+    def isatty(self) -> bool:
+        return getattr(sys, self.name).isatty()
+
+
+STDOUT, STDERR = _Live("stdout"), _Live("stderr")
+
+
 def configure(level: str = "info", fmt: str = "auto", stream=None) -> None:
-    """Configure structlog for this process; later calls with the same arguments do nothing."""
+    """Configure structlog for this process (default: to the current ``sys.stdout``); later calls with the
+    same arguments do nothing."""
     global _configured
-    stream = stream or sys.stdout
+    if stream is None or stream is sys.stdout:
+        stream = STDOUT
+    elif stream is sys.stderr:
+        stream = STDERR
     if fmt == "auto":
         fmt = "console" if getattr(stream, "isatty", lambda: False)() else "json"
-    if _configured == (level, fmt) and stream is sys.stdout:
+    if _configured == (level, fmt) and stream is STDOUT:
         return
     renderer = (
         structlog.dev.ConsoleRenderer(colors=False)
@@ -40,7 +64,7 @@ def configure(level: str = "info", fmt: str = "auto", stream=None) -> None:
         logger_factory=structlog.PrintLoggerFactory(file=stream),
         cache_logger_on_first_use=False,
     )
-    _configured = (level, fmt)
+    _configured = (level, fmt) if stream is STDOUT else None
 
 
 def get(name: str, **context):

@@ -9,15 +9,17 @@
 ``t_capture`` is the capture timestamp (seconds on the daemon's one monotonic clock) and travels end to end;
 it is the only clock used for fall timing. ``t_origin`` is where latency counts from: the capture timestamp,
 except for unpaced replays, whose capture timestamps follow the recording's time line while frames are read
-as fast as the pipeline takes them (then it is the time the capture stage read the frame)."""
+as fast as the pipeline takes them (then it is the time the capture stage read the frame); None means
+``t_capture``. Every message uses these two names (the convention: :mod:`camera_model.intrinsics`).
+``intrinsics`` is always a :class:`camera_model.Intrinsics` of the frame's image, or None."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
 
-from fitting.result import FitResult
-from landmarks.recording import LandmarkFrame
+from camera_model import Intrinsics
+from fitting import FitResult
+from landmarks import LandmarkFrame
 
 STAGES = ("capture", "landmarks", "fitting", "publisher")
 
@@ -32,17 +34,24 @@ class FrameRef:
     width: int
     height: int
     has_depth: bool = False
-    intrinsics: tuple[float, float, float, float] | None = None   # fx, fy, cx, cy in pixels, when known
-    t_read: float | None = None   # monotonic time the capture stage read it, set only for unpaced replays
-                                  # (whose t_capture follows the recording): latency is measured from it
+    intrinsics: Intrinsics | None = None   # of the frame's image, when known
+    t_origin: float | None = None   # latency is measured from here (None: from t_capture); set only for
+                                    # unpaced replays: the time the capture stage read the frame
 
     def to_json(self) -> dict:
-        return asdict(self)
+        out = {k: getattr(self, k) for k in ("slot", "seq", "t_capture", "width", "height", "has_depth")}
+        out["intrinsics"] = None if self.intrinsics is None else self.intrinsics.to_json()
+        out["t_origin"] = self.t_origin
+        return out
 
     @classmethod
     def from_json(cls, obj: dict) -> FrameRef:
+        intr = obj.get("intrinsics")
+        t_origin = obj.get("t_origin")
         return cls(**{k: obj[k] for k in ("slot", "seq", "t_capture", "width", "height")},
-                   has_depth=bool(obj.get("has_depth", False)))
+                   has_depth=bool(obj.get("has_depth", False)),
+                   intrinsics=None if intr is None else Intrinsics.from_json(intr),
+                   t_origin=None if t_origin is None else float(t_origin))
 
 
 @dataclass(frozen=True)
@@ -67,13 +76,12 @@ class StageHealth:
 
 @dataclass(frozen=True)
 class LandmarkMsg:
-    """2D landmarks of one frame, for the fitting stage. ``intrinsics``: an object with fx, fy, cx, cy
-    (pixels) or None."""
+    """2D landmarks of one frame, for the fitting stage."""
 
     frame: LandmarkFrame
     t_capture: float
     image_size: tuple[int, int]
-    intrinsics: Any = None
+    intrinsics: Intrinsics | None = None
     stamps: tuple[tuple[str, float], ...] = ()
     t_origin: float | None = None     # latency is measured from here (None: from t_capture)
 
@@ -87,8 +95,8 @@ class FitMsg:
     t_capture: float
     image_size: tuple[int, int]
     stamps: tuple[tuple[str, float], ...] = ()
-    intrinsics: Any = None
-    t_origin: float | None = None
+    intrinsics: Intrinsics | None = None
+    t_origin: float | None = None     # latency is measured from here (None: from t_capture)
 
 
 def timing_ms(stamps: tuple[tuple[str, float], ...], t_capture: float, t_out: float) -> dict[str, float]:
@@ -108,6 +116,6 @@ def timing_ms(stamps: tuple[tuple[str, float], ...], t_capture: float, t_out: fl
     return out
 
 
-def origin(msg) -> float:
-    """The time latency counts from for a LandmarkMsg or FitMsg."""
+def origin(msg: FrameRef | LandmarkMsg | FitMsg) -> float:
+    """The time latency counts from for a FrameRef, LandmarkMsg or FitMsg."""
     return msg.t_capture if msg.t_origin is None else msg.t_origin

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from daemon.config import Config
-from hal.registry import is_landmark_recording
+from hal import is_landmark_recording
 
 ROOT = Path(__file__).resolve().parent.parent
 SQUAT_VIDEO = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"
@@ -56,7 +56,7 @@ def check(cfg: Config) -> list[str]:
         problems.append(f"zenoh.config_file: {cfg.zenoh.config_file} does not exist; give a Zenoh JSON5 "
                         "config or leave it empty")
     if not (src.type == "file" and is_landmark_recording(src.path)):
-        from landmarks.models import ModelMissingError, find_models
+        from landmarks import ModelMissingError, find_models
 
         try:
             find_models(cfg.landmarks.models_dir or None)

@@ -19,7 +19,6 @@ left by ``pipeline.shutdown_timeout_s``, unlink the shared memory and return.
 
 from __future__ import annotations
 
-import math
 import multiprocessing
 import os
 import signal
@@ -35,39 +34,14 @@ from daemon.proc.control import DOORBELLS, Control
 from daemon.proc.health import CAMERA_STATES
 from daemon.proc.notify import Notifier
 from daemon.proc.ring import FrameRing
+from daemon.proc.status import fmt_ms, memory_fields, nan_to_zero, pss_mb, rounded
 from daemon.proc.watchdog import RestartPolicy, verdict
 from daemon.stages.base import EXIT_FATAL, StageArgs, stage_main
-from hal import registry
-from hal.uri import to_uri
+from daemon.stages.plan import StageSpec, default_plan
+from hal import is_realsense_recording, to_uri
 
 EX_SOFTWARE = 70   # escalated without a systemd watchdog to do the restart
 TICK_S = 0.1
-
-
-@dataclass(frozen=True)
-class StageSpec:
-    """One stage of the pipeline: its name, entry point and the mailboxes it reads and writes."""
-
-    name: str
-    entry: str
-    input: str | None = None
-    output: str | None = None
-    uses_ring: bool = False
-
-
-def is_landmark_recording(cfg: Config) -> bool:
-    return cfg.source.type == "file" and registry.is_landmark_recording(cfg.source.path)
-
-
-def default_plan(cfg: Config) -> tuple[StageSpec, ...]:
-    """capture -> landmarks -> fitting -> publisher; a ``*.landmarks.jsonl`` source skips the landmark stage."""
-    fit = StageSpec("fitting", "daemon.stages.fit:run", "landmarks", "fits")
-    pub = StageSpec("publisher", "daemon.stages.publish:run", "fits", None)
-    if is_landmark_recording(cfg):
-        return (StageSpec("capture", "daemon.stages.capture:run_recording", None, "landmarks"), fit, pub)
-    return (StageSpec("capture", "daemon.stages.capture:run", None, "frames", uses_ring=True),
-            StageSpec("landmarks", "daemon.stages.landmark:run", "frames", "landmarks", uses_ring=True),
-            fit, pub)
 
 
 @dataclass
@@ -141,7 +115,7 @@ class Supervisor:
         if any(s.uses_ring for s in self.plan):
             src = self.config.source
             capacity = max(self.config.pipeline.frame_max_pixels, src.width * src.height)
-            depth = src.type == "realsense" or registry.is_realsense_recording(src.path)
+            depth = src.type == "realsense" or is_realsense_recording(src.path)
             self.ring = FrameRing.create(self.config.pipeline.ring_slots, capacity, depth)
         self.log.info("daemon_start", robot=self.config.robot_id, stages=list(names),
                       source=to_uri(self.config.source), watchdog_s=self.notifier.watchdog_interval_s)
@@ -304,7 +278,7 @@ class Supervisor:
             self.log.error("status_too_large", error=str(exc))
         e2e = status["latency_ms"]
         text = (f"{status['state']}: {status['fps']:.1f} fps, latency p95 "
-                f"{_fmt(e2e['p95'])} ms, drops {status['drops']}, restarts {status['restarts']}, "
+                f"{fmt_ms(e2e['p95'])} ms, drops {status['drops']}, restarts {status['restarts']}, "
                 f"camera {status['camera']['state']}")
         self.notifier.status(text)
         if now >= self._next_stats_log:
@@ -319,8 +293,8 @@ class Supervisor:
         total_drops = 0
         own = procstat.sample(os.getpid())
         if own is not None:
-            total_pss += _pss(own)
-            total_anon += _nz(own.anon_mb)
+            total_pss += pss_mb(own)
+            total_anon += nan_to_zero(own.anon_mb)
         for slot in self._slots.values():
             name = slot.spec.name
             r = self.control.board.row(name).snapshot()
@@ -329,26 +303,24 @@ class Supervisor:
             entry = {
                 "pid": proc.pid if proc else None, "alive": alive,
                 "state": "restarting" if slot.restart_at is not None else self.control.board.row(name).state,
-                "fps": _round(r["fps"], 2), "frames": int(r["frames"]), "drops": int(r["drops"]),
+                "fps": rounded(r["fps"], 2), "frames": int(r["frames"]), "drops": int(r["drops"]),
                 "skipped": int(r["skipped"]), "errors": int(r["errors"]), "restarts": slot.restarts,
-                "step_ms": {"p50": _round(r["step_p50_ms"]), "p95": _round(r["step_p95_ms"]),
-                            "max": _round(r["step_max_ms"])},
-                "latency_ms": {"p50": _round(r["lat_p50_ms"]), "p95": _round(r["lat_p95_ms"]),
-                               "max": _round(r["lat_max_ms"])},
+                "step_ms": {"p50": rounded(r["step_p50_ms"]), "p95": rounded(r["step_p95_ms"]),
+                            "max": rounded(r["step_max_ms"])},
+                "latency_ms": {"p50": rounded(r["lat_p50_ms"]), "p95": rounded(r["lat_p95_ms"]),
+                               "max": rounded(r["lat_max_ms"])},
             }
             total_drops += int(r["drops"])
             if alive:
                 s = procstat.sample(proc.pid)
                 if s is not None:
-                    entry.update(cpu_pct=_round(self._cpu.percent(s, now)), rss_mb=round(s.rss_mb, 1),
-                                 pss_mb=_round(s.pss_mb), uss_mb=_round(s.uss_mb), anon_mb=_round(s.anon_mb))
-                    total_pss += _pss(s)
-                    total_anon += _nz(s.anon_mb)
+                    entry.update(memory_fields(s, self._cpu.percent(s, now)))
+                    total_pss += pss_mb(s)
+                    total_anon += nan_to_zero(s.anon_mb)
             stages[name] = entry
         sup = {"pid": os.getpid()}
         if own is not None:
-            sup.update(cpu_pct=_round(self._cpu.percent(own, now)), rss_mb=round(own.rss_mb, 1),
-                       pss_mb=_round(own.pss_mb), uss_mb=_round(own.uss_mb), anon_mb=_round(own.anon_mb))
+            sup.update(memory_fields(own, self._cpu.percent(own, now)))
         pub = stages.get("publisher", {})
         cap_row = self.control.board.row("capture") if "capture" in self._slots else None
         if self._stop_reason:
@@ -417,23 +389,3 @@ def _kill(proc: multiprocessing.Process) -> None:
     except ProcessLookupError:
         pass
     proc.join(2.0)
-
-
-def _round(v, nd: int = 1):
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return None
-    return round(float(v), nd)
-
-
-def _fmt(v) -> str:
-    return "-" if v is None else f"{v:.0f}"
-
-
-def _nz(v: float) -> float:
-    return 0.0 if math.isnan(v) else v
-
-
-def _pss(s: procstat.ProcSample) -> float:
-    return s.rss_mb if math.isnan(s.pss_mb) else s.pss_mb
-
-

@@ -2,7 +2,7 @@
 
 :class:`FallDetector` turns each :class:`fitting.FitResult` (with its 2D landmarks) into :class:`FallEvent`
 updates (``falling``, ``on_floor``, ``alarm``, ``recovered``); :class:`FallsConfig` is the ``falls`` config
-section. Imports only numpy and the public face of :mod:`fitting`.
+section. Imports only numpy, :mod:`camera_model` and the public face of :mod:`fitting`.
 """
 
 from falls.config import FallsConfig

@@ -29,17 +29,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from camera_model import Intrinsics
 from falls.config import FallsConfig
 from falls.event import FallEvent
 from falls.features import (
     ANKLE_OVER_LEG,
     PELVIS_OVER_LEG,
-    Camera,
     FrameFeatures,
     gravity_from_tilt,
     measure,
 )
-from fitting.result import FitResult
+from fitting import FitResult
 
 
 @dataclass
@@ -125,18 +125,19 @@ class FallDetector:
     # ------------------------------------------------------------------ the frame loop
 
     def update(self, result: FitResult, landmarks: np.ndarray | None, image_size,
-               intrinsics=None) -> list[FallEvent]:
+               intrinsics: Intrinsics | None = None) -> list[FallEvent]:
         """Feed one frame (capture time ``result.t``); returns the messages it caused (usually none).
 
-        ``intrinsics``: an object or dict with fx, fy, cx, cy in pixels (hal Intrinsics, a recording's
-        ``camera``); None uses ``camera_hfov_deg``.
+        ``intrinsics``: the camera's, in pixels of the landmarks' image; None: a camera of horizontal field
+        of view ``camera_hfov_deg`` (``Intrinsics.from_hfov``).
         """
         t = float(result.t)
         if self._last_t is not None and t < self._last_t:  # a clock step backwards: start over, keep calibration
             self._reset_tracking()
         self._last_t = t
         out: list[FallEvent] = []
-        camera = Camera.coerce(intrinsics, self.cfg.camera_hfov_deg, image_size)
+        camera = intrinsics if intrinsics is not None else \
+            Intrinsics.from_hfov(self.cfg.camera_hfov_deg, int(image_size[0]), int(image_size[1]))
         fit_frame = self.fit_frame
         if fit_frame == "auto":  # the fit says which projection it used (orthographic: axes along the ray)
             fit_frame = "camera" if result.extra.get("projection") == "perspective" else "ray"

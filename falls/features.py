@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
-from fitting.result import FitResult
+from camera_model import Intrinsics
+from fitting import BODY_LANDMARK_NAMES, BODY_LANDMARKS, FitResult
 
 # joints_3d name -> MediaPipe landmark index
 LANDMARK_INDEX = dict(zip(BODY_LANDMARK_NAMES, BODY_LANDMARKS, strict=True))
@@ -30,35 +30,6 @@ TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
 # hip joint 0.530 H, knee 0.285 H, ankle 0.039 H above the floor; thigh 0.245 H, shank 0.246 H.
 ANKLE_OVER_LEG = 0.039 / 0.491
 PELVIS_OVER_LEG = 0.530 / 0.491
-
-
-@dataclass(frozen=True)
-class Camera:
-    """Pinhole intrinsics in pixels."""
-
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-
-    @classmethod
-    def from_hfov(cls, hfov_deg: float, width: float, height: float) -> Camera:
-        f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-        return cls(f, f, width / 2.0, height / 2.0)
-
-    @classmethod
-    def coerce(cls, obj, fallback_hfov_deg: float, image_size) -> Camera:
-        """From an object with fx, fy, cx, cy attributes, a dict with those keys, a (fx, fy, cx, cy) tuple
-        (``FrameRef.intrinsics``), or None (-> hfov)."""
-        if obj is None:
-            return cls.from_hfov(fallback_hfov_deg, float(image_size[0]), float(image_size[1]))
-        if isinstance(obj, Camera):
-            return obj
-        if isinstance(obj, (tuple, list)):
-            fx, fy, cx, cy = (float(v) for v in obj)
-            return cls(fx, fy, cx, cy)
-        get = obj.get if isinstance(obj, dict) else (lambda k: getattr(obj, k))
-        return cls(float(get("fx")), float(get("fy")), float(get("cx")), float(get("cy")))
 
 
 def gravity_from_tilt(tilt_deg: float, roll_deg: float = 0.0) -> np.ndarray:
@@ -97,7 +68,7 @@ class FrameFeatures:
     upright_legs: bool           # hips and knees nearly straight (standing-reference candidate)
 
 
-def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Camera) -> np.ndarray | None:
+def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Intrinsics) -> np.ndarray | None:
     """Camera-frame position T of the mid-hip from the joints' pixels and their fitted offsets (camera
     axes): least squares of the pinhole equations ``u - cx = fx (T + o)_x / (T + o)_z`` (linear in T)."""
     if len(pixels) < 3:
@@ -128,7 +99,7 @@ def landmark_ok(landmarks: np.ndarray, index: int, min_vis: float, width: float,
     return vis >= min_vis and pres >= min_vis and 0 <= row[0] < width and 0 <= row[1] < height
 
 
-def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera: Camera, d_c: np.ndarray,
+def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera: Intrinsics, d_c: np.ndarray,
             min_visibility: float, upright_knee_deg: float, roll_deg: float = 0.0,
             fit_frame: str = "ray") -> FrameFeatures | None:
     """The frame's features, or None when it cannot be judged (no person, failed fit, torso not in view)."""

@@ -1,1 +1,87 @@
-"""From 2D landmarks to 3D joint angles: the humanoid model and its uDEAS fit (numpy and numba only)."""
+"""From 2D landmarks to 3D joint angles: the humanoid model and its uDEAS fit (numpy and numba only).
+
+Other packages import these names from ``fitting`` itself, never from its modules:
+
+* the fit: ``Fitter(config: FitConfig)`` with ``fit(landmarks (33x5) | None, seq, t, image_size, mode,
+  intrinsics) -> FitResult``, ``reset()`` and ``warmup()`` (compiles the numba kernels); ``FitConfig`` is
+  the config section ``fitting``.
+* the result of one frame: ``FitResult`` and the names of its fields: ``VARIABLE_NAMES`` (the 19 fitted
+  variables), ``JOINT_ANGLE_NAMES`` (23), ``BODY_ANGLE_NAMES`` (3), ``JOINT_3D_NAMES`` (12).
+* the body: ``BodyDimensions`` (link lengths), the calibration file (``read_calibration``,
+  ``write_calibration``, ``CalibrationError``) and ``calibrate`` (per-user lengths from a recording of the
+  person standing; ``CalibrationFailed``).
+* the model in plain NumPy (what the simulators render): ``Pose``, ``joints_3d``, ``landmarks_camera``, and
+  the 12 BlazePose landmarks the fit uses, ``BODY_LANDMARKS`` (indices) and ``BODY_LANDMARK_NAMES``.
+
+The names load on first use (PEP 562): ``import fitting`` costs nothing, and only ``Fitter`` pulls in numba.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fitting.body import BodyDimensions, CalibrationError, read_calibration, write_calibration
+    from fitting.calibration import CalibrationFailed, calibrate
+    from fitting.config import FitConfig
+    from fitting.fitter import Fitter
+    from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS, Pose, joints_3d, landmarks_camera
+    from fitting.result import BODY_ANGLE_NAMES, JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+
+__all__ = [
+    "BODY_ANGLE_NAMES",
+    "BODY_LANDMARKS",
+    "BODY_LANDMARK_NAMES",
+    "JOINT_3D_NAMES",
+    "JOINT_ANGLE_NAMES",
+    "VARIABLE_NAMES",
+    "BodyDimensions",
+    "CalibrationError",
+    "CalibrationFailed",
+    "FitConfig",
+    "FitResult",
+    "Fitter",
+    "Pose",
+    "calibrate",
+    "joints_3d",
+    "landmarks_camera",
+    "read_calibration",
+    "write_calibration",
+]
+
+# public name -> (module that defines it, its name there)
+_ORIGIN = {
+    "BodyDimensions": ("fitting.body", "BodyDimensions"),
+    "CalibrationError": ("fitting.body", "CalibrationError"),
+    "read_calibration": ("fitting.body", "read_calibration"),
+    "write_calibration": ("fitting.body", "write_calibration"),
+    "CalibrationFailed": ("fitting.calibration", "CalibrationFailed"),
+    "calibrate": ("fitting.calibration", "calibrate"),
+    "FitConfig": ("fitting.config", "FitConfig"),
+    "Fitter": ("fitting.fitter", "Fitter"),
+    "BODY_LANDMARKS": ("fitting.kinematics", "BODY_LANDMARKS"),
+    "BODY_LANDMARK_NAMES": ("fitting.kinematics", "BODY_LANDMARK_NAMES"),
+    "Pose": ("fitting.kinematics", "Pose"),
+    "joints_3d": ("fitting.kinematics", "joints_3d"),
+    "landmarks_camera": ("fitting.kinematics", "landmarks_camera"),
+    "BODY_ANGLE_NAMES": ("fitting.result", "BODY_ANGLE_NAMES"),
+    "JOINT_3D_NAMES": ("fitting.result", "JOINT_3D_NAMES"),
+    "JOINT_ANGLE_NAMES": ("fitting.result", "JOINT_ANGLE_NAMES"),
+    "VARIABLE_NAMES": ("fitting.result", "VARIABLE_NAMES"),
+    "FitResult": ("fitting.result", "FitResult"),
+}
+
+
+def __getattr__(name: str):
+    try:
+        module, attr = _ORIGIN[name]
+    except KeyError:  # also how ``from fitting import udeas`` finds the submodule
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

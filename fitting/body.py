@@ -87,7 +87,7 @@ class BodyDimensions:
         return self.thigh_m + self.shank_m + self.ankle_height_m
 
     def as_array(self):
-        """The lengths in field order, for the numba kernels (see ``fitting.kernels.DIM_*``)."""
+        """The lengths in field order, for the numba kernels (see ``fitting.layout.DM_*``)."""
         import numpy as np
 
         return np.array([getattr(self, f.name) for f in fields(self)], dtype=np.float64)

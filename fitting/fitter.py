@@ -23,9 +23,12 @@ import time
 
 import numpy as np
 
-from fitting import kernels as K
+from camera_model import Intrinsics
+from fitting import forward_kinematics as FK
+from fitting import jitcache, refine, udeas
+from fitting import layout as L
+from fitting import loss as LOSS
 from fitting import problem as P
-from fitting import refine, udeas
 from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
 from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
@@ -36,7 +39,7 @@ FIXED_NAMES = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_
 _TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
 EXACT_MSE = 1e-14          # mean squared 2D error (body heights^2) of an exact fit (1e-7 H rms)
 STRAIGHT_RAD = math.radians(5.0)  # a limb bent less than this has an exact depth mirror
-_LIMB_JOINT = (K.X_TEL_L, K.X_TEL_R, K.X_TKN_L, K.X_TKN_R)  # refine.LIMB_* order
+_LIMB_JOINT = (L.X_TEL_L, L.X_TEL_R, L.X_TKN_L, L.X_TKN_R)  # refine.LIMB_* order
 PRIOR_MIN_NOISE = 0.001  # below this estimated landmark noise (fraction of body height) no prior is used
 MIRROR_PASSES = 2  # image mode: passes over the four limb mirrors (a second one only after an improvement)
 PRIOR_CANDIDATES = 4  # noisy landmarks: refine this many of the best candidates again with the prior
@@ -47,11 +50,12 @@ class Fitter:
     """Fits frames of one person; keeps the previous frame's solution for video mode."""
 
     def __init__(self, config: FitConfig | None = None) -> None:
+        jitcache.ensure_fresh()  # before any kernel is loaded from numba's cache (once per process)
         self.config = config or FitConfig()
         # a bad calibration file raises CalibrationError here (a configuration error, not a frame error)
         self.dims: BodyDimensions = dimensions_for(self.config.body_height_m, self.config.calibration)
-        self._work = K.empty_work()
-        self._fixed_deg = np.zeros(K.N_FIXED)  # the joint angles that are not estimated (FIXED_NAMES), degrees
+        self._work = FK.empty_work()
+        self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (FIXED_NAMES), degrees
         self.reset()
 
     # --- state ---
@@ -75,16 +79,17 @@ class Fitter:
         self.fit(lm, 0, 0.0, (640, 480), mode="image")
         self.fit(lm, 1, 1 / 30, (640, 480), mode="video")
         self.fit(noisy, 2, 2 / 30, (640, 480), mode="video")      # the prior paths (noise > 0)
-        self.fit(noisy, 3, 3 / 30, (640, 480), mode="image", intrinsics=(600.0, 600.0, 320.0, 240.0))
+        self.fit(noisy, 3, 3 / 30, (640, 480), mode="image",
+                 intrinsics=Intrinsics(600.0, 600.0, 320.0, 240.0, 640, 480))
         self._prev_x, self._prev_ppm, self._prev_t, self._err_ref = saved
 
     # --- the fit ---
 
     def fit(self, landmarks: np.ndarray | None, seq: int, t: float, image_size: tuple[int, int],
-            mode: str = "video", intrinsics=None) -> FitResult:
+            mode: str = "video", intrinsics: Intrinsics | None = None) -> FitResult:
         """Fit one frame. ``landmarks``: (33, 5) ``[x_px, y_px, z, visibility, presence]`` or None (no person).
 
-        ``intrinsics``: (fx, fy, cx, cy) pixels, or an object with those attributes, or None.
+        ``intrinsics``: the camera's, in pixels of the landmarks' image, or None (unknown).
         """
         t0 = time.perf_counter()
         try:
@@ -126,12 +131,15 @@ class Fitter:
             self.reset()
             return FitResult.failure(seq, t, "the body landmarks collapse to a point; no scale can be measured",
                                      missing=missing)
-        intr = _intrinsics(intrinsics)
-        use_persp = cfg.projection == "perspective" or (cfg.projection == "auto" and intr is not None)
-        if use_persp and intr is None:
+        if intrinsics is not None and not isinstance(intrinsics, Intrinsics):
+            self.reset()
+            return FitResult.failure(seq, t, f"intrinsics must be a camera_model.Intrinsics or None, got "
+                                             f"{intrinsics!r}")
+        use_persp = cfg.projection == "perspective" or (cfg.projection == "auto" and intrinsics is not None)
+        if use_persp and intrinsics is None:
             return FitResult.failure(seq, t, "projection is 'perspective' but no camera intrinsics were given "
                                              "(add \"camera\" to the recording header or use projection: auto)")
-        frame = P.pack(xy, w, self.dims, cfg, ppm0, intr if use_persp else None, self._fixed_deg)
+        frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg)
 
         used_mode = "image"
         evals = 0
@@ -168,7 +176,7 @@ class Fitter:
         return self._result(seq, t, x, frame, loss, mp, fit_ms, used_mode, evals, missing, gamma)
 
     def _lm(self, data: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, float]:
-        out = np.empty(K.N_VAR)
+        out = np.empty(L.N_VAR)
         cost = refine.levenberg_marquardt(x, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self.config.refine_iterations, out)[0]
         return out, float(cost)
 
@@ -176,7 +184,7 @@ class Fitter:
         """Set the pelvis tilt by its prior and evaluate the loss: (x, loss, mpjpe)."""
         out = x.copy()
         refine.pelvis_projection(out, frame.data, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD)
-        loss, mp = K.pose_loss_terms(out, frame.data, self._work)[:2]
+        loss, mp = LOSS.pose_loss_terms(out, frame.data, self._work)[:2]
         return out, float(loss), float(mp)
 
     def _select(self, frame: P.Frame, pool: list[np.ndarray], prev: np.ndarray | None = None,
@@ -208,17 +216,17 @@ class Fitter:
             return best  # (nearly) exact: no noise to regularize
         lam = weight * sigma2 / 12.0
         data = frame.data.copy()
-        data[K.D_PRIOR] = lam
+        data[L.D_PRIOR] = lam
         if prev is not None:
-            sig = np.full(K.N_VAR, math.radians(cfg.video_smoothing_deg))
+            sig = np.full(L.N_VAR, math.radians(cfg.video_smoothing_deg))
             sig[0] = 0.0
-            data[K.D_PRIOR_MU:K.D_PRIOR_MU + K.N_VAR] = prev
-            data[K.D_PRIOR_SIG:K.D_PRIOR_SIG + K.N_VAR] = sig
-            data[K.D_PRIOR_PARTNER:K.D_PRIOR_PARTNER + K.N_VAR] = -1.0
+            data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = prev
+            data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = sig
+            data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = -1.0
         else:
-            data[K.D_PRIOR_MU:K.D_PRIOR_MU + K.N_VAR] = P.PRIOR_MU_RAD
-            data[K.D_PRIOR_SIG:K.D_PRIOR_SIG + K.N_VAR] = P.PRIOR_SIG_RAD
-            data[K.D_PRIOR_PARTNER:K.D_PRIOR_PARTNER + K.N_VAR] = P.PRIOR_PARTNER
+            data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
+            data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
+            data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
         best_cost = math.inf
         order = np.argsort([sc[1] for sc in scored])
         for i in order[:PRIOR_CANDIDATES]:
@@ -231,14 +239,14 @@ class Fitter:
         """Starting points from the orientation seeds with every limb solved from its 2D landmarks (each
         limb's depth sign chosen by the loss), for the refinement."""
         out = []
-        trial = np.empty(K.N_VAR)
+        trial = np.empty(L.N_VAR)
         for seed in seeds:
             x = seed.copy()
             for limb in range(4):
-                best = (K.pose_loss(x, frame.data, self._work), x)
+                best = (LOSS.pose_loss(x, frame.data, self._work), x)
                 for sign in (1.0, -1.0):
                     refine.limb_from_observation(x, frame.data, limb, sign, trial)
-                    c = K.pose_loss(trial, frame.data, self._work)
+                    c = LOSS.pose_loss(trial, frame.data, self._work)
                     if c < best[0]:
                         best = (c, trial.copy())
                 x = best[1]
@@ -248,7 +256,7 @@ class Fitter:
     def _image(self, frame: P.Frame) -> tuple[np.ndarray, float, float, int]:
         cfg = self.config
         lo, hi = P.image_box(cfg)
-        seeds = P.orientation_seeds(frame, self.dims, lo, hi) if cfg.seed_orientation else np.zeros((0, K.N_VAR))
+        seeds = P.orientation_seeds(frame, self.dims, lo, hi) if cfg.seed_orientation else np.zeros((0, L.N_VAR))
         seeds = seeds[: cfg.restarts]
         los, his = P.restart_boxes(lo, hi, seeds, cfg.restarts)
         c0 = time.thread_time()
@@ -282,7 +290,7 @@ class Fitter:
             # each limb's depth mirror in turn, from the best so far (two wrong limbs get fixed one by one)
             scored = [self._score(frame, x) for x in pool]
             lead, lead_loss = min(scored, key=lambda s: s[1])[:2]
-            trial = np.empty(K.N_VAR)
+            trial = np.empty(L.N_VAR)
             tried = set()
             for _ in range(MIRROR_PASSES):
                 improved = False
@@ -339,9 +347,9 @@ class Fitter:
             angles[name] = v
         for name in VARIABLE_NAMES[4:]:
             angles[name] = variables[name]
-        pts_b = np.empty((K.N_POINTS, 3))
-        pts_c = np.empty((K.N_POINTS, 3))
-        K.model_points(x, frame.data, pts_b, pts_c)
+        pts_b = np.empty((L.N_POINTS, 3))
+        pts_c = np.empty((L.N_POINTS, 3))
+        FK.model_points(x, frame.data, pts_b, pts_c)
         cam = np.round(pts_c[:12], 5).tolist()
         j3 = {"mid_hip": (0.0, 0.0, 0.0)}
         for name, row in zip(BODY_LANDMARK_NAMES, cam, strict=True):
@@ -361,18 +369,6 @@ def _finite(v) -> bool:
         return math.isfinite(float(v))
     except (TypeError, ValueError):
         return False
-
-
-def _intrinsics(intr) -> tuple[float, float, float, float] | None:
-    if intr is None:
-        return None
-    if all(hasattr(intr, k) for k in ("fx", "fy", "cx", "cy")):
-        vals = (intr.fx, intr.fy, intr.cx, intr.cy)
-    else:
-        vals = tuple(intr)
-    if len(vals) != 4 or not all(_finite(v) for v in vals) or vals[0] <= 0 or vals[1] <= 0:
-        raise ValueError(f"intrinsics must be (fx, fy, cx, cy) with fx, fy > 0, got {intr!r}")
-    return tuple(float(v) for v in vals)
 
 
 _DEPENDS = {  # variables that only these landmarks observe

@@ -1,13 +1,17 @@
 """Keep numba's on-disk cache of the fitting kernels consistent with their sources.
 
 numba's ``cache=True`` keys each cached function on its own source file's timestamp only: a kernel in
-``udeas.py`` that inlines ``kernels.pose_loss`` keeps its old machine code after ``kernels.py`` changes.
-Before the kernels are first compiled or loaded, :func:`ensure_fresh` hashes every kernel source file and,
-when the hash differs from the one stored beside the cache, deletes the fitting package's cache files. It
-does so in every folder numba may keep them in, found with numba's own cache locators: ``$NUMBA_CACHE_DIR``
-(the systemd unit sets it; numba names the subfolder ``fitting_<sha1 of the package path>``), the package's
+``udeas.py`` that inlines ``loss.pose_loss`` (and through it the forward kinematics, the projection and the
+penalties, and the ``layout`` constants frozen into all of them) keeps its old machine code after any of
+those files changes. :func:`ensure_fresh` hashes every kernel source file (``KERNEL_MODULES``) and, when the
+hash differs from the one stored beside the cache, deletes the fitting package's cache files. It does so in
+every folder numba may keep them in, found with numba's own cache locators: ``$NUMBA_CACHE_DIR`` (the
+systemd unit sets it; numba names the subfolder ``fitting_<sha1 of the package path>``), the package's
 ``__pycache__`` and the user-wide cache numba falls back to when that is not writable. Only the kernel
-modules' ``.nbi``/``.nbc`` files are touched.
+modules' ``.nbi``/``.nbc`` files (and those of the retired ``kernels`` module) are touched.
+
+Importing the kernel modules touches no file: the product calls :func:`ensure_fresh` before it first runs a
+kernel (``fitting.fitter.Fitter.__init__``; the tests from ``tests/fitting/conftest.py``).
 """
 
 from __future__ import annotations
@@ -16,7 +20,11 @@ import hashlib
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
-KERNEL_MODULES = ("kernels", "udeas", "refine")
+# Every module whose source is compiled into a cached kernel: the constants, the kernels and their callers.
+KERNEL_MODULES = ("layout", "rotations", "forward_kinematics", "projection", "penalties", "loss", "jacobian",
+                  "udeas", "refine")
+RETIRED_MODULES = ("kernels",)  # split into the modules above; its cache files are deleted with theirs
+_OURS = KERNEL_MODULES + RETIRED_MODULES
 _done = False
 
 
@@ -24,7 +32,7 @@ def _cache_dirs() -> list[Path]:
     """The folders numba may cache this package's kernels in, in numba's order of preference."""
     from numba.core import caching, config
 
-    source = str(_HERE / "kernels.py")
+    source = str(_HERE / f"{KERNEL_MODULES[0]}.py")  # any file of the package: numba keys the folder on it
     locators = [caching.InTreeCacheLocator, caching.UserWideCacheLocator]
     if config.CACHE_DIR:
         locators.insert(0, caching.UserProvidedCacheLocator)
@@ -58,7 +66,7 @@ def ensure_fresh() -> None:
                 continue
             if cache.is_dir():
                 for path in cache.iterdir():
-                    if path.suffix in (".nbi", ".nbc") and path.name.split(".", 1)[0] in KERNEL_MODULES:
+                    if path.suffix in (".nbi", ".nbc") and path.name.split(".", 1)[0] in _OURS:
                         path.unlink(missing_ok=True)
             elif stamped:
                 continue  # numba will not get this far down its list: leave no empty folder

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fitting import kernels as K
+from camera_model import Intrinsics
+from fitting import layout as L
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
 from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS, body_angles_from_rotation
@@ -121,48 +122,48 @@ class Frame:
 
 
 def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, ppm0: float,
-         intrinsics: tuple[float, float, float, float] | None = None,
+         intrinsics: Intrinsics | None = None,
          fixed_deg: np.ndarray | None = None) -> Frame:
-    """Build the kernels' data array of one frame (see fitting.kernels D_* layout)."""
-    data = np.zeros(K.D_SIZE)
+    """Build the kernels' data array of one frame (see the D_* layout in fitting.layout)."""
+    data = np.zeros(L.D_SIZE)
     h = dims.body_height_m
     scale_px = ppm0 * h
     sw = w.sum()
     centroid = (w[:, None] * xy).sum(axis=0) / sw
-    data[K.D_OBS:K.D_OBS + 24] = ((xy - centroid) / scale_px).ravel()
-    data[K.D_W:K.D_W + 12] = w
-    data[K.D_DIMS:K.D_DIMS + K.N_DIMS] = dims.as_array()
+    data[L.D_OBS:L.D_OBS + 24] = ((xy - centroid) / scale_px).ravel()
+    data[L.D_W:L.D_W + 12] = w
+    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = dims.as_array()
     if fixed_deg is not None:
-        data[K.D_FIXED:K.D_FIXED + K.N_FIXED] = np.asarray(fixed_deg) * DEG
+        data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.asarray(fixed_deg) * DEG
     perspective = intrinsics is not None
     if perspective:
-        fx, fy, cx, cy = intrinsics
+        fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
         # camera-centred normalized coordinates = data obs + offset
-        data[K.D_PROJ:K.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (centroid[0] - cx) / scale_px,
+        data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (centroid[0] - cx) / scale_px,
                                        (centroid[1] - cy) / scale_px)
-    lw = K.D_LW
-    data[lw + K.LW_COM] = cfg.w_com
-    data[lw + K.LW_SYM] = cfg.w_sym
-    data[lw + K.LW_SAG_TR] = cfg.w_sag_tr
-    data[lw + K.LW_COR_TR] = cfg.w_cor_tr
-    data[lw + K.LW_TRAN_TR] = cfg.w_tran_tr
-    data[lw + K.LW_SAG_SH] = cfg.w_sag_sh
-    data[lw + K.LW_COR_SH] = cfg.w_cor_sh
-    data[lw + K.LW_NULL] = cfg.w_null
-    data[lw + K.LW_PRIOR_TR] = cfg.prior_lumbar
-    data[lw + K.LW_PRIOR_HP] = cfg.prior_hip
-    data[lw + K.LW_PRIOR_UP] = cfg.prior_pelvis_upright
-    data[lw + K.LW_COM_MODE] = K.COM_FEET if cfg.com_mode == "feet" else K.COM_SUPPORT
-    data[lw + K.LW_CONTACT] = cfg.com_contact
-    data[lw + K.LW_MARGIN] = cfg.com_margin
-    data[lw + K.LW_SEAT] = 1.0 if cfg.com_mode == "support" else 0.0
-    data[lw + K.LW_LIMIT] = cfg.w_limit
-    data[lw + K.LW_COR_HP] = cfg.w_cor_hp
-    data[K.D_TH:K.D_TH + K.N_TH] = np.array([cfg.tr_flexion_min_deg, cfg.tr_lateral_deg, cfg.tr_twist_deg,
+    lw = L.D_LW
+    data[lw + L.LW_COM] = cfg.w_com
+    data[lw + L.LW_SYM] = cfg.w_sym
+    data[lw + L.LW_SAG_TR] = cfg.w_sag_tr
+    data[lw + L.LW_COR_TR] = cfg.w_cor_tr
+    data[lw + L.LW_TRAN_TR] = cfg.w_tran_tr
+    data[lw + L.LW_SAG_SH] = cfg.w_sag_sh
+    data[lw + L.LW_COR_SH] = cfg.w_cor_sh
+    data[lw + L.LW_NULL] = cfg.w_null
+    data[lw + L.LW_PRIOR_TR] = cfg.prior_lumbar
+    data[lw + L.LW_PRIOR_HP] = cfg.prior_hip
+    data[lw + L.LW_PRIOR_UP] = cfg.prior_pelvis_upright
+    data[lw + L.LW_COM_MODE] = L.COM_FEET if cfg.com_mode == "feet" else L.COM_SUPPORT
+    data[lw + L.LW_CONTACT] = cfg.com_contact
+    data[lw + L.LW_MARGIN] = cfg.com_margin
+    data[lw + L.LW_SEAT] = 1.0 if cfg.com_mode == "support" else 0.0
+    data[lw + L.LW_LIMIT] = cfg.w_limit
+    data[lw + L.LW_COR_HP] = cfg.w_cor_hp
+    data[L.D_TH:L.D_TH + L.N_TH] = np.array([cfg.tr_flexion_min_deg, cfg.tr_lateral_deg, cfg.tr_twist_deg,
                                              cfg.sh_flexion_min_deg, cfg.sh_adduction_max_deg,
                                              cfg.hp_adduction_max_deg]) * DEG
-    data[K.D_LIM_LO:K.D_LIM_LO + K.N_VAR] = LIMIT_LO_RAD
-    data[K.D_LIM_HI:K.D_LIM_HI + K.N_VAR] = LIMIT_HI_RAD
+    data[L.D_LIM_LO:L.D_LIM_LO + L.N_VAR] = LIMIT_LO_RAD
+    data[L.D_LIM_HI:L.D_LIM_HI + L.N_VAR] = LIMIT_HI_RAD
     return Frame(data, ppm0, scale_px, centroid, w, perspective)
 
 
@@ -191,8 +192,8 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
     d = frame.data
     w = frame.weights
     if not (w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0):
-        return np.zeros((0, K.N_VAR))
-    obs = d[K.D_OBS:K.D_OBS + 24].reshape(12, 2)
+        return np.zeros((0, L.N_VAR))
+    obs = d[L.D_OBS:L.D_OBS + 24].reshape(12, 2)
     h = dims.body_height_m
     a = (obs[6] - obs[7]) * h / (2 * dims.hip_half_m)      # left axis, projected (unit length if parallel)
     a2 = (obs[0] - obs[1]) * h / (2 * dims.shoulder_half_m)
@@ -226,11 +227,11 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
         ex = (ey[1] * ez[2] - ey[2] * ez[1], ey[2] * ez[0] - ey[0] * ez[2], ey[0] * ez[1] - ey[1] * ez[0])
         r = np.array([[ex[0], ey[0], ez[0]], [ex[1], ey[1], ez[1]], [ex[2], ey[2], ez[2]]])
         t, p, s = body_angles_from_rotation(r)
-        x = np.zeros(K.N_VAR)
+        x = np.zeros(L.N_VAR)
         x[0] = 1.0
-        x[K.X_TBD], x[K.X_PBD], x[K.X_SBD] = t * DEG, p * DEG, s * DEG
+        x[L.X_TBD], x[L.X_PBD], x[L.X_SBD] = t * DEG, p * DEG, s * DEG
         seeds.append(np.clip(x, lo, hi))
-    return np.array(seeds) if seeds else np.zeros((0, K.N_VAR))
+    return np.array(seeds) if seeds else np.zeros((0, L.N_VAR))
 
 
 SEED_WINDOW_DEG = 30.0
@@ -244,7 +245,7 @@ def restart_boxes(lo: np.ndarray, hi: np.ndarray, seeds: np.ndarray, restarts: i
     his = np.repeat(hi[None, :], restarts, axis=0)
     w = SEED_WINDOW_DEG * DEG
     for r, seed in enumerate(seeds[:restarts]):
-        for k in (K.X_TBD, K.X_PBD, K.X_SBD):
+        for k in (L.X_TBD, L.X_PBD, L.X_SBD):
             los[r, k] = seed[k] - w
             his[r, k] = seed[k] + w
     return los, his

@@ -2,7 +2,7 @@
 ``cache=True``.
 
 * :func:`levenberg_marquardt`: minimizes the sum of squared residuals of
-  :func:`fitting.kernels.residuals_jacobian` (weighted mean squared 2D error plus squared penalty hinges,
+  :func:`fitting.jacobian.residuals_jacobian` (weighted mean squared 2D error plus squared penalty hinges,
   plus the prior rows when the prior weight is set) with Marquardt's diagonal damping, clamping every
   variable to the joint limits.
 * :func:`pelvis_projection`: moves along the exact null direction (theta_bd + d, theta_tr - d,
@@ -18,7 +18,11 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import kernels as K
+from fitting import forward_kinematics as FK
+from fitting import jacobian as JAC
+from fitting import layout as L
+from fitting import penalties as PEN
+from fitting import rotations as ROT
 
 
 @njit(cache=True)
@@ -55,7 +59,7 @@ def cholesky_solve(a, b, out):
 def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
     """Refine ``x0`` inside [lo, hi]; returns (final sum of squares, iterations, evaluations)."""
     n = x0.size
-    m = K.n_residuals()
+    m = JAC.n_residuals()
     res = np.empty(m)
     jac = np.empty((m, n))
     res_new = np.empty(m)
@@ -63,8 +67,8 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
     x = x0.copy()
     for k in range(n):
         x[k] = min(max(x[k], lo[k]), hi[k])
-    K.residuals_jacobian(x, data, res, jac, True)
-    cost = K.sum_sq(res)
+    JAC.residuals_jacobian(x, data, res, jac, True)
+    cost = JAC.sum_sq(res)
     evals = 1
     lam = 1e-3
     a = np.empty((n, n))
@@ -114,9 +118,9 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
                 continue
             for k in range(n):
                 x_new[k] = min(max(x[k] + step[k], lo[k]), hi[k])
-            K.residuals_jacobian(x_new, data, res_new, dummy, False)
+            JAC.residuals_jacobian(x_new, data, res_new, dummy, False)
             evals += 1
-            c_new = K.sum_sq(res_new)
+            c_new = JAC.sum_sq(res_new)
             if c_new < cost:
                 improved = True
                 break
@@ -128,7 +132,7 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
             x[k] = x_new[k]
         cost = c_new
         lam = max(lam / 3.0, 1e-9)
-        K.residuals_jacobian(x, data, res, jac, True)
+        JAC.residuals_jacobian(x, data, res, jac, True)
         evals += 1
         if gain <= 1e-13 + 1e-7 * cost:
             break
@@ -140,32 +144,32 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
 @njit(cache=True)
 def data_mse(x, data):
     """Weighted mean squared 2D residual of the landmarks (normalized units squared)."""
-    res = np.empty(K.n_residuals())
+    res = np.empty(JAC.n_residuals())
     dummy = np.empty((1, 1))
-    K.residuals_jacobian(x, data, res, dummy, False)
+    JAC.residuals_jacobian(x, data, res, dummy, False)
     acc = 0.0
-    for i in range(2 * K.N_LM):
+    for i in range(2 * L.N_LM):
         acc += res[i] * res[i]
     return acc
 
 
 @njit(cache=True)
 def _prior_along(x, d, data, lim_lo, lim_hi, upright):
-    lw = K.D_LW
-    t_tr = x[K.X_TTR] - d
-    t_hl = x[K.X_THP_L] + d
-    t_hr = x[K.X_THP_R] + d
-    t_bd = x[K.X_TBD] + d
-    up = data[lw + K.LW_PRIOR_UP] * upright
-    c = math.cos(t_bd) * math.cos(x[K.X_PBD])
+    lw = L.D_LW
+    t_tr = x[L.X_TTR] - d
+    t_hl = x[L.X_THP_L] + d
+    t_hr = x[L.X_THP_R] + d
+    t_bd = x[L.X_TBD] + d
+    up = data[lw + L.LW_PRIOR_UP] * upright
+    c = math.cos(t_bd) * math.cos(x[L.X_PBD])
     c = min(max(c, -1.0), 1.0)
-    acc = data[lw + K.LW_PRIOR_TR] * abs(t_tr) + data[lw + K.LW_PRIOR_HP] * (abs(t_hl) + abs(t_hr))
+    acc = data[lw + L.LW_PRIOR_TR] * abs(t_tr) + data[lw + L.LW_PRIOR_HP] * (abs(t_hl) + abs(t_hr))
     acc += up * math.acos(c)
     # the paper's lumbar penalty and the joint limits keep the choice plausible
-    acc += data[lw + K.LW_SAG_TR] * 100.0 * K.p_sn(t_tr, data[K.D_TH])
+    acc += data[lw + L.LW_SAG_TR] * 100.0 * PEN.p_sn(t_tr, data[L.D_TH])
     big = 1000.0
-    acc += big * (K.p_d(t_tr, lim_lo[K.X_TTR], lim_hi[K.X_TTR]) + K.p_d(t_hl, lim_lo[K.X_THP_L], lim_hi[K.X_THP_L])
-                  + K.p_d(t_hr, lim_lo[K.X_THP_R], lim_hi[K.X_THP_R]) + K.p_d(t_bd, lim_lo[K.X_TBD], lim_hi[K.X_TBD]))
+    acc += big * (PEN.p_d(t_tr, lim_lo[L.X_TTR], lim_hi[L.X_TTR]) + PEN.p_d(t_hl, lim_lo[L.X_THP_L], lim_hi[L.X_THP_L])
+                  + PEN.p_d(t_hr, lim_lo[L.X_THP_R], lim_hi[L.X_THP_R]) + PEN.p_d(t_bd, lim_lo[L.X_TBD], lim_hi[L.X_TBD]))
     return acc
 
 
@@ -173,7 +177,7 @@ def _prior_along(x, d, data, lim_lo, lim_hi, upright):
 def pelvis_projection(x, data, lim_lo, lim_hi):
     """The d minimizing the pelvis-tilt prior along the null direction; ``x`` is updated in place."""
     # the torso's orientation does not change along the null direction
-    upright = K.torso_uprightness(x)
+    upright = FK.torso_uprightness(x)
     best_d = 0.0
     best = _prior_along(x, 0.0, data, lim_lo, lim_hi, upright)
     step = math.pi / 180.0
@@ -185,7 +189,7 @@ def pelvis_projection(x, data, lim_lo, lim_hi):
             best_d = d
         d += step
     # the minimum of a piecewise-linear prior sits on a breakpoint: try them exactly
-    for cand in (x[K.X_TTR], -x[K.X_THP_L], -x[K.X_THP_R], -x[K.X_TBD]):
+    for cand in (x[L.X_TTR], -x[L.X_THP_L], -x[L.X_THP_R], -x[L.X_TBD]):
         c = _prior_along(x, cand, data, lim_lo, lim_hi, upright)
         if c < best - 1e-12:
             best = c
@@ -204,10 +208,10 @@ def pelvis_projection(x, data, lim_lo, lim_hi):
     mid = 0.5 * (a + b)
     if _prior_along(x, mid, data, lim_lo, lim_hi, upright) < best - 1e-12:
         best_d = mid
-    x[K.X_TBD] += best_d
-    x[K.X_TTR] -= best_d
-    x[K.X_THP_L] += best_d
-    x[K.X_THP_R] += best_d
+    x[L.X_TBD] += best_d
+    x[L.X_TTR] -= best_d
+    x[L.X_THP_L] += best_d
+    x[L.X_THP_R] += best_d
     return best_d
 
 
@@ -235,23 +239,23 @@ def limb_from_observation(x, data, limb, sign_u, out):
     arm = limb <= LIMB_ARM_R
     k = limb % 2
     s = 1.0 if k == 0 else -1.0
-    d = K.D_DIMS
-    h = data[d + K.DM_H]
+    d = L.D_DIMS
+    h = data[d + L.DM_H]
     if arm:
-        i0, i1, i2 = K.P_SH_L + k, K.P_EL_L + k, K.P_WR_L + k
-        l1, l2 = data[d + K.DM_UA], data[d + K.DM_FA]
-        r_root = K.mm(K.body_rot(x[K.X_TBD], x[K.X_PBD], x[K.X_SBD]),
-                      K.mm(K.mm(K.ry(x[K.X_TTR]), K.rx(-x[K.X_PTR])), K.rz(x[K.X_STR])))
-        xt, xp, xj = (K.X_TSH_L, K.X_PSH_L, K.X_TEL_L) if k == 0 else (K.X_TSH_R, K.X_PSH_R, K.X_TEL_R)
+        i0, i1, i2 = L.P_SH_L + k, L.P_EL_L + k, L.P_WR_L + k
+        l1, l2 = data[d + L.DM_UA], data[d + L.DM_FA]
+        r_root = ROT.mm(ROT.body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD]),
+                      ROT.mm(ROT.mm(ROT.ry(x[L.X_TTR]), ROT.rx(-x[L.X_PTR])), ROT.rz(x[L.X_STR])))
+        xt, xp, xj = (L.X_TSH_L, L.X_PSH_L, L.X_TEL_L) if k == 0 else (L.X_TSH_R, L.X_PSH_R, L.X_TEL_R)
     else:
-        i0, i1, i2 = K.P_HP_L + k, K.P_KN_L + k, K.P_AN_L + k
-        l1, l2 = data[d + K.DM_TH], data[d + K.DM_SK]
-        r_root = K.body_rot(x[K.X_TBD], x[K.X_PBD], x[K.X_SBD])
-        xt, xp, xj = (K.X_THP_L, K.X_PHP_L, K.X_TKN_L) if k == 0 else (K.X_THP_R, K.X_PHP_R, K.X_TKN_R)
-    if data[K.D_W + i0] <= 0.0 or data[K.D_W + i1] <= 0.0:
+        i0, i1, i2 = L.P_HP_L + k, L.P_KN_L + k, L.P_AN_L + k
+        l1, l2 = data[d + L.DM_TH], data[d + L.DM_SK]
+        r_root = ROT.body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD])
+        xt, xp, xj = (L.X_THP_L, L.X_PHP_L, L.X_TKN_L) if k == 0 else (L.X_THP_R, L.X_PHP_R, L.X_TKN_R)
+    if data[L.D_W + i0] <= 0.0 or data[L.D_W + i1] <= 0.0:
         return
-    g = x[K.X_GAMMA]
-    o = K.D_OBS
+    g = x[L.X_GAMMA]
+    o = L.D_OBS
     ux = (data[o + 2 * i1] - data[o + 2 * i0]) * h / g
     uy = (data[o + 2 * i1 + 1] - data[o + 2 * i0 + 1]) * h / g
     q = ux * ux + uy * uy
@@ -266,7 +270,7 @@ def limb_from_observation(x, data, limb, sign_u, out):
     theta = math.atan2(a[0], -a[2])
     out[xt] = theta
     out[xp] = phi
-    if data[K.D_W + i2] <= 0.0:
+    if data[L.D_W + i2] <= 0.0:
         return
     vx = (data[o + 2 * i2] - data[o + 2 * i1]) * h / g
     vy = (data[o + 2 * i2 + 1] - data[o + 2 * i1 + 1]) * h / g
@@ -277,7 +281,7 @@ def limb_from_observation(x, data, limb, sign_u, out):
         vy *= f
         q = l2 * l2
     vz = math.sqrt(l2 * l2 - q)
-    r_up = K.mm(K.mm(r_root, K.ry(-theta)), K.rx(-s * phi))
+    r_up = ROT.mm(ROT.mm(r_root, ROT.ry(-theta)), ROT.rx(-s * phi))
     best_j = 0.0
     best_off = 1e300
     for sv in (1.0, -1.0):
@@ -293,14 +297,14 @@ def limb_from_observation(x, data, limb, sign_u, out):
 @njit(cache=True)
 def limb_depth_sign(x, data, limb):
     """Sign of the camera depth of the limb's upper segment (root -> middle joint) in the model."""
-    pts_b = np.empty((K.N_POINTS, 3))
-    pts_c = np.empty((K.N_POINTS, 3))
-    K.model_points(x, data, pts_b, pts_c)
+    pts_b = np.empty((L.N_POINTS, 3))
+    pts_c = np.empty((L.N_POINTS, 3))
+    FK.model_points(x, data, pts_b, pts_c)
     k = limb % 2
     if limb <= LIMB_ARM_R:
-        dz = pts_c[K.P_EL_L + k, 2] - pts_c[K.P_SH_L + k, 2]
+        dz = pts_c[L.P_EL_L + k, 2] - pts_c[L.P_SH_L + k, 2]
     else:
-        dz = pts_c[K.P_KN_L + k, 2] - pts_c[K.P_HP_L + k, 2]
+        dz = pts_c[L.P_KN_L + k, 2] - pts_c[L.P_HP_L + k, 2]
     return 1.0 if dz >= 0.0 else -1.0
 
 

@@ -11,7 +11,7 @@ the decoded value (the paper's rule). One restart:
 4. Restarts repeat from 1; the smallest cost over all restarts is the result (Step 7).
 
 The cost is chosen by an integer ``problem`` (numba cannot cache a kernel that takes a function argument):
-0 = the pose loss of :mod:`fitting.kernels`, 1 = sphere, 2 = Rastrigin, 3 = Rosenbrock (test functions
+0 = the pose loss of :mod:`fitting.loss`, 1 = sphere, 2 = Rastrigin, 3 = Rosenbrock (test functions
 to validate the optimizer, as the uDEAS papers do). Random bits come from a SplitMix64 generator seeded by
 ``seed``: the same seed gives the same result.
 """
@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import kernels
+from fitting import loss as LOSS
 
 PROBLEM_POSE, PROBLEM_SPHERE, PROBLEM_RASTRIGIN, PROBLEM_ROSENBROCK = 0, 1, 2, 3
 
@@ -67,7 +67,7 @@ def rosenbrock(v):
 @njit(cache=True)
 def cost(problem, v, data, work):
     if problem == PROBLEM_POSE:
-        return kernels.pose_loss(v, data, work)
+        return LOSS.pose_loss(v, data, work)
     if problem == PROBLEM_SPHERE:
         return sphere(v)
     if problem == PROBLEM_RASTRIGIN:

@@ -1,13 +1,19 @@
 """Hardware abstraction: RealSense, V4L2 and replay cameras behind one interface.
 
     import hal
-    with hal.open_source("file:squat.mp4?realtime=false") as src:   # or a hal.config.SourceConfig
-        frame = src.read(timeout_s=2.0)                               # hal.frame.Frame
+    with hal.open_source("file:squat.mp4?realtime=false") as src:   # or a hal.SourceConfig
+        frame = src.read(timeout_s=2.0)                               # a hal.Frame
 
 Sources: ``realsense:[SERIAL]`` (pyrealsense2, imported only then), ``v4l2:/dev/videoN`` (OpenCV),
-``file:PATH`` (video, image folder or image, RealSense .db3/.bag). Errors: :mod:`hal.errors`.
+``file:PATH`` (video, image folder or image, RealSense .db3/.bag). Errors derive from ``hal.SourceError``.
+Other packages import only the names of ``__all__`` from ``hal`` itself: sources (``open_source``,
+``register``, ``REGISTRY``, ``Source``, ``Frame``), URIs (``parse_uri``, ``to_uri``, ``SourceConfig``,
+``is_landmark_recording``, ``is_realsense_recording``), recording (``record``, ``check_output``,
+``RecordSummary``, ``Db3Writer``, loaded on first use) and the errors.
 docs/hal.md describes timestamps, recovery, fault injection and recording.
 """
+
+from typing import TYPE_CHECKING
 
 from hal.config import SourceConfig
 from hal.errors import (
@@ -19,17 +25,20 @@ from hal.errors import (
     SourceTimeout,
     SourceUnsupported,
 )
-from hal.frame import Frame, Intrinsics
-from hal.recorder import RecordSummary, record
-from hal.registry import REGISTRY, is_landmark_recording, open_source, register
+from hal.frame import Frame
+from hal.recorder import RecordSummary, check_output, record
+from hal.registry import REGISTRY, is_landmark_recording, is_realsense_recording, open_source, register
 from hal.source import Source
-from hal.uri import parse_uri
+from hal.uri import parse_uri, to_uri
+
+if TYPE_CHECKING:
+    from hal.db3 import Db3Writer
 
 __all__ = [
     "REGISTRY",
+    "Db3Writer",
     "EndOfStream",
     "Frame",
-    "Intrinsics",
     "RecordSummary",
     "Source",
     "SourceConfig",
@@ -39,9 +48,27 @@ __all__ = [
     "SourceNotFound",
     "SourceTimeout",
     "SourceUnsupported",
+    "check_output",
     "is_landmark_recording",
+    "is_realsense_recording",
     "open_source",
     "parse_uri",
     "record",
     "register",
+    "to_uri",
 ]
+
+
+def __getattr__(name: str):
+    # The RealSense recording writer loads on first use: only recording and the benchmarks need it, and its
+    # module (with the RealSense glue) would add ~20 ms to every ``import hal``.
+    if name == "Db3Writer":
+        from hal.db3 import Db3Writer
+
+        globals()[name] = Db3Writer
+        return Db3Writer
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from camera_model import Intrinsics
 from hal.errors import SourceUnsupported
-from hal.frame import Intrinsics
 from hal.realsense import import_rs
 
 IDENTITY_ROTATION = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)

@@ -1,7 +1,5 @@
-"""One captured frame and the pinhole intrinsics of its colour image.
-
-Image frame: pixels, x to the right, y down, origin at the centre of the top-left pixel (OpenCV and
-librealsense convention). Camera frame: metres, x right, y down, z forward (along the optical axis).
+"""One captured frame; the pinhole intrinsics of its colour image are a :class:`camera_model.Intrinsics`
+(image and camera frames: see :mod:`camera_model.intrinsics`).
 """
 
 from __future__ import annotations
@@ -10,45 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Intrinsics:
-    """Pinhole intrinsics in pixels of a ``width`` x ``height`` image (no lens distortion)."""
-
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    width: int
-    height: int
-
-    def scaled(self, width: int, height: int) -> Intrinsics:
-        """The same camera seen at another resolution (a pure resize of the image)."""
-        if (width, height) == (self.width, self.height):
-            return self
-        sx, sy = width / self.width, height / self.height
-        return Intrinsics(self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5, (self.cy + 0.5) * sy - 0.5,
-                          int(width), int(height))
-
-    def deproject(self, u: np.ndarray | float, v: np.ndarray | float, z_m: np.ndarray | float) -> np.ndarray:
-        """Camera-frame points (..., 3) in metres of pixels (u, v) at depth ``z_m`` (metres along z)."""
-        u, v, z = np.broadcast_arrays(np.asarray(u, float), np.asarray(v, float), np.asarray(z_m, float))
-        return np.stack([(u - self.cx) / self.fx * z, (v - self.cy) / self.fy * z, z], axis=-1)
-
-    def project(self, xyz_m: np.ndarray) -> np.ndarray:
-        """Pixels (..., 2) of camera-frame points (..., 3) in metres (z > 0)."""
-        p = np.asarray(xyz_m, float)
-        return np.stack([self.fx * p[..., 0] / p[..., 2] + self.cx, self.fy * p[..., 1] / p[..., 2] + self.cy],
-                        axis=-1)
-
-    def to_json(self) -> dict:
-        return {"fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy, "width": self.width,
-                "height": self.height}
-
-    @classmethod
-    def from_json(cls, obj: dict) -> Intrinsics:
-        return cls(float(obj["fx"]), float(obj["fy"]), float(obj["cx"]), float(obj["cy"]), int(obj["width"]),
-                   int(obj["height"]))
+from camera_model import Intrinsics
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from camera_model import Intrinsics
 from hal.clock import DeviceClock, wall_to_monotonic
 from hal.config import SourceConfig
 from hal.errors import (
@@ -40,7 +41,7 @@ from hal.errors import (
     SourceNotFound,
     SourceUnsupported,
 )
-from hal.frame import Frame, Intrinsics
+from hal.frame import Frame
 from hal.replay import Timeline
 from hal.source import Source
 

@@ -21,10 +21,11 @@ from typing import Any
 
 import numpy as np
 
+from camera_model import Intrinsics
 from hal.clock import wait_until_due
 from hal.config import SourceConfig
 from hal.errors import EndOfStream
-from hal.frame import Frame, Intrinsics
+from hal.frame import Frame
 from hal.sidecar import Timestamps, read_sidecar, sidecar_path
 from hal.source import Source
 

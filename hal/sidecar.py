@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+from camera_model import Intrinsics
 from hal.errors import SourceCorrupt
-from hal.frame import Intrinsics
 
 FORMAT = "posed.timestamps"
 VERSION = 1

@@ -1,1 +1,135 @@
-"""2D body landmarks: MediaPipe Pose (BlazePose full) run by onnxruntime, and the landmark recording format."""
+"""2D body landmarks: MediaPipe Pose (BlazePose full) run by onnxruntime, and the landmark recording format.
+
+Other packages import these names from ``landmarks`` itself, never from its modules:
+
+* the landmarker: ``PoseLandmarker(config: LandmarkConfig, models_dir=None)`` with ``process(image_bgr, t,
+  seq) -> LandmarkFrame``, ``process_full`` (everything found in the frame), ``reset()`` and ``warmup()``;
+  ``LandmarkConfig`` is the config section ``landmarks``; ``rotate_image`` and ``rotate_points`` turn a
+  frame and points by a multiple of 90 degrees as the pipeline does.
+* the models folder: ``default_models_dir``, ``find_models``, ``verify_models``; a missing or damaged model
+  raises ``ModelMissingError``, whose message names ``posed models fetch``.
+* the two models alone (benchmarks): ``OnnxDetector``, ``OnnxLandmarkModel`` and their ``SessionSettings``
+  and outputs ``DetectorOutputs``, ``LandmarkOutputs``; their inputs as the pipeline builds them,
+  ``detector_input`` (the whole frame, ``DETECTOR_INPUT_SIZE`` square) and ``landmark_input`` (a ``Roi``,
+  ``LANDMARK_INPUT_SIZE`` square).
+* landmarks per frame and the ``*.landmarks.jsonl`` recording format: ``LandmarkFrame``, ``LANDMARK_NAMES``
+  (the 33 in MediaPipe order), ``RecordingHeader``, ``iter_recording``, ``read_recording``,
+  ``write_recording``, ``RecordingWriter``, ``RecordingError`` (an unreadable header), ``RecordingProblem``
+  (a bad frame line) and ``dumps`` (one compact JSON line).
+
+The model converter behind ``posed models fetch`` is the subpackage :mod:`landmarks.convert`, with its own
+public names. The names here load on first use (PEP 562): ``import landmarks`` costs nothing; onnxruntime
+loads only with the landmarker's names (``PoseLandmarker``, ``rotate_image``, ``rotate_points``) and the
+models' (``OnnxDetector``, ``OnnxLandmarkModel``, ``SessionSettings``, their outputs), OpenCV also with
+``detector_input`` and ``landmark_input``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT_SIZE
+    from landmarks.config import LandmarkConfig
+    from landmarks.crop import detector_input, landmark_input
+    from landmarks.decode import CROP_SIZE as LANDMARK_INPUT_SIZE
+    from landmarks.models import ModelMissingError, default_models_dir, find_models, verify_models
+    from landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points
+    from landmarks.recording import (
+        LANDMARK_NAMES,
+        LandmarkFrame,
+        RecordingError,
+        RecordingHeader,
+        RecordingProblem,
+        RecordingWriter,
+        dumps,
+        iter_recording,
+        read_recording,
+        write_recording,
+    )
+    from landmarks.roi import Roi
+    from landmarks.runtime import (
+        DetectorOutputs,
+        LandmarkOutputs,
+        OnnxDetector,
+        OnnxLandmarkModel,
+        SessionSettings,
+    )
+
+__all__ = [
+    "DETECTOR_INPUT_SIZE",
+    "LANDMARK_INPUT_SIZE",
+    "LANDMARK_NAMES",
+    "DetectorOutputs",
+    "LandmarkConfig",
+    "LandmarkFrame",
+    "LandmarkOutputs",
+    "ModelMissingError",
+    "OnnxDetector",
+    "OnnxLandmarkModel",
+    "PoseLandmarker",
+    "RecordingError",
+    "RecordingHeader",
+    "RecordingProblem",
+    "RecordingWriter",
+    "Roi",
+    "SessionSettings",
+    "default_models_dir",
+    "detector_input",
+    "dumps",
+    "find_models",
+    "iter_recording",
+    "landmark_input",
+    "read_recording",
+    "rotate_image",
+    "rotate_points",
+    "verify_models",
+    "write_recording",
+]
+
+# public name -> (module that defines it, its name there)
+_ORIGIN = {
+    "DETECTOR_INPUT_SIZE": ("landmarks.anchors", "INPUT_SIZE"),
+    "LandmarkConfig": ("landmarks.config", "LandmarkConfig"),
+    "detector_input": ("landmarks.crop", "detector_input"),
+    "landmark_input": ("landmarks.crop", "landmark_input"),
+    "LANDMARK_INPUT_SIZE": ("landmarks.decode", "CROP_SIZE"),
+    "ModelMissingError": ("landmarks.models", "ModelMissingError"),
+    "default_models_dir": ("landmarks.models", "default_models_dir"),
+    "find_models": ("landmarks.models", "find_models"),
+    "verify_models": ("landmarks.models", "verify_models"),
+    "PoseLandmarker": ("landmarks.pipeline", "PoseLandmarker"),
+    "rotate_image": ("landmarks.pipeline", "rotate_image"),
+    "rotate_points": ("landmarks.pipeline", "rotate_points"),
+    "LANDMARK_NAMES": ("landmarks.recording", "LANDMARK_NAMES"),
+    "LandmarkFrame": ("landmarks.recording", "LandmarkFrame"),
+    "RecordingError": ("landmarks.recording", "RecordingError"),
+    "RecordingHeader": ("landmarks.recording", "RecordingHeader"),
+    "RecordingProblem": ("landmarks.recording", "RecordingProblem"),
+    "RecordingWriter": ("landmarks.recording", "RecordingWriter"),
+    "dumps": ("landmarks.recording", "dumps"),
+    "iter_recording": ("landmarks.recording", "iter_recording"),
+    "read_recording": ("landmarks.recording", "read_recording"),
+    "write_recording": ("landmarks.recording", "write_recording"),
+    "Roi": ("landmarks.roi", "Roi"),
+    "DetectorOutputs": ("landmarks.runtime", "DetectorOutputs"),
+    "LandmarkOutputs": ("landmarks.runtime", "LandmarkOutputs"),
+    "OnnxDetector": ("landmarks.runtime", "OnnxDetector"),
+    "OnnxLandmarkModel": ("landmarks.runtime", "OnnxLandmarkModel"),
+    "SessionSettings": ("landmarks.runtime", "SessionSettings"),
+}
+
+
+def __getattr__(name: str):
+    try:
+        module, attr = _ORIGIN[name]
+    except KeyError:  # also how ``from landmarks import convert`` finds the subpackage
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

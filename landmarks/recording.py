@@ -21,6 +21,8 @@ from typing import Any, BinaryIO, TextIO
 
 import numpy as np
 
+from camera_model import Intrinsics
+
 FORMAT = "posed.landmarks"
 VERSION = 1
 NUM_LANDMARKS = 33
@@ -39,33 +41,29 @@ class RecordingError(ValueError):
 
 
 @dataclass(frozen=True)
-class CameraIntrinsics:
-    """Pinhole intrinsics in pixels of the recorded image."""
-
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-
-    def to_json(self) -> dict:
-        return {"fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy}
-
-
-@dataclass(frozen=True)
 class RecordingHeader:
-    """First line of a recording. ``extra`` keeps fields this version does not know, for round trips."""
+    """First line of a recording. ``extra`` keeps fields this version does not know, for round trips.
+
+    ``camera``: the intrinsics of the recorded image (their width and height are ``image_size``; the file's
+    ``camera`` object holds only fx, fy, cx, cy), or None.
+    """
 
     image_size: tuple[int, int]
     fps: float
     source: str = ""
-    camera: CameraIntrinsics | None = None
+    camera: Intrinsics | None = None
     extra: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.camera is not None and self.camera.size != tuple(self.image_size):
+            raise ValueError(f"camera intrinsics are of a {self.camera.width}x{self.camera.height} image, the "
+                             f"recording's image_size is {self.image_size[0]}x{self.image_size[1]}")
 
     def to_json(self) -> dict:
         out: dict[str, Any] = {"format": FORMAT, "version": VERSION, "image_size": list(self.image_size),
                                "fps": self.fps, "source": self.source}
         if self.camera is not None:
-            out["camera"] = self.camera.to_json()
+            out["camera"] = self.camera.to_json(with_size=False)
         for k, v in self.extra.items():
             out.setdefault(k, v)
         return out
@@ -94,7 +92,10 @@ class RecordingHeader:
             cam = obj["camera"]
             if not isinstance(cam, dict) or not all(_is_number(cam.get(k)) for k in ("fx", "fy", "cx", "cy")):
                 raise ValueError(f"camera must be {{fx, fy, cx, cy}} numbers, got {cam!r}")
-            camera = CameraIntrinsics(*(float(cam[k]) for k in ("fx", "fy", "cx", "cy")))
+            try:
+                camera = Intrinsics.from_json(cam, image_size=(size[0], size[1]))
+            except ValueError as exc:
+                raise ValueError(f"camera: {exc}") from None
         known = {"format", "version", "image_size", "fps", "source", "camera"}
         extra = {k: v for k, v in obj.items() if k not in known}
         return cls((size[0], size[1]), float(fps), source, camera, extra)

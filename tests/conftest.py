@@ -22,3 +22,12 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     return SHARED_DATA
+
+
+@pytest.fixture(autouse=True)
+def _logs_to_stdout():
+    """structlog's configuration is process-wide: a command run in an earlier test (e.g. `posed record`, which
+    logs to stderr) must not decide where a later test's log lines go."""
+    from daemon import logs
+
+    logs.configure("info", "json")

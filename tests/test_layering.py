@@ -2,7 +2,7 @@
 
     daemon -> hal, landmarks, fitting, falls        falls -> fitting (its public result types)
     bench (offline) -> anything                     only the CLI -> bench, and lazily (inside a function)
-    nothing -> daemon (but bench, which drives it)
+    nothing -> daemon (but bench, which drives it)  every package -> camera_model (numpy only)
 
 Each runtime package imports only what its layer allows; checked on the source, so a lazy import inside a
 function counts too."""
@@ -16,12 +16,13 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 STDLIB = set(sys.stdlib_module_names)
 ALLOWED = {
-    "fitting": {"numpy", "numba", "fitting"},
-    "hal": {"numpy", "cv2", "pyrealsense2", "hal"},
-    "landmarks": {"numpy", "cv2", "onnxruntime", "landmarks"},
-    "falls": {"numpy", "falls", "fitting"},
+    "camera_model": {"numpy", "camera_model"},
+    "fitting": {"numpy", "numba", "fitting", "camera_model"},
+    "hal": {"numpy", "cv2", "pyrealsense2", "hal", "camera_model"},
+    "landmarks": {"numpy", "cv2", "onnxruntime", "landmarks", "camera_model"},
+    "falls": {"numpy", "falls", "fitting", "camera_model"},
 }
-RUNTIME = ("daemon", "hal", "landmarks", "fitting", "falls")
+RUNTIME = ("daemon", "hal", "landmarks", "fitting", "falls", "camera_model")
 # The model converter and its fetcher run only at `posed models fetch`; never in the daemon.
 CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers"}
 # The command line may load the offline package, inside a function, when a command needs it.
@@ -64,7 +65,7 @@ def test_package_imports_only_its_layer(package):
 
 
 def test_nothing_but_bench_imports_daemon():
-    for package in ("hal", "landmarks", "fitting", "falls"):
+    for package in ("hal", "landmarks", "fitting", "falls", "camera_model"):
         assert all(root != "daemon" for path in (ROOT / package).rglob("*.py") for root, _ in imports(path))
 
 

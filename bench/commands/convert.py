@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"posed bench convert: {exc.name} is not installed; it needs the test extra: "
               "pip install -e '.[test]'", file=sys.stderr)
         return 2
-    from landmarks.models import ModelMissingError, default_models_dir, find_models
+    from landmarks import ModelMissingError, default_models_dir, find_models
 
     try:
         paths = find_models(default_models_dir(args.models_dir or ""))

@@ -45,7 +45,7 @@ class LiteRTDetector:
     def __init__(self, path: Path, threads: int) -> None:
         from ai_edge_litert.interpreter import Interpreter
 
-        from landmarks.runtime import DetectorOutputs
+        from landmarks import DetectorOutputs
 
         self._outputs = DetectorOutputs
         self.interpreter = Interpreter(model_path=str(path), num_threads=threads)
@@ -65,7 +65,7 @@ class LiteRTLandmarkModel:
     def __init__(self, path: Path, threads: int) -> None:
         from ai_edge_litert.interpreter import Interpreter
 
-        from landmarks.runtime import LandmarkOutputs
+        from landmarks import LandmarkOutputs
 
         self._outputs = LandmarkOutputs
         self.interpreter = Interpreter(model_path=str(path), num_threads=threads)
@@ -88,7 +88,7 @@ def _landmark_model_full_graph(tflite: Path, onnx_path: Path, settings):
         from landmarks.convert import convert
     except ImportError:
         return None
-    from landmarks.runtime import OnnxLandmarkModel
+    from landmarks import OnnxLandmarkModel
 
     full = convert(tflite.read_bytes(), tflite.stem)
     return OnnxLandmarkModel(onnx_path, settings, model=full.SerializeToString())
@@ -157,10 +157,17 @@ def _ratio(a: float, b: float) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    from landmarks.crop import detector_input, landmark_input
-    from landmarks.models import ModelMissingError, default_models_dir, find_models
-    from landmarks.pipeline import PoseLandmarker
-    from landmarks.runtime import OnnxDetector, OnnxLandmarkModel, SessionSettings
+    from landmarks import (
+        ModelMissingError,
+        OnnxDetector,
+        OnnxLandmarkModel,
+        PoseLandmarker,
+        SessionSettings,
+        default_models_dir,
+        detector_input,
+        find_models,
+        landmark_input,
+    )
 
     try:
         import ai_edge_litert

@@ -64,8 +64,7 @@ def _run_peer(python: str, request: dict) -> dict:
 def run(args: argparse.Namespace) -> int:
     from bench import conformance
     from daemon.preflight import shared_data
-    from landmarks.models import ModelMissingError
-    from landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points
+    from landmarks import ModelMissingError, PoseLandmarker, rotate_image, rotate_points
 
     python = args.mediapipe_python
     if not python or not Path(python).is_file():

@@ -33,9 +33,8 @@ def _err(msg: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitting.body import read_calibration, write_calibration
-    from fitting.calibration import CalibrationFailed, calibrate
-    from landmarks.recording import RecordingError, RecordingProblem, iter_recording
+    from fitting import CalibrationFailed, calibrate, read_calibration, write_calibration
+    from landmarks import RecordingError, RecordingProblem, iter_recording
 
     cfg = config_from_args(args).fitting
     height = args.height if args.height is not None else cfg.body_height_m

@@ -35,10 +35,8 @@ def _err(msg: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitting.body import CalibrationError
-    from fitting.fitter import Fitter
-    from fitting.result import FitResult
-    from landmarks.recording import RecordingError, RecordingProblem, dumps, iter_recording
+    from fitting import CalibrationError, FitResult, Fitter
+    from landmarks import RecordingError, RecordingProblem, dumps, iter_recording
 
     cfg = config_from_args(args).fitting
     try:

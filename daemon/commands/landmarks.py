@@ -152,9 +152,7 @@ def _video(path: Path, fps: float | None, default_fps: float) -> FrameSource:
 
 
 def run(args: argparse.Namespace) -> int:
-    from landmarks.models import ModelMissingError
-    from landmarks.pipeline import PoseLandmarker
-    from landmarks.recording import RecordingHeader, dumps
+    from landmarks import ModelMissingError, PoseLandmarker, RecordingHeader, dumps
 
     config = config_from_args(args)
     path = Path(args.input)

@@ -43,7 +43,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 
 def _models_dir(args: argparse.Namespace):
-    from landmarks.models import default_models_dir
+    from landmarks import default_models_dir
 
     if args.models_dir:
         return default_models_dir(args.models_dir)
@@ -52,7 +52,7 @@ def _models_dir(args: argparse.Namespace):
 
 def _fetch(args: argparse.Namespace) -> int:
     try:
-        from landmarks.convert.fetch import FetchError, fetch_models
+        from landmarks.convert import FetchError, fetch_models
     except ImportError as exc:  # a runtime-only install lacks the converter's tflite/onnx packages
         print(f"posed models fetch: the converter needs the `convert` extra ({exc}); run "
               f"`pip install 'posed[convert]'` (or copy a models folder made elsewhere)", file=sys.stderr)
@@ -77,7 +77,7 @@ def _fetch(args: argparse.Namespace) -> int:
 
 
 def _verify(args: argparse.Namespace) -> int:
-    from landmarks.models import ModelMissingError, find_models, verify_models
+    from landmarks import ModelMissingError, find_models, verify_models
 
     try:
         paths = find_models(_models_dir(args))

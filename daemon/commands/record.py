@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
         print("posed record: --seconds must be > 0", file=sys.stderr)
         return os.EX_USAGE
     try:
-        hal.recorder.check_output(args.output)
+        hal.check_output(args.output)
     except hal.SourceError as exc:
         print(f"posed record: {exc}", file=sys.stderr)
         return os.EX_USAGE

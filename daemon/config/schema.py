@@ -15,9 +15,9 @@ import yaml
 from daemon.config.load import ConfigError, ConfigProblem, apply_override, build
 from daemon.config.sections import HooksConfig, LoggingConfig, PipelineConfig, ZenohConfig
 from falls.config import FallsConfig
-from fitting.config import FitConfig
-from hal.config import SourceConfig
-from landmarks.config import LandmarkConfig
+from fitting import FitConfig
+from hal import SourceConfig
+from landmarks import LandmarkConfig
 
 EX_CONFIG = 78
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config.yaml"

@@ -25,8 +25,7 @@ from pathlib import Path
 from daemon import logs
 from daemon.clock import iso
 from falls.config import FallsConfig
-from fitting.kinematics import BODY_ANGLE_NAMES
-from fitting.result import JOINT_ANGLE_NAMES, FitResult
+from fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, FitResult
 
 ANGLE_COLUMNS = JOINT_ANGLE_NAMES + BODY_ANGLE_NAMES
 CSV_HEADER = ("wall_time", "wall", "t", "seq", "level", *ANGLE_COLUMNS)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camera_model import Intrinsics
 from daemon.messages import FrameRef
 from daemon.proc import shm
 
@@ -79,8 +80,8 @@ class FrameRing:
         return cls(spec, shm.attach(spec.name), owner=False)
 
     def write(self, image: np.ndarray, seq: int, t_capture: float, depth: np.ndarray | None = None,
-              depth_scale: float = 0.0, intrinsics: tuple[float, float, float, float] | None = None,
-              t_read: float | None = None) -> FrameRef:
+              depth_scale: float = 0.0, intrinsics: Intrinsics | None = None,
+              t_origin: float | None = None) -> FrameRef:
         """Copy one frame (H x W x 3 uint8, optional H x W uint16 depth) into the next slot."""
         h, w = image.shape[:2]
         if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
@@ -101,7 +102,7 @@ class FrameRing:
             self._depths[slot, : h * w] = np.asarray(depth, np.uint16).reshape(-1)
         hdr[0] += 1                                   # even: stable
         return FrameRef(slot=slot, seq=seq, t_capture=t_capture, width=w, height=h, has_depth=has_depth,
-                        intrinsics=intrinsics, t_read=t_read)
+                        intrinsics=intrinsics, t_origin=t_origin)
 
     def read(self, ref: FrameRef) -> tuple[np.ndarray, np.ndarray | None, float] | None:
         """Copies of (image, depth or None, depth_scale) of ``ref``, or None if it was overwritten."""

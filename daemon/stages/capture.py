@@ -17,23 +17,16 @@ recording (``landmarks.recording``) and sends LandmarkMsg straight to the fittin
 timestamps on the recording's time line from the start of the replay (like hal's replays).
 
 For unpaced replays the capture timestamps follow the recording, not the wall clock, so the FrameRef also
-carries ``t_read`` (when the frame was read), from which latency is measured.
+carries ``t_origin`` (when the frame was read), from which latency is measured.
 """
 
 from __future__ import annotations
 
 from daemon import clock
-from daemon.messages import LandmarkMsg
+from daemon.messages import LandmarkMsg, origin
 from daemon.stages.base import StageRuntime, sleep_until
 
 REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
-
-
-def _intrinsics(frame) -> tuple[float, float, float, float] | None:
-    k = getattr(frame, "intrinsics", None)
-    if k is None:
-        return None
-    return (float(k.fx), float(k.fy), float(k.cx), float(k.cy))
 
 
 class _Thinner:
@@ -52,7 +45,7 @@ class _Thinner:
 
 def run(rt: StageRuntime) -> None:
     import hal
-    from hal.errors import EndOfStream, SourceError, SourceNotFound, SourceTimeout, SourceUnsupported
+    from hal import EndOfStream, SourceError, SourceNotFound, SourceTimeout, SourceUnsupported
 
     src_cfg = rt.config.source
     paced = not (src_cfg.type == "file" and not src_cfg.realtime)
@@ -90,7 +83,7 @@ def run(rt: StageRuntime) -> None:
                 rt.wait_go()
             try:
                 frame = source.read(src_cfg.read_timeout_s)
-                t_read = clock.now()
+                t_origin = None if paced else clock.now()    # unpaced: latency counts from the read
             except SourceTimeout:
                 rt.error()
                 continue
@@ -117,10 +110,10 @@ def run(rt: StageRuntime) -> None:
             with rt.step():
                 t0 = clock.now()
                 ref = rt.ring.write(frame.image, frame.seq, frame.t, frame.depth,
-                                    float(getattr(frame, "depth_scale", 0.0) or 0.0), _intrinsics(frame),
-                                    t_read=None if paced else t_read)
+                                    float(getattr(frame, "depth_scale", 0.0) or 0.0),
+                                    getattr(frame, "intrinsics", None), t_origin=t_origin)
                 rt.send(ref)
-            rt.done(clock.now() - t0, frame.t if paced else t_read)
+            rt.done(clock.now() - t0, origin(ref))
     finally:
         _close(source)
         rt.row.set_camera("none")
@@ -153,7 +146,7 @@ def _close(source) -> None:
 
 def run_recording(rt: StageRuntime) -> None:
     """Replay a ``*.landmarks.jsonl`` recording as the landmark stage's output."""
-    from landmarks.recording import LandmarkFrame, RecordingError, RecordingProblem, iter_recording
+    from landmarks import LandmarkFrame, RecordingError, RecordingProblem, iter_recording
 
     src = rt.config.source
     thinner = _Thinner(rt.config.pipeline.target_fps)
@@ -195,12 +188,13 @@ def run_recording(rt: StageRuntime) -> None:
             if not src.realtime:
                 rt.wait_taken()
             with rt.step():
-                t_read = clock.now()
+                t_in = clock.now()
                 t_capture = t_start + (item.t - t_first)      # the recording's time line
                 frame = LandmarkFrame(item.seq, t_capture, item.landmarks)
-                rt.send(LandmarkMsg(frame, t_capture, tuple(header.image_size), intrinsics, (),
-                                    None if src.realtime else t_read))
-            rt.done(clock.now() - t_read, t_capture if src.realtime else t_read)
+                msg = LandmarkMsg(frame, t_capture, tuple(header.image_size), intrinsics, (),
+                                  None if src.realtime else t_in)
+                rt.send(msg)
+            rt.done(clock.now() - t_in, origin(msg))
         if not src.loop:
             break
         thinner.last = None

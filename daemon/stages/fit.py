@@ -15,8 +15,7 @@ RESET_GAP_S = 1.0
 
 
 def run(rt: StageRuntime) -> None:
-    from fitting.fitter import Fitter
-    from fitting.result import FitResult
+    from fitting import FitResult, Fitter
 
     with rt.step():
         fitter = Fitter(rt.config.fitting)

@@ -8,14 +8,12 @@ A FrameRef whose slot was overwritten before it was read is dropped.
 from __future__ import annotations
 
 from daemon import clock
-from daemon.messages import LandmarkMsg
+from daemon.messages import LandmarkMsg, origin
 from daemon.stages.base import StageRuntime
 
 
 def run(rt: StageRuntime) -> None:
-    from landmarks.models import ModelMissingError
-    from landmarks.pipeline import PoseLandmarker
-    from landmarks.recording import CameraIntrinsics
+    from landmarks import ModelMissingError, PoseLandmarker
 
     with rt.step():
         try:
@@ -53,9 +51,7 @@ def run(rt: StageRuntime) -> None:
                 landmarker.reset()
                 continue
             t_out = clock.now()
-            k = ref.intrinsics
-            rt.send(LandmarkMsg(frame, ref.t_capture, (ref.width, ref.height),
-                                CameraIntrinsics(*k) if k is not None else None,
-                                (("landmarks_in", t_in), ("landmarks_out", t_out)), ref.t_read),
-                    lossless=ref.t_read is not None)
-        rt.done(t_out - t_in, ref.t_capture if ref.t_read is None else ref.t_read, t_out)
+            rt.send(LandmarkMsg(frame, ref.t_capture, (ref.width, ref.height), ref.intrinsics,
+                                (("landmarks_in", t_in), ("landmarks_out", t_out)), ref.t_origin),
+                    lossless=ref.t_origin is not None)
+        rt.done(t_out - t_in, origin(ref), t_out)

@@ -1,6 +1,11 @@
 """The project's TFLite -> ONNX converter for MediaPipe's pose models and the fetcher behind
 ``posed models fetch``. Runs only at fetch time (imports ``tflite`` and ``onnx``); the daemon loads the
-resulting ONNX files through :mod:`landmarks.models`."""
+resulting ONNX files through :mod:`landmarks`.
+
+Public names: ``fetch_models(models_dir, source=None, force=False, say=...) -> FetchResult`` (raises
+``FetchError``, which carries the exit status); ``convert(tflite_bytes, name)`` (an ``onnx.ModelProto``),
+``CONVERTER_VERSION``, ``SUPPORTED_OPS``, ``ConversionError``, ``UnsupportedOperatorError``; ``densify`` and
+``DimMetadata`` (TFLite sparse tensors)."""
 
 from landmarks.convert.converter import (
     CONVERTER_VERSION,
@@ -10,13 +15,17 @@ from landmarks.convert.converter import (
     convert,
 )
 from landmarks.convert.densify import DimMetadata, densify
+from landmarks.convert.fetch import FetchError, FetchResult, fetch_models
 
 __all__ = [
     "CONVERTER_VERSION",
     "SUPPORTED_OPS",
     "ConversionError",
     "DimMetadata",
+    "FetchError",
+    "FetchResult",
     "UnsupportedOperatorError",
     "convert",
     "densify",
+    "fetch_models",
 ]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from bench import simulate as S
-from fitting.kinematics import landmarks_camera
+from fitting import landmarks_camera
 
 
 def test_six_paper_poses_and_floor_poses_render():

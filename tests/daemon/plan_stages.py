@@ -9,7 +9,7 @@ import time
 
 from daemon import clock
 from daemon.stages.base import StageRuntime
-from daemon.supervisor import StageSpec
+from daemon.stages.plan import StageSpec
 
 
 def source(rt: StageRuntime) -> None:
@@ -78,11 +78,10 @@ def fall_fits(rt: StageRuntime) -> None:
     then idles. Capture times are the scenario's time line from the start of the stage."""
     from bench import falls_scenarios as scenarios
     from daemon.messages import FitMsg
-    from landmarks.recording import CameraIntrinsics, LandmarkFrame
+    from landmarks import LandmarkFrame
 
     sc = next(s for s in scenarios.catalogue("tune") if s.name == FALL_SCENARIO)
-    k = sc.camera.intrinsics
-    intrinsics = CameraIntrinsics(k["fx"], k["fy"], k["cx"], k["cy"])
+    intrinsics = sc.camera.intrinsics
     rt.ready()
     t0 = clock.now()
     for fr in scenarios.frames(sc):

@@ -1,10 +1,12 @@
 import json
+import pickle
 
 import pytest
 
-from daemon.messages import FrameRef, StageHealth
+from camera_model import Intrinsics
+from daemon.messages import FrameRef, StageHealth, origin
 from falls import FallEvent
-from fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+from fitting import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 
 
 def _via_json(obj):
@@ -14,6 +16,12 @@ def _via_json(obj):
 def test_frame_ref_and_health_round_trip():
     ref = FrameRef(slot=2, seq=17, t_capture=123.456, width=640, height=480, has_depth=True)
     assert FrameRef.from_json(_via_json(ref)) == ref
+    assert origin(ref) == 123.456
+    # what the capture stage sends for an unpaced replay with a known camera, through JSON and the mailboxes
+    ref = FrameRef(slot=1, seq=3, t_capture=1.5, width=640, height=480,
+                   intrinsics=Intrinsics(600.0, 601.0, 319.5, 239.5, 640, 480), t_origin=9.25)
+    assert FrameRef.from_json(_via_json(ref)) == ref == pickle.loads(pickle.dumps(ref, protocol=5))
+    assert origin(ref) == 9.25
     health = StageHealth("landmarks", 42, 10.5, None, 100, drops=3)
     assert StageHealth.from_json(_via_json(health)) == health
 

@@ -12,7 +12,7 @@ from daemon.history.store import AngleHistory
 from daemon.outbox.journal import EventJournal
 from falls.config import FallsConfig
 from falls.event import FallEvent
-from fitting.result import JOINT_ANGLE_NAMES, FitResult
+from fitting import JOINT_ANGLE_NAMES, FitResult
 
 GARBAGE = b"this is not a database" * 100
 

@@ -12,7 +12,7 @@ from daemon.history.store import ANGLE_COLUMNS, AngleHistory, read_csv
 from daemon.outbox.journal import EventJournal
 from falls.config import FallsConfig
 from falls.event import FallEvent
-from fitting.result import JOINT_ANGLE_NAMES, FitResult
+from fitting import JOINT_ANGLE_NAMES, FitResult
 
 
 def result(seq: int, t: float) -> FitResult:
@@ -127,3 +127,41 @@ def test_events_cli_lists_journal(tmp_path, capsys):
     assert "alarm" in text and "falling" not in text.split("\n", 1)[1]
     assert main(["events", "--set", f"pipeline.state_dir={tmp_path / 'empty'}"]) == 0
     assert "no event journal" in capsys.readouterr().out
+
+
+def test_recorder_adds_on_capture_time_and_maintains_about_once_a_minute(tmp_path):
+    import time
+
+    from daemon import clock
+    from daemon.history.recorder import HistoryRecorder
+    from tests.daemon.fakes import RecordingLog
+
+    class Store:
+        def __init__(self) -> None:
+            self.added, self.maintained, self.closed = [], 0, False
+
+        def add(self, res, wall):
+            self.added.append((res.seq, wall))
+
+        def maintain(self):
+            self.maintained += 1
+            raise OSError("disk gone")
+
+        def close(self):
+            self.closed = True
+
+    store, log = Store(), RecordingLog()
+    rec = HistoryRecorder(store, log, maintain_every_s=60.0, now=0.0)
+    rec.add(result(1, 0.0), clock.now() - 2.0)                      # captured two seconds ago
+    assert store.added[0][0] == 1 and abs(store.added[0][1] - (time.time() - 2.0)) < 0.5
+    rec.tick(59.0)
+    assert store.maintained == 0
+    rec.tick(60.0)
+    rec.tick(61.0)
+    assert store.maintained == 1 and log.events("error") == ["history_maintenance_failed"]
+    rec.close()
+    assert store.closed
+    off = HistoryRecorder(None, log, now=0.0)                        # falls.history_enabled: false
+    off.add(result(2, 0.1), 0.0)
+    off.tick(1e6)
+    off.close()

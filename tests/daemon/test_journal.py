@@ -183,3 +183,29 @@ def test_readonly_reads_without_creating_or_moving_anything(tmp_path, capsys):
     with pytest.raises(JournalError, match="not an event journal"):
         EventJournal(other, readonly=True)
     assert sqlite3.connect(other).execute("SELECT count(*) FROM sqlite_master").fetchone()[0] == 0
+
+
+def test_a_selection_means_the_same_on_disk_and_in_memory(tmp_path):
+    """Messages waiting in memory (disk full) are selected by the same rule as the stored ones."""
+    from daemon.outbox import journal_rows as rows
+    from daemon.outbox.journal_rows import Selection
+
+    clock = iter(range(1000, 2000)).__next__
+    with EventJournal(tmp_path / "events.sqlite3", clock=lambda: float(clock())) as j:
+        for i, (id_, state) in enumerate([("e1", "falling"), ("e1", "alarm"), ("e2", "falling"),
+                                          ("e3", "on_floor"), ("e3", "recovered")]):
+            j.append(event(state, id_, t=10.0 + i))
+        j.mark_published("e1")
+        j.mark_published("e3", "on_floor")
+        j.acknowledge("e1", "falling")
+        j.acknowledge("e3")
+        assert len(list(rows.select(j._db, Selection()))) == 5
+        for sel in (Selection(), Selection(unacked=True), Selection(unpublished=True), Selection(event_id="e3"),
+                    Selection(since=1001.0), Selection(until=1002.0), Selection(since=1001.0, until=1003.0,
+                                                                                unacked=True),
+                    Selection(event_id="e1", unpublished=True)):
+            on_disk = [s.key for s in rows.select(j._db, sel)]
+            in_memory = [s.key for s in rows.select(j._db, Selection()) if sel.matches(s)]
+            assert on_disk == in_memory, sel
+        assert [s.key for s in rows.select(j._db, Selection(since=1001.0, until=1003.0, unacked=True))] == \
+            [("e1", "alarm"), ("e2", "falling")]

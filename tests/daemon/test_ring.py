@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from camera_model import Intrinsics
 from daemon.proc import shm
 from daemon.proc.ring import FrameRing, FrameTooLarge
 
@@ -24,9 +25,9 @@ def test_write_read_round_trip_with_depth():
     try:
         depth = np.arange(48 * 64, dtype=np.uint16).reshape(48, 64)
         ref = ring.write(_frame(48, 64, 7), seq=5, t_capture=12.5, depth=depth, depth_scale=0.001,
-                         intrinsics=(600.0, 601.0, 32.0, 24.0))
+                         intrinsics=Intrinsics(600.0, 601.0, 32.0, 24.0, 64, 48), t_origin=13.0)
         assert (ref.width, ref.height, ref.seq, ref.t_capture, ref.has_depth) == (64, 48, 5, 12.5, True)
-        assert ref.intrinsics == (600.0, 601.0, 32.0, 24.0)
+        assert ref.intrinsics == Intrinsics(600.0, 601.0, 32.0, 24.0, 64, 48) and ref.t_origin == 13.0
         image, d, scale = ring.read(ref)
         assert image.shape == (48, 64, 3) and image[0, 0].tolist() == [1, 2, 3] and image[5, 5, 0] == 7
         assert np.array_equal(d, depth) and scale == 0.001

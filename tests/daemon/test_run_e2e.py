@@ -56,6 +56,13 @@ def posed_run(tmp_path: Path, source: Path, *overrides: str, env: dict | None = 
                             stderr=open(tmp_path / "err.log", "w"))
 
 
+def _json_or_none(line: str):
+    try:
+        return json.loads(line)
+    except ValueError:
+        return None
+
+
 def _wait(pred, timeout: float, what: str, proc: subprocess.Popen | None = None):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -99,9 +106,9 @@ def test_squat_video_end_to_end_through_a_router(tmp_path, shared_data):
 
 @pytest.mark.timeout(180)
 def test_kill_each_real_stage_mid_run(tmp_path, shared_data):
-    """kill -9 each stage of the real pipeline in turn: a new process runs it within 3 s, it warms up again
-    (model load, numba cache) and poses flow again; the supervisor never dies; READY=1 comes before the first
-    pose; SIGTERM stops everything within 5 s."""
+    """kill -9 each stage of the real pipeline in turn: it is started again at once (no backoff for a stage's
+    first restart), warms up again (model load, numba cache) and poses flow again; the supervisor never dies;
+    READY=1 comes before the first pose; SIGTERM stops everything within 5 s."""
     ep = f"tcp/127.0.0.1:{free_port()}"
     listener = NotifyListener(str(tmp_path / "notify.sock"))
     proc = posed_run(tmp_path, shared_data / SQUAT, "robot_id=k9", "source.loop=true", f"zenoh.listen=[{ep}]",
@@ -129,8 +136,9 @@ def test_kill_each_real_stage_mid_run(tmp_path, shared_data):
                                 return t
                     return None
 
+                # a restart that never comes fails here (15 s: a spawn and a status period, the rest
+                # slack); that it came at once is read from the supervisor's log below, not from a clock
                 t_new = _wait(back, 15, f"{stage} restarted", proc)
-                assert t_new - t_kill < 3.0, f"{stage}: a new process after {t_new - t_kill:.1f} s"
                 # warm-up again: model load, numba cache (a cold cache recompiles: tens of seconds)
                 t_ready = _wait(lambda b=back: b(running=True), 90, f"{stage} warmed up again", proc)
                 _wait(lambda t_kill=t_kill: v.poses_since(t_kill) >= 3, 10, f"poses after killing {stage}", proc)
@@ -142,7 +150,12 @@ def test_kill_each_real_stage_mid_run(tmp_path, shared_data):
         t0 = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         code = proc.wait(timeout=10)
+        # pipeline.shutdown_timeout_s (4 s: then what is still running is killed) + 1 s
         assert code == 0 and time.monotonic() - t0 < 5.0
+        dead = [row for row in map(_json_or_none, (tmp_path / "out.log").read_text().splitlines())
+                if isinstance(row, dict) and row.get("event") == "stage_dead"]
+        assert sorted(d["stage"] for d in dead) == ["capture", "fitting", "landmarks", "publisher"], dead
+        assert all(d["restart_in_s"] == 0 for d in dead), dead
         kinds = [m.split("\n")[0] for _, m in listener.messages]
         assert kinds[-1].startswith("STOPPING=1")
         assert any(k.startswith("WATCHDOG=1") for k in kinds)

@@ -3,6 +3,7 @@ and SIGSTOP, escalation, fatal errors, sd_notify order, and a clean, quick SIGTE
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
@@ -39,6 +40,19 @@ def _own_segments(pid: int) -> list[str]:
     return [p.name for p in Path("/dev/shm").glob(f"posed-{pid}-*")]
 
 
+def _logged(out: str, event: str) -> list[dict]:
+    """The supervisor's JSON log lines (its stdout) of one event."""
+    rows = []
+    for line in out.splitlines():
+        try:
+            row = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(row, dict) and row.get("event") == event:
+            rows.append(row)
+    return rows
+
+
 def test_kill_each_stage_restarts_it_and_publishing_resumes(harness):
     h = harness("pipeline.max_restarts=10")
     h.wait_for(_ready, 30, "all stages ready")
@@ -46,35 +60,38 @@ def test_kill_each_stage_restarts_it_and_publishing_resumes(harness):
         before = h.latest()
         old_pid = before["stages"][stage]["pid"]
         published = before["stages"]["publisher"]["frames"]
-        t_kill = time.monotonic()
         os.kill(old_pid, signal.SIGKILL)
 
         def restarted(s, stage=stage, old_pid=old_pid):
             st = s["stages"][stage]
             return st["pid"] != old_pid and st["alive"] and st["state"] == "running"
 
+        # a restart that never comes fails here: spawning a trivial stage takes well under 1 s, the rest of
+        # the 10 s is slack for a loaded machine. That it came at once is checked in the log below.
         s = h.wait_for(restarted, 10, f"{stage} restarted")
-        took = time.monotonic() - t_kill
-        assert took < 3.0, f"{stage} took {took:.2f} s to come back"
         assert s["stages"][stage]["restarts"] == 1
         base = published if stage != "publisher" else 0
         h.wait_for(lambda s, base=base: s["stages"]["publisher"]["frames"] > base + 5, 5,
                    f"frames flowing again after killing {stage}")
     assert h.proc.poll() is None
     assert h.latest()["restarts"] == 4
-    code, _, err, took = h.stop()
+    code, out, err, took = h.stop()
     assert code == 0, err
-    assert took < 5.0
+    assert took < 5.0  # pipeline.shutdown_timeout_s (4 s: then what is still running is killed) + 1 s
     assert _own_segments(h.proc.pid) == []
+    # each stage died once and was started again at once: no backoff before a stage's first restart
+    # (RestartPolicy), whatever the time the new process then needed to come up
+    dead = _logged(out, "stage_dead")
+    assert sorted(d["stage"] for d in dead) == sorted(STAGES) and all(d["restart_in_s"] == 0 for d in dead)
 
 
 def test_sigstop_is_detected_as_stuck_and_restarted(harness):
     h = harness("pipeline.stuck_after_s=1.0")
     h.wait_for(_ready, 30, "all stages ready")
     old = h.latest()["stages"]["fitting"]["pid"]
-    t0 = time.monotonic()
     os.kill(old, signal.SIGSTOP)
     try:
+        # never replaced fails here: 1 s without a heartbeat, a supervisor tick, a spawn; > 8 s of slack
         h.wait_for(lambda s: s["stages"]["fitting"]["pid"] != old and s["stages"]["fitting"]["state"] == "running",
                    10, "the stopped stage replaced")
     finally:
@@ -82,12 +99,15 @@ def test_sigstop_is_detected_as_stuck_and_restarted(harness):
             os.kill(old, signal.SIGCONT)
         except ProcessLookupError:
             pass
-    assert time.monotonic() - t0 < 4.0
     time.sleep(0.2)
     with pytest.raises(ProcessLookupError):
         os.kill(old, 0)                              # the stuck process was killed, not left behind
-    code, _, err, _ = h.stop()
+    code, out, err, _ = h.stop()
     assert code == 0, err
+    # replaced because it was judged stuck by the configured 1 s (the default is 5 s), not for another reason
+    stuck = _logged(out, "stage_stuck")
+    assert [x["stage"] for x in stuck] == ["fitting"], stuck
+    assert "(pipeline.stuck_after_s = 1)" in stuck[0]["reason"] and stuck[0]["restart_in_s"] == 0
 
 
 def test_notify_sequence_and_watchdog(harness, tmp_path):
@@ -161,7 +181,7 @@ def test_fatal_stage_error_exits_78_with_the_fix(harness):
 @pytest.mark.parametrize("name", ["walk.landmarks.jsonl", "WALK.LANDMARKS.JSONL"])
 def test_a_landmark_recording_in_any_case_skips_the_camera_and_landmark_stages(tmp_path, name):
     from daemon.config import load_config
-    from daemon.supervisor import default_plan
+    from daemon.stages.plan import default_plan
 
     rec = tmp_path / name
     rec.write_text("")
@@ -171,7 +191,7 @@ def test_a_landmark_recording_in_any_case_skips_the_camera_and_landmark_stages(t
 
 
 def test_realsense_recordings_in_any_case_carry_depth():
-    from hal.registry import is_realsense_recording
+    from hal import is_realsense_recording
 
     assert is_realsense_recording("a/b.db3") and is_realsense_recording("B.DB3") and is_realsense_recording("x.Bag")
     assert not is_realsense_recording("squat.mp4") and not is_realsense_recording("db3")

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.falls_body import Pose
+from bench.falls_body import StickPose
 from bench.falls_scenarios import (
     SIT,
     STAND,
@@ -71,7 +71,7 @@ def long_fall(after: float, get_up: bool, seed: int = 3, dropouts=()) -> Scenari
     if get_up:
         t = keys[-1].t
         keys = keys + [Key(t + 1.0, SIT.with_(pitch=-10, hip_flex_l=80, hip_flex_r=80, knee_l=70, knee_r=70)),
-                       Key(t + 2.0, Pose(knee_l=90, knee_r=90, hip_flex_l=10, hip_flex_r=60, trunk_flex=10)),
+                       Key(t + 2.0, StickPose(knee_l=90, knee_r=90, hip_flex_l=10, hip_flex_r=60, trunk_flex=10)),
                        Key(t + 3.0, STAND), Key(t + 6.0, STAND, ease="hold")]
     return make("long-fall", "fall", (keys, truth), 30.0, 3.0, 1.0, 12.0, seed, dropouts=dropouts)
 
@@ -151,13 +151,20 @@ def test_torso_out_of_view_is_not_judged():
     assert det.last_sample is not None and det.last_sample.incl > 60
 
 
-def test_intrinsics_forms_agree():
-    from falls.features import Camera
+def test_unknown_intrinsics_fall_back_to_the_field_of_view():
+    from camera_model import Intrinsics
 
     sc = TUNE["tune/fall/standing-backward/fast-v30"]
-    i = sc.camera.intrinsics
-    as_tuple = Camera.coerce((i["fx"], i["fy"], i["cx"], i["cy"]), 69.0, (640, 480))
-    assert as_tuple == Camera.coerce(i, 69.0, (640, 480)) == Camera.coerce(None, sc.camera.hfov, (640, 480))
+    assert sc.camera.intrinsics == Intrinsics.from_hfov(sc.camera.hfov, 640, 480)
+    cfg = replace(FallsConfig(camera_hfov_deg=sc.camera.hfov), camera_tilt_deg=sc.camera.tilt,
+                  camera_height_m=sc.camera.z)
+    with_k, without = (FallDetector(cfg, "r1", fit_frame="camera", id_factory=lambda: "ev") for _ in range(2))
+    a, b = [], []
+    for fr in frames(sc):
+        res = truth_result(fr, sc.camera)
+        a += [(e.state, e.t_detect) for e in with_k.update(res, fr.landmarks, (640, 480), sc.camera.intrinsics)]
+        b += [(e.state, e.t_detect) for e in without.update(res, fr.landmarks, (640, 480), None)]
+    assert a == b and a
 
 
 def test_imu_gravity_equals_configured_tilt():

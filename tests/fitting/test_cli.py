@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from bench import simulate as S
-from landmarks.recording import CameraIntrinsics, LandmarkFrame, RecordingHeader, write_recording
+from landmarks import LandmarkFrame, RecordingHeader, write_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -29,7 +29,7 @@ def recording(path: Path, camera=None) -> Path:
     partial[[25, 26, 27, 28, 15]] = np.nan                        # knees, ankles, a wrist unknown
     out.append(LandmarkFrame(9, 0.9, partial))
     header = RecordingHeader((640, 480), 10.0, "test",
-                             CameraIntrinsics(*S.Camera(model="pinhole").intrinsics((640, 480))) if camera else None)
+                             S.Camera(model="pinhole").intrinsics((640, 480)) if camera else None)
     write_recording(path, header, out)
     with open(path, "a", encoding="utf-8") as fh:                 # a malformed line, then a good frame
         fh.write('{"seq": 10, "t": 1.0, "landmarks": [1, 2]}\n')
@@ -83,7 +83,7 @@ def test_posed_calibrate(tmp_path):
 def test_bench_fit_report_structure():
     from bench import fit as bench
     from bench.commands.fit import markdown
-    from fitting.config import FitConfig
+    from fitting import FitConfig
 
     plan = bench.Plan(paper_yaws=(30.0,), floor_yaws=(90.0,), motion_yaws=(30.0,), seeds=(0,), motion_seeds=(0,),
                       settings=((6, 6),), noises=(0.0,), table3=False, sequences=("stand_to_sit",))

@@ -6,7 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from fitting import kernels as K
+from fitting import forward_kinematics as FK
+from fitting import jacobian as JAC
+from fitting import layout as L
+from fitting import loss as LOSS
 from fitting import problem as P
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
@@ -23,8 +26,8 @@ from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES
 DIMS = BodyDimensions.from_height(1.72)
 FIXED = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
 # kernel point rows of the reference's MediaPipe indices
-ROWS = {**{i: r for r, i in enumerate(BODY_LANDMARKS)}, 29: K.P_HEEL_L, 30: K.P_HEEL_R, 31: K.P_TOE_L,
-        32: K.P_TOE_R}
+ROWS = {**{i: r for r, i in enumerate(BODY_LANDMARKS)}, 29: L.P_HEEL_L, 30: L.P_HEEL_R, 31: L.P_TOE_L,
+        32: L.P_TOE_R}
 
 
 def random_pose(rng) -> Pose:
@@ -35,9 +38,9 @@ def random_pose(rng) -> Pose:
 
 
 def kernel_data(pose: Pose, dims=DIMS) -> tuple[np.ndarray, np.ndarray]:
-    data = np.zeros(K.D_SIZE)
-    data[K.D_DIMS:K.D_DIMS + K.N_DIMS] = dims.as_array()
-    data[K.D_FIXED:K.D_FIXED + K.N_FIXED] = np.radians([pose.joints[n] for n in FIXED])
+    data = np.zeros(L.D_SIZE)
+    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = dims.as_array()
+    data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.radians([pose.joints[n] for n in FIXED])
     x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
     return data, x
 
@@ -47,15 +50,15 @@ def test_kernel_forward_kinematics_matches_numpy_reference():
     for _ in range(25):
         pose = random_pose(rng)
         data, x = kernel_data(pose)
-        pts_b, pts_c = np.empty((K.N_POINTS, 3)), np.empty((K.N_POINTS, 3))
-        K.model_points(x, data, pts_b, pts_c)
+        pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
+        FK.model_points(x, data, pts_b, pts_c)
         sk = skeleton(pose, DIMS)
         cam = landmarks_camera(pose, DIMS)
         for idx, row in ROWS.items():
             np.testing.assert_allclose(pts_b[row], sk.landmarks[idx], atol=1e-12)
             np.testing.assert_allclose(pts_c[row], cam[idx], atol=1e-12)
-        np.testing.assert_allclose(pts_b[K.P_COM], sk.com, atol=1e-12)
-        np.testing.assert_allclose(pts_b[K.P_HEAD], 0.5 * (sk.landmarks[7] + sk.landmarks[8]), atol=1e-12)
+        np.testing.assert_allclose(pts_b[L.P_COM], sk.com, atol=1e-12)
+        np.testing.assert_allclose(pts_b[L.P_HEAD], 0.5 * (sk.landmarks[7] + sk.landmarks[8]), atol=1e-12)
 
 
 def test_incremental_loss_equals_fresh_evaluation():
@@ -63,24 +66,24 @@ def test_incremental_loss_equals_fresh_evaluation():
     rng = np.random.default_rng(4)
     pose = random_pose(rng)
     data, x = kernel_data(pose)
-    data[K.D_W:K.D_W + 12] = 1.0
-    data[K.D_OBS:K.D_OBS + 24] = rng.normal(0, 0.2, 24)
-    data[K.D_LW + K.LW_COM] = 0.01
-    data[K.D_LW + K.LW_CONTACT] = 0.06
-    data[K.D_LW + K.LW_MARGIN] = 1.0
-    data[K.D_LW + K.LW_COM_MODE] = K.COM_SUPPORT
-    data[K.D_LW + K.LW_NULL] = 0.01
-    data[K.D_LW + K.LW_PRIOR_UP] = 1.0
-    work = K.empty_work()
+    data[L.D_W:L.D_W + 12] = 1.0
+    data[L.D_OBS:L.D_OBS + 24] = rng.normal(0, 0.2, 24)
+    data[L.D_LW + L.LW_COM] = 0.01
+    data[L.D_LW + L.LW_CONTACT] = 0.06
+    data[L.D_LW + L.LW_MARGIN] = 1.0
+    data[L.D_LW + L.LW_COM_MODE] = L.COM_SUPPORT
+    data[L.D_LW + L.LW_NULL] = 0.01
+    data[L.D_LW + L.LW_PRIOR_UP] = 1.0
+    work = FK.empty_work()
     for _ in range(200):
-        k = rng.integers(0, K.N_VAR)
+        k = rng.integers(0, L.N_VAR)
         x[k] += rng.normal(0, 0.3)
-        cached = K.pose_loss(x, data, work)
-        fresh = K.pose_loss(x, data, K.empty_work())
+        cached = LOSS.pose_loss(x, data, work)
+        fresh = LOSS.pose_loss(x, data, FK.empty_work())
         assert cached == pytest.approx(fresh, rel=1e-12, abs=1e-15)
     # new body dimensions invalidate the cache
-    data[K.D_DIMS:K.D_DIMS + K.N_DIMS] = BodyDimensions.from_height(1.5).as_array()
-    assert K.pose_loss(x, data, work) == pytest.approx(K.pose_loss(x, data, K.empty_work()), rel=1e-12)
+    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = BodyDimensions.from_height(1.5).as_array()
+    assert LOSS.pose_loss(x, data, work) == pytest.approx(LOSS.pose_loss(x, data, FK.empty_work()), rel=1e-12)
 
 
 def test_body_angles_round_trip():
@@ -141,34 +144,35 @@ def test_analytic_jacobian_matches_finite_differences(perspective):
     lm = S.render(pose, dims=DIMS, camera=S.Camera(model="pinhole") if perspective else None)
     xy, w, _ = P.landmark_weights(lm, cfg)
     w[3] = 0.4  # a down-weighted landmark
-    frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS), (600.0, 600.0, 320.0, 240.0) if perspective
-                   else None, fixed_deg=np.array([5, -3, 10, -8, 4, 2, -3, 1.0]))
+    frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS),
+                   S.Camera(model="pinhole").intrinsics((640, 480)) if perspective else None,   # 600, 600, 320, 240
+                   fixed_deg=np.array([5, -3, 10, -8, 4, 2, -3, 1.0]))
     data = frame.data.copy()
-    data[K.D_PRIOR] = 1e-4
-    data[K.D_PRIOR_MU:K.D_PRIOR_MU + K.N_VAR] = P.PRIOR_MU_RAD
-    data[K.D_PRIOR_SIG:K.D_PRIOR_SIG + K.N_VAR] = P.PRIOR_SIG_RAD
-    data[K.D_PRIOR_PARTNER:K.D_PRIOR_PARTNER + K.N_VAR] = P.PRIOR_PARTNER
-    m = K.n_residuals()
+    data[L.D_PRIOR] = 1e-4
+    data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
+    data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
+    data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
+    m = JAC.n_residuals()
     for _ in range(4):
         x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]])) + rng.normal(0, 0.4, 19)
         x[0] = 0.9 + 0.2 * rng.random()
-        res, jac = np.empty(m), np.empty((m, K.N_VAR))
-        K.residuals_jacobian(x, data, res, jac, True)
+        res, jac = np.empty(m), np.empty((m, L.N_VAR))
+        JAC.residuals_jacobian(x, data, res, jac, True)
         num = np.empty_like(jac)
         eps = 1e-6
-        for k in range(K.N_VAR):
+        for k in range(L.N_VAR):
             rp, rm = np.empty(m), np.empty(m)
             xp, xm = x.copy(), x.copy()
             xp[k] += eps
             xm[k] -= eps
-            K.residuals_jacobian(xp, data, rp, np.empty((1, 1)), False)
-            K.residuals_jacobian(xm, data, rm, np.empty((1, 1)), False)
+            JAC.residuals_jacobian(xp, data, rp, np.empty((1, 1)), False)
+            JAC.residuals_jacobian(xm, data, rm, np.empty((1, 1)), False)
             num[:, k] = (rp - rm) / (2 * eps)
         # hinge rows have kinks: compare away from them
         ok = np.abs(res) > 1e-9
-        ok[: 2 * K.N_LM] = True
+        ok[: 2 * L.N_LM] = True
         np.testing.assert_allclose(jac[ok], num[ok], atol=2e-6, rtol=1e-5)
         # the landmark residuals are the kernel's 2D error: mean squared distance
-        mse = float(np.sum(res[: 2 * K.N_LM] ** 2))
-        work = K.empty_work()
-        assert math.isfinite(mse) and K.pose_loss_terms(x, frame.data, work)[1] >= 0
+        mse = float(np.sum(res[: 2 * L.N_LM] ** 2))
+        work = FK.empty_work()
+        assert math.isfinite(mse) and LOSS.pose_loss_terms(x, frame.data, work)[1] >= 0

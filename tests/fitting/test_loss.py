@@ -5,7 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from fitting import kernels as K
+from fitting import forward_kinematics as FK
+from fitting import layout as L
+from fitting import loss as LOSS
+from fitting import penalties as PEN
 from fitting import problem as P
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
@@ -72,8 +75,8 @@ def test_loss_terms_match_reference(name, mode):
                                                   psi_bd=truth.psi_bd + rng.normal(0, 20))
         gamma = 1.0 + 0.05 * k
         x = x_of(pose, gamma)
-        total, mp, comd, sym, pen, null = K.pose_loss_terms(x, frame.data, K.empty_work())
-        obs = frame.data[K.D_OBS:K.D_OBS + 24].reshape(12, 2)
+        total, mp, comd, sym, pen, null = LOSS.pose_loss_terms(x, frame.data, FK.empty_work())
+        obs = frame.data[L.D_OBS:L.D_OBS + 24].reshape(12, 2)
         model = gamma * landmarks_camera(pose, DIMS)[list(BODY_LANDMARKS), :2] / DIMS.body_height_m
         assert mp == pytest.approx(ref_mpjpe(obs, model, frame.weights), rel=1e-9, abs=1e-12)
         assert comd == pytest.approx(ref_comd(pose, cfg), rel=1e-9, abs=1e-12)
@@ -92,10 +95,10 @@ def test_loss_terms_match_reference(name, mode):
 
 
 def test_penalty_functions_eqs_9_to_11():
-    assert K.p_sn(-0.3, -0.2) == pytest.approx(0.1) and K.p_sn(0.0, -0.2) == 0.0
-    assert K.p_sp(0.5, 0.2) == pytest.approx(0.3) and K.p_sp(0.1, 0.2) == 0.0
-    assert K.p_d(-0.5, -0.2, 0.2) == pytest.approx(0.3) and K.p_d(0.4, -0.2, 0.2) == pytest.approx(0.2)
-    assert K.p_d(0.0, -0.2, 0.2) == 0.0
+    assert PEN.p_sn(-0.3, -0.2) == pytest.approx(0.1) and PEN.p_sn(0.0, -0.2) == 0.0
+    assert PEN.p_sp(0.5, 0.2) == pytest.approx(0.3) and PEN.p_sp(0.1, 0.2) == 0.0
+    assert PEN.p_d(-0.5, -0.2, 0.2) == pytest.approx(0.3) and PEN.p_d(0.4, -0.2, 0.2) == pytest.approx(0.2)
+    assert PEN.p_d(0.0, -0.2, 0.2) == 0.0
 
 
 def test_truth_has_zero_2d_error_and_stable_poses_zero_com_deviation():
@@ -106,7 +109,7 @@ def test_truth_has_zero_2d_error_and_stable_poses_zero_com_deviation():
         pose = S.pose(name, 30.0)
         frame = frame_for(pose, cfg)
         gamma = S.FILL * 480 / (frame.ppm0 * DIMS.body_height_m)  # the render scale over the reference
-        terms = K.pose_loss_terms(x_of(pose, gamma), frame.data, K.empty_work())
+        terms = LOSS.pose_loss_terms(x_of(pose, gamma), frame.data, FK.empty_work())
         assert terms[1] < 1e-9, name
         if name in S.PAPER_POSES:
             # standing, sitting and kneeling people are balanced: the CoM lies over their support
@@ -128,5 +131,5 @@ def test_perspective_loss_is_exact_at_the_truth():
         # the mid-hip depth of the render: the lowest landmark on the floor, the hips 2.5 m away
         depth = 2.5
         gamma = cam.fy / depth / ppm0
-        mp = K.pose_loss_terms(x_of(pose, gamma), frame.data, K.empty_work())[1]
+        mp = LOSS.pose_loss_terms(x_of(pose, gamma), frame.data, FK.empty_work())[1]
         assert mp < 1e-9, name

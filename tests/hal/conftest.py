@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from hal.frame import Intrinsics
+from camera_model import Intrinsics
 
 SQUAT_FRAMES = 65
 SQUAT_FPS = 5.0

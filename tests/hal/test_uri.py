@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 import hal
+from camera_model import Intrinsics
 from hal.config import SourceConfig
-from hal.frame import Frame, Intrinsics
+from hal.frame import Frame
 from hal.uri import parse_uri, split_query
 
 

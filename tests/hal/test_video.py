@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import hal
+from camera_model import Intrinsics
 from hal.config import SourceConfig
 from hal.video import VideoFileSource
 from tests.hal.conftest import SQUAT_FPS, SQUAT_FRAMES
@@ -34,17 +35,20 @@ def test_every_frame_decodes_with_pts_timestamps(squat_video, squat_frames):
         before = time.monotonic()
         frames, errors = drain(src)
         decode_fps = len(frames) / (time.perf_counter() - t0)
+        after = time.monotonic()
         info = src.info
     assert errors == []
     assert [f.seq for f in frames] == list(range(SQUAT_FRAMES))
     assert all(np.array_equal(f.image, ref) for f, ref in zip(frames, squat_frames, strict=True))
     assert all(f.depth is None and f.depth_scale == 0.0 and f.intrinsics is None for f in frames)
-    assert before <= frames[0].t <= before + 0.5
+    assert before <= frames[0].t <= after  # t starts at the first read, on the monotonic clock
     assert np.allclose([f.t - frames[0].t for f in frames], np.arange(SQUAT_FRAMES) / SQUAT_FPS, atol=1e-6)
     assert info["frame_count"] == SQUAT_FRAMES and info["fps"] == SQUAT_FPS and info["codec"] == "h264"
     assert (info["width"], info["height"]) == (720, 1280) and info["timestamps"] == "pts"
     print(f"squat video 720x1280 H.264 decode: {decode_fps:.0f} frames/s (shared 2-core machine)")
-    assert decode_fps > 20
+    # real-time replay must keep up with the video's own rate (5 frames/s); the speed itself is a benchmark
+    # (posed bench hal), measured ~350 frames/s here
+    assert decode_fps > SQUAT_FPS
 
 
 def test_after_the_end_every_read_is_end_of_stream(squat_video):
@@ -56,13 +60,22 @@ def test_after_the_end_every_read_is_end_of_stream(squat_video):
 
 
 def test_realtime_pacing_and_read_timeout(squat_video):
-    with hal.open_source(f"file:{squat_video}") as src:
+    waits = []
+
+    def sleep(seconds: float) -> None:  # the real sleep, recording what the source asked for
+        waits.append(seconds)
+        time.sleep(seconds)
+
+    config = SourceConfig(type="file", path=str(squat_video))
+    with VideoFileSource(config, str(squat_video), sleep=sleep) as src:
         t0 = time.monotonic()
         first = src.read(1.0)
         second = src.read(1.0)
         assert second.t - first.t == pytest.approx(0.2, abs=1e-6)
         assert time.monotonic() >= second.t - 1e-3
-        assert 0.18 <= time.monotonic() - t0 <= 0.5
+        assert time.monotonic() - t0 >= 0.2 - 1e-3  # the second frame was held back until its time
+        # and no longer: the wait ends at the frame's time, at most one frame period after the first read
+        assert waits and sum(waits) <= 1 / SQUAT_FPS + 1e-6
         # the next frame is due 0.2 s later: a 0.05 s read times out without losing it
         with pytest.raises(hal.SourceTimeout, match="due in"):
             src.read(0.05)
@@ -92,7 +105,7 @@ def test_loop_continues_seq_and_time(squat_video):
 def test_intrinsics_from_config(squat_video):
     with hal.open_source(f"file:{squat_video}?realtime=false&fx=900&cy=600") as src:
         f = src.read()
-    assert f.intrinsics == hal.Intrinsics(fx=900.0, fy=900.0, cx=359.5, cy=600.0, width=720, height=1280)
+    assert f.intrinsics == Intrinsics(fx=900.0, fy=900.0, cx=359.5, cy=600.0, width=720, height=1280)
 
 
 def _corrupt_copy(src, dst, start, length, seed=1):
@@ -120,7 +133,16 @@ def test_corrupt_middle_is_a_distinct_error_and_replay_goes_on(tmp_path, squat_v
     # as H.264 frames decoded without their references are); timestamps follow the file's PTS through the gap
     assert all(np.array_equal(f.image, squat_frames[f.seq]) for f in frames if f.seq < lost[0] - 1)
     after = [f for f in frames if f.seq > lost[-1]]
-    assert after and all(np.abs(f.image.astype(int) - squat_frames[f.seq]).mean() < 20 for f in after)
+
+    def smear(shift: int) -> float:  # mean |difference| of the pictures after the gap to clean frame seq + shift
+        return float(np.mean([np.abs(f.image.astype(int) - squat_frames[f.seq + shift]).mean() for f in after
+                              if 0 <= f.seq + shift < SQUAT_FRAMES]))
+
+    # How smeared a picture is depends on the decoder's error concealment (FFmpeg build, threads), and the first
+    # pictures after the gap still show older content, so no fixed bound on the smear is asked. The claim is
+    # relative: over the frames after the gap the pictures are closest to the clean frames of their own seq,
+    # not to the ones before or after (measured 6.8 vs 8.7-8.9): seq and picture stay aligned.
+    assert after and smear(0) < min(smear(-1), smear(1))
     assert all(f.t - frames[0].t == pytest.approx(f.seq / SQUAT_FPS, abs=1e-6) for f in frames)
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from landmarks.models import ModelMissingError, default_models_dir, find_models, verify_models
+from landmarks import ModelMissingError, default_models_dir, find_models, verify_models
 
 
 @pytest.fixture(scope="session")

@@ -23,5 +23,13 @@ def test_bench_json_has_every_kept_output_of_both_models_per_input(models_dir, m
         assert r["max_abs_value"] > 0 or r["output"] == "Identity_1"
     assert report["pairs"] == len(rows)
     assert report["pairs_within_target"] == sum(r["within_target"] for r in rows)
-    # onnxruntime and LiteRT agree to float32 noise on a real image: a converter bug is 10^4 times larger
-    assert all(r["onnx_vs_builtin"] < 5e-3 for r in rows if r["input"] == "pose.jpg")
+    # onnxruntime and LiteRT agree to float32 rounding on a real image, relative to the output's own scale
+    # (values up to ~860 px, where an absolute bound is a measurement of one CPU's kernels). The converter
+    # criterion (docs/models.md, "Equivalence") gives each float32 evaluation of the graph 2e-5 x max|value|
+    # (~170 float32 steps of 2^-23, rounding over ~100 layers) against the exact result, so two of them may
+    # differ by 4e-5 x max|value|; the bound rounds that up to the next decade, 1e-4 (LiteRT is not itself held
+    # to the criterion), with max|value| at least 1, the scale of the probability outputs. A converter bug is
+    # 50 or more on outputs of ~830 (docs/models.md): 6e-2 relative, 600x above the bound.
+    for r in rows:
+        if r["input"] == "pose.jpg":
+            assert r["onnx_vs_builtin"] <= 1e-4 * max(r["max_abs_value"], 1.0), r

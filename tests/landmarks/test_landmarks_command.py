@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from daemon.cli import main
-from landmarks.recording import read_recording
+from landmarks import read_recording
 
 
 @pytest.fixture(autouse=True)

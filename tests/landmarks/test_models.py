@@ -106,11 +106,22 @@ def test_find_models_paths(fetched):
 
 
 # ---- verifying ------------------------------------------------------------------------------------------
-def test_verify_is_cheap_and_passes(fetched):
+def test_verify_is_cheap_and_passes(fetched, monkeypatch):
+    # cheap by construction rather than by a clock: it hashes the two ONNX files the daemon runs, once each,
+    # and nothing else (its speed is in docs/models.md)
+    import landmarks.models
+
+    hashed = []
+    real = landmarks.models.sha256_file
+
+    def counting(path, *args, **kw):
+        hashed.append(Path(path).name)
+        return real(path, *args, **kw)
+
+    monkeypatch.setattr(landmarks.models, "sha256_file", counting)
     paths = find_models(fetched)
-    t = time.perf_counter()
     manifest = verify_models(paths)
-    assert time.perf_counter() - t < 0.5
+    assert sorted(hashed) == ["pose_detection.onnx", "pose_landmark_full.onnx"]
     assert manifest["converter_version"] == CONVERTER_VERSION
     verify_models(paths, include_tflite=True)
 
@@ -160,9 +171,9 @@ def test_fetch_from_folder_writes_everything_then_does_nothing(fetched, tflite_f
     for pin in PINNED:
         assert manifest["files"][pin.name]["sha256"] == pin.sha256
     before = {p.name: p.stat().st_mtime_ns for p in fetched.iterdir()}
-    t = time.perf_counter()
     result = fetch_models(fetched)
-    assert not result.changed and time.perf_counter() - t < 1.0
+    # nothing done: only the up-to-date check ran (no obtain, convert or write step), no file was touched
+    assert not result.changed and set(result.seconds) == {"check"}
     assert {p.name: p.stat().st_mtime_ns for p in fetched.iterdir()} == before
     assert sorted(p.name for p in fetched.iterdir()) == sorted([*MODEL_FILES, "manifest.json"])
 
@@ -311,15 +322,16 @@ def test_cli_fetch_verify_where(tflite_folder, tmp_path, monkeypatch, capsys):
 
 
 def test_second_fetch_of_the_real_folder_is_fast(models_dir):
-    """What `make test` runs before the tests: `posed models fetch` on an intact folder, in a new process."""
-    t = time.perf_counter()
+    """What `make test` runs before the tests: `posed models fetch` on an intact folder, in a new process.
+    Fast by what it does, not by a clock (the times are in docs/models.md; a wall-clock bound here measured
+    the machine's load): it finds the folder up to date and does nothing else, no download, conversion or
+    write (test_fetch_from_folder_writes_everything_then_does_nothing checks the steps in-process)."""
+    before = {p.name: p.stat().st_mtime_ns for p in models_dir.iterdir()}
     proc = subprocess.run([sys.executable, "-m", "daemon.cli", "models", "fetch", "--models-dir", str(models_dir)],
                           capture_output=True, text=True, cwd=ROOT, timeout=60)
-    elapsed = time.perf_counter() - t
     assert proc.returncode == 0, proc.stderr
-    assert "up to date" in proc.stdout
-    reported = float(proc.stdout.split("(")[1].split(" s")[0])
-    assert reported < 1.0 and elapsed < 5.0
+    assert "up to date" in proc.stdout and "nothing to do" in proc.stdout
+    assert {p.name: p.stat().st_mtime_ns for p in models_dir.iterdir()} == before
 
 
 def test_force_converts_again(fetched, tmp_path, monkeypatch):

@@ -18,6 +18,10 @@ from landmarks.recording import LandmarkFrame
 
 BODY = list(conformance.BODY)
 COCO_TO_MP = list(conformance.COCO_TO_MP)
+# MediaPipe's tolerance for normalized pose landmarks, each of x and y: _LANDMARKS_MARGIN = 0.03 in the Tasks API
+# test (mediapipe/tasks/python/test/vision/pose_landmarker_test.py), used here against the Tasks expectation
+# of pose.jpg and the iOS sample's "full" output of the sitting image (bench/conformance.py: 0.03 x width).
+LANDMARKS_MARGIN = 0.03
 
 
 def _pbtxt_blocks(path: Path, block: str) -> list[dict]:
@@ -90,7 +94,7 @@ def test_pose_jpg_landmarks_within_mediapipes_tolerances(landmarker, pose_jpg, r
     tasks = np.array([[b["x"], b["y"]] for b in _pbtxt_blocks(d / "pose_landmarks.pbtxt", "landmark")])
     norm_err = np.abs(lms[:, :2] / [w, h] - tasks)
     record_property("pose_jpg_body_max_norm", float(norm_err[BODY].max()))
-    assert norm_err[BODY].max() <= 0.03
+    assert norm_err[BODY].max() <= LANDMARKS_MARGIN
 
     world = result.world_landmarks
     assert world.shape == (33, 5)
@@ -103,7 +107,7 @@ def test_pose_jpg_landmarks_within_mediapipes_tolerances(landmarker, pose_jpg, r
 
 # -- video: tracking -----------------------------------------------------------------------------------------------
 
-def test_squat_video_tracking_matches_the_reference(landmarker, squat_frames, record_property):
+def test_squat_video_tracking_matches_the_reference(landmarker, squat_frames, pose_jpg, record_property):
     """The reference was produced with timestamps 33.3 ms apart whatever the video's rate (tfjs-models'
     pose test, following MediaPipe's solution_base.py), so the frames are fed at a simulated 30 fps."""
     frames, expected = squat_frames
@@ -116,10 +120,19 @@ def test_squat_video_tracking_matches_the_reference(landmarker, squat_frames, re
         assert result.frame.landmarks is not None, f"lost the person at frame {seq}"
         errors.append(np.linalg.norm(result.frame.landmarks[BODY, :2] - expected[seq][BODY, :2], axis=1))
     errors = np.array(errors)
+    p99 = float(np.percentile(errors, 99))
     record_property("squat_mean_px", float(errors.mean()))
+    record_property("squat_p99_px", p99)
     record_property("squat_max_px", float(errors.max()))
     assert detector_runs == 1  # tracked from the first detection to the end
-    assert errors.mean() <= 5.0 and errors.max() <= 20.0  # MediaPipe 0.10.21 here: 4.1 / 16.6
+    # 15 px is MediaPipe's own per-landmark tolerance for its pose tests (DIFF_THRESHOLD of pose_test.py, static
+    # and video mode; the same bound as on pose.jpg above). It bounds the 99th percentile of the 780 errors (at
+    # most 7 above it), not the maximum: in tracking mode each frame's landmarks place the next frame's crop,
+    # so a rounding difference (another CPU's float32 kernels) moves the single worst landmark by ~2 px
+    # (14.99-16.9 px measured across onnxruntime settings and +-1 LSB image noise) while the percentile
+    # (12.8-13.1 px) and the mean stay put. 5 px mean: MediaPipe 0.10.21 itself is 4.1 px from this reference
+    # (docs/landmarks.md); a mean over 780 errors is not moved by one landmark.
+    assert errors.mean() <= 5.0 and p99 <= pose_jpg[1]["DIFF_THRESHOLD"]
 
 
 def test_reset_makes_runs_repeatable(landmarker, squat_frames):
@@ -164,7 +177,7 @@ def test_sitting_image_matches_the_full_model_reference(landmarker, shared_data,
     assert lms is not None
     norm_err = np.abs((lms[BODY, :2] - expected[BODY]) / [w, h])
     record_property("sitting_body_max_norm", float(norm_err.max()))
-    assert norm_err.max() <= 0.03
+    assert norm_err.max() <= LANDMARKS_MARGIN  # measured 0.016
 
 
 def test_coco_785_pck_against_human_labels(landmarker, shared_data, record_property):
@@ -175,7 +188,12 @@ def test_coco_785_pck_against_human_labels(landmarker, shared_data, record_prope
     pck = float(np.mean(err <= ref.tolerance_px))  # 0.2 x torso
     record_property("coco785_pck02_torso", pck)
     record_property("coco785_mean_px", float(err.mean()))
-    assert pck >= 0.9  # measured 16 of 17 (the left ankle is off by ~25 px, torso 106 px)
+    # At least 16 of the 17 keypoints within PCK@0.2 (the 0.2 x torso radius of the PCK metric): MediaPipe
+    # 0.10.21's own score on the same pixels (docs/landmarks.md); 15 of 17 (0.88) fails. The score counts
+    # keypoints, so only one lying at the radius could flip with rounding: the nearest are 6.9 px inside
+    # (14.3 px) and 3.6 px outside (the left ankle, 24.8 px, radius 21.2 px), float32 noise moves a
+    # single-image landmark by ~1e-3 px.
+    assert pck >= 0.9
 
 
 # -- rotated copies and the rotation fallback ---------------------------------------------------------------------
@@ -205,6 +223,12 @@ def test_rotated_copies_are_still_found(landmarker, shared_data, which, degrees,
     if which == "pose":
         assert err.max() < tol
     else:
+        # MediaPipe itself does not hold every landmark within these tolerances on rotated copies (sitting
+        # turned 90 deg: 11 of 12, docs/landmarks.md), so the share within is asked, not the maximum. A count
+        # moves by whole landmarks: at least three quarters (9 of 12, 13 of 17) stays two landmarks below
+        # the worst share of posed and MediaPipe (11 of 12), so no landmark near the radius decides it, while
+        # a wrong rotation mapping puts almost none within. The mean within half the tolerance: measured
+        # 7.4-8.9 px of 14.4 (sitting), 6.6-7.5 px of 10.6 (COCO 785), a mean of 12 or 17 errors.
         assert np.mean(err <= tol) >= 0.75 and err.mean() <= tol / 2
 
 
@@ -226,7 +250,7 @@ def test_rotation_fallback_finds_a_small_person_the_upright_detector_misses(mode
     result = fallback.process_full(frame, 0.0, 0)
     assert result.frame.landmarks is not None and result.rotation in (90, -90)
     err = np.linalg.norm(result.frame.landmarks[:, :2] - want, axis=1)
-    assert err.max() < 15.0 * 0.5
+    assert err.max() < expected["DIFF_THRESHOLD"] * 0.5  # MediaPipe's 15 px at the half scale (measured 5.9-6.0)
     x0, y0, x1, y1 = result.detection.box * [1280, 720, 1280, 720]  # the face box, mapped back to the frame
     assert x0 < want[0, 0] < x1 and y0 < want[0, 1] < y1
 

@@ -3,8 +3,8 @@ import json
 import numpy as np
 import pytest
 
+from camera_model import Intrinsics
 from landmarks.recording import (
-    CameraIntrinsics,
     LandmarkFrame,
     RecordingError,
     RecordingHeader,
@@ -27,7 +27,7 @@ def _frame(seq, rng, person=True, null_index=None):
 
 def test_round_trip_exact(tmp_path):
     rng = np.random.default_rng(1)
-    header = RecordingHeader((640, 480), 30.0, "test", CameraIntrinsics(600.0, 601.0, 320.0, 240.5),
+    header = RecordingHeader((640, 480), 30.0, "test", Intrinsics(600.0, 601.0, 320.0, 240.5, 640, 480),
                              extra={"note": "kept"})
     frames = [_frame(0, rng), _frame(1, rng, person=False), _frame(2, rng, null_index=5)]
     path = tmp_path / "r.landmarks.jsonl"

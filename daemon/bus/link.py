@@ -1,0 +1,200 @@
+"""The publisher's link to the bus: the process's one Zenoh session, opened with retries, and everything
+declared on it (interfaces.md section 4).
+
+* publishers with per-stream QoS: ``pose`` (congestion control DROP, DATA_HIGH, express: never blocks the
+  pipeline), ``landmarks`` and ``status`` (DROP), ``events/fall`` (reliable, congestion control BLOCK,
+  INTERACTIVE_HIGH: never dropped);
+* the liveliness token ``alive``; the queryables ``state`` and ``events/history`` (:mod:`daemon.bus.queries`);
+  the subscriber ``events/ack``, whose event ids go to the ``on_ack`` callback.
+
+The session is opened after spawn and entered into the stage's ``ExitStack`` (so it is used inside ``with``);
+when it cannot be opened (client mode without a router, a busy port) ``try_open`` retries every
+``zenoh.reconnect_s`` and everything published meanwhile is dropped, except what the caller keeps (the event
+journal). Times are seconds on the monotonic clock.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+
+from daemon.bus import queries
+from daemon.bus.payloads import dumps
+from daemon.bus.session import ZenohConfigError, describe_open_error, open_session
+from daemon.bus.topics import Topics
+from daemon.config.sections import ZenohConfig
+
+MATCH_POLL_S = 0.5          # how often the events/fall publisher's matching status is read
+LOG_FAILURE_EVERY = 12      # after the first, every 12th failed attempt to open the session is logged
+
+
+def declare_publishers(session, topics: Topics) -> dict:
+    """The four publishers, by stream name, each with its QoS."""
+    import zenoh
+
+    json_enc = zenoh.Encoding.APPLICATION_JSON
+    drop = zenoh.CongestionControl.DROP
+    return {
+        "pose": session.declare_publisher(topics.pose, encoding=json_enc, congestion_control=drop,
+                                          priority=zenoh.Priority.DATA_HIGH, express=True),
+        "landmarks": session.declare_publisher(topics.landmarks, encoding=json_enc, congestion_control=drop),
+        "status": session.declare_publisher(topics.status, encoding=json_enc, congestion_control=drop),
+        "fall": session.declare_publisher(topics.events_fall, encoding=json_enc,
+                                          congestion_control=zenoh.CongestionControl.BLOCK,
+                                          priority=zenoh.Priority.INTERACTIVE_HIGH,
+                                          reliability=zenoh.Reliability.RELIABLE),
+    }
+
+
+class BusLink:
+    """The session and its entities; the stage's loop calls ``try_open`` and the ``put_*`` methods, Zenoh's
+    threads call the query and ack handlers.
+
+    ``history(since, until, limit)`` answers ``events/history`` queries; ``on_ack(event_id)`` is called for
+    each acknowledgement (on a Zenoh thread)."""
+
+    def __init__(self, cfg: ZenohConfig, robot: str, stack: contextlib.ExitStack, log, *,
+                 history: queries.HistoryLookup, on_ack: Callable[[str], None]) -> None:
+        self.cfg = cfg
+        self.topics = Topics(robot)
+        self.latest = queries.LatestState()
+        self.log = log
+        self._stack = stack             # the session lives in the stage's ``with`` (closed on exit)
+        self._history = history
+        self._on_ack = on_ack
+        self.session = None
+        self._pubs: dict = {}
+        self._keep: list = []           # token, queryables, subscriber: kept referenced (pitfall 6)
+        self._next_open = 0.0
+        self._open_failures = 0
+        self._error = ""
+        self._matching = False
+        self._next_match_poll = 0.0
+
+    @property
+    def is_open(self) -> bool:
+        return self.session is not None
+
+    # ------------------------------------------------------------------ the session
+    def try_open(self, now: float) -> bool:
+        """Open the session if it is closed and the retry time has come; True when it opened now.
+
+        Raises ``ZenohConfigError`` when the native config file cannot be used (retrying cannot help)."""
+        if self.session is not None or now < self._next_open:
+            return False
+        try:
+            session = open_session(self.cfg)
+        except ZenohConfigError:
+            raise
+        except Exception as exc:        # ZError: unreachable router, busy port
+            self._open_failures += 1
+            self._next_open = now + self.cfg.reconnect_s
+            self._error = describe_open_error(self.cfg, exc)
+            if self._open_failures == 1 or self._open_failures % LOG_FAILURE_EVERY == 0:
+                self.log.error("zenoh_unavailable", error=self._error, attempts=self._open_failures,
+                               retry_in_s=self.cfg.reconnect_s)
+            return False
+        self.session = self._stack.enter_context(session)
+        self._error = ""
+        t = self.topics
+        self._pubs = declare_publishers(session, t)
+        self._keep = [
+            session.liveliness().declare_token(t.alive),
+            session.declare_queryable(t.state, self._on_state_query, complete=True),
+            # "history/**" also matches the bare key: one queryable answers both forms
+            session.declare_queryable(f"{t.history}/**", self._on_history_query, complete=True),
+            session.declare_subscriber(t.events_ack, self._on_ack_sample),
+        ]
+        self._stack.callback(self.release)      # runs before the session's own exit (last in, first out)
+        self._matching = False
+        self.log.info("zenoh_open", zid=str(session.zid()), mode=self.cfg.mode,
+                      listen=list(self.cfg.listen), connect=list(self.cfg.connect))
+        return True
+
+    def release(self) -> None:
+        """Undeclare the token (receivers see DELETE on posed/ROBOT/alive), queryables and publishers."""
+        for entity in [*self._keep, *self._pubs.values()]:
+            try:
+                entity.undeclare()
+            except Exception:
+                pass
+        self.forget()
+
+    def forget(self) -> None:
+        """Drop the references to the entities (the session's exit undeclares whatever is left)."""
+        self._keep.clear()
+        self._pubs.clear()
+
+    def status(self) -> dict:
+        """The ``zenoh`` part of the status object."""
+        out = {"session": "open" if self.session is not None else "retrying", "mode": self.cfg.mode,
+               "listen": list(self.cfg.listen), "connect": list(self.cfg.connect), "error": self._error or None}
+        if self.session is not None:
+            try:
+                out["peers"] = len(list(self.session.info.peers_zid()))
+                out["routers"] = len(list(self.session.info.routers_zid()))
+            except Exception:
+                pass
+        return out
+
+    # ------------------------------------------------------------------ publishing
+    def _put(self, stream: str, obj) -> bool:
+        pub = self._pubs.get(stream)
+        if pub is None:
+            return False
+        pub.put(dumps(obj))
+        return True
+
+    def put_pose(self, pose: dict) -> bool:
+        """Keep ``pose`` for the state queryable and publish it (False: no session, dropped)."""
+        self.latest.set_pose(pose)
+        return self._put("pose", pose)
+
+    @property
+    def wants_landmarks(self) -> bool:
+        """The landmarks topic is published (``zenoh.publish_landmarks``) and the session is open."""
+        return self.cfg.publish_landmarks and "landmarks" in self._pubs
+
+    def put_landmarks(self, landmarks: dict) -> bool:
+        return self._put("landmarks", landmarks)
+
+    def put_status(self, status: dict) -> bool:
+        """Keep ``status`` for the state queryable and publish it."""
+        self.latest.set_status(status)
+        return self._put("status", status)
+
+    def put_event(self, event: dict) -> bool:
+        """Publish one fall-event message, reliably (blocks under congestion); False when there is no session."""
+        return self._put("fall", event)
+
+    def event_subscriber_appeared(self, now: float) -> bool:
+        """Read (every MATCH_POLL_S) whether anyone subscribes to events/fall; True when someone does now and
+        nobody did at the last reading (or since the session opened)."""
+        pub = self._pubs.get("fall")
+        if pub is None or now < self._next_match_poll:
+            return False
+        self._next_match_poll = now + MATCH_POLL_S
+        matching = bool(pub.matching_status.matching)
+        appeared = matching and not self._matching
+        self._matching = matching
+        return appeared
+
+    @property
+    def event_subscribed(self) -> bool:
+        """Someone subscribed to events/fall at the last reading."""
+        return self._matching
+
+    # ------------------------------------------------------------------ Zenoh callbacks (other threads)
+    def _on_state_query(self, query) -> None:
+        queries.answer_state(query, self.topics.state, self.latest, self.log)
+
+    def _on_history_query(self, query) -> None:
+        queries.answer_history(query, self.topics.history, self._history, self.log)
+
+    def _on_ack_sample(self, sample) -> None:
+        raw = sample.payload.to_string()
+        event_id = queries.parse_ack(raw)
+        if not event_id:
+            self.log.warning("bad_ack", payload=raw.strip()[:200], expected="an event id, or JSON {\"id\": ...}")
+            return
+        self._on_ack(event_id)

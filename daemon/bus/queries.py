@@ -1,0 +1,107 @@
+"""What the bus answers and accepts on Zenoh's own threads: the ``state`` and ``events/history`` queries and
+the acknowledgements put on ``events/ack`` (interfaces.md section 4).
+
+Each handler takes what it reads as an argument (the latest pose and status, a journal lookup), so it can be
+tested with a stand-in query and no session.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Callable, Sequence
+
+from daemon.bus.payloads import dumps
+
+HISTORY_DEFAULT_LIMIT = 100
+HISTORY_MAX_LIMIT = 10000
+HISTORY_USAGE = "since, until: unix seconds or ISO 8601 (also 2h, 7d, today); limit: integer"
+
+# (since, until, limit) -> the stored messages, oldest first; each has .event (.id, .state) and .to_json()
+HistoryLookup = Callable[[float | None, float | None, int], Sequence]
+
+
+class LatestState:
+    """The latest pose and status objects, written by the stage's loop and read by the state queryable."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._pose: dict | None = None
+        self._status: dict | None = None
+
+    def set_pose(self, pose: dict) -> None:
+        with self._lock:
+            self._pose = pose
+
+    def set_status(self, status: dict) -> None:
+        with self._lock:
+            self._status = status
+
+    def snapshot(self) -> dict:
+        """``{"pose": ..., "status": ...}`` (None until the first of each)."""
+        with self._lock:
+            return {"pose": self._pose, "status": self._status}
+
+
+def answer_state(query, key: str, latest: LatestState, log) -> None:
+    """Reply to a ``state`` query with the latest pose and status."""
+    try:
+        query.reply(key, dumps(latest.snapshot()))
+    except Exception as exc:
+        log.warning("state_query_failed", error=repr(exc))
+
+
+def parse_history_parameters(params) -> tuple[float | None, float | None, int]:
+    """since/until (unix seconds, ISO 8601 or relative forms such as 2h) and limit from a query's parameters;
+    raises ValueError naming the bad one."""
+    from daemon.timeparse import parse_time
+
+    def get(key):
+        v = params.get(key) if params is not None else None
+        return v if v not in (None, "") else None
+
+    since, until = get("since"), get("until")
+    limit = get("limit")
+    try:
+        n = HISTORY_DEFAULT_LIMIT if limit is None else int(limit)
+    except ValueError:
+        raise ValueError(f"limit={limit!r} is not an integer") from None
+    if not 0 <= n <= HISTORY_MAX_LIMIT:
+        raise ValueError(f"limit={n} is outside 0..{HISTORY_MAX_LIMIT}")
+    return (parse_time(since) if since is not None else None,
+            parse_time(until) if until is not None else None, n)
+
+
+def answer_history(query, base: str, lookup: HistoryLookup, log) -> None:
+    """One reply per stored message, each on its own key ``<base>/<id>/<state>`` (so that consolidation cannot
+    merge them); a query on the bare key ``base`` (which cannot accept other keys) gets one reply holding the
+    list. A bad parameter gets an error reply naming it."""
+    try:
+        since, until, limit = parse_history_parameters(query.parameters)
+    except ValueError as exc:
+        query.reply_err(json.dumps({"error": str(exc), "usage": HISTORY_USAGE}))
+        return
+    try:
+        stored = lookup(since, until, limit)
+        if str(query.key_expr) == base:
+            query.reply(base, json.dumps({"events": [s.to_json() for s in stored], "count": len(stored)}))
+        else:
+            for s in stored:
+                query.reply(f"{base}/{s.event.id}/{s.event.state}", json.dumps(s.to_json()))
+    except Exception as exc:
+        log.warning("history_query_failed", error=repr(exc))
+        try:
+            query.reply_err(json.dumps({"error": repr(exc)}))
+        except Exception:
+            pass
+
+
+def parse_ack(payload: str) -> str:
+    """The event id in an acknowledgement: the text itself, or the ``id`` of a JSON object; "" when none."""
+    raw = payload.strip()
+    if not raw.startswith("{"):
+        return raw
+    try:
+        return str(json.loads(raw).get("id", ""))
+    except (ValueError, AttributeError):
+        return ""

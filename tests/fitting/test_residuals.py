@@ -1,0 +1,113 @@
+"""The least-squares residuals of the refinement (fitting.jacobian, fitting.penalties) and the torso
+uprightness against plain NumPy references. The Jacobian itself is checked against finite differences in
+test_kinematics.py."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fitting import forward_kinematics as FK
+from fitting import jacobian as JAC
+from fitting import layout as L
+from fitting import problem as P
+from fitting.body import BodyDimensions
+from fitting.config import FitConfig
+from fitting.kinematics import BODY_LANDMARKS, body_rotation, landmarks_camera, rot_x, rot_y, rot_z
+from fitting.result import VARIABLE_NAMES
+
+DIMS = BodyDimensions.from_height(1.65)
+
+
+def x_of(pose, gamma):
+    return P.to_radians(np.array([gamma] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+
+
+@pytest.mark.parametrize("perspective", [False, True])
+def test_landmark_rows_match_reference(perspective):
+    """Rows R_LM..: sqrt(w_i / sum w) (b_i - a_i T) with T the weighted least-squares translation."""
+    from bench import simulate as S
+
+    cfg = FitConfig()
+    cam = S.Camera(model="pinhole", distance_m=3.0) if perspective else None
+    truth = S.pose("bend_grab", 40.0)
+    lm = S.render(truth, dims=DIMS, noise_px=3.0, seed=4, **({"camera": cam} if cam else {}))
+    xy, w, _ = P.landmark_weights(lm, cfg)
+    w[5] = 0.3
+    intrinsics = cam.intrinsics((640, 480)) if cam else None
+    frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS), intrinsics)
+    d = frame.data
+    obs = d[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
+    h = DIMS.body_height_m
+    rng = np.random.default_rng(5)
+    for k in range(4):
+        pose = truth if k == 0 else truth.replace(theta_sh_l=rng.uniform(-40, 120),
+                                                  theta_kn_r=rng.uniform(0, 90),
+                                                  psi_bd=truth.psi_bd + rng.normal(0, 20))
+        gamma = 0.9 + 0.1 * k
+        model = landmarks_camera(pose, DIMS)[list(BODY_LANDMARKS)]
+        if perspective:
+            fn = d[L.D_PROJ + L.PJ_FN_X:L.D_PROJ + L.PJ_FN_Y + 1]
+            depth = fn[1] * h / gamma + model[:, 2]
+            a = fn[None, :] / depth[:, None]
+            b = obs + d[L.D_PROJ + L.PJ_OFF_X:L.D_PROJ + L.PJ_OFF_Y + 1] - a * model[:, :2]
+        else:
+            a = np.ones((L.N_LM, 2))
+            b = obs - gamma * model[:, :2] / h
+        t = (w[:, None] * a * b).sum(0) / (w[:, None] * a * a).sum(0)
+        ref = np.sqrt(w / w.sum())[:, None] * (b - a * t)
+        res = np.empty(JAC.n_residuals())
+        JAC.residuals_jacobian(x_of(pose, gamma), d, res, np.empty((1, 1)), False)
+        np.testing.assert_allclose(res[L.R_LM:L.R_LM + 2 * L.N_LM].reshape(L.N_LM, 2), ref, atol=1e-12)
+
+
+def test_hinge_rows_match_reference():
+    """Rows R_PEN.. (penalties of eqs. 9-11), R_LIM.. (joint limits) and R_PRIOR.. (pose prior)."""
+    cfg = FitConfig(w_limit=0.5)
+    xy = np.random.default_rng(0).normal(300, 50, (L.N_LM, 2))
+    frame = P.pack(xy, np.ones(L.N_LM), DIMS, cfg, 200.0)
+    d = frame.data.copy()
+    d[L.D_PRIOR] = 0.01
+    d[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
+    d[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
+    d[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
+    r = math.radians
+    th = {"tr_flex": r(cfg.tr_flexion_min_deg), "tr_lat": r(cfg.tr_lateral_deg),
+          "tr_twist": r(cfg.tr_twist_deg), "sh_flex": r(cfg.sh_flexion_min_deg),
+          "sh_add": r(cfg.sh_adduction_max_deg), "hp_add": r(cfg.hp_adduction_max_deg)}
+    rng = np.random.default_rng(8)
+    for _ in range(50):
+        x = rng.uniform(P.LIMIT_LO_RAD * 1.3, P.LIMIT_HI_RAD * 1.3)   # some outside the limits
+        v = dict(zip(VARIABLE_NAMES, x, strict=True))
+        pen = [
+            (cfg.w_sag_tr, max(0.0, th["tr_flex"] - v["theta_tr"])),
+            (cfg.w_cor_tr, max(0.0, abs(v["phi_tr"]) - th["tr_lat"])),
+            (cfg.w_tran_tr, max(0.0, abs(v["psi_tr"]) - th["tr_twist"])),
+            *[(cfg.w_sag_sh, max(0.0, th["sh_flex"] - v[f"theta_sh_{s}"])) for s in "lr"],
+            *[(cfg.w_cor_sh, max(0.0, v[f"phi_sh_{s}"] - th["sh_add"])) for s in "lr"],
+            *[(cfg.w_cor_hp, max(0.0, v[f"phi_hp_{s}"] - th["hp_add"])) for s in "lr"],
+        ]
+        ref_pen = [math.sqrt(wt) * p for wt, p in pen]
+        ref_lim = math.sqrt(cfg.w_limit) * np.maximum(0.0, np.maximum(P.LIMIT_LO_RAD - x, x - P.LIMIT_HI_RAD))
+        partner = np.where(P.PRIOR_PARTNER >= 0, x[P.PRIOR_PARTNER.astype(int)], 0.0)
+        sig = P.PRIOR_SIG_RAD
+        ref_prior = np.where(sig > 0, 0.1 * (x - partner - P.PRIOR_MU_RAD) / np.where(sig > 0, sig, 1.0), 0.0)
+        res = np.empty(JAC.n_residuals())
+        JAC.residuals_jacobian(x, d, res, np.empty((1, 1)), False)
+        np.testing.assert_allclose(res[L.R_PEN:L.R_PEN + L.N_PEN], ref_pen, atol=1e-12)
+        np.testing.assert_allclose(res[L.R_LIM:L.R_LIM + L.N_VAR], ref_lim, atol=1e-12)
+        np.testing.assert_allclose(res[L.R_PRIOR:L.R_PRIOR + L.N_VAR], ref_prior, atol=1e-12)
+    assert L.N_RES == JAC.n_residuals() == L.R_PRIOR + L.N_VAR
+
+
+def test_torso_uprightness_matches_reference():
+    rng = np.random.default_rng(9)
+    for _ in range(50):
+        tbd, pbd, sbd, ttr, ptr, s_tr = rng.uniform(-120, 120, 6)
+        r = body_rotation(tbd, pbd, sbd) @ rot_y(math.radians(ttr)) @ rot_x(-math.radians(ptr)) \
+            @ rot_z(math.radians(s_tr))
+        x = np.zeros(L.N_VAR)
+        angles = np.radians([tbd, pbd, sbd, ttr, ptr, s_tr])
+        x[[L.X_TBD, L.X_PBD, L.X_SBD, L.X_TTR, L.X_PTR, L.X_STR]] = angles
+        # the torso's z axis (up along the spine) against camera up (-y), clipped at 0
+        assert FK.torso_uprightness(x) == pytest.approx(max(0.0, -r[1, 2]), abs=1e-12)
