@@ -76,7 +76,8 @@ class StageHealth:
 
 @dataclass(frozen=True)
 class LandmarkMsg:
-    """2D landmarks of one frame, for the fitting stage."""
+    """2D landmarks of one frame, for the fitting stage; ``frame.depth_m`` carries the aligned depth at the
+    landmarks (metres, NaN unknown) when the source had depth, else None."""
 
     frame: LandmarkFrame
     t_capture: float

@@ -55,8 +55,14 @@ class FitConfig:
         default=True, metadata={"doc": "image mode: also refine each limb's depth mirror and keep it if the loss "
                                        "is lower (orthographic ambiguity)"}
     )
+    video_hypotheses: bool = field(
+        default=True, metadata={"doc": "video mode: also refine each limb's depth mirror of the previous solution "
+                                       "and this frame's own analytic starts, and choose by temporal "
+                                       "consistency (off: faster, follows the previous solution only)"}
+    )
     video_restarts: int = field(
-        default=1, metadata={"doc": "uDEAS restarts per frame in video mode (0 = refinement only)",
+        default=0, metadata={"doc": "video mode: uDEAS restarts within +-video_window_deg of the previous "
+                                    "solution, one more hypothesis (the paper's search; 0 = off)",
                              "range": (0, 200)}
     )
     video_row_init: int = field(default=2, metadata={"doc": "video mode: uDEAS initial row length",
@@ -77,8 +83,14 @@ class FitConfig:
                                "range": (0.0, None)}
     )
     video_smoothing_deg: float = field(
-        default=8.0, metadata={"doc": "video mode: expected change of an angle between frames for that prior",
-                               "unit": "deg", "range": (0.1, 90.0)}
+        default=8.0, metadata={"doc": "deprecated and ignored (it was per frame, so the prior depended on the "
+                                      "frame rate); use video_joint_speed_deg_s", "unit": "deg",
+                               "range": (0.1, 90.0)}
+    )
+    video_joint_speed_deg_s: float = field(
+        default=500.0, metadata={"doc": "video mode: how fast a joint angle may change, one standard deviation "
+                                        "of the prior from the previous frame (scaled by the time between "
+                                        "frames)", "unit": "deg/s", "range": (1.0, 5000.0)}
     )
     video_max_gap_s: float = field(
         default=0.5, metadata={"doc": "video mode: a longer gap since the last good fit starts over in image mode",

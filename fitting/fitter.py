@@ -8,10 +8,12 @@ refines analytic starts (limbs solved from their 2D landmarks) and the best dist
 each limb's depth mirror in turn; the unobservable pelvis tilt is set by its prior; with noisy landmarks
 the best candidates are refined again under a noise-weighted pose prior; the smallest loss wins.
 
-Video mode (paper section 4): refinement from the previous frame's solution, and when that does not fit
-exactly, uDEAS within +-10 degrees of it (knees and elbows never below 0) and refinement from there, with the
-previous frame as a noise-weighted prior. A frame whose 2D error jumps (fast motion, a lost track) is fitted
-again in image mode and the better result kept. docs/body-model.md describes every step.
+Video mode: several hypotheses refined from this frame's landmarks — the previous frame's solution, each
+limb's depth mirror of it, this frame's own analytic starts (and optionally the paper's uDEAS window) — and
+chosen by the anatomical prior plus a temporal prior in time units (degrees per second times the time since
+the previous frame), so time decides only between what the landmarks cannot tell apart and no pose is held.
+A frame whose 2D error jumps (fast motion, a lost track) is fitted again in image mode and the better result
+kept. docs/body-model.md describes every step.
 
 ``Fitter.fit`` never raises on bad landmarks: it returns ``ok: false`` with a reason.
 """
@@ -43,7 +45,8 @@ _LIMB_JOINT = (L.X_TEL_L, L.X_TEL_R, L.X_TKN_L, L.X_TKN_R)  # refine.LIMB_* orde
 PRIOR_MIN_NOISE = 0.001  # below this estimated landmark noise (fraction of body height) no prior is used
 MIRROR_PASSES = 2  # image mode: passes over the four limb mirrors (a second one only after an improvement)
 PRIOR_CANDIDATES = 4  # noisy landmarks: refine this many of the best candidates again with the prior
-RECOVER_FACTOR, RECOVER_FLOOR, ERR_REF_RATE = 2.0, 0.002, 0.1  # video mode: when to look again in image mode
+RECOVER_FACTOR, RECOVER_FLOOR, ERR_REF_RATE = 1.25, 0.002, 0.1  # video mode: when to look again in image mode
+MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames closer than this (a repeated stamp)
 
 
 class Fitter:
@@ -149,7 +152,7 @@ class Fitter:
                 and 0.0 <= t - self._prev_t <= cfg.video_max_gap_s:
             prev = self._prev_x.copy()
             prev[0] *= self._prev_ppm / ppm0  # same pixel scale under the new reference
-            x, loss, mp, evals = self._video(frame, prev)
+            x, loss, mp, evals = self._video(frame, prev, t - self._prev_t)
             used_mode = "video"
             # lost track (fast motion, a wrong branch after an ambiguity): the 2D error jumps above its
             # recent level -> fit this frame in image mode too and keep the better of the two
@@ -188,15 +191,17 @@ class Fitter:
         return out, float(loss), float(mp)
 
     def _select(self, frame: P.Frame, pool: list[np.ndarray], prev: np.ndarray | None = None,
-                scored: list[tuple[np.ndarray, float, float]] | None = None, mse: list[float] | None = None
-                ) -> tuple[np.ndarray, float, float]:
+                scored: list[tuple[np.ndarray, float, float]] | None = None, mse: list[float] | None = None,
+                dt: float = 0.0) -> tuple[np.ndarray, float, float]:
         """The best of refined candidates.
 
         Noise-free (an exact fit): the smallest loss. With landmark noise the depth of limbs near the image
         plane is weakly determined, so the best candidates are refined again with a prior weighted by the
         noise estimated from the best residual (MAP; zero for an exact fit): in video mode the previous
-        frame's solution (``video_smoothing``), in image mode left/right symmetry (``pose_prior``). The
-        smallest prior-weighted cost wins.
+        previous frame's solution in video mode (``video_smoothing``; in time units: each angle may move
+        ``video_joint_speed_deg_s`` x ``dt`` at one standard deviation, so the prior does not depend on the
+        frame rate), in image mode left/right symmetry and a straight spine (``pose_prior``). It decides
+        between depth hypotheses that fit the landmarks alike. The smallest prior-weighted cost wins.
 
         ``scored`` (``_score`` of each pool entry) and ``mse`` (``refine.data_mse`` of each), when the caller
         already has them, save evaluating them again.
@@ -205,8 +210,7 @@ class Fitter:
         if scored is None:
             scored = [self._score(frame, x) for x in pool]
         best = min(scored, key=lambda s: s[1])
-        weight = cfg.video_smoothing if prev is not None else cfg.pose_prior
-        if not (cfg.refine and weight > 0):
+        if not (cfg.refine and cfg.pose_prior > 0):
             return best
         f_min = min(mse if mse is not None else (refine.data_mse(x, frame.data) for x in pool))
         # landmark noise variance per coordinate from the residual (3 degrees of freedom: 24 coordinates,
@@ -214,16 +218,18 @@ class Fitter:
         sigma2 = min(4.0 * f_min, cfg.pose_prior_max_noise ** 2)
         if sigma2 < PRIOR_MIN_NOISE ** 2:
             return best  # (nearly) exact: no noise to regularize
-        lam = weight * sigma2 / 12.0
         data = frame.data.copy()
-        data[L.D_PRIOR] = lam
         if prev is not None:
-            sig = np.full(L.N_VAR, math.radians(cfg.video_smoothing_deg))
+            # video: the previous frame's solution is the prior, in time units (an angle may move
+            # video_joint_speed_deg_s x dt at one standard deviation), weighted by the landmark noise
+            data[L.D_PRIOR] = cfg.video_smoothing * sigma2 / 12.0
+            sig = np.full(L.N_VAR, math.radians(cfg.video_joint_speed_deg_s * max(dt, MIN_DT_S)))
             sig[0] = 0.0
             data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = prev
             data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = sig
             data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = -1.0
         else:
+            data[L.D_PRIOR] = cfg.pose_prior * sigma2 / 12.0
             data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
             data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
             data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
@@ -313,28 +319,46 @@ class Fitter:
                     break
         return (*self._select(frame, pool, scored=scored, mse=mse), int(evals))
 
-    def _video(self, frame: P.Frame, prev: np.ndarray) -> tuple[np.ndarray, float, float, int]:
-        """Paper section 4: uDEAS within +-video_window_deg of the previous solution. The refinement from
-        the previous solution goes first; when it already fits exactly, the window search is skipped."""
+    def _video(self, frame: P.Frame, prev: np.ndarray, dt: float) -> tuple[np.ndarray, float, float, int]:
+        """Video mode: several hypotheses refined from this frame's landmarks, chosen by temporal consistency.
+
+        Starts: the previous frame's solution; each limb's depth mirror of it (a limb pointing at the camera
+        and one pointing away project alike, so a wrong depth choice is never carried forward); and this
+        frame's own analytic starts (both depth mirrors of the body orientation from the hips and shoulders,
+        every limb solved from its 2D landmarks), so a pose the landmarks have left is not held. Each is
+        refined; the previous solution then acts only as a prior in time units (``video_joint_speed_deg_s``
+        times ``dt``, weighted by the landmark noise) that decides between hypotheses the landmarks cannot
+        tell apart. ``dt``: seconds since the previous frame."""
         cfg = self.config
-        pool = []
-        if cfg.refine:
-            start = self._lm(frame.data, prev)[0]
-            if refine.data_mse(start, frame.data) < EXACT_MSE:
-                return (*self._score(frame, start), 0)
-            pool.append(start)
-        else:
-            pool.append(prev)
+        if not cfg.refine:
+            return (*self._score(frame, prev), 0)
+        start = self._lm(frame.data, prev)[0]
+        if refine.data_mse(start, frame.data) < EXACT_MSE:
+            return (*self._score(frame, start), 0)
+        starts = []
+        trial = np.empty(L.N_VAR)
+        for limb in range(4 if cfg.video_hypotheses else 0):
+            refine.limb_flip(start, frame.data, limb, trial)
+            starts.append(trial.copy())
+        if cfg.video_hypotheses and cfg.seed_orientation and cfg.analytic_seeds:
+            lo, hi = P.image_box(cfg)
+            starts += self._analytic(frame, P.orientation_seeds(frame, self.dims, lo, hi))
         evals = 0
-        if cfg.video_restarts > 0:
+        if cfg.video_restarts > 0:  # the paper's search: uDEAS within +-video_window_deg of the previous solution
             lo, hi = P.video_box(prev, cfg)
             c0 = time.thread_time()
             best_x, _, evals = udeas.minimize(udeas.PROBLEM_POSE, lo, hi, restarts=cfg.video_restarts,
                                               m0=cfg.video_row_init, mf=cfg.video_row_max, seed=cfg.seed,
                                               data=frame.data, work=self._work, x_init=prev)[:3]
             self._udeas_s += time.thread_time() - c0
-            pool.append(self._lm(frame.data, best_x)[0] if cfg.refine else best_x)
-        return (*self._select(frame, pool, prev), int(evals))
+            starts.append(best_x)
+        pool = [start]
+        mse = [refine.data_mse(start, frame.data)]
+        for x0 in starts:
+            x = self._lm(frame.data, x0)[0]
+            pool.append(x)
+            mse.append(refine.data_mse(x, frame.data))
+        return (*self._select(frame, pool, prev, mse=mse, dt=dt), int(evals))
 
     # --- output ---
 

@@ -15,7 +15,12 @@ Other packages import these names from ``landmarks`` itself, never from its modu
 * landmarks per frame and the ``*.landmarks.jsonl`` recording format: ``LandmarkFrame``, ``LANDMARK_NAMES``
   (the 33 in MediaPipe order), ``RecordingHeader``, ``iter_recording``, ``read_recording``,
   ``write_recording``, ``RecordingWriter``, ``RecordingError`` (an unreadable header), ``RecordingProblem``
-  (a bad frame line) and ``dumps`` (one compact JSON line).
+  (a bad frame line) and ``dumps`` (one compact JSON line); ``DepthSource`` (the header's ``depth``: where
+  the frames' ``depth_m`` came from).
+* depth at the landmarks (pure NumPy): ``sample_depth(depth, depth_scale, landmarks)`` (metres along the
+  camera's z axis at each landmark's pixel of an aligned depth image, NaN where unknown), its default
+  patch radius ``depth_patch_radius(width, height)``, and ``with_depth(frame, depth, depth_scale)`` (a
+  ``LandmarkFrame`` with its ``depth_m`` filled in).
 
 The model converter behind ``posed models fetch`` is the subpackage :mod:`landmarks.convert`, with its own
 public names. The names here load on first use (PEP 562): ``import landmarks`` costs nothing; onnxruntime
@@ -34,10 +39,12 @@ if TYPE_CHECKING:
     from landmarks.config import LandmarkConfig
     from landmarks.crop import detector_input, landmark_input
     from landmarks.decode import CROP_SIZE as LANDMARK_INPUT_SIZE
+    from landmarks.depth import depth_patch_radius, sample_depth, with_depth
     from landmarks.models import ModelMissingError, default_models_dir, find_models, verify_models
     from landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points
     from landmarks.recording import (
         LANDMARK_NAMES,
+        DepthSource,
         LandmarkFrame,
         RecordingError,
         RecordingHeader,
@@ -61,6 +68,7 @@ __all__ = [
     "DETECTOR_INPUT_SIZE",
     "LANDMARK_INPUT_SIZE",
     "LANDMARK_NAMES",
+    "DepthSource",
     "DetectorOutputs",
     "LandmarkConfig",
     "LandmarkFrame",
@@ -76,6 +84,7 @@ __all__ = [
     "Roi",
     "SessionSettings",
     "default_models_dir",
+    "depth_patch_radius",
     "detector_input",
     "dumps",
     "find_models",
@@ -84,7 +93,9 @@ __all__ = [
     "read_recording",
     "rotate_image",
     "rotate_points",
+    "sample_depth",
     "verify_models",
+    "with_depth",
     "write_recording",
 ]
 
@@ -95,6 +106,9 @@ _ORIGIN = {
     "detector_input": ("landmarks.crop", "detector_input"),
     "landmark_input": ("landmarks.crop", "landmark_input"),
     "LANDMARK_INPUT_SIZE": ("landmarks.decode", "CROP_SIZE"),
+    "depth_patch_radius": ("landmarks.depth", "depth_patch_radius"),
+    "sample_depth": ("landmarks.depth", "sample_depth"),
+    "with_depth": ("landmarks.depth", "with_depth"),
     "ModelMissingError": ("landmarks.models", "ModelMissingError"),
     "default_models_dir": ("landmarks.models", "default_models_dir"),
     "find_models": ("landmarks.models", "find_models"),
@@ -103,6 +117,7 @@ _ORIGIN = {
     "rotate_image": ("landmarks.pipeline", "rotate_image"),
     "rotate_points": ("landmarks.pipeline", "rotate_points"),
     "LANDMARK_NAMES": ("landmarks.recording", "LANDMARK_NAMES"),
+    "DepthSource": ("landmarks.recording", "DepthSource"),
     "LandmarkFrame": ("landmarks.recording", "LandmarkFrame"),
     "RecordingError": ("landmarks.recording", "RecordingError"),
     "RecordingHeader": ("landmarks.recording", "RecordingHeader"),

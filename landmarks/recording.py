@@ -5,6 +5,12 @@ A recording is JSON Lines: a header line, then one frame per line. Landmarks are
 MediaPipe's relative depth on the x scale (negative nearer the camera, 0 when unknown). In memory a frame's
 landmarks are a (33, 5) float64 array; a landmark that is ``null`` in the file is a row of NaN.
 
+Depth (optional): a frame may carry ``depth_m``, 33 depths in metres along the camera's z axis that a depth
+camera aligned to the image measured at the landmarks' pixels (``null`` where unknown; in memory a (33,)
+float64 array with NaN, see :mod:`landmarks.depth`), and the header then says where it came from,
+``"depth": {"source": "realsense", "aligned_to": "color"}`` (:class:`DepthSource`). A recording without them
+reads and writes exactly as before.
+
 Reading never raises on a bad frame line: it yields a :class:`RecordingProblem` naming the file and line and
 goes on. Only a header that cannot be understood raises :class:`RecordingError` (nothing after it can be read).
 """
@@ -41,11 +47,43 @@ class RecordingError(ValueError):
 
 
 @dataclass(frozen=True)
+class DepthSource:
+    """Where a recording's ``depth_m`` came from: the header's ``"depth"`` object.
+
+    ``source``: the depth camera (``"realsense"``); ``aligned_to``: the image its depth was aligned to
+    (``"color"``: the image the landmarks are in). ``extra`` keeps fields this version does not know.
+    """
+
+    source: str = "realsense"
+    aligned_to: str = "color"
+    extra: dict = field(default_factory=dict, compare=False)
+
+    def to_json(self) -> dict:
+        out: dict[str, Any] = {"source": self.source, "aligned_to": self.aligned_to}
+        for k, v in self.extra.items():
+            out.setdefault(k, v)
+        return out
+
+    @classmethod
+    def from_json(cls, obj: Any) -> DepthSource:
+        """Parse the header's ``depth`` object; raises ValueError naming the wrong field."""
+        if not isinstance(obj, dict):
+            raise ValueError(f'depth must be an object like {{"source": "realsense", "aligned_to": "color"}}, '
+                             f"got {obj!r}")
+        for key in ("source", "aligned_to"):
+            if not isinstance(obj.get(key), str):
+                raise ValueError(f"depth.{key} must be a string, got {obj.get(key)!r}")
+        extra = {k: v for k, v in obj.items() if k not in ("source", "aligned_to")}
+        return cls(obj["source"], obj["aligned_to"], extra)
+
+
+@dataclass(frozen=True)
 class RecordingHeader:
     """First line of a recording. ``extra`` keeps fields this version does not know, for round trips.
 
     ``camera``: the intrinsics of the recorded image (their width and height are ``image_size``; the file's
-    ``camera`` object holds only fx, fy, cx, cy), or None.
+    ``camera`` object holds only fx, fy, cx, cy), or None. ``depth``: where the frames' ``depth_m`` came
+    from, or None (a recording without depth).
     """
 
     image_size: tuple[int, int]
@@ -53,6 +91,7 @@ class RecordingHeader:
     source: str = ""
     camera: Intrinsics | None = None
     extra: dict = field(default_factory=dict, compare=False)
+    depth: DepthSource | None = None
 
     def __post_init__(self) -> None:
         if self.camera is not None and self.camera.size != tuple(self.image_size):
@@ -64,6 +103,8 @@ class RecordingHeader:
                                "fps": self.fps, "source": self.source}
         if self.camera is not None:
             out["camera"] = self.camera.to_json(with_size=False)
+        if self.depth is not None:
+            out["depth"] = self.depth.to_json()
         for k, v in self.extra.items():
             out.setdefault(k, v)
         return out
@@ -96,9 +137,12 @@ class RecordingHeader:
                 camera = Intrinsics.from_json(cam, image_size=(size[0], size[1]))
             except ValueError as exc:
                 raise ValueError(f"camera: {exc}") from None
-        known = {"format", "version", "image_size", "fps", "source", "camera"}
+        depth = None
+        if obj.get("depth") is not None:
+            depth = DepthSource.from_json(obj["depth"])
+        known = {"format", "version", "image_size", "fps", "source", "camera"} | ({"depth"} if depth else set())
         extra = {k: v for k, v in obj.items() if k not in known}
-        return cls((size[0], size[1]), float(fps), source, camera, extra)
+        return cls((size[0], size[1]), float(fps), source, camera, extra, depth)
 
 
 def _is_number(v: Any) -> bool:
@@ -112,12 +156,16 @@ class LandmarkFrame:
     seq: frame sequence number; t: capture time in seconds from the start of the recording (or of the
     daemon's monotonic clock); landmarks: (33, 5) float64 ``[x_px, y_px, z, visibility, presence]`` with NaN
     rows for unknown landmarks, or None when there is no person. ``extra`` keeps unknown JSON fields.
+    depth_m: (33,) float64, the depth in metres along the camera's z axis that a depth camera aligned to the
+    image measured at each landmark's pixel (:func:`landmarks.sample_depth`), NaN where unknown; None when
+    the frame has no depth (no depth camera, or no person).
     """
 
     seq: int
     t: float
     landmarks: np.ndarray | None
     extra: dict = field(default_factory=dict)
+    depth_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.landmarks is not None:
@@ -126,11 +174,25 @@ class LandmarkFrame:
                 raise ValueError(f"landmarks must have shape (33, 5), got {arr.shape}")
             arr.setflags(write=False)
             object.__setattr__(self, "landmarks", arr)
+        if self.depth_m is not None:
+            depth = np.array(self.depth_m, dtype=np.float64)
+            if depth.shape != (NUM_LANDMARKS,):
+                raise ValueError(f"depth_m must have shape (33,) (metres, NaN unknown), got {depth.shape}")
+            bad = ~(np.isnan(depth) | (np.isfinite(depth) & (depth > 0)))
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise ValueError(f"depth_m must hold positive finite metres or NaN (unknown); depth_m[{i}] "
+                                 f"({LANDMARK_NAMES[i]}) is {float(depth[i])!r}")
+            depth.setflags(write=False)
+            object.__setattr__(self, "depth_m", depth)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LandmarkFrame):
             return NotImplemented
         if (self.seq, self.t, self.extra) != (other.seq, other.t, other.extra):
+            return False
+        if (self.depth_m is None) != (other.depth_m is None) or (
+                self.depth_m is not None and not np.array_equal(self.depth_m, other.depth_m, equal_nan=True)):
             return False
         if self.landmarks is None or other.landmarks is None:
             return self.landmarks is None and other.landmarks is None
@@ -143,6 +205,8 @@ class LandmarkFrame:
         if self.landmarks is not None:
             lms = [None if np.isnan(row).any() else [float(v) for v in row] for row in self.landmarks]
         out: dict[str, Any] = {"seq": self.seq, "t": self.t, "landmarks": lms}
+        if self.depth_m is not None:
+            out["depth_m"] = [None if np.isnan(v) else float(v) for v in self.depth_m]
         for k, v in self.extra.items():
             out.setdefault(k, v)
         return out
@@ -176,8 +240,28 @@ class LandmarkFrame:
                         f"numbers or null, got {lm!r}"
                     )
                 arr[i] = lm
-        extra = {k: v for k, v in obj.items() if k not in ("seq", "t", "landmarks")}
-        return cls(seq, float(t), arr, extra)
+        depth = _parse_depth_m(obj.get("depth_m"))
+        known = ("seq", "t", "landmarks") + (("depth_m",) if depth is not None else ())
+        extra = {k: v for k, v in obj.items() if k not in known}
+        return cls(seq, float(t), arr, extra, depth)
+
+
+def _parse_depth_m(raw: Any) -> np.ndarray | None:
+    """A frame's ``depth_m`` (33 metres or null each) as (33,) float64 with NaN, or None when absent/null."""
+    if raw is None:
+        return None
+    if not isinstance(raw, list) or len(raw) != NUM_LANDMARKS:
+        n = len(raw) if isinstance(raw, list) else type(raw).__name__
+        raise ValueError(f"depth_m must be a list of 33 depths in metres (null where unknown), got {n}")
+    depth = np.full(NUM_LANDMARKS, np.nan)
+    for i, v in enumerate(raw):
+        if v is None:
+            continue
+        if not _is_number(v) or v <= 0:
+            raise ValueError(f"depth_m {i} ({LANDMARK_NAMES[i]}) must be a positive number of metres or null, "
+                             f"got {v!r}")
+        depth[i] = v
+    return depth
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,15 @@
-"""``posed landmarks INPUT [-o OUT.landmarks.jsonl]``: the 2D landmark stage alone, on an image, a video or a
-folder of images, written as a landmark recording (interfaces.md section 1).
+"""``posed landmarks INPUT [-o OUT.landmarks.jsonl]``: the 2D landmark stage alone, on an image, a video, a
+folder of images or a RealSense recording (``.db3``/``.bag``), written as a landmark recording (interfaces.md
+section 1).
 
-Frame times: a video's own frame timestamps (seconds from its first frame); images: ``seq / fps``. A frame
-that cannot be decoded is reported on stderr and left out (its ``seq`` is skipped, so the gap shows); the rest
-is still written. Exit status: 0 all frames read, 1 some frames could not be read, 2 nothing could be done
-(input or models missing).
+A RealSense recording also gives the header its ``camera`` (the colour intrinsics) and, when it has depth,
+each frame its ``depth_m`` (the aligned depth at the landmarks, ``landmarks.with_depth``) and the header its
+``"depth": {"source": "realsense", "aligned_to": "color"}``; the other inputs write neither.
+
+Frame times: a video's or RealSense recording's own frame timestamps (seconds from its first frame); images:
+``seq / fps``. A frame that cannot be decoded is reported on stderr and left out (its ``seq`` is skipped, so
+the gap shows); the rest is still written. Exit status: 0 all frames read, 1 some frames could not be read,
+2 nothing could be done (input or models missing).
 """
 
 from __future__ import annotations
@@ -19,9 +24,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from camera_model import Intrinsics
 from daemon.commands import add_config_args, config_from_args
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+READ_TIMEOUT_S = 5.0        # a RealSense recording's next frame (played as fast as it decodes)
 
 
 class InputError(Exception):
@@ -34,19 +41,26 @@ class InputFrame:
     t: float
     image: np.ndarray | None  # None: this frame could not be read
     problem: str = ""
+    depth: np.ndarray | None = None   # H x W uint16 aligned to the image, 0 = none
+    depth_scale: float = 0.0          # metres per depth unit
 
 
 @dataclass
 class FrameSource:
-    kind: str           # "image", "video" or "folder"
+    kind: str           # "image", "video", "folder" or "realsense"
     fps: float
     image_size: tuple[int, int]
     frames: Iterator[InputFrame]
+    camera: Intrinsics | None = None  # of the image, when the input knows it
+    has_depth: bool = False           # the frames come with aligned depth
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("landmarks", help="run the 2D landmark stage on an image, video or folder of images")
-    parser.add_argument("input", metavar="INPUT", help="an image, a video file or a folder of images")
+    parser = sub.add_parser("landmarks", help="run the 2D landmark stage on an image, video, folder of images "
+                                              "or RealSense recording")
+    parser.add_argument("input", metavar="INPUT", help="an image, a video file, a folder of images or a RealSense "
+                                                       "recording (.db3/.bag; its depth is sampled at the "
+                                                       "landmarks)")
     parser.add_argument("-o", "--output", metavar="OUT.landmarks.jsonl", default="-",
                         help="landmark recording to write (default: standard output)")
     parser.add_argument("--mode", choices=("video", "image"), default=None,
@@ -81,6 +95,10 @@ def open_input(path: Path, fps: float | None, default_fps: float) -> FrameSource
         return _image_files(files, "folder", fps or default_fps)
     if path.suffix.lower() in IMAGE_SUFFIXES:
         return _image_files([path], "image", fps or default_fps)
+    import hal
+
+    if hal.is_realsense_recording(path):
+        return _realsense(path, fps, default_fps)
     return _video(path, fps, default_fps)
 
 
@@ -151,8 +169,48 @@ def _video(path: Path, fps: float | None, default_fps: float) -> FrameSource:
     return FrameSource("video", rate, size, frames())
 
 
+def _realsense(path: Path, fps: float | None, default_fps: float) -> FrameSource:
+    """A RealSense recording played as fast as it decodes, colour with its aligned depth (hal)."""
+    import hal
+
+    source = None
+    try:
+        source = hal.open_source(hal.SourceConfig(type="file", path=str(path), realtime=False))
+        source.open()
+        first = source.read(READ_TIMEOUT_S)
+    except hal.SourceError as exc:
+        if source is not None:
+            source.close()
+        if isinstance(exc, hal.EndOfStream):
+            raise InputError(f"{path}: the RealSense recording holds no frame") from None
+        raise InputError(str(exc)) from None
+    recorded_fps = float(source.info.get("fps") or 0.0)
+    rate = fps or (recorded_fps if math.isfinite(recorded_fps) and recorded_fps > 0 else default_fps)
+
+    def frames() -> Iterator[InputFrame]:
+        frame, n = first, 0
+        try:
+            while True:
+                t = frame.t - first.t if fps is None else n / rate
+                yield InputFrame(frame.seq, t, frame.image, depth=frame.depth, depth_scale=frame.depth_scale)
+                n += 1
+                try:
+                    frame = source.read(READ_TIMEOUT_S)
+                except hal.EndOfStream:
+                    break
+                except hal.SourceError as exc:
+                    yield InputFrame(frame.seq + 1, n / rate, None, f"{path}: reading stopped after {n} "
+                                                                     f"frame(s): {exc}")
+                    break
+        finally:
+            source.close()
+
+    return FrameSource("realsense", rate, (first.width, first.height), frames(), camera=first.intrinsics,
+                       has_depth=first.depth is not None)
+
+
 def run(args: argparse.Namespace) -> int:
-    from landmarks import ModelMissingError, PoseLandmarker, RecordingHeader, dumps
+    from landmarks import DepthSource, ModelMissingError, PoseLandmarker, RecordingHeader, dumps, with_depth
 
     config = config_from_args(args)
     path = Path(args.input)
@@ -169,7 +227,9 @@ def run(args: argparse.Namespace) -> int:
         _err(str(exc))
         return 2
 
-    header = RecordingHeader(source.image_size, source.fps, source=f"posed landmarks {path.name} ({mode} mode)")
+    header = RecordingHeader(source.image_size, source.fps, source=f"posed landmarks {path.name} ({mode} mode)",
+                             camera=source.camera, depth=DepthSource("realsense", "color") if source.has_depth
+                             else None)
     problems = written = found = 0
     try:
         out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
@@ -183,7 +243,8 @@ def run(args: argparse.Namespace) -> int:
                 _err(frame.problem)
                 problems += 1
                 continue
-            result = landmarker.process(frame.image, frame.t, frame.seq)
+            result = with_depth(landmarker.process(frame.image, frame.t, frame.seq), frame.depth,
+                                frame.depth_scale)
             out.write(dumps(result.to_json()) + "\n")
             out.flush()
             written += 1

@@ -14,7 +14,8 @@
 
 ``run_recording`` replaces capture *and* landmarks for a ``*.landmarks.jsonl`` source: it reads the
 recording (``landmarks.recording``) and sends LandmarkMsg straight to the fitting stage, with capture
-timestamps on the recording's time line from the start of the replay (like hal's replays).
+timestamps on the recording's time line from the start of the replay (like hal's replays); a frame's
+``depth_m``, when the recording has it, travels on with the frame as the landmark stage's would.
 
 For unpaced replays the capture timestamps follow the recording, not the wall clock, so the FrameRef also
 carries ``t_origin`` (when the frame was read), from which latency is measured.
@@ -190,7 +191,7 @@ def run_recording(rt: StageRuntime) -> None:
             with rt.step():
                 t_in = clock.now()
                 t_capture = t_start + (item.t - t_first)      # the recording's time line
-                frame = LandmarkFrame(item.seq, t_capture, item.landmarks)
+                frame = LandmarkFrame(item.seq, t_capture, item.landmarks, depth_m=item.depth_m)
                 msg = LandmarkMsg(frame, t_capture, tuple(header.image_size), intrinsics, (),
                                   None if src.realtime else t_in)
                 rt.send(msg)

@@ -3,6 +3,10 @@
 Warm-up loads the models and runs them once (``PoseLandmarker.warmup``) before the stage reports ready. A
 missing model is fatal (exit 78) with the landmark package's message, which names ``posed models fetch``.
 A FrameRef whose slot was overwritten before it was read is dropped.
+
+Depth: when the frame came with a depth image aligned to it (``FrameRef.has_depth``: a RealSense camera or
+recording), the depth at each landmark (``landmarks.with_depth``, metres) goes to the fitting stage on the
+frame itself, ``LandmarkMsg.frame.depth_m``; otherwise (no depth, or no person) ``depth_m`` is None.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from daemon.stages.base import StageRuntime
 
 
 def run(rt: StageRuntime) -> None:
-    from landmarks import ModelMissingError, PoseLandmarker
+    from landmarks import ModelMissingError, PoseLandmarker, with_depth
 
     with rt.step():
         try:
@@ -37,12 +41,12 @@ def run(rt: StageRuntime) -> None:
             if got is None:
                 rt.drop()
                 continue
-            image, _depth, _scale = got
+            image, depth, depth_scale = got
             if last_seq is not None and ref.seq <= last_seq:
                 landmarker.reset()        # the source started again: forget the tracked person
             last_seq = ref.seq
             try:
-                frame = landmarker.process(image, ref.t_capture, ref.seq)
+                frame = with_depth(landmarker.process(image, ref.t_capture, ref.seq), depth, depth_scale)
             except Exception as exc:  # one bad frame must not stop the pipeline
                 failures += 1
                 rt.error()
