@@ -35,6 +35,7 @@ from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
 from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
 from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+from fitting.root import root_in_camera
 
 MODES = ("video", "image")
 FIXED_NAMES = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
@@ -381,6 +382,9 @@ class Fitter:
         extra = {"mode": used_mode, "projection": "perspective" if frame.perspective else "orthographic",
                  "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
                  "udeas_ms": float(f"{self._udeas_s * 1e3:.4g}")}
+        root = root_in_camera(x, frame.data, pts_c)
+        if root is not None:  # perspective (intrinsics known): where the person is, for a robot to go there
+            extra["root_cam_m"] = [round(v, 4) for v in root]
         if missing:
             extra["missing"] = missing
             extra["unobserved"] = _unobserved(missing)

@@ -55,6 +55,14 @@ class FitResult:
     joints_3d: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def root_cam_m(self) -> tuple[float, float, float] | None:
+        """The mid-hip in the camera frame, metres (x image right, y image down, z away from the camera), when
+        known (the camera's intrinsics and the person's size); None otherwise. Kept in ``extra`` (JSON key
+        ``root_cam_m``)."""
+        v = self.extra.get("root_cam_m")
+        return None if v is None else (float(v[0]), float(v[1]), float(v[2]))
+
     @classmethod
     def failure(cls, seq: int, t: float, reason: str, **extra: Any) -> FitResult:
         return cls(seq=seq, t=t, ok=False, reason=reason, extra=dict(extra))

@@ -1,0 +1,38 @@
+"""Where the person is: the mid-hip's position in the camera frame (``root_cam_m``, interfaces.md section 2).
+
+Camera frame: metres, x image right, y image down, z away from the camera (along the optical axis).
+
+Known only with the perspective model (the camera's intrinsics): the fit's size factor then fixes the depth,
+because a body of the person's height ``H`` (configured or calibrated) that spans ``g`` normalized units
+stands at ``Tz = fn_y H / g`` (fitting.projection), and the lateral position is the translation the 2D error
+is minimised over: the weighted least-squares ``T`` in ``obs_i + off = fn (X_i + T) / (Tz + Z_i)``
+(fitting.loss.mpjpe), solved here again in float64 for the final solution. An orthographic fit (no
+intrinsics) has no scale to metres: None.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fitting import layout as L
+from fitting.projection import MIN_DEPTH
+
+
+def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray) -> tuple[float, float, float] | None:
+    """The mid-hip's camera-frame position in metres for solution ``x`` (kernel units) of the problem ``data``;
+    ``pts_c``: the 12 body landmarks in camera axes (metres, mid-hip origin), as fitting.forward_kinematics
+    model_points gives them. None for the orthographic model or when no landmark is used."""
+    if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
+        return None
+    w = data[L.D_W:L.D_W + L.N_LM]
+    if not np.any(w > 0):
+        return None
+    fn = np.array([data[L.D_PROJ + L.PJ_FN_X], data[L.D_PROJ + L.PJ_FN_Y]])
+    off = np.array([data[L.D_PROJ + L.PJ_OFF_X], data[L.D_PROJ + L.PJ_OFF_Y]])
+    tz = fn[1] * data[L.D_DIMS + L.DM_H] / x[L.X_GAMMA]
+    z = np.maximum(tz + pts_c[:L.N_LM, 2], MIN_DEPTH * tz)
+    obs = data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
+    a = fn[None, :] / z[:, None]                                   # d(image)/d(T), per landmark and axis
+    b = obs + off[None, :] - fn[None, :] * pts_c[:L.N_LM, :2] / z[:, None]
+    t = (w[:, None] * a * b).sum(axis=0) / (w[:, None] * a * a).sum(axis=0)
+    return float(t[0]), float(t[1]), float(tz)
