@@ -27,12 +27,14 @@ import numpy as np
 
 from camera_model import Intrinsics
 from fitting import forward_kinematics as FK
+from fitting import jacobian as JAC
 from fitting import jitcache, refine, udeas
 from fitting import layout as L
 from fitting import loss as LOSS
 from fitting import problem as P
 from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
+from fitting.depth_term import DepthFit, depth_fit, usable
 from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
 from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 from fitting.root import root_in_camera
@@ -47,6 +49,8 @@ PRIOR_MIN_NOISE = 0.001  # below this estimated landmark noise (fraction of body
 MIRROR_PASSES = 2  # image mode: passes over the four limb mirrors (a second one only after an improvement)
 PRIOR_CANDIDATES = 4  # noisy landmarks: refine this many of the best candidates again with the prior
 RECOVER_FACTOR, RECOVER_FLOOR, ERR_REF_RATE = 1.25, 0.002, 0.1  # video mode: when to look again in image mode
+DEPTH_WEIGHT = 10.0  # a landmark's depth contradicting a hypothesis costs this many landmark-noise units
+DEPTH_PASSES = 2  # refinements with depth: the robust weights re-solved from the first one's result
 MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames closer than this (a repeated stamp)
 
 
@@ -60,6 +64,7 @@ class Fitter:
         self.dims: BodyDimensions = dimensions_for(self.config.body_height_m, self.config.calibration)
         self._work = FK.empty_work()
         self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (FIXED_NAMES), degrees
+        self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
         self.reset()
 
     # --- state ---
@@ -90,13 +95,24 @@ class Fitter:
     # --- the fit ---
 
     def fit(self, landmarks: np.ndarray | None, seq: int, t: float, image_size: tuple[int, int],
-            mode: str = "video", intrinsics: Intrinsics | None = None) -> FitResult:
+            mode: str = "video", intrinsics: Intrinsics | None = None,
+            depth_m: np.ndarray | None = None) -> FitResult:
         """Fit one frame. ``landmarks``: (33, 5) ``[x_px, y_px, z, visibility, presence]`` or None (no person).
 
-        ``intrinsics``: the camera's, in pixels of the landmarks' image, or None (unknown).
+        ``intrinsics``: the camera's, in pixels of the landmarks' image, or None (unknown). ``depth_m``: what
+        an aligned depth camera measured at each of the 33 landmarks, metres along the camera's z axis, NaN
+        where unknown (interfaces.md section 1), or None: used by a robust term (fitting.depth_term) and for
+        ``root_cam_m``.
         """
         t0 = time.perf_counter()
+        self._depth = None
         try:
+            if depth_m is not None:
+                d = np.asarray(depth_m, dtype=np.float64)
+                if d.shape != (33,):
+                    return FitResult.failure(seq, float(t) if _finite(t) else 0.0,
+                                             f"depth_m must be 33 values (metres or NaN), got shape {d.shape}")
+                self._depth = d[list(BODY_LANDMARKS)]
             return self._fit(landmarks, seq, t, image_size, mode, intrinsics, t0)
         except Exception as exc:  # never raise on bad input: report it
             self.reset()
@@ -198,25 +214,35 @@ class Fitter:
 
         Noise-free (an exact fit): the smallest loss. With landmark noise the depth of limbs near the image
         plane is weakly determined, so the best candidates are refined again with a prior weighted by the
-        noise estimated from the best residual (MAP; zero for an exact fit): in video mode the previous
-        previous frame's solution in video mode (``video_smoothing``; in time units: each angle may move
+        noise estimated from the best residual (MAP; zero for an exact fit): the previous frame's solution
+        in video mode (``video_smoothing``; in time units: each angle may move
         ``video_joint_speed_deg_s`` x ``dt`` at one standard deviation, so the prior does not depend on the
         frame rate), in image mode left/right symmetry and a straight spine (``pose_prior``). It decides
         between depth hypotheses that fit the landmarks alike. The smallest prior-weighted cost wins.
 
         ``scored`` (``_score`` of each pool entry) and ``mse`` (``refine.data_mse`` of each), when the caller
         already has them, save evaluating them again.
+
+        With measured depth at the landmarks (``self._depth``) every comparison also counts the robust depth
+        term (fitting.depth_term), weighted so that a landmark whose depth contradicts a hypothesis costs as
+        much as DEPTH_WEIGHT times the landmark noise: it decides between hypotheses the 2D landmarks cannot
+        tell apart (a limb towards or away from the camera) and never outweighs a clearly better 2D fit.
         """
         cfg = self.config
         if scored is None:
             scored = [self._score(frame, x) for x in pool]
-        best = min(scored, key=lambda s: s[1])
-        if not (cfg.refine and cfg.pose_prior > 0):
-            return best
         f_min = min(mse if mse is not None else (refine.data_mse(x, frame.data) for x in pool))
         # landmark noise variance per coordinate from the residual (3 degrees of freedom: 24 coordinates,
         # 19 variables, 2 translations), capped: a poor fit is a model mismatch rather than noise
         sigma2 = min(4.0 * f_min, cfg.pose_prior_max_noise ** 2)
+        noise2 = max(sigma2, PRIOR_MIN_NOISE ** 2)
+        if self._depth is not None and not any(usable(self._depth_fit(frame, sc[0]), self._depth) for sc in scored):
+            self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
+        # the 2D loss is a mean distance (normalized units), the refinement's cost a sum of squares
+        d_loss = [DEPTH_WEIGHT * math.sqrt(noise2) * self._depth_cost(frame, sc[0]) for sc in scored]
+        best = scored[min(range(len(scored)), key=lambda i: scored[i][1] + d_loss[i])]
+        if not (cfg.refine and cfg.pose_prior > 0):
+            return best
         if sigma2 < PRIOR_MIN_NOISE ** 2:
             return best  # (nearly) exact: no noise to regularize
         data = frame.data.copy()
@@ -235,12 +261,47 @@ class Fitter:
             data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
             data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
         best_cost = math.inf
-        order = np.argsort([sc[1] for sc in scored])
+        order = np.argsort([sc[1] + dl for sc, dl in zip(scored, d_loss, strict=True)])
         for i in order[:PRIOR_CANDIDATES]:
-            out, cost = self._lm(data, pool[i])
+            start = pool[i]
+            for _ in range(DEPTH_PASSES if self._depth is not None else 1):
+                self._set_depth_rows(frame, data, start, noise2)
+                out, cost = self._lm(data, start)
+                start = out
+            data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 0.0  # compare the candidates on one cost
+            cost = self._lm_cost(data, out) + DEPTH_WEIGHT * noise2 * self._depth_cost(frame, out)
             if cost < best_cost:
                 best_cost, best_x = cost, out
         return self._score(frame, best_x)
+
+    def _set_depth_rows(self, frame: P.Frame, data: np.ndarray, x: np.ndarray, noise2: float) -> None:
+        """The refinement's depth rows for a start ``x`` (iteratively reweighted: targets and robust weights
+        from the depth term at ``x``): a landmark's depth residual of one sigma weighs DEPTH_WEIGHT times the
+        landmark noise, as in the selection."""
+        d = self._depth_fit(frame, x)
+        if d is None:
+            data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 0.0
+            return
+        data[L.D_DEPTH:L.D_DEPTH + L.N_LM] = np.nan_to_num(d.targets)
+        data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = np.sqrt(DEPTH_WEIGHT * noise2 * d.weights) / d.sigma
+
+    def _lm_cost(self, data: np.ndarray, x: np.ndarray) -> float:
+        res = np.empty(L.N_RES)
+        JAC.residuals_jacobian(x, data, res, np.empty((1, 1)), False)
+        return float(np.dot(res, res))
+
+    def _depth_fit(self, frame: P.Frame, x: np.ndarray) -> DepthFit | None:
+        """The depth term of solution ``x`` against this frame's measured depth (None without depth)."""
+        if self._depth is None:
+            return None
+        pts_b = np.empty((L.N_POINTS, 3))
+        pts_c = np.empty((L.N_POINTS, 3))
+        FK.model_points(x, frame.data, pts_b, pts_c)
+        return depth_fit(pts_c[:L.N_LM, 2], self._depth)
+
+    def _depth_cost(self, frame: P.Frame, x: np.ndarray) -> float:
+        d = self._depth_fit(frame, x)
+        return 0.0 if d is None else d.cost
 
     def _analytic(self, frame: P.Frame, seeds: np.ndarray) -> list[np.ndarray]:
         """Starting points from the orientation seeds with every limb solved from its 2D landmarks (each
@@ -382,7 +443,10 @@ class Fitter:
         extra = {"mode": used_mode, "projection": "perspective" if frame.perspective else "orthographic",
                  "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
                  "udeas_ms": float(f"{self._udeas_s * 1e3:.4g}")}
-        root = root_in_camera(x, frame.data, pts_c)
+        depth = self._depth_fit(frame, x)
+        root = root_in_camera(x, frame.data, pts_c, None if depth is None else depth.root_z)
+        if depth is not None:
+            extra["depth_inliers"] = depth.inliers
         if root is not None:  # perspective (intrinsics known): where the person is, for a robot to go there
             extra["root_cam_m"] = [round(v, 4) for v in root]
         if missing:

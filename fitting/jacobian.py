@@ -1,7 +1,7 @@
 """numba kernels: the least-squares residuals of the refinement and their analytic Jacobian d res / d x.
 ``cache=True``; tested against central finite differences in ``tests/fitting/test_kinematics.py``.
 
-Residual layout (``R_*`` in fitting.layout, N_RES = 71 rows):
+Residual layout (``R_*`` in fitting.layout, N_RES = 83 rows):
 
 * R_LM + 2 i + c: landmark i, image axis c: sqrt(w_i / sum w) (b_ic - a_ic T_c), b = observed - model
   projection before the translation, a = d(model) / dT (1 orthographic, fn_c / Z'_i perspective), T the
@@ -9,6 +9,9 @@ Residual layout (``R_*`` in fitting.layout, N_RES = 71 rows):
   (normalized image units squared).
 * R_PEN.., R_LIM.., R_PRIOR..: penalty hinges, joint-limit hinges and pose-prior rows
   (:mod:`fitting.penalties`).
+* R_DEPTH + i: landmark i's measured depth, w_i (Z_i - target_i): Z_i its camera-axes depth relative to the
+  mid-hip (metres), the target and the weight set per refinement by fitting.depth_term (robust weights,
+  re-solved between refinements); zero rows without depth. d Z_i / d x is the point Jacobian's z row.
 
 The landmark Jacobian is built by the chain rule: the camera-axes velocity of each landmark under each
 joint angle is a x (p - o) for the joint's rotation axis a (camera axes) through its centre o
@@ -225,6 +228,8 @@ def residuals_jacobian(x, data, res, jac, want_jac):
         res[L.R_LM + 2 * i] = sq * (b_[i, 0] - a_[i, 0] * t_[0])
         res[L.R_LM + 2 * i + 1] = sq * (b_[i, 1] - a_[i, 1] * t_[1])
     hinge_residuals(x, data, res)
+    for i in range(L.N_LM):
+        res[L.R_DEPTH + i] = data[L.D_DEPTH_W + i] * (pts_c[i, 2] - data[L.D_DEPTH + i])
     if not want_jac:
         return
     jp = np.zeros((L.N_LM, 3, L.N_VAR))
@@ -234,3 +239,7 @@ def residuals_jacobian(x, data, res, jac, want_jac):
     _projection_jacobian(x, data, pts_c, jp, jq, ja)
     _landmark_rows(data, sw, a_, b_, t_, nn, dd, jq, ja, jac)
     hinge_jacobian(x, data, jac)
+    for i in range(L.N_LM):
+        wd = data[L.D_DEPTH_W + i]
+        for k in range(L.N_VAR):
+            jac[L.R_DEPTH + i, k] = wd * jp[i, 2, k]

@@ -67,7 +67,9 @@ D_PRIOR = D_LIM_HI + N_VAR        # 1: weight lambda of the pose prior (refineme
 D_PRIOR_MU = D_PRIOR + 1          # 19: prior means (kernel units)
 D_PRIOR_SIG = D_PRIOR_MU + N_VAR  # 19: prior standard deviations (<= 0: no prior on that variable)
 D_PRIOR_PARTNER = D_PRIOR_SIG + N_VAR  # 19: partner variable (prior on x_k - x_partner), -1 for none
-D_SIZE = D_PRIOR_PARTNER + N_VAR
+D_DEPTH = D_PRIOR_PARTNER + N_VAR  # 12: depth targets: landmark i's depth relative to the mid-hip (m)
+D_DEPTH_W = D_DEPTH + N_LM         # 12: weights of the depth rows (0 = no depth; refinement only)
+D_SIZE = D_DEPTH_W + N_LM
 
 # --- work array of the loss: one (W_ROWS, 3) float64 array, no views in the hot path ---
 N_SLOTS = N_VAR + N_FIXED     # trig-table slots: x[k] at slot k (slot 0 unused), fixed[k] at slot N_VAR + k
@@ -86,4 +88,5 @@ R_LM = 0                      # 24: landmark i, axis c (0 = x, 1 = y) at R_LM + 
 R_PEN = R_LM + 2 * N_LM       # 9: penalty hinges, fitting.penalties.PENALTY_HINGES order
 R_LIM = R_PEN + N_PEN         # 19: joint-limit hinges, x order
 R_PRIOR = R_LIM + N_VAR       # 19: pose-prior rows, x order (zero where there is no prior)
-N_RES = R_PRIOR + N_VAR
+R_DEPTH = R_PRIOR + N_VAR     # 12: depth rows w_i (Z_i - target_i) (zero without depth)
+N_RES = R_DEPTH + N_LM

@@ -6,8 +6,9 @@ Known only with the perspective model (the camera's intrinsics): the fit's size 
 because a body of the person's height ``H`` (configured or calibrated) that spans ``g`` normalized units
 stands at ``Tz = fn_y H / g`` (fitting.projection), and the lateral position is the translation the 2D error
 is minimised over: the weighted least-squares ``T`` in ``obs_i + off = fn (X_i + T) / (Tz + Z_i)``
-(fitting.loss.mpjpe), solved here again in float64 for the final solution. An orthographic fit (no
-intrinsics) has no scale to metres: None.
+(fitting.loss.mpjpe), solved here again in float64 for the final solution. With a depth camera the
+measured depth replaces the size's (a wrong body height then no longer misplaces the person). An orthographic
+fit (no intrinsics) has no scale to metres: None.
 """
 
 from __future__ import annotations
@@ -18,10 +19,13 @@ from fitting import layout as L
 from fitting.projection import MIN_DEPTH
 
 
-def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray) -> tuple[float, float, float] | None:
+def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray,
+                   root_z: float | None = None) -> tuple[float, float, float] | None:
     """The mid-hip's camera-frame position in metres for solution ``x`` (kernel units) of the problem ``data``;
     ``pts_c``: the 12 body landmarks in camera axes (metres, mid-hip origin), as fitting.forward_kinematics
-    model_points gives them. None for the orthographic model or when no landmark is used."""
+    model_points gives them; ``root_z``: the mid-hip's depth measured by a depth camera (fitting.depth_term),
+    which then replaces the one from the person's size. None for the orthographic model or when no landmark
+    is used."""
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
         return None
     w = data[L.D_W:L.D_W + L.N_LM]
@@ -29,7 +33,7 @@ def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray) -> tuple[
         return None
     fn = np.array([data[L.D_PROJ + L.PJ_FN_X], data[L.D_PROJ + L.PJ_FN_Y]])
     off = np.array([data[L.D_PROJ + L.PJ_OFF_X], data[L.D_PROJ + L.PJ_OFF_Y]])
-    tz = fn[1] * data[L.D_DIMS + L.DM_H] / x[L.X_GAMMA]
+    tz = fn[1] * data[L.D_DIMS + L.DM_H] / x[L.X_GAMMA] if root_z is None else float(root_z)
     z = np.maximum(tz + pts_c[:L.N_LM, 2], MIN_DEPTH * tz)
     obs = data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
     a = fn[None, :] / z[:, None]                                   # d(image)/d(T), per landmark and axis

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
                 skipped += 1
                 continue
             result = fitter.fit(item.landmarks, item.seq, item.t, header.image_size, mode=args.mode,
-                                intrinsics=intrinsics)
+                                intrinsics=intrinsics, depth_m=item.depth_m)
             try:
                 line = dumps(result.to_json())
             except ValueError as exc:  # a non-finite number must never reach the output

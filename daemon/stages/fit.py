@@ -38,7 +38,7 @@ def run(rt: StageRuntime) -> None:
             last = (frame.seq, msg.t_capture)
             try:
                 result = fitter.fit(frame.landmarks, frame.seq, msg.t_capture, msg.image_size, mode="video",
-                                    intrinsics=msg.intrinsics)
+                                    intrinsics=msg.intrinsics, depth_m=frame.depth_m)
             except Exception as exc:  # the fitter should never raise; if it does, keep the pipeline going
                 failures += 1
                 rt.error()

@@ -97,7 +97,7 @@ def test_hinge_rows_match_reference():
         np.testing.assert_allclose(res[L.R_PEN:L.R_PEN + L.N_PEN], ref_pen, atol=1e-12)
         np.testing.assert_allclose(res[L.R_LIM:L.R_LIM + L.N_VAR], ref_lim, atol=1e-12)
         np.testing.assert_allclose(res[L.R_PRIOR:L.R_PRIOR + L.N_VAR], ref_prior, atol=1e-12)
-    assert L.N_RES == JAC.n_residuals() == L.R_PRIOR + L.N_VAR
+    assert L.N_RES == JAC.n_residuals() == L.R_DEPTH + L.N_LM
 
 
 def test_torso_uprightness_matches_reference():
@@ -111,3 +111,33 @@ def test_torso_uprightness_matches_reference():
         x[[L.X_TBD, L.X_PBD, L.X_SBD, L.X_TTR, L.X_PTR, L.X_STR]] = angles
         # the torso's z axis (up along the spine) against camera up (-y), clipped at 0
         assert FK.torso_uprightness(x) == pytest.approx(max(0.0, -r[1, 2]), abs=1e-12)
+
+
+def test_depth_rows_match_reference_and_finite_differences():
+    """Rows R_DEPTH..: w_i (Z_i - target_i), Z_i landmark i's camera-axes depth relative to the mid-hip (the
+    NumPy model's landmarks_camera), and their Jacobian row against central finite differences."""
+    cfg = FitConfig()
+    xy = np.random.default_rng(1).normal(300, 50, (L.N_LM, 2))
+    d = P.pack(xy, np.ones(L.N_LM), DIMS, cfg, 200.0).data.copy()
+    rng = np.random.default_rng(3)
+    d[L.D_DEPTH:L.D_DEPTH + L.N_LM] = rng.normal(0.0, 0.2, L.N_LM)
+    d[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = rng.uniform(0.0, 30.0, L.N_LM)
+    from bench import simulate as S
+
+    pose = S.pose("walk_left_forward", 35.0)
+    x = x_of(pose, 1.0)
+    z = landmarks_camera(pose, DIMS)[list(BODY_LANDMARKS), 2]
+    res = np.empty(L.N_RES)
+    jac = np.empty((L.N_RES, L.N_VAR))
+    JAC.residuals_jacobian(x, d, res, jac, True)
+    w, target = d[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM], d[L.D_DEPTH:L.D_DEPTH + L.N_LM]
+    np.testing.assert_allclose(res[L.R_DEPTH:], w * (z - target), atol=1e-10)
+    h = 1e-6
+    for k in range(L.N_VAR):
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        rp, rm = np.empty(L.N_RES), np.empty(L.N_RES)
+        JAC.residuals_jacobian(xp, d, rp, np.empty((1, 1)), False)
+        JAC.residuals_jacobian(xm, d, rm, np.empty((1, 1)), False)
+        np.testing.assert_allclose(jac[L.R_DEPTH:, k], (rp - rm)[L.R_DEPTH:] / (2 * h), atol=1e-5)

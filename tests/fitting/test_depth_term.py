@@ -1,0 +1,135 @@
+"""The robust depth term (fitting.depth_term) and the fit with depth: body surface in front of the joints,
+holes, occluders, background hits; never worse than no depth when the depth is garbage."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench import simulate as S
+from fitting import BODY_LANDMARKS, BodyDimensions, FitConfig, Fitter
+from fitting.depth_term import MIN_DEPTHS, SURFACE_M, depth_fit
+
+SIZE = (640, 480)
+LIMBS = ((0, 2), (2, 4), (1, 3), (3, 5), (6, 8), (8, 10), (7, 9), (9, 11))  # body-landmark index pairs
+
+
+def scene(name, yaw, distance=3.0, height=1.6):
+    dims = BodyDimensions.from_height(height)
+    camera = S.Camera(model="pinhole", distance_m=distance, height_m=1.2)
+    pose = S.pose(name, yaw)
+    pts, _ = S._world_points(pose, dims, S.Placement(), camera.distance_m, camera.height_m)
+    return dims, camera, pose, pts
+
+
+def measured(pts, rng=None, sigma=0.0):
+    """What the depth camera sees at the 33 landmarks: the surface in front of the 12 body joints (others
+    unknown), with Gaussian noise ``sigma`` metres."""
+    d = np.full(33, np.nan)
+    d[list(BODY_LANDMARKS)] = pts[list(BODY_LANDMARKS), 2] - SURFACE_M
+    if sigma > 0:
+        d = d + rng.normal(0.0, sigma, 33)
+    return d
+
+
+def test_consistent_depth_costs_nothing_and_gives_the_root():
+    z_rel = np.linspace(-0.2, 0.2, 12)
+    depth = 3.0 + z_rel - SURFACE_M
+    d = depth_fit(z_rel, depth)
+    assert d.cost == pytest.approx(0.0, abs=1e-12) and d.root_z == pytest.approx(3.0) and d.inliers == 12
+
+
+def test_background_hits_occluders_and_holes_cost_at_most_one_each_and_do_not_move_the_root():
+    z_rel = np.linspace(-0.2, 0.2, 12)
+    depth = 3.0 + z_rel - SURFACE_M
+    depth[0] += 3.0        # a silhouette edge: the wall behind
+    depth[5] -= 0.5        # an arm or a table in front of the joint
+    depth[[7, 9]] = np.nan  # holes
+    d = depth_fit(z_rel, depth)
+    assert d.root_z == pytest.approx(3.0, abs=1e-9)      # the 8 consistent votes decide
+    assert 1.9 < d.cost < 2.0 and d.inliers == 8         # two outliers, each bounded by 1
+
+
+def test_too_few_depths_is_no_term():
+    depth = np.full(12, np.nan)
+    depth[: MIN_DEPTHS - 1] = 3.0
+    assert depth_fit(np.zeros(12), depth) is None
+
+
+def flips(result, pts):
+    """Limb segments whose depth order (child nearer or farther than parent) differs from the truth, among
+    those not nearly parallel to the image (true |dz| > 5 cm)."""
+    fit = np.array([result.joints_3d[n] for n in list(result.joints_3d)[1:]])
+    true = pts[list(BODY_LANDMARKS)]
+    n = bad = 0
+    for a, b in LIMBS:
+        dz = true[b, 2] - true[a, 2]
+        if abs(dz) > 0.05:
+            n += 1
+            bad += np.sign(fit[b, 2] - fit[a, 2]) != np.sign(dz)
+    return bad, n
+
+
+CASES = [(name, yaw) for name in ("stand_arms_front", "walk_left_forward", "bend_grab", "sit_chair", "kneel")
+         for yaw in (-60.0, 20.0, 150.0)]
+
+
+def test_depth_resolves_the_limbs_depth_order_and_garbage_depth_changes_nothing_for_the_worse():
+    rng = np.random.default_rng(5)
+    totals = {"none": [0, 0], "depth": [0, 0]}
+    err = {"none": [], "garbage": []}
+    for name, yaw in CASES:
+        dims, camera, pose, pts = scene(name, yaw)
+        lm = S.render(pose, dims=dims, camera=camera, image_size=SIZE, noise_px=2.0, seed=int(yaw) + 400)
+        k = camera.intrinsics(SIZE)
+        def fit(d, lm=lm, k=k):
+            return Fitter(FitConfig(body_height_m=1.6)).fit(lm, 0, 0.0, SIZE, mode="image", intrinsics=k, depth_m=d)
+
+        plain, with_depth = fit(None), fit(measured(pts, rng, 0.03))
+        garbage = fit(rng.uniform(0.5, 8.0, 33))
+        for key, r in (("none", plain), ("depth", with_depth)):
+            b, n = flips(r, pts)
+            totals[key][0] += b
+            totals[key][1] += n
+        truth = pts[list(BODY_LANDMARKS)] - 0.5 * (pts[23] + pts[24])
+        for key, r in (("none", plain), ("garbage", garbage)):
+            fitted = np.array([r.joints_3d[n] for n in list(r.joints_3d)[1:]])
+            err[key].append(np.linalg.norm(fitted - truth, axis=1).mean())
+    # with a 3 cm-accurate depth camera far fewer limb segments are put on the wrong side in depth (measured:
+    # 9 of 74 without depth, 2 with; the issue's target of 2 % is measured out of domain in docs/bench/fit.md)
+    assert totals["depth"][1] == totals["none"][1] > 20
+    assert totals["none"][0] >= 5 and 3 * totals["depth"][0] <= totals["none"][0], totals
+    # garbage depth: the robust term is flat, the fit is the one without depth (within 2 mm on average)
+    assert abs(np.mean(err["garbage"]) - np.mean(err["none"])) < 0.002, (np.mean(err["garbage"]), np.mean(err["none"]))
+
+
+def test_root_from_depth_holds_when_the_body_height_is_wrong():
+    """Without depth a person taken 10 % taller is placed 10 % further away; depth places them right."""
+    dims, camera, pose, pts = scene("stand_arms_front", 30.0)
+    lm = S.render(pose, dims=dims, camera=camera, image_size=SIZE)
+    k = camera.intrinsics(SIZE)
+    truth = 0.5 * (pts[23] + pts[24])
+    rng = np.random.default_rng(2)
+    tall = Fitter(FitConfig(body_height_m=1.76))
+    no_depth = tall.fit(lm, 0, 0.0, SIZE, mode="image", intrinsics=k)
+    assert no_depth.root_cam_m[2] - truth[2] > 0.2
+    r = tall.fit(lm, 1, 0.1, SIZE, mode="image", intrinsics=k, depth_m=measured(pts, rng, 0.03))
+    assert np.linalg.norm(np.array(r.root_cam_m) - truth) < 0.05, (r.root_cam_m, truth)
+    assert r.extra["depth_inliers"] >= 10
+
+
+def test_a_bad_depth_array_is_a_clear_failure():
+    lm = S.render(S.pose("stand_arms_front", 30.0))
+    r = Fitter().fit(lm, 0, 0.0, SIZE, depth_m=np.ones(12))
+    assert not r.ok and "depth_m must be 33 values" in r.reason
+
+
+def test_garbage_depth_is_judged_unusable_and_real_depth_usable():
+    from fitting.depth_term import usable
+
+    z_rel = np.linspace(-0.2, 0.2, 12)
+    good = 3.0 + z_rel - SURFACE_M
+    good[[0, 1, 2]] += 3.0                     # three background hits still leave 9 of 12 in agreement
+    assert usable(depth_fit(z_rel, good), good)
+    garbage = np.random.default_rng(0).uniform(0.5, 8.0, 12)
+    assert not usable(depth_fit(z_rel, garbage), garbage)
