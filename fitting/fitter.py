@@ -27,20 +27,19 @@ import numpy as np
 
 from camera_model import Intrinsics
 from fitting import forward_kinematics as FK
-from fitting import jacobian as JAC
 from fitting import jitcache, refine, udeas
 from fitting import layout as L
 from fitting import loss as LOSS
 from fitting import problem as P
+from fitting.assemble import assemble
 from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
-from fitting.depth_term import DepthFit, depth_fit, usable
-from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
-from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
-from fitting.root import root_in_camera
+from fitting.depth_rows import depth_fit_at, refinement_cost, set_depth_rows
+from fitting.depth_term import DepthFit, usable
+from fitting.kinematics import BODY_LANDMARKS
+from fitting.result import FitResult
 
 MODES = ("video", "image")
-FIXED_NAMES = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
 _TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
 EXACT_MSE = 1e-14          # mean squared 2D error (body heights^2) of an exact fit (1e-7 H rms)
 STRAIGHT_RAD = math.radians(5.0)  # a limb bent less than this has an exact depth mirror
@@ -63,7 +62,7 @@ class Fitter:
         # a bad calibration file raises CalibrationError here (a configuration error, not a frame error)
         self.dims: BodyDimensions = dimensions_for(self.config.body_height_m, self.config.calibration)
         self._work = FK.empty_work()
-        self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (FIXED_NAMES), degrees
+        self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.assemble.FIXED_NAMES), degrees
         self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
         self.reset()
 
@@ -193,7 +192,9 @@ class Fitter:
             return FitResult.failure(seq, t, f"fit rejected: {what}; the landmarks do not fit a person",
                                      loss=float(loss), fit_ms=fit_ms)
         self._prev_x, self._prev_ppm, self._prev_t = x.copy(), ppm0, t
-        return self._result(seq, t, x, frame, loss, mp, fit_ms, used_mode, evals, missing, gamma)
+        return assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
+                        evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma,
+                        depth=self._depth_fit(frame, x))
 
     def _lm(self, data: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, float]:
         out = np.empty(L.N_VAR)
@@ -265,39 +266,18 @@ class Fitter:
         for i in order[:PRIOR_CANDIDATES]:
             start = pool[i]
             for _ in range(DEPTH_PASSES if self._depth is not None else 1):
-                self._set_depth_rows(frame, data, start, noise2)
+                set_depth_rows(data, self._depth_fit(frame, start), DEPTH_WEIGHT * noise2)
                 out, cost = self._lm(data, start)
                 start = out
-            data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 0.0  # compare the candidates on one cost
-            cost = self._lm_cost(data, out) + DEPTH_WEIGHT * noise2 * self._depth_cost(frame, out)
+            set_depth_rows(data, None, 0.0)  # compare the candidates on one cost
+            cost = refinement_cost(out, data) + DEPTH_WEIGHT * noise2 * self._depth_cost(frame, out)
             if cost < best_cost:
                 best_cost, best_x = cost, out
         return self._score(frame, best_x)
 
-    def _set_depth_rows(self, frame: P.Frame, data: np.ndarray, x: np.ndarray, noise2: float) -> None:
-        """The refinement's depth rows for a start ``x`` (iteratively reweighted: targets and robust weights
-        from the depth term at ``x``): a landmark's depth residual of one sigma weighs DEPTH_WEIGHT times the
-        landmark noise, as in the selection."""
-        d = self._depth_fit(frame, x)
-        if d is None:
-            data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 0.0
-            return
-        data[L.D_DEPTH:L.D_DEPTH + L.N_LM] = np.nan_to_num(d.targets)
-        data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = np.sqrt(DEPTH_WEIGHT * noise2 * d.weights) / d.sigma
-
-    def _lm_cost(self, data: np.ndarray, x: np.ndarray) -> float:
-        res = np.empty(L.N_RES)
-        JAC.residuals_jacobian(x, data, res, np.empty((1, 1)), False)
-        return float(np.dot(res, res))
-
     def _depth_fit(self, frame: P.Frame, x: np.ndarray) -> DepthFit | None:
         """The depth term of solution ``x`` against this frame's measured depth (None without depth)."""
-        if self._depth is None:
-            return None
-        pts_b = np.empty((L.N_POINTS, 3))
-        pts_c = np.empty((L.N_POINTS, 3))
-        FK.model_points(x, frame.data, pts_b, pts_c)
-        return depth_fit(pts_c[:L.N_LM, 2], self._depth)
+        return None if self._depth is None else depth_fit_at(x, frame.data, self._depth)
 
     def _depth_cost(self, frame: P.Frame, x: np.ndarray) -> float:
         d = self._depth_fit(frame, x)
@@ -422,60 +402,11 @@ class Fitter:
             mse.append(refine.data_mse(x, frame.data))
         return (*self._select(frame, pool, prev, mse=mse, dt=dt), int(evals))
 
-    # --- output ---
-
-    def _result(self, seq, t, x, frame: P.Frame, loss, mp, fit_ms, used_mode, evals, missing, gamma) -> FitResult:
-        deg = np.round(P.to_degrees(x), 4).tolist()
-        variables = dict(zip(VARIABLE_NAMES, deg, strict=True))
-        variables["gamma"] = round(gamma, 5)
-        angles = dict.fromkeys(JOINT_ANGLE_NAMES, 0.0)
-        for name, v in zip(FIXED_NAMES, np.round(self._fixed_deg, 4).tolist(), strict=True):
-            angles[name] = v
-        for name in VARIABLE_NAMES[4:]:
-            angles[name] = variables[name]
-        pts_b = np.empty((L.N_POINTS, 3))
-        pts_c = np.empty((L.N_POINTS, 3))
-        FK.model_points(x, frame.data, pts_b, pts_c)
-        cam = np.round(pts_c[:12], 5).tolist()
-        j3 = {"mid_hip": (0.0, 0.0, 0.0)}
-        for name, row in zip(BODY_LANDMARK_NAMES, cam, strict=True):
-            j3[name] = tuple(row)
-        extra = {"mode": used_mode, "projection": "perspective" if frame.perspective else "orthographic",
-                 "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
-                 "udeas_ms": float(f"{self._udeas_s * 1e3:.4g}")}
-        depth = self._depth_fit(frame, x)
-        root = root_in_camera(x, frame.data, pts_c, None if depth is None else depth.root_z)
-        if depth is not None:
-            extra["depth_inliers"] = depth.inliers
-        if root is not None:  # perspective (intrinsics known): where the person is, for a robot to go there
-            extra["root_cam_m"] = [round(v, 4) for v in root]
-        if missing:
-            extra["missing"] = missing
-            extra["unobserved"] = _unobserved(missing)
-        return FitResult(seq=seq, t=t, ok=True, loss=float(f"{loss:.6g}"), fit_ms=float(f"{fit_ms:.4g}"),
-                         variables=variables, joint_angles_deg=angles, joints_3d=j3, extra=extra)
-
-
 def _finite(v) -> bool:
     try:
         return math.isfinite(float(v))
     except (TypeError, ValueError):
         return False
-
-
-_DEPENDS = {  # variables that only these landmarks observe
-    "left_elbow": ("theta_sh_l", "phi_sh_l"), "right_elbow": ("theta_sh_r", "phi_sh_r"),
-    "left_wrist": ("theta_el_l",), "right_wrist": ("theta_el_r",),
-    "left_knee": ("theta_hp_l", "phi_hp_l"), "right_knee": ("theta_hp_r", "phi_hp_r"),
-    "left_ankle": ("theta_kn_l",), "right_ankle": ("theta_kn_r",),
-}
-
-
-def _unobserved(missing: list[str]) -> list[str]:
-    out: list[str] = []
-    for name in missing:
-        out.extend(_DEPENDS.get(name, ()))
-    return out
 
 
 __all__ = ["BODY_LANDMARKS", "Fitter"]
