@@ -7,6 +7,11 @@ Protocols (docs/bench/fit.md):
 * ``floor_poses``: lying, sitting-on-the-floor and fallen poses x yaws all round x seeds, same noise levels.
 * ``motion``: the motion sequences at 30 fps in video mode (first frame in image mode).
 * ``table3``: uDEAS alone over restarts and maximal row lengths, like the paper's Table 3.
+* ``ood_mocap`` (:mod:`bench.ood`): out-of-domain: CMU motion capture (a real skeleton, not the model) seen by
+  pinhole cameras all around, 5-30 fps, image and video mode, PA-MPJPE / MPJPE / depth flips.
+
+The first four render the fitted humanoid itself ("domain": "in-domain" in every row): a noise-free fit can be
+exact there. ``ood_mocap`` rows say "out-of-domain".
 
 Times are the median per-frame CPU time of the fitting thread (``time.thread_time``: one core, robust to
 other processes on a shared machine; JIT compilation excluded by a warm-up) and the median wall time.
@@ -23,12 +28,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from bench import ood as OOD
 from bench import simulate as S
 from fitting import BODY_LANDMARK_NAMES, VARIABLE_NAMES, FitConfig, Fitter, Pose
 
 ANGLES = VARIABLE_NAMES[1:]  # the 18 estimated joint and body angles
 HEIGHT_M = 1.60              # the paper's subject: average Korean woman in her twenties
 IMAGE_SIZE = (640, 480)
+PROTOCOLS = ("paper_poses", "floor_poses", "motion", "table3", OOD.PROTOCOL, "squat_video")
+IN_DOMAIN = "in-domain"
 NULL_DIRECTION = {"theta_bd": 1.0, "theta_tr": -1.0, "theta_hp_l": 1.0, "theta_hp_r": 1.0}
 
 
@@ -145,7 +153,7 @@ class _Acc:
 
     def summary(self, row: Row) -> dict:
         out = {
-            "protocol": row.protocol, "optimizer": row.optimizer, "restarts": row.restarts, "max_row": row.max_row,
+            "protocol": row.protocol, "domain": IN_DOMAIN, "optimizer": row.optimizer, "restarts": row.restarts, "max_row": row.max_row,
             "mode": row.mode, "noise_px": None, "noise_rel": row.noise,
             "angle_err_deg": _r(np.mean(self.err)) if self.err else None,
             "angle_err_p90_deg": _r(np.percentile(self.err, 90)) if self.err else None,
@@ -232,18 +240,23 @@ class Plan:
     noises: tuple[float, ...]
     table3: bool
     sequences: tuple[str, ...]
+    ood: OOD.OodPlan | None = None     # the out-of-domain protocol (None: not run)
 
 
 FULL = Plan(paper_yaws=(20.0, 25.0, 30.0, 35.0, 40.0), floor_yaws=(-150.0, -90.0, -30.0, 30.0, 90.0, 150.0),
             motion_yaws=(20.0, 30.0, 40.0, 120.0, -60.0), seeds=(0, 1, 2, 3), motion_seeds=(0,),
-            settings=((6, 6), (10, 8), (20, 12)), noises=(0.0, 0.01), table3=True, sequences=S.SEQUENCE_NAMES)
+            settings=((6, 6), (10, 8), (20, 12)), noises=(0.0, 0.01), table3=True, sequences=S.SEQUENCE_NAMES,
+            ood=OOD.FULL_OOD)
 QUICK = Plan(paper_yaws=(20.0, 30.0, 40.0), floor_yaws=(-90.0, 30.0, 150.0), motion_yaws=(30.0,),
              seeds=(0,), motion_seeds=(0,), settings=((6, 6),), noises=(0.0, 0.01), table3=False,
-             sequences=("stand_to_sit", "fall_forward", "fall_sideways"))
+             sequences=("stand_to_sit", "fall_forward", "fall_sideways"), ood=OOD.QUICK_OOD)
 
 
 def protocol_description(plan: Plan) -> dict:
     return {
+        "domains": {"in-domain": "paper_poses, floor_poses, motion, table3: the fitted humanoid renders itself "
+                                 "(orthographic camera, the model's proportions)",
+                    "out-of-domain": "ood_mocap: real motion capture, its own skeleton, pinhole cameras"},
         "paper_poses": {"poses": list(S.PAPER_POSES), "yaws_deg": list(plan.paper_yaws), "seeds": len(plan.seeds),
                         "camera": "orthographic, standing body 60% of a 640x480 image", "mode": "image"},
         "floor_poses": {"poses": list(S.FLOOR_POSES), "yaws_deg": list(plan.floor_yaws), "seeds": len(plan.seeds),
@@ -260,31 +273,51 @@ def protocol_description(plan: Plan) -> dict:
     }
 
 
-def run(plan: Plan = FULL, base: FitConfig | None = None, progress: Callable[[str], None] | None = None) -> dict:
-    """The whole benchmark; returns ``{"protocol", "machine", "results"}``."""
+def run(plan: Plan = FULL, base: FitConfig | None = None, progress: Callable[[str], None] | None = None,
+        protocols: Iterable[str] | None = None) -> dict:
+    """The whole benchmark (or only ``protocols``, names of ``PROTOCOLS``); returns ``{"protocol", "machine",
+    "results"}``."""
     base = base or FitConfig()
     say = progress or (lambda s: None)
+    wanted = set(PROTOCOLS if protocols is None else protocols)
+    unknown = wanted - set(PROTOCOLS)
+    if unknown:
+        raise ValueError(f"unknown protocol(s) {', '.join(sorted(unknown))}; known: {', '.join(PROTOCOLS)}")
     results = []
+    description = protocol_description(plan)
     for noise in plan.noises:
-        for restarts, max_row in plan.settings:
-            for opt in ("udeas", "udeas+lm"):
-                row = Row("paper_poses", opt, restarts, max_row, "image", noise)
-                say(f"paper_poses {opt} ({restarts},{max_row}) noise {noise}")
+        if "paper_poses" in wanted:
+            for restarts, max_row in plan.settings:
+                for opt in ("udeas", "udeas+lm"):
+                    row = Row("paper_poses", opt, restarts, max_row, "image", noise)
+                    say(f"paper_poses {opt} ({restarts},{max_row}) noise {noise}")
+                    results.append(run_static(row, S.PAPER_POSES, plan.paper_yaws, plan.seeds, base))
+            for restarts, max_row in ((6, 6), (20, 12)):
+                row = Row("paper_poses", "paper-udeas", restarts, max_row, "image", noise)
+                say(f"paper_poses paper-udeas ({restarts},{max_row}) noise {noise}")
                 results.append(run_static(row, S.PAPER_POSES, plan.paper_yaws, plan.seeds, base))
-        for restarts, max_row in ((6, 6), (20, 12)):
-            row = Row("paper_poses", "paper-udeas", restarts, max_row, "image", noise)
-            say(f"paper_poses paper-udeas ({restarts},{max_row}) noise {noise}")
-            results.append(run_static(row, S.PAPER_POSES, plan.paper_yaws, plan.seeds, base))
-        for opt, (restarts, max_row) in (("udeas", (6, 6)), ("udeas+lm", (6, 6)), ("paper-udeas", (20, 12))):
-            row = Row("floor_poses", opt, restarts, max_row, "image", noise)
-            say(f"floor_poses {opt} ({restarts},{max_row}) noise {noise}")
-            results.append(run_static(row, S.FLOOR_POSES, plan.floor_yaws, plan.seeds, base, null_free=True))
-        row = Row("motion", "udeas+lm", base.video_restarts, base.video_row_max, "video", noise)
-        say(f"motion video noise {noise}")
-        results.append(run_motion(row, plan.sequences, plan.motion_yaws, plan.motion_seeds, base))
-    if plan.table3:
+        if "floor_poses" in wanted:
+            for opt, (restarts, max_row) in (("udeas", (6, 6)), ("udeas+lm", (6, 6)), ("paper-udeas", (20, 12))):
+                row = Row("floor_poses", opt, restarts, max_row, "image", noise)
+                say(f"floor_poses {opt} ({restarts},{max_row}) noise {noise}")
+                results.append(run_static(row, S.FLOOR_POSES, plan.floor_yaws, plan.seeds, base, null_free=True))
+        if "motion" in wanted:
+            row = Row("motion", "udeas+lm", base.video_restarts, base.video_row_max, "video", noise)
+            say(f"motion video noise {noise}")
+            results.append(run_motion(row, plan.sequences, plan.motion_yaws, plan.motion_seeds, base))
+    if plan.table3 and "table3" in wanted:
         for restarts, max_row in [(10, m) for m in range(12, 3, -1)] + [(r, 12) for r in range(9, 3, -1)] + [(6, 6)]:
             row = Row("table3", "paper-udeas", restarts, max_row, "image", 0.0)
             say(f"table3 ({restarts},{max_row})")
             results.append(run_static(row, S.PAPER_POSES, plan.paper_yaws, plan.seeds[:1], base))
-    return {"protocol": protocol_description(plan), "machine": machine(), "results": results}
+    if plan.ood is not None and OOD.PROTOCOL in wanted:
+        ood = OOD.run(plan.ood, base, progress=say)
+        description[OOD.PROTOCOL] = {**ood["description"], "cameras": ood["cameras"], "depth_sim": ood["depth_sim"]}
+        results.extend(ood["results"])
+    if "squat_video" in wanted:
+        from bench import squat_video
+        from daemon.preflight import shared_data
+        say("squat_video")
+        description["squat_video"] = squat_video.__doc__.split("\n\n")[1].replace("\n", " ")
+        results.extend(squat_video.run(shared_data(), replace(base, body_height_m=1.65)))
+    return {"protocol": description, "machine": machine(), "results": results}

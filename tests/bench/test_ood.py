@@ -1,0 +1,183 @@
+"""The out-of-domain fit benchmark (bench.ood): its metrics, the mocap landmarks, the depth simulator and a
+tiny end-to-end run. The numbers of the full run live in docs/bench/fit.md."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bench import depth_sim as D
+from bench import mocap_landmarks as M
+from bench import ood
+
+
+def _rotation(rng: np.random.Generator) -> np.ndarray:
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q @ np.diag(np.sign(np.diag(r)))
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    return q
+
+
+def test_pa_mpjpe_is_zero_for_a_similar_copy_and_not_for_a_mirror():
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(12, 3)) * 0.3
+    pred = 1.7 * truth @ _rotation(rng).T + np.array([0.4, -1.0, 3.0])
+    assert ood.pa_mpjpe(pred, truth) < 1e-12
+    assert ood.mpjpe(truth, truth) == 0.0
+    assert ood.mpjpe(truth + [0.0, 0.0, 0.01], truth) == pytest.approx(0.01)
+    # a reflection is not a similarity: the mirror image keeps an error (no improper rotation allowed)
+    mirror = truth * np.array([1.0, 1.0, -1.0])
+    assert ood.pa_mpjpe(mirror, truth) > 0.01
+    # the alignment minimizes the sum of squared distances: never above the translation-only alignment's
+    noisy = truth + rng.normal(size=truth.shape) * 0.01
+    aligned = ood.procrustes_align(noisy, truth)
+    shifted = noisy - noisy.mean(0) + truth.mean(0)
+    assert 0.0 < ((aligned - truth) ** 2).sum() <= ((shifted - truth) ** 2).sum()
+
+
+def _standing() -> np.ndarray:
+    j = {n: np.zeros(3) for n in M.BODY12}
+    for s, x in (("left", 0.2), ("right", -0.2)):
+        j[f"{s}_shoulder"] = np.array([x, -0.5, 0.0])
+        j[f"{s}_elbow"] = np.array([x, -0.25, 0.0])
+        j[f"{s}_wrist"] = np.array([x, -0.25, -0.25])     # forearm pointing at the camera (dz = -0.25)
+        j[f"{s}_hip"] = np.array([x / 2, 0.0, 0.0])
+        j[f"{s}_knee"] = np.array([x / 2, 0.4, 0.03])     # thigh nearly parallel to the image (dz 0.03)
+        j[f"{s}_ankle"] = np.array([x / 2, 0.8, 0.2])     # shank going away (dz 0.17)
+    return np.array([j[n] for n in M.BODY12])
+
+
+def test_depth_flips_count_only_segments_with_a_clear_true_depth_difference():
+    truth = _standing()
+    i = {n: k for k, n in enumerate(M.BODY12)}
+    assert ood.depth_flips(truth, truth) == (0, 4)      # forearms and shanks; upper arms (0) and thighs (3 cm) not
+    pred = truth.copy()
+    pred[i["left_wrist"], 2] = +0.25                      # left forearm mirrored in depth: a flip
+    pred[i["right_knee"], 2] = -0.03                      # thigh's sign changes, but |true dz| < 5 cm: not counted
+    assert ood.depth_flips(pred, truth) == (1, 4)
+    pred[i["right_ankle"], 2] = -0.2                      # right shank now goes toward the camera: a flip
+    assert ood.depth_flips(pred, truth) == (2, 4)
+
+
+def test_segment_angles_from_positions():
+    j = _standing()
+    a = dict(zip(ood.ANGLE_NAMES, ood.segment_angles(j), strict=True))
+    assert a["elbow_l"] == pytest.approx(90.0) and a["elbow_r"] == pytest.approx(90.0)   # forearm toward camera
+    assert a["shoulder_l"] == pytest.approx(0.0, abs=1e-9)                               # arm along the trunk
+    knee = math.degrees(math.atan2(0.17, 0.4) - math.atan2(0.03, 0.4))
+    assert a["knee_l"] == pytest.approx(knee)
+    # the same angles whatever the camera: rotation- and translation-invariant
+    rot = _rotation(np.random.default_rng(3))
+    assert np.allclose(ood.segment_angles(j @ rot.T + 1.0), ood.segment_angles(j))
+
+
+def test_depth_simulator_statistics():
+    """Noise RMS = sigma_k z^2 (sample sd within 4 standard errors, 1/sqrt(2N) relative), hole and background
+    rates within 4 binomial standard deviations, everything else finite."""
+    k = M.intrinsics()
+    rng = np.random.default_rng(5)
+    n_frames = 1000
+    for z0 in (2.0, 4.0):
+        pts = np.zeros((33, 3))
+        pts[:, 2] = z0                                   # all on the optical axis: inside the image
+        quiet = D.DepthSim(hole_rate=0.0, background_rate=0.0)
+        d = np.array([D.simulate_depth(pts, k, rng, quiet) for _ in range(n_frames)])
+        surface = z0 - D.SURFACE_OFFSET_M                # on the axis the ray is z itself
+        resid = d - surface
+        n = resid.size
+        sd = float(np.sqrt(np.mean(resid ** 2)))
+        want = D.SIGMA_K * float(np.sqrt(np.mean(surface ** 4)))
+        assert abs(sd / want - 1.0) < 4.0 / math.sqrt(2 * n), (z0, sd, want)
+        assert abs(float(resid.mean())) < 4.0 * want / math.sqrt(n)
+    assert D.SIGMA_K * 9.0 == pytest.approx(0.030, abs=0.001)    # about 3 cm at 3 m, as stated
+    sim = D.DepthSim()
+    pts = np.zeros((33, 3))
+    pts[:, 2] = 3.0
+    d = np.array([D.simulate_depth(pts, k, rng, sim) for _ in range(n_frames)])
+    n = d.size
+    holes = float(np.isnan(d).mean())
+    back = float((d - 3.0 > 0.9).mean())
+    for rate, p in ((holes, sim.hole_rate), (back, sim.background_rate)):
+        assert abs(rate - p) < 4.0 * math.sqrt(p * (1 - p) / n)
+    lo, hi = sim.background_behind_m
+    far = d[d - 3.0 > 0.9]
+    assert far.min() >= 3.0 + lo and far.max() <= 3.0 + hi
+    # outside the image: unknown
+    out = pts.copy()
+    out[0] = [10.0, 0.0, 3.0]
+    assert np.isnan(D.simulate_depth(out, k, rng, sim)[0])
+
+
+def test_mocap_landmarks_33x5_with_the_body_finite_and_in_view(shared_data):
+    clip = M.load_clip(shared_data / "mocap" / "cmu" / "131_01.bvh")
+    assert 1.45 < clip.height_m < 1.7
+    t, pts = clip.resample(10.0)
+    assert t[1] == pytest.approx(0.1) and pts.shape == (len(t), 33, 3)
+    # the source runs at 120.0005 fps (frame time 0.0083333 s): 0.1 s is 4e-5 frames past frame 12, which
+    # moves a point by at most 4e-5 x its per-frame motion (< 3 cm at 120 fps): within 1e-5 m
+    assert np.allclose(pts[0], clip.points[0]) and np.allclose(pts[1], clip.points[12], atol=1e-5)
+    t15, pts15 = clip.resample(15.0)
+    assert np.allclose(pts15[1], clip.points[8], atol=1e-5)
+    t7, pts7 = clip.resample(7.0)           # a time between two source frames is interpolated linearly
+    u = t7[1] * clip.source_fps
+    w = u - math.floor(u)
+    assert 0.05 < w < 0.95
+    assert np.allclose(pts7[1], (1 - w) * clip.points[int(u)] + w * clip.points[int(u) + 1])
+    for az in (0.0, 135.0, 270.0):
+        cam = M.choose_distance(clip, az)
+        assert 2.5 <= cam.distance_m <= 5.0 and M.in_view(cam, pts)
+        for p in cam.to_camera(pts)[::10]:
+            lm = M.project(p, cam.intrinsics)
+            assert lm.shape == (33, 5)
+            assert np.isfinite(lm[M.BODY12_IDX]).all() and (lm[M.BODY12_IDX, 3] == 0.99).all()
+            assert abs(lm[23, 2] + lm[24, 2]) < 1e-9       # z relative to the mid-hip
+            truth = M.truth_joints(p)
+            assert truth.shape == (12, 3) and np.allclose(0.5 * (truth[6] + truth[7]), 0.0)
+    # the mocap's own hip joints, not the model's 0.115 H hip width
+    hip_w = np.linalg.norm(clip.points[0, 23] - clip.points[0, 24])
+    assert 0.12 < hip_w < 0.15 and abs(hip_w - 0.115 * clip.height_m) > 0.03
+
+
+def test_tiny_end_to_end_run_has_every_metric(shared_data):
+    from bench import fit as bench
+    from bench.commands.fit import markdown
+    from fitting import FitConfig
+
+    tiny = ood.OodPlan(clips=("131_01",), azimuths=(90.0,), fps=(15, 30), noises=(0.0, 0.01),
+                       depth=(False, True), max_s=0.4)
+    plan = bench.Plan(paper_yaws=(30.0,), floor_yaws=(), motion_yaws=(), seeds=(0,), motion_seeds=(0,),
+                      settings=((6, 6),), noises=(0.0,), table3=False, sequences=(), ood=tiny)
+    report = bench.run(plan, FitConfig(), protocols=["paper_poses", "ood_mocap"])
+    json.dumps(report)
+    rows = report["results"]
+    assert {r["protocol"] for r in rows} == {"paper_poses", "ood_mocap"}
+    assert all(r["domain"] == "in-domain" for r in rows if r["protocol"] == "paper_poses")
+    out = [r for r in rows if r["protocol"] == "ood_mocap"]
+    assert all(r["domain"] == "out-of-domain" for r in out)
+    # 2 bodies x 2 modes x 2 fps x 2 noises x 2 depth settings
+    assert sorted((r["body"], r["mode"], r["fps"], r["noise_rel"], r["depth"]) for r in out) == sorted(
+        (b, m, f, n, d) for b in ("height", "mocap") for m in ("image", "video") for f in (15, 30)
+        for n in (0.0, 0.01) for d in (False, True))
+    takes = ood.fitter_takes_depth()
+    for r in out:
+        assert r["frames"] == (13 if r["fps"] == 30 else 7) and r["failed"] == 0
+        for key in ("pa_mpjpe_mm", "mpjpe_mm", "depth_flip_rate", "angle_err_deg", "ms_per_frame", "err2d_px"):
+            assert r[key] is not None and r[key] >= 0, key
+        assert r["pa_mpjpe_mm"] <= r["mpjpe_mm"] + 1e-6        # the similarity can only lower the error
+        assert 0.0 <= r["depth_flip_rate"] <= 1.0 and r["depth_flip_segments"] > 0
+        assert r["depth_used"] == (r["depth"] and takes)
+        assert "root_cam_err_m" in r                           # null until the fitter reports root_cam_m
+    # image mode: the 15 fps frames are the even 30 fps frames, fitted once, so identical numbers
+    # the mocap's own proportions (an oracle calibration) fit the landmarks better than the height ratios
+    e2d = {(r["body"], r["mode"], r["fps"], r["noise_rel"], r["depth"]): r["err2d_px"] for r in out}
+    assert e2d[("mocap", "image", 30, 0.0, False)] < e2d[("height", "image", 30, 0.0, False)]
+    cams = report["protocol"]["ood_mocap"]["cameras"]
+    assert len(cams) == 1 and 2.5 <= cams[0]["distance_m"] <= 5.0
+    text = markdown(report)
+    assert "Out-of-domain" in text and "In-domain" in text and "| height | image | 30 |" in text
+    with pytest.raises(ValueError, match="unknown protocol"):
+        bench.run(plan, FitConfig(), protocols=["nope"])
