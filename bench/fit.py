@@ -241,15 +241,17 @@ class Plan:
     table3: bool
     sequences: tuple[str, ...]
     ood: OOD.OodPlan | None = None     # the out-of-domain protocol (None: not run)
+    squat_video: bool = False          # the real squat video, video mode against image mode (bench.squat_video)
 
 
 FULL = Plan(paper_yaws=(20.0, 25.0, 30.0, 35.0, 40.0), floor_yaws=(-150.0, -90.0, -30.0, 30.0, 90.0, 150.0),
             motion_yaws=(20.0, 30.0, 40.0, 120.0, -60.0), seeds=(0, 1, 2, 3), motion_seeds=(0,),
             settings=((6, 6), (10, 8), (20, 12)), noises=(0.0, 0.01), table3=True, sequences=S.SEQUENCE_NAMES,
-            ood=OOD.FULL_OOD)
+            ood=OOD.FULL_OOD, squat_video=True)
 QUICK = Plan(paper_yaws=(20.0, 30.0, 40.0), floor_yaws=(-90.0, 30.0, 150.0), motion_yaws=(30.0,),
              seeds=(0,), motion_seeds=(0,), settings=((6, 6),), noises=(0.0, 0.01), table3=False,
-             sequences=("stand_to_sit", "fall_forward", "fall_sideways"), ood=OOD.QUICK_OOD)
+             sequences=("stand_to_sit", "fall_forward", "fall_sideways"), ood=OOD.QUICK_OOD,
+             squat_video=True)
 
 
 def protocol_description(plan: Plan) -> dict:
@@ -314,7 +316,7 @@ def run(plan: Plan = FULL, base: FitConfig | None = None, progress: Callable[[st
         ood = OOD.run(plan.ood, base, progress=say)
         description[OOD.PROTOCOL] = {**ood["description"], "cameras": ood["cameras"], "depth_sim": ood["depth_sim"]}
         results.extend(ood["results"])
-    if "squat_video" in wanted:
+    if plan.squat_video and "squat_video" in wanted:
         from bench import squat_video
         from daemon.preflight import shared_data
         say("squat_video")
