@@ -1,18 +1,21 @@
 """Intel RealSense colour + depth through pyrealsense2, live or from a recording (.db3, .bag).
 
 pyrealsense2 is imported only here, and only when a RealSense source is opened, so the daemon runs without
-it on other sources. Live and playback share one code path (``rs.pipeline`` + ``rs.align``); only the start
-(``enable_device`` vs ``enable_device_from_file``), the clock mapping and the end of the stream differ.
+it on other sources. A live camera streams through ``rs.pipeline`` (its one-frameset queue keeps only the
+newest frame: live, the newest frame wins); a recording plays through :class:`hal.rs_playback.PlaybackPipeline`,
+which reads the recorded sensors directly and loses no frame however slow the reader is. Both then share one
+code path (``try_wait_for_frames`` + ``rs.align``); the clock mapping and the end of the stream differ.
 
 Per frame: the colour image (BGR), depth aligned to colour by ``rs.align(rs.stream.color)`` (uint16, units of
 ``depth_scale`` metres, from the depth sensor), the colour intrinsics (valid for the aligned depth too).
-Playback repeats frames in non-real-time mode (the syncer emits one set per stream's frame), so frames are
-de-duplicated by colour frame number.
+Playback delivers every colour frame of the recording exactly once, with the depth frame recorded with it;
+frame numbers not above the last one delivered are skipped (a playback re-opened after a stall starts the
+file again) and counted as ``duplicates``. Live, a frameset repeating the last colour frame is skipped too.
 
 Timestamps: live frames stamped on ``global_time``/``system_time`` (host clock, ms) are mapped from wall to
 monotonic time; ``hardware_clock`` stamps go through :class:`hal.clock.DeviceClock`. Playback: ``t = t_start +
 (ts - ts_first)`` as for every file (see :mod:`hal.replay`), paced by the recorded stamps when ``realtime``;
-playback itself runs with ``set_real_time(False)`` so that no frame is skipped.
+playback itself runs with ``set_real_time(False)`` and waits for the reader, so that no frame is skipped.
 
 Recovery (live): each read that gets no frame within its timeout raises SourceTimeout and is counted; after
 ``timeouts_before_reopen`` in a row the pipeline is stopped and started again; if the camera is gone reads
@@ -43,6 +46,7 @@ from hal.errors import (
 )
 from hal.frame import Frame
 from hal.replay import Timeline
+from hal.rs_playback import PlaybackPipeline
 from hal.source import Source
 
 # After hardware_reset() the camera re-enumerates; touching it too soon has crashed librealsense
@@ -64,11 +68,13 @@ def import_rs() -> Any:
 
 
 class RealSenseSource(Source):
-    """A RealSense camera (``playback=None``) or a RealSense recording played through the same pipeline.
+    """A RealSense camera (``playback=None``) or a RealSense recording (played losslessly, see module doc).
 
-    ``pipeline_factory`` (default ``rs.pipeline``; must return an ``rs.pipeline``, e.g. a subclass) is the seam
-    for tests that script stalls around the real pipeline. ``info`` adds serial, device name, size, fps, depth scale, intrinsics and the counters
-    timeouts, reopens, reopen_failures, hardware_resets, disconnects, duplicates, passes.
+    ``pipeline_factory`` is the seam for tests that script stalls around the real pipeline: live it is called
+    with no argument and must return an ``rs.pipeline`` (default, or a subclass); for a recording it is called
+    with the pyrealsense2 module and must return a :class:`PlaybackPipeline` (default, or a subclass).
+    ``info`` adds serial, device name, size, fps, depth scale, intrinsics and the counters timeouts, reopens,
+    reopen_failures, hardware_resets, disconnects, duplicates, passes.
     """
 
     kind = "realsense"
@@ -146,23 +152,20 @@ class RealSenseSource(Source):
     def _start(self) -> None:
         rs = self._rs
         c = self.config
-        pipe = (self._pipeline_factory or rs.pipeline)()  # a factory must return an rs.pipeline (subclass)
-        cfg = rs.config()
         if self.playback is not None:
-            cfg.enable_device_from_file(self.playback, repeat_playback=False)
+            # not rs.pipeline: it drops framesets when the reader is slow and may pair colour with the depth
+            # of another frame (see hal.rs_playback)
+            pipe = (self._pipeline_factory or PlaybackPipeline)(rs)  # a factory returns a PlaybackPipeline
         else:
+            pipe = (self._pipeline_factory or rs.pipeline)()  # a factory must return an rs.pipeline (subclass)
+            cfg = rs.config()
             if c.serial:
                 cfg.enable_device(c.serial)
             cfg.enable_stream(rs.stream.color, c.width, c.height, rs.format.bgr8, int(round(c.fps)))
             if c.depth:
                 cfg.enable_stream(rs.stream.depth, c.width, c.height, rs.format.z16, int(round(c.fps)))
         try:
-            if self.playback is not None:
-                # Non-real-time must be set before streaming starts: a file recorded faster than real time
-                # otherwise floods the queues at start and its first frames are dropped.
-                resolved = cfg.resolve(rs.pipeline_wrapper(pipe))
-                resolved.get_device().as_playback().set_real_time(False)
-            profile = pipe.start(cfg)
+            profile = pipe.start(self.playback, c.depth) if self.playback is not None else pipe.start(cfg)
         except RuntimeError as exc:
             if self.playback is not None:
                 raise SourceCorrupt(f"{self.playback}: librealsense cannot play this recording ({exc}); it may be "
@@ -183,8 +186,6 @@ class RealSenseSource(Source):
     def _configure(self, pipe: Any, profile: Any) -> None:
         rs = self._rs
         dev = profile.get_device()
-        if self.playback is not None:
-            dev.as_playback().set_real_time(False)
         streams = {s.stream_type(): s for s in profile.get_streams()}
         colour = streams.get(rs.stream.color)
         if colour is None:
@@ -214,7 +215,6 @@ class RealSenseSource(Source):
         for key, attr in ((rs.camera_info.serial_number, "serial"), (rs.camera_info.name, "device_name")):
             if dev.supports(key):  # a software/played-back device may lack some infos
                 setattr(self, attr, dev.get_info(key))
-        self._playback_dev = dev.as_playback() if self.playback is not None else None
 
     def _stop(self) -> None:
         pipe, self._pipe = self._pipe, None
@@ -339,11 +339,7 @@ class RealSenseSource(Source):
                 return frame
 
     def _playback_finished(self) -> bool:
-        rs = self._rs
-        try:
-            return self._playback_dev.current_status() == rs.playback_status.stopped
-        except RuntimeError:
-            return True
+        return self._pipe.finished()
 
     def _end_of_file(self) -> None:
         looping = self._timeline.end_of_pass(self.config.loop, self._frame_period)

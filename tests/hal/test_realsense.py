@@ -16,6 +16,7 @@ import pytest
 import hal
 from hal.config import SourceConfig
 from hal.realsense import PLAYBACK_SLICE_S, RESET_SETTLE_S, RealSenseSource
+from hal.rs_playback import PlaybackPipeline
 from tests.hal.conftest import (
     BOX_MM,
     COLOUR_K,
@@ -69,7 +70,7 @@ def test_playback_frames_colour_intrinsics_and_timestamps(squat_db3):
     assert np.allclose(steps, 1.0 / SQUAT_FPS, atol=1e-6)
     assert info["serial"] == "000000000042" and info["device"] == "squat test"
     assert info["has_depth"] and info["depth_alignment"] == "align"
-    assert info["duplicates"] > 0  # playback did repeat framesets; they were dropped
+    assert info["duplicates"] == 0  # every frame came once: nothing repeated, nothing to drop
     assert info["frames"] == DB3_FRAMES and info["state"] == "ended"
 
 
@@ -98,6 +99,29 @@ def test_depth_is_aligned_to_colour_with_the_extrinsics(squat_db3):
         assert ys.mean() == pytest.approx((top + bottom) / 2, abs=1.0)
         plain_resize_centre = COLOUR_K.fx / DEPTH_K.fx * ((u0 + u1 - 1) / 2 - DEPTH_K.cx) + COLOUR_K.cx
         assert abs(xs.mean() - plain_resize_centre) > 3.0
+
+
+def test_slow_reader_gets_every_frame_once_with_its_own_depth(squat_db3):
+    """A reader slower than the playback (it waits before its first read and between reads) still gets every
+    frame, once, each colour frame with the depth recorded with it: non-real-time playback waits for it."""
+    frames = []
+    with hal.open_source(f"file:{squat_db3.path}?realtime=false") as src:
+        time.sleep(0.5)  # the playback could run through the whole file meanwhile
+        while True:
+            try:
+                frames.append(src.read(2.0))
+            except hal.EndOfStream:
+                break
+            time.sleep(0.15)
+        info = src.info
+    assert [f.seq for f in frames] == list(range(DB3_FRAMES))
+    assert info["duplicates"] == 0
+    z_box = BOX_MM * DEPTH_SCALE
+    for i, (f, expected) in enumerate(zip(frames, squat_db3.colour, strict=True)):
+        assert np.array_equal(f.image, expected)
+        v0, v1, u0, u1 = box_rect(i)  # the box moves 4 depth px (8 colour px) per frame: another frame's
+        centre = (colour_edge(u0 - 0.5, z_box, 0) + colour_edge(u1 - 0.5, z_box, 0)) / 2  # depth is off by 8
+        assert np.nonzero(f.depth == BOX_MM)[1].mean() == pytest.approx(centre, abs=1.0)
 
 
 def test_deprojection_matches_librealsense_and_the_scene(squat_db3):
@@ -152,8 +176,8 @@ def test_loop_continues_time_and_seq(squat_db3):
     assert np.array_equal(frames[DB3_FRAMES].image, frames[0].image)
 
 
-class StallingPipeline(rs.pipeline):
-    """The real pipeline, with a scripted stall (nothing arrives) after some distinct frames: a USB hiccup."""
+class StallingPipeline(PlaybackPipeline):
+    """The real playback, with a scripted stall (nothing arrives) after some distinct frames: a USB hiccup."""
 
     plan: dict = {}
 
@@ -183,10 +207,10 @@ def _stalling_source(path: Path, failing_starts: int) -> RealSenseSource:
     cfg = SourceConfig(realtime=False, timeouts_before_reopen=2, failures_before_reset=2, reconnect_initial_s=0.01,
                        reconnect_max_s=0.05)
 
-    def factory():
+    def factory(rs_module):
         if StallingPipeline.plan["started"] >= 1:
             StallingPipeline.plan["stall_left"] = 0  # the re-opened pipeline streams again
-        return StallingPipeline()
+        return StallingPipeline(rs_module)
 
     return RealSenseSource(cfg, playback=str(path), pipeline_factory=factory)
 

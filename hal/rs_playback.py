@@ -1,0 +1,207 @@
+"""Lossless playback of a RealSense recording: every frame once, each colour frame with its own depth.
+
+``rs.pipeline`` cannot do this: its output queue holds one frameset and drops the older one when the reader
+is slow, and its framesets pair each new frame with the last frame of the other stream, so a colour frame may
+come with the depth of the frame before (which one depends on thread scheduling). This player opens the
+recorded sensors directly (``context.load_device``, non-real-time playback) and passes their frames through
+a small queue: the frame callback waits while ``QUEUE_FRAMES`` frames are queued, and in non-real-time mode
+a waiting callback holds the file reader back, so a slow consumer slows playback down instead of losing frames. Colour frames are paired with
+the depth frame nearest in time (within half a frame period); the pair becomes a frameset for ``rs.align``.
+
+The playback device starts reading when its first sensor starts, and drops frames of a sensor not started
+yet; so once all are started the file is rewound (``seek(0)``) and the frames already seen come again: a frame
+not later than the last one of its stream is a repeat and is dropped.
+
+It offers the part of the ``rs.pipeline`` interface :mod:`hal.realsense` uses (``start``,
+``try_wait_for_frames``, ``stop``) plus ``finished()``: the file has been read and every frame handed out.
+"""
+
+from __future__ import annotations
+
+import datetime
+import queue
+import threading
+import time
+from collections import deque
+from typing import Any
+
+# Frames in flight between librealsense's playback threads and the reader (the back-pressure window).
+QUEUE_FRAMES = 4
+# A callback blocked on the full queue re-checks this often whether the player is stopping.
+PUT_SLICE_S = 0.02
+# A playback that never started a stream within this long after start() counts as ended (an empty file).
+START_GRACE_S = 2.0
+
+
+class PlaybackProfile:
+    """What ``pipeline.start`` returns, as far as :mod:`hal.realsense` uses it."""
+
+    def __init__(self, device: Any, streams: list[Any]) -> None:
+        self._device = device
+        self._streams = streams
+
+    def get_device(self) -> Any:
+        return self._device
+
+    def get_streams(self) -> list[Any]:
+        return list(self._streams)
+
+
+class PlaybackPipeline:
+    """Plays one recording once (``start(path, depth)``); framesets of colour + its own depth, none lost."""
+
+    def __init__(self, rs: Any) -> None:
+        self._rs = rs
+        self._queue: queue.Queue = queue.Queue()  # bounded by _on_frame, except while rewinding at start
+        self._stopping = threading.Event()
+        self._rewinding = True
+        self._last: dict[Any, tuple[float, int]] = {}  # per stream: (timestamp, number) of the last frame
+        self._sensors: list[Any] = []
+        self._colours: deque = deque()
+        self._depths: deque = deque()
+        self._has_depth = False
+        self._tolerance_ms = 0.0
+        self._seen = False
+        self._started_at = 0.0
+        self._playback: Any = None
+        self._pair_with: Any = None
+        self._composer: Any = None
+        self._composed: Any = None
+
+    # -- life cycle ---------------------------------------------------------------------------------------
+    def start(self, path: str, depth: bool) -> PlaybackProfile:
+        rs = self._rs
+        self._ctx = rs.context()
+        dev = self._ctx.load_device(path)  # RuntimeError for a file librealsense cannot read
+        self._playback = dev.as_playback()
+        self._playback.set_real_time(False)  # before streaming: the reader then waits for the callbacks
+        wanted = (rs.stream.color, rs.stream.depth) if depth else (rs.stream.color,)
+        chosen: dict[Any, tuple[Any, Any]] = {}
+        for sensor in dev.query_sensors():
+            for p in sensor.get_stream_profiles():
+                if p.stream_type() in wanted and p.stream_type() not in chosen:
+                    chosen[p.stream_type()] = (sensor, p)
+        self._has_depth = rs.stream.depth in chosen
+        periods = [1000.0 / p.fps() for _, p in chosen.values() if p.fps() > 0]
+        self._tolerance_ms = 0.5 * max(periods) if periods else 0.0
+        by_sensor: dict[int, tuple[Any, list[Any]]] = {}
+        for sensor, p in chosen.values():
+            by_sensor.setdefault(id(sensor), (sensor, []))[1].append(p)
+
+        def combine(frame: Any, source: Any) -> None:
+            parts = [frame] if self._pair_with is None else [frame, self._pair_with]
+            source.frame_ready(source.allocate_composite_frame(parts))
+
+        self._composer = rs.processing_block(combine)
+        self._composed = rs.frame_queue(1, keep_frames=True)
+        self._composer.start(self._composed)
+        self._started_at = time.monotonic()
+        try:
+            for sensor, profiles in by_sensor.values():
+                sensor.open(profiles)
+                self._sensors.append(sensor)
+            for sensor in self._sensors:
+                sensor.start(self._on_frame)
+            self._playback.seek(datetime.timedelta(0))  # frames of a sensor started late were dropped: again
+            self._rewinding = False
+        except RuntimeError:
+            self.stop()
+            raise
+        return PlaybackProfile(dev, [p for _, p in chosen.values()])
+
+    def stop(self) -> None:
+        self._stopping.set()  # a callback blocked on the full queue gives up, so the sensors can stop
+        for sensor in self._sensors:
+            for action in (sensor.stop, sensor.close):
+                try:
+                    action()
+                except RuntimeError:
+                    pass
+        self._sensors = []
+        self._colours.clear()
+        self._depths.clear()
+        while True:
+            try:
+                self._queue.get_nowait()
+            except queue.Empty:
+                break
+
+    def _on_frame(self, frame: Any) -> None:
+        """librealsense's playback thread: hand the frame over, waiting while the queue is full."""
+        self._seen = True
+        stream = frame.get_profile().stream_type()
+        ts, number = frame.get_timestamp(), frame.get_frame_number()
+        last = self._last.get(stream)
+        if last is not None and (ts < last[0] or (ts, number) == last):
+            return  # seen before the rewind
+        self._last[stream] = (ts, number)
+        frame.keep()
+        # while rewinding (start) the reader must not wait: seek() waits for it
+        while not self._rewinding and self._queue.qsize() >= QUEUE_FRAMES and not self._stopping.is_set():
+            time.sleep(PUT_SLICE_S / 4)
+        self._queue.put(frame)
+
+    # -- reading ------------------------------------------------------------------------------------------
+    def try_wait_for_frames(self, timeout_ms: int = 5000) -> tuple[bool, Any]:
+        """(True, frameset of one colour frame + its depth) or (False, None) when none is ready in time."""
+        deadline = time.monotonic() + timeout_ms / 1000.0
+        while True:
+            colour, depth, ready = self._decide(final=False)
+            if ready:
+                return True, self._compose(colour, depth)
+            ended = self._reader_done()  # checked before the queue: all frames were queued before it stopped
+            try:
+                frame = self._queue.get(timeout=min(PUT_SLICE_S, max(0.0, deadline - time.monotonic())))
+            except queue.Empty:
+                if ended:
+                    colour, depth, ready = self._decide(final=True)
+                    if ready:
+                        return True, self._compose(colour, depth)
+                if time.monotonic() >= deadline:
+                    return False, None
+                continue
+            stream = frame.get_profile().stream_type()
+            (self._colours if stream == self._rs.stream.color else self._depths).append(frame)
+
+    def finished(self) -> bool:
+        """The recording has been read to its end and every frame of it handed out."""
+        return self._reader_done() and self._queue.empty() and not self._colours
+
+    def _reader_done(self) -> bool:
+        try:
+            stopped = self._playback.current_status() == self._rs.playback_status.stopped
+        except RuntimeError:
+            return True
+        return stopped and (self._seen or time.monotonic() - self._started_at > START_GRACE_S)
+
+    def _decide(self, final: bool) -> tuple[Any, Any, bool]:
+        """The first colour frame and its depth (or None), when that can be decided: a depth frame at or
+        after its time has arrived, or (``final``) no more frames will come."""
+        if not self._colours:
+            return None, None, False
+        colour = self._colours[0]
+        if not self._has_depth:
+            return self._colours.popleft(), None, True
+        ts = colour.get_timestamp()
+        after = next((i for i, d in enumerate(self._depths) if d.get_timestamp() >= ts), None)
+        if after is None and not final:
+            return None, None, False
+        candidates = [i for i in (after, (len(self._depths) if after is None else after) - 1)
+                      if i is not None and 0 <= i < len(self._depths)]
+        best = min(candidates, key=lambda i: abs(self._depths[i].get_timestamp() - ts), default=None)
+        self._colours.popleft()
+        if best is None or abs(self._depths[best].get_timestamp() - ts) > self._tolerance_ms:
+            for _ in range(after if after is not None else len(self._depths)):
+                self._depths.popleft()  # older than this colour frame: no later colour frame is nearer
+            return colour, None, True
+        for _ in range(best):
+            self._depths.popleft()
+        return colour, self._depths[0], True  # kept: a faster colour stream may pair with it again
+
+    def _compose(self, colour: Any, depth: Any) -> Any:
+        self._pair_with = depth
+        try:
+            self._composer.invoke(colour)
+            return self._composed.wait_for_frame(1000).as_frameset()
+        finally:
+            self._pair_with = None
