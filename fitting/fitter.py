@@ -237,10 +237,12 @@ class Fitter:
         # 19 variables, 2 translations), capped: a poor fit is a model mismatch rather than noise
         sigma2 = min(4.0 * f_min, cfg.pose_prior_max_noise ** 2)
         noise2 = max(sigma2, PRIOR_MIN_NOISE ** 2)
-        if self._depth is not None and not any(usable(self._depth_fit(frame, sc[0]), self._depth) for sc in scored):
+        fits = [self._depth_fit(frame, sc[0]) for sc in scored]
+        if self._depth is not None and not any(usable(d, self._depth) for d in fits):
             self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
+            fits = [None] * len(scored)
         # the 2D loss is a mean distance (normalized units), the refinement's cost a sum of squares
-        d_loss = [DEPTH_WEIGHT * math.sqrt(noise2) * self._depth_cost(frame, sc[0]) for sc in scored]
+        d_loss = [0.0 if d is None else DEPTH_WEIGHT * math.sqrt(noise2) * d.cost for d in fits]
         best = scored[min(range(len(scored)), key=lambda i: scored[i][1] + d_loss[i])]
         if not (cfg.refine and cfg.pose_prior > 0):
             return best
@@ -375,7 +377,8 @@ class Fitter:
         if not cfg.refine:
             return (*self._score(frame, prev), 0)
         start = self._lm(frame.data, prev)[0]
-        if refine.data_mse(start, frame.data) < EXACT_MSE:
+        mse_start = refine.data_mse(start, frame.data)
+        if mse_start < EXACT_MSE:
             return (*self._score(frame, start), 0)
         starts = []
         trial = np.empty(L.N_VAR)
@@ -395,7 +398,7 @@ class Fitter:
             self._udeas_s += time.thread_time() - c0
             starts.append(best_x)
         pool = [start]
-        mse = [refine.data_mse(start, frame.data)]
+        mse = [mse_start]
         for x0 in starts:
             x = self._lm(frame.data, x0)[0]
             pool.append(x)
