@@ -24,6 +24,8 @@ from fitting import layout as L
 from fitting import penalties as PEN
 from fitting import rotations as ROT
 
+REL_TOL = 1e-4  # LM stops when an accepted step lowers the cost by less than this fraction of it
+
 
 @njit(cache=True)
 def cholesky_solve(a, b, out):
@@ -57,7 +59,12 @@ def cholesky_solve(a, b, out):
 
 @njit(cache=True)
 def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
-    """Refine ``x0`` inside [lo, hi]; returns (final sum of squares, iterations, evaluations)."""
+    """Refine ``x0`` inside [lo, hi]; returns (final sum of squares, iterations, evaluations).
+
+    Marquardt's diagonal damping with the gain-ratio update of Nielsen (the damping shrinks after a step the
+    linear model predicted well and grows 2, 4, 8 ... times after rejected ones); a variable at a bound whose
+    descent direction leaves the box is held there for the iteration (an active set), so clamped steps are
+    not rejected over and over; stops when an accepted step lowers the cost by less than REL_TOL of it."""
     n = x0.size
     m = JAC.n_residuals()
     res = np.empty(m)
@@ -71,16 +78,20 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
     cost = JAC.sum_sq(res)
     evals = 1
     lam = 1e-3
+    nu = 2.0
     a = np.empty((n, n))
+    damped = np.empty((n, n))
     g = np.empty(n)
+    rhs = np.empty(n)
     step = np.empty(n)
     x_new = np.empty(n)
+    held = np.zeros(n, dtype=np.bool_)
     it = 0
     cols = np.empty(n, dtype=np.int64)
     while it < max_iter:
         it += 1
         # normal equations over the non-zero entries of each row (landmark rows are dense, hinge and prior
-        # rows have one or two)
+        # rows have one or two): a = J'J, g = J'r (half the cost's gradient)
         for i in range(n):
             g[i] = 0.0
             for j in range(n):
@@ -103,18 +114,19 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
         for i in range(n):
             for j in range(i):
                 a[j, i] = a[i, j]
+        for i in range(n):
+            held[i] = (x[i] <= lo[i] and g[i] > 0.0) or (x[i] >= hi[i] and g[i] < 0.0)
         improved = False
+        c_new = cost
         for _ in range(12):
-            damped = a.copy()
             for i in range(n):
-                damped[i, i] += lam * max(a[i, i], 1e-9) + 1e-12
-            for i in range(n):
-                g[i] = -g[i]
-            ok = cholesky_solve(damped, g, step)
-            for i in range(n):
-                g[i] = -g[i]
-            if not ok:
-                lam *= 4.0
+                rhs[i] = 0.0 if held[i] else -g[i]
+                for j in range(n):
+                    damped[i, j] = 0.0 if (held[i] or held[j]) else a[i, j]
+                damped[i, i] = 1.0 if held[i] else a[i, i] + lam * max(a[i, i], 1e-9) + 1e-12
+            if not cholesky_solve(damped, rhs, step):
+                lam *= nu
+                nu *= 2.0
                 continue
             for k in range(n):
                 x_new[k] = min(max(x[k] + step[k], lo[k]), hi[k])
@@ -123,18 +135,29 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
             c_new = JAC.sum_sq(res_new)
             if c_new < cost:
                 improved = True
+                # gain ratio: the actual reduction over the linear model's, for the (clamped) step taken
+                pred = 0.0
+                for i in range(n):
+                    h = x_new[i] - x[i]
+                    acc = 0.0
+                    for j in range(n):
+                        acc += a[i, j] * (x_new[j] - x[j])
+                    pred -= h * (2.0 * g[i] + acc)
+                rho = (cost - c_new) / pred if pred > 0.0 else 0.0
+                lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-9)
+                nu = 2.0
                 break
-            lam *= 4.0
+            lam *= nu
+            nu *= 2.0
         if not improved:
             break
         gain = cost - c_new
         for k in range(n):
             x[k] = x_new[k]
         cost = c_new
-        lam = max(lam / 3.0, 1e-9)
         JAC.residuals_jacobian(x, data, res, jac, True)
         evals += 1
-        if gain <= 1e-13 + 1e-7 * cost:
+        if gain <= 1e-13 + REL_TOL * cost:
             break
     for k in range(n):
         out_x[k] = x[k]
