@@ -2,13 +2,14 @@
 #   make demo   run the daemon on the embedded default (replay of real video, no camera)
 #   make test   run every test
 # Both set up a fresh Debian machine: system packages, .venv, the project editable with its extras,
-# and the landmark models (fetched once from PyPI, converted to ONNX). Re-running is fast.
+# the landmark models (fetched once from PyPI, converted to ONNX) and the numba cache of the fitting kernels
+# (`posed warmup`: compiled once, ~30 s; then every process loads them). Re-running is fast.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.posed-installed
 
-.PHONY: demo test setup models lint clean
+.PHONY: demo test setup models warmup lint clean
 
 setup: $(STAMP)
 
@@ -19,15 +20,18 @@ $(STAMP): pyproject.toml deploy/bootstrap.sh
 models: $(STAMP)
 	$(BIN)/posed models fetch
 
-test: models
+warmup: $(STAMP)
+	$(BIN)/posed warmup
+
+test: models warmup
 	bash deploy/check-shared-data.sh
 	$(BIN)/python -m pytest
 
-demo: models
+demo: models warmup
 	$(BIN)/posed demo
 
 lint: $(STAMP)
-	$(BIN)/ruff check daemon hal landmarks fitting falls bench tests
+	$(BIN)/ruff check daemon hal landmarks fitting falls bench camera_model viz client tests
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build dist *.egg-info

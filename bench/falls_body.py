@@ -196,7 +196,7 @@ def place(pose: StickPose, body: Body, where: RestingPlace) -> dict[str, np.ndar
 @dataclass(frozen=True)
 class WorldCamera:
     """A pinhole camera placed in the world: at ``(x, y, z)`` (``z`` its height), looking along azimuth ``yaw``
-    (deg from +y, counter-clockwise), pitched down by ``tilt`` (deg); a ``width`` x ``height`` image of
+    (deg from +y, counter-clockwise), pitched down by ``tilt`` (deg), rolled by ``roll`` (deg, as falls.features.gravity_from_tilt); a ``width`` x ``height`` image of
     horizontal field of view ``hfov`` (deg): its :attr:`intrinsics`."""
 
     x: float = 0.0
@@ -204,6 +204,7 @@ class WorldCamera:
     z: float = 1.0
     yaw: float = 0.0
     tilt: float = 10.0
+    roll: float = 0.0
     width: int = 640
     height: int = 480
     hfov: float = 69.0
@@ -216,7 +217,10 @@ class WorldCamera:
         upw = np.array([0.0, 0.0, 1.0])
         z_c = math.cos(a) * h - math.sin(a) * upw
         y_c = -math.cos(a) * upw - math.sin(a) * h
-        object.__setattr__(self, "axes", np.stack([right, y_c, z_c]))
+        b = math.radians(self.roll)   # about the optical axis, as falls.features.gravity_from_tilt
+        x_r = math.cos(b) * right + math.sin(b) * y_c
+        y_r = -math.sin(b) * right + math.cos(b) * y_c
+        object.__setattr__(self, "axes", np.stack([x_r, y_r, z_c]))
 
     @property
     def intrinsics(self) -> Intrinsics:

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
 from daemon import commands
 from daemon.config import EX_CONFIG
 from daemon.config.load import ConfigError
+from daemon.version import __version__
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -18,6 +20,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="posed",
         description="Edge daemon: one camera -> live 3D human pose, joint angles and fall events over Zenoh.",
     )
+    parser.add_argument("--version", action="version", version=f"posed {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
@@ -27,7 +30,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def quiet_opencv() -> None:
+    """OpenCV's ``[ WARN:0@...]`` lines and FFmpeg's own messages stay out of the output (posed reports what
+    it cannot read itself); set these variables to see them. Before OpenCV loads, and inherited by the
+    daemon's stage processes."""
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")   # AV_LOG_QUIET
+
+
 def main(argv: list[str] | None = None) -> int:
+    quiet_opencv()
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -6,12 +6,15 @@ No per-frame log lines anywhere: stages log state changes and a periodic ``stats
 from __future__ import annotations
 
 import logging
+import os
 import sys
 
 import structlog
 
+from daemon import journald
+
 _LEVELS = {"debug": logging.DEBUG, "info": logging.INFO, "warning": logging.WARNING, "error": logging.ERROR}
-_configured: tuple[str, str] | None = None
+_configured: tuple[str, str, str | None] | None = None
 
 
 class _Live:
@@ -22,10 +25,17 @@ class _Live:
         self.name = name
 
     def write(self, text: str) -> int:
-        return getattr(sys, self.name).write(text)
+        try:
+            return getattr(sys, self.name).write(text)
+        except BrokenPipeError:
+            _drop_stream(self.name)
+            return len(text)
 
     def flush(self) -> None:
-        getattr(sys, self.name).flush()
+        try:
+            getattr(sys, self.name).flush()
+        except BrokenPipeError:
+            _drop_stream(self.name)
 
     def isatty(self) -> bool:
         return getattr(sys, self.name).isatty()
@@ -34,23 +44,47 @@ class _Live:
 STDOUT, STDERR = _Live("stdout"), _Live("stderr")
 
 
-def configure(level: str = "info", fmt: str = "auto", stream=None) -> None:
+def _drop_stream(name: str) -> None:
+    """The reader of our stdout/stderr went away (``posed run | tee``, tee killed): point the file descriptor
+    at /dev/null so that logging, and every later write, goes on silently instead of raising in the
+    supervisor's loop or its signal handling (a broken log pipe must never stop the daemon)."""
+    stream = getattr(sys, name)
+    try:
+        fd = stream.fileno()
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+    except (OSError, ValueError):
+        return
+    try:
+        stream.flush()                 # what was buffered now goes to /dev/null
+    except OSError:
+        pass
+
+
+def configure(level: str = "info", fmt: str = "auto", stream=None, robot: str | None = None) -> None:
     """Configure structlog for this process (default: to the current ``sys.stdout``); later calls with the
-    same arguments do nothing."""
+    same arguments do nothing. ``auto``: journald's own fields when journald is reachable
+    (:mod:`daemon.journald`; ``robot`` is then each entry's POSED_ROBOT), else console on a TTY, else JSON."""
     global _configured
     if stream is None or stream is sys.stdout:
         stream = STDOUT
     elif stream is sys.stderr:
         stream = STDERR
+    if fmt == "auto" and stream in (STDOUT, STDERR) and journald.reachable():
+        fmt = "journal"
     if fmt == "auto":
         fmt = "console" if getattr(stream, "isatty", lambda: False)() else "json"
-    if _configured == (level, fmt) and stream is STDOUT:
+    if _configured == (level, fmt, robot) and stream is STDOUT:
         return
-    renderer = (
-        structlog.dev.ConsoleRenderer(colors=False)
-        if fmt == "console"
-        else structlog.processors.JSONRenderer(sort_keys=False)
-    )
+    if fmt == "journal":
+        renderer = journald.Sender(robot, fallback=stream)
+    else:
+        renderer = (
+            structlog.dev.ConsoleRenderer(colors=False)
+            if fmt == "console"
+            else structlog.processors.JSONRenderer(sort_keys=False)
+        )
     structlog.configure(
         processors=[
             structlog.contextvars.merge_contextvars,
@@ -64,7 +98,7 @@ def configure(level: str = "info", fmt: str = "auto", stream=None) -> None:
         logger_factory=structlog.PrintLoggerFactory(file=stream),
         cache_logger_on_first_use=False,
     )
-    _configured = (level, fmt) if stream is STDOUT else None
+    _configured = (level, fmt, robot) if stream is STDOUT else None
 
 
 def get(name: str, **context):

@@ -39,30 +39,119 @@ def default_input(make_recording: Callable[[Path], Path]) -> Path:
 
 
 def resolve_source(cfg: Config, make_recording: Callable[[Path], Path]) -> Config:
-    """``cfg`` with an empty file path replaced by the embedded demo input."""
-    if cfg.source.type != "file" or cfg.source.path:
+    """``cfg`` with an empty file path replaced by the embedded demo input, and a URI query left in the path
+    (``file:PATH?loop=true`` as ``--source`` gives it) moved into the source keys, so that the stage plan sees
+    the file's real name (a ``*.landmarks.jsonl`` replay skips the camera stages). A bad query is left for
+    :func:`check` to report."""
+    if cfg.source.type != "file":
         return cfg
-    return dataclasses.replace(cfg, source=dataclasses.replace(cfg.source, path=str(default_input(make_recording))))
+    if not cfg.source.path:
+        return dataclasses.replace(cfg, source=dataclasses.replace(cfg.source,
+                                                                   path=str(default_input(make_recording))))
+    if "?" in cfg.source.path and not Path(cfg.source.path).exists():
+        problems: list[str] = []
+        src = _without_query(cfg.source, problems)
+        if not problems:
+            return dataclasses.replace(cfg, source=src)
+    return cfg
+
+
+def _without_query(src, problems: list[str]):
+    """The source config with a URI query (``?loop=true&realtime=false``) moved out of its path into its keys,
+    as the capture stage reads it (hal.parse_uri); a bad query is a problem."""
+    from hal import SourceError, parse_uri
+
+    try:
+        return parse_uri(f"file:{src.path}", base=src)
+    except SourceError as exc:
+        problems.append(f"source: {exc}")
+        return src
 
 
 def check(cfg: Config) -> list[str]:
-    """Every problem that would stop the daemon at once, each naming what to change."""
+    """Every problem that would stop the daemon (or make a stage fail over and over), each naming the key and
+    what to change. ``posed config check`` and ``posed run`` (before any stage is spawned) both run it.
+
+    Checked: the source file (an empty ``source.path`` is the embedded demo input, resolved by ``posed run``),
+    the native Zenoh config (readable, and valid for Zenoh), the landmark models (present and matching their
+    manifest's sha256; not needed for a ``*.landmarks.jsonl`` source), the calibration file, every hook's
+    argv, and ``fitting.row_init <= fitting.row_max``."""
     problems: list[str] = []
     src = cfg.source
-    if src.type == "file" and not Path(src.path).exists():
+    if src.type == "file" and "?" in src.path and not Path(src.path).exists():
+        src = _without_query(src, problems)      # file:PATH?loop=true, as --source gives it
+    if src.type == "file" and src.path and not Path(src.path).exists():
         problems.append(f"source.path: {src.path} does not exist; give a video, an image folder, a RealSense "
                         "recording or a .landmarks.jsonl (or --source file:PATH)")
-    if cfg.zenoh.config_file and not Path(cfg.zenoh.config_file).is_file():
-        problems.append(f"zenoh.config_file: {cfg.zenoh.config_file} does not exist; give a Zenoh JSON5 "
-                        "config or leave it empty")
-    if not (src.type == "file" and is_landmark_recording(src.path)):
-        from landmarks import ModelMissingError, find_models
-
-        try:
-            find_models(cfg.landmarks.models_dir or None)
-        except ModelMissingError as exc:
-            text = str(exc)
-            if "posed models fetch" not in text:
-                text += "; run: posed models fetch"
-            problems.append(f"landmarks: {text}")
+    problems += _zenoh_problems(cfg)
+    if not (src.type == "file" and src.path and is_landmark_recording(src.path)):
+        problems += _model_problems(cfg)
+    if cfg.fitting.calibration:
+        problems += calibration_problems(cfg.fitting.calibration)
+    if cfg.fitting.row_init > cfg.fitting.row_max:
+        problems.append(f"fitting.row_init: {cfg.fitting.row_init} is more than fitting.row_max "
+                        f"({cfg.fitting.row_max}); uDEAS grows the row from row_init up to row_max: lower "
+                        "row_init or raise row_max")
+    for i, hook in enumerate(cfg.hooks.on_event):
+        if not hook.argv or not hook.argv[0]:
+            problems.append(f"hooks.on_event[{i}].argv is empty; give a program and its arguments as a list, "
+                            'e.g. argv: ["/usr/local/bin/notify", "--fall"]')
     return problems
+
+
+MAX_CALIBRATION_BYTES = 65536    # a calibration file is about 1 kB
+
+
+def calibration_problems(path: str) -> list[str]:
+    """What is wrong with the calibration file ``path`` (read with a bound first), as ``fitting.calibration:`` lines."""
+    from fitting import CalibrationError, read_calibration
+
+    try:
+        with open(path, "rb") as fh:             # bounded first: a huge file or /dev/zero is not read whole
+            size = len(fh.read(MAX_CALIBRATION_BYTES + 1))
+    except OSError:
+        size = 0                                 # read_calibration says what is wrong
+    if size > MAX_CALIBRATION_BYTES:
+        return [f"fitting.calibration: {path} is larger than {MAX_CALIBRATION_BYTES} bytes: not a calibration "
+                "file; create one with `posed calibrate RECORDING.landmarks.jsonl -o FILE`"]
+    try:
+        read_calibration(path)
+    except CalibrationError as exc:
+        return [f"fitting.calibration: {exc}"]
+    return []
+
+
+def _zenoh_problems(cfg: Config) -> list[str]:
+    path = cfg.zenoh.config_file
+    if not path:
+        return []
+    p = Path(path)
+    if not p.is_file():
+        what = "is a folder" if p.is_dir() else "does not exist"
+        return [f"zenoh.config_file: {path} {what}; give a Zenoh JSON5 config file or leave it empty"]
+    try:
+        with open(p, "rb"):
+            pass
+    except OSError as exc:
+        return [f"zenoh.config_file: {path} cannot be read ({exc.strerror}); make it readable by the daemon's "
+                "user or leave the key empty"]
+    from daemon.bus.session import ZenohConfigError, build_config
+
+    try:
+        build_config(cfg.zenoh)
+    except ZenohConfigError as exc:
+        return [" ".join(str(exc).split())]           # zenoh's message spans lines: one line per problem
+    return []
+
+
+def _model_problems(cfg: Config) -> list[str]:
+    from landmarks import ModelMissingError, find_models, verify_models
+
+    try:
+        verify_models(find_models(cfg.landmarks.models_dir or None))
+    except (ModelMissingError, ValueError, OSError) as exc:     # ModelCorruptError: damaged or unreadable
+        text = str(exc)
+        if "posed models fetch" not in text:
+            text += "; run: posed models fetch"
+        return [f"landmarks: {text}"]
+    return []

@@ -11,14 +11,20 @@ ring), spawns the stage processes (spawn context), and then loops every 0.1 s:
   the capture stage start reading frames (``go``), so warm-up drops no frame of a replay;
 * status every ``pipeline.status_period_s``: per-stage fps, latency, drops, restarts, CPU and memory, camera
   state -> the publisher (posed/ROBOT/status) and STATUS= for systemd; WATCHDOG=1 while every stage is healthy;
+  ``state`` is starting, running, waiting_for_camera (ready, but the camera cannot be opened or was lost:
+  the capture stage retries), degraded (a stage dead or stuck), escalated or stopping;
 * a stage reporting a fatal problem (a missing model or input file) stops the daemon with exit status 78.
 
 SIGTERM/SIGINT stop the stages in pipeline order (capture first: it closes the camera), kill what has not
-left by ``pipeline.shutdown_timeout_s``, unlink the shared memory and return.
+left by ``pipeline.shutdown_timeout_s``, unlink the shared memory and return. A broken log pipe (``posed run |
+tee`` and tee killed) changes nothing: logging then writes to /dev/null (:mod:`daemon.logs`); whatever fails
+in the supervisor, the stages are killed before it returns, and each stage gets SIGTERM from the kernel if
+the supervisor dies (``PR_SET_PDEATHSIG``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -29,7 +35,7 @@ from dataclasses import dataclass
 
 from daemon import clock, logs
 from daemon.config import EX_CONFIG, Config
-from daemon.proc import procstat, shm
+from daemon.proc import orphans, procstat, shm
 from daemon.proc.control import DOORBELLS, Control
 from daemon.proc.health import CAMERA_STATES
 from daemon.proc.notify import Notifier
@@ -38,6 +44,7 @@ from daemon.proc.status import fmt_ms, memory_fields, nan_to_zero, pss_mb, round
 from daemon.proc.watchdog import RestartPolicy, verdict
 from daemon.stages.base import EXIT_FATAL, StageArgs, stage_main
 from daemon.stages.plan import StageSpec, default_plan
+from daemon.version import __version__
 from hal import is_realsense_recording, to_uri
 
 EX_SOFTWARE = 70   # escalated without a systemd watchdog to do the restart
@@ -79,6 +86,7 @@ class Supervisor:
         self._ended_at: float | None = None
         self.control: Control | None = None
         self.ring: FrameRing | None = None
+        self._sem_record = None
         self.last_status: dict = {}
 
     # ------------------------------------------------------------------ public
@@ -94,22 +102,42 @@ class Supervisor:
                 self._tick(clock.now())
                 time.sleep(TICK_S)
         except Exception as exc:  # a bug in the supervisor itself: stop cleanly, let systemd restart us
-            self.log.error("supervisor_failed", error=repr(exc), traceback=traceback.format_exc(limit=8))
             self._exit_code = EX_SOFTWARE
             self.request_stop("supervisor error")
+            with contextlib.suppress(Exception):
+                self.log.error("supervisor_failed", error=repr(exc), traceback=traceback.format_exc(limit=8))
         finally:
-            self._shutdown()
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
+            try:
+                self._shutdown()
+            finally:                  # whatever failed above: no stage outlives the supervisor
+                self._kill_remaining()
+                for sig, handler in previous.items():
+                    signal.signal(sig, handler)
         return self._exit_code
+
+    def _kill_remaining(self) -> None:
+        for slot in self._slots.values():
+            if slot.process is not None and slot.process.is_alive():
+                _kill(slot.process)
+        self._end_orphans(orphans.of_supervisor(os.getpid()), "the daemon stopped")
+
+    def _end_orphans(self, pids: list[int], why: str) -> None:
+        """End hook processes a stage left behind (they run in sessions of their own)."""
+        if pids:
+            orphans.end(pids)
+            self.log.warning("hooks_left_behind_ended", pids=pids[:20], count=len(pids), why=why)
 
     # ------------------------------------------------------------------ start
     def _start(self) -> None:
+        self._end_orphans(orphans.of_dead_supervisors(), "left by a posed daemon that was killed")
         stale = shm.remove_stale()
         if stale:
-            self.log.warning("removed_stale_shared_memory", segments=stale)
+            self.log.warning("removed_stale_shared_memory", segments=stale,
+                             note="left by a posed supervisor that was killed")
         doorbells = {name: self._ctx.Semaphore(0) for name in DOORBELLS}
         self._doorbells = doorbells
+        sem_names = [n for n in (getattr(d._semlock, "name", None) for d in doorbells.values()) if n]
+        self._sem_record = shm.record_semaphores(sem_names)    # removed at the next start if we are killed
         names = tuple(s.name for s in self.plan)
         self.control = Control.create(names, doorbells)
         if any(s.uses_ring for s in self.plan):
@@ -149,7 +177,7 @@ class Supervisor:
             self._ready_sent = True
             for slot in self._slots.values():
                 self.control.board.row(slot.spec.name).set("go", 1.0)
-            self.notifier.ready(f"running: warm-up took {now - self._t0:.1f} s")
+            self.notifier.ready(status_text(self.status(now)) + f"; warm-up took {now - self._t0:.1f} s")
             self.log.info("daemon_ready", warmup_s=round(now - self._t0, 2))
         if now >= self._next_status:
             self._next_status = now + self.config.pipeline.status_period_s
@@ -169,7 +197,8 @@ class Supervisor:
 
     def _fatal(self, stage: str, message: str, fix: str) -> None:
         self.log.error("daemon_fatal", stage=stage, error=message, fix=fix)
-        print(f"posed: {stage}: {message}" + (f"\n  fix: {fix}" if fix else ""), flush=True, file=sys.stderr)
+        with contextlib.suppress(OSError):           # a closed or broken stderr must not stop the stop
+            print(f"posed: {stage}: {message}" + (f"\n  fix: {fix}" if fix else ""), flush=True, file=sys.stderr)
         self._exit_code = EX_CONFIG
         self.request_stop(f"fatal problem in {stage}")
 
@@ -198,6 +227,7 @@ class Supervisor:
                 continue
             if alive:
                 _kill(proc)
+            self._end_orphans(orphans.of_stage(os.getpid(), proc.pid), f"the {name} stage died")
             slot.restarts += 1
             slot.last_reason = f"{v.kind}: {v.reason}"
             delay = self.policy.delay(name, now)
@@ -276,11 +306,8 @@ class Supervisor:
             self.control.mailbox("status").put(status)
         except ValueError as exc:
             self.log.error("status_too_large", error=str(exc))
+        self.notifier.status(status_text(status))
         e2e = status["latency_ms"]
-        text = (f"{status['state']}: {status['fps']:.1f} fps, latency p95 "
-                f"{fmt_ms(e2e['p95'])} ms, drops {status['drops']}, restarts {status['restarts']}, "
-                f"camera {status['camera']['state']}")
-        self.notifier.status(text)
         if now >= self._next_stats_log:
             self._next_stats_log = now + self.config.logging.stats_period_s
             self.log.info("stats", fps=status["fps"], latency_ms=e2e, drops=status["drops"],
@@ -304,7 +331,8 @@ class Supervisor:
                 "pid": proc.pid if proc else None, "alive": alive,
                 "state": "restarting" if slot.restart_at is not None else self.control.board.row(name).state,
                 "fps": rounded(r["fps"], 2), "frames": int(r["frames"]), "drops": int(r["drops"]),
-                "skipped": int(r["skipped"]), "errors": int(r["errors"]), "restarts": slot.restarts,
+                "skipped": int(r["skipped"]), "errors": int(r["errors"]), "bad_frames": int(r["bad_frames"]),
+                "restarts": slot.restarts,
                 "step_ms": {"p50": rounded(r["step_p50_ms"]), "p95": rounded(r["step_p95_ms"]),
                             "max": rounded(r["step_max_ms"])},
                 "latency_ms": {"p50": rounded(r["lat_p50_ms"]), "p95": rounded(r["lat_p95_ms"]),
@@ -329,10 +357,15 @@ class Supervisor:
             state = "escalated"
         elif not self._ready_sent:
             state = "starting"
+        elif not self.healthy():
+            state = "degraded"
+        elif cap_row is not None and cap_row.camera in ("lost", "opening"):
+            state = "waiting_for_camera"        # ready, but no camera to read (unplugged, wrong device)
         else:
-            state = "running" if self.healthy() else "degraded"
+            state = "running"
         return {
             "robot": self.config.robot_id,
+            "version": __version__,
             "time": clock.iso(time.time()),
             "uptime_s": round(now - self._t0, 1),
             "state": state,
@@ -380,7 +413,22 @@ class Supervisor:
         if self.control is not None:
             self.control.close()
             self.control = None
+        if self._sem_record is not None:
+            with contextlib.suppress(OSError):
+                self._sem_record.unlink()
         self.log.info("daemon_stopped", seconds=round(clock.now() - t_start, 2), exit_code=self._exit_code)
+
+
+def status_text(status: dict) -> str:
+    """systemd's STATUS= line for a status object: the state first, then what matters for it."""
+    cam = status["camera"]
+    if status["state"] == "waiting_for_camera":
+        error = f": {cam['error']}" if cam.get("error") else ""
+        return (f"waiting_for_camera: {cam['source']} is not available{error}; retrying, restarts "
+                f"{status['restarts']}")
+    e2e = status["latency_ms"]
+    return (f"{status['state']}: {status['fps']:.1f} fps, latency p95 {fmt_ms(e2e['p95'])} ms, drops "
+            f"{status['drops']}, restarts {status['restarts']}, camera {cam['state']}")
 
 
 def _kill(proc: multiprocessing.Process) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 import time
 from datetime import UTC, datetime, timedelta
@@ -25,9 +26,9 @@ def parse_time(text: str, now: float | None = None) -> float:
         return midnight.timestamp()
     m = _RELATIVE.match(s)
     if m:
-        return now - float(m.group(1)) * _UNIT_S[m.group(2)]
+        return _finite(now - float(m.group(1)) * _UNIT_S[m.group(2)], text)
     if re.fullmatch(r"\d{9,}(\.\d+)?", s):
-        return float(s)
+        return _finite(float(s), text)
     try:
         dt = datetime.fromisoformat(text.strip().replace("Z", "+00:00").replace("z", "+00:00"))
     except ValueError:
@@ -35,7 +36,16 @@ def parse_time(text: str, now: float | None = None) -> float:
             f"{text!r} is not a time; use now, today, yesterday, a duration ago (30m, 2h, 7d), "
             "an ISO date or date-time (2024-05-01, 2024-05-01T14:30, 2024-05-01T12:30Z) or unix seconds"
         ) from None
-    return dt.timestamp()
+    try:
+        return dt.timestamp()
+    except (OverflowError, OSError, ValueError):    # e.g. 0001-01-01 in a time zone east of UTC
+        raise ValueError(f"{text!r} is outside the range of times this machine can represent") from None
+
+
+def _finite(t: float, text: str) -> float:
+    if not math.isfinite(t):
+        raise ValueError(f"{text[:40]!r} is too large to be a time")
+    return t
 
 
 def iso(unix: float) -> str:

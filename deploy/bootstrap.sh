@@ -10,7 +10,9 @@ dpkg -s libsystemd-dev >/dev/null 2>&1 || need_apt+=(libsystemd-dev)   # systemd
 dpkg -s pkg-config     >/dev/null 2>&1 || need_apt+=(pkg-config)
 dpkg -s libusb-1.0-0   >/dev/null 2>&1 || need_apt+=(libusb-1.0-0)     # pyrealsense2 needs it to import
 command -v gcc >/dev/null 2>&1          || need_apt+=(gcc)
+command -v openssl >/dev/null 2>&1      || need_apt+=(openssl)   # deploy/zenoh/make-certs.sh, tests/daemon/test_bus_security.py
 command -v systemd-analyze >/dev/null 2>&1 || need_apt+=(systemd)   # deploy/posed.service is checked by systemd-analyze verify
+command -v chromium >/dev/null 2>&1        || need_apt+=(chromium)  # tests/viz: the web view in a real headless browser
 if [ ${#need_apt[@]} -gt 0 ]; then
     if [ "$(id -u)" -ne 0 ]; then
         echo "bootstrap: missing Debian packages: ${need_apt[*]}; run: sudo apt-get install ${need_apt[*]}" >&2

@@ -4,12 +4,14 @@
 #
 # Idempotent: re-running updates the code and the unit, keeps /etc/posed/config.yaml, the models, the
 # events and the history. What it does (deploy/README.md explains each step):
-#   Debian packages -> user 'posed' (groups video, plugdev) -> code in /opt/posed/src, venv /opt/posed/venv
-#   -> /etc/posed/config.yaml (only if absent) checked -> models fetched into /var/lib/posed/models
-#   -> numba cache warmed in /var/cache/posed/numba -> udev rules for RealSense -> unit verified, enabled, started.
+#   Debian packages -> user 'posed' (groups video, plugdev) -> a root-owned copy of the code in /opt/posed/src,
+#   built into a wheel installed in the venv /opt/posed/venv -> /etc/posed/config.yaml (only if absent) checked
+#   -> models fetched into /var/lib/posed/models -> `posed warmup` fills the numba cache /var/cache/posed/numba
+#   -> udev rules for RealSense -> unit verified, enabled, started.
 set -euo pipefail
 
 PREFIX=${POSED_PREFIX:-/opt/posed}
+SYSTEM_PYTHON=${POSED_PYTHON:-/usr/bin/python3}
 ETC=/etc/posed
 STATE=/var/lib/posed
 CACHE=/var/cache/posed
@@ -30,6 +32,7 @@ if [ "$(id -u)" -ne 0 ]; then
     exit 1
 fi
 HERE=$(cd "$(dirname "$0")/.." && pwd)
+cd /   # every step runs from /: nothing imports the checkout (its code is copied, owned by root, below)
 step() { echo "install.sh: $*"; }
 
 step "Debian packages"
@@ -49,20 +52,44 @@ if ! getent passwd posed >/dev/null; then
 fi
 usermod -a -G video,plugdev posed
 
-step "code in $PREFIX/src, virtual environment $PREFIX/venv"
-install -d -m 0755 "$PREFIX"
-rsync -a --delete --exclude .git --exclude .venv --exclude '__pycache__' --exclude '*.egg-info' \
-      --exclude .pytest_cache --exclude .ruff_cache "$HERE/" "$PREFIX/src/"
-[ -x "$PREFIX/venv/bin/python" ] || python3 -m venv "$PREFIX/venv"
-"$PREFIX/venv/bin/python" -m pip install -q --upgrade pip
-# editable: the embedded config.yaml and docs stay next to the code (read-only for the service)
-"$PREFIX/venv/bin/python" -m pip install -q -e "$PREFIX/src[convert]"
-"$PREFIX/venv/bin/python" -m compileall -q "$PREFIX/src" >/dev/null || true
+step "code in $PREFIX/src (root-owned copy), wheel, virtual environment $PREFIX/venv"
+# The copy belongs to root and is read-only for everyone else, whoever owns the checkout; the wheel the
+# service runs is built from it. Every pip run below reads only that copy: `python -I` (no PYTHON* variables,
+# no current folder on sys.path), `pip --isolated` (no PIP_* variables, no user pip.conf), a clean environment
+# (but the proxy settings), from /.
+install -d -m 0755 -o root -g root "$PREFIX"
+rsync -a --delete --chown=root:root --chmod=D0755,F0644 --no-links \
+      --exclude .git --exclude .venv --exclude '__pycache__' --exclude '*.egg-info' --exclude build \
+      --exclude dist --exclude .pytest_cache --exclude .ruff_cache "$HERE/" "$PREFIX/src/"
+chmod 0755 "$PREFIX/src/deploy/"*.sh
+# a clean environment keeps only the network proxy settings (downloads from PyPI)
+proxies=()
+for v in http_proxy https_proxy no_proxy HTTP_PROXY HTTPS_PROXY NO_PROXY; do
+    if [ -n "${!v:-}" ]; then proxies+=("$v=${!v}"); fi
+done
+pip_root() {
+    (cd / && env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root LANG=C.UTF-8 "${proxies[@]}" \
+        "$PREFIX/venv/bin/python" -I -m pip --isolated --disable-pip-version-check -q "$@")
+}
+# the system's Python (not a pyenv or conda one in root's home, which the service user cannot run)
+[ -x "$PREFIX/venv/bin/python" ] || (cd / && "$SYSTEM_PYTHON" -I -m venv "$PREFIX/venv")
+pip_root install --upgrade pip
+rm -rf "$PREFIX/wheels"
+install -d -m 0755 -o root -g root "$PREFIX/wheels"
+pip_root wheel --no-deps -w "$PREFIX/wheels" "$PREFIX/src"
+rm -rf "$PREFIX/src/build" "$PREFIX/src/"*.egg-info
+wheel=$(ls "$PREFIX"/wheels/posed-*.whl)
+pip_root install "$wheel[convert]"                       # the dependencies, and posed if new
+pip_root install --no-deps --force-reinstall "$wheel"    # the code of this checkout, same version or not
+"$PREFIX/venv/bin/posed" --version
 
 step "configuration $ETC/config.yaml"
 install -d -m 0750 -o root -g posed "$ETC"
 if [ ! -f "$ETC/config.yaml" ]; then
-    install -m 0640 -o root -g posed "$PREFIX/src/config.yaml" "$ETC/config.yaml"
+    "$PREFIX/venv/bin/posed" config template > "$ETC/config.yaml.new"
+    chown root:posed "$ETC/config.yaml.new"
+    chmod 0640 "$ETC/config.yaml.new"
+    mv "$ETC/config.yaml.new" "$ETC/config.yaml"
     step "  wrote the default config; set source (camera) and robot_id there"
 fi
 "$PREFIX/venv/bin/posed" config check "$ETC/config.yaml"
@@ -70,11 +97,13 @@ fi
 step "models in $STATE/models, numba cache in $CACHE/numba"
 install -d -m 0750 -o posed -g posed "$STATE" "$STATE/models"
 install -d -m 0750 -o posed -g posed "$CACHE" "$CACHE/numba"
-runuser -u posed -- env HOME="$STATE" POSED_MODELS_DIR="$STATE/models" \
+runuser -u posed -- env -i PATH=/usr/bin:/bin HOME="$STATE" POSED_MODELS_DIR="$STATE/models" "${proxies[@]}" \
     "$PREFIX/venv/bin/posed" models fetch --models-dir "$STATE/models" "${FROM[@]}"
-runuser -u posed -- env HOME="$STATE" NUMBA_CACHE_DIR="$CACHE/numba" "$PREFIX/venv/bin/python" -c \
-    "from daemon.config import load_config; from fitting.fitter import Fitter; Fitter(load_config('$ETC/config.yaml').fitting).warmup()" \
-    || step "  (numba warm-up skipped: the daemon compiles on its first start)"
+# the kernels compiled once, as the service's user, into the cache the unit names (NUMBA_CACHE_DIR): the first
+# start then loads them (deploy/README.md, docs/benchmarks.md "cold start")
+runuser -u posed -- env -i PATH=/usr/bin:/bin HOME="$STATE" NUMBA_CACHE_DIR="$CACHE/numba" \
+    POSED_CONFIG="$ETC/config.yaml" "$PREFIX/venv/bin/posed" warmup \
+    || step "  (numba warm-up failed: the daemon compiles on its first start, ~30 s before READY)"
 
 step "udev rules for RealSense"
 install -m 0644 "$PREFIX/src/deploy/udev/99-posed-realsense.rules" /etc/udev/rules.d/99-posed-realsense.rules

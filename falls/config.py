@@ -27,6 +27,19 @@ class FallsConfig:
         default=0.0, metadata={"doc": "camera roll about its optical axis, clockwise in the image positive",
                                "unit": "deg", "range": (-90.0, 90.0)}
     )
+    camera_tilt_auto: bool = field(
+        default=False, metadata={"doc": "learn the tilt from a person standing or walking at several places across "
+                                        "the image (camera_tilt_deg is used until then, at least 5 s of standing); "
+                                        "see docs/falls.md"}
+    )
+    camera_roll_auto: bool = field(
+        default=False, metadata={"doc": "learn the roll from a person standing or walking (camera_roll_deg is used "
+                                        "until 5 s of standing were seen)"}
+    )
+    imu_gravity: bool = field(
+        default=True, metadata={"doc": "use the camera's IMU gravity when a frame carries it (frame field "
+                                       "\"gravity\", camera axes); it replaces the tilt and roll, set or learned"}
+    )
     camera_height_m: float = field(
         default=1.0, metadata={"doc": "camera height above the floor (set it for your robot); 0 = unknown: "
                                       "the floor is then learned from a standing person only",
@@ -66,6 +79,11 @@ class FallsConfig:
     confirm_s: float = field(
         default=0.3, metadata={"doc": "after a fast descent, the body stays at floor level this long before "
                                       "the fall is reported", "unit": "s", "range": (0.0, 5.0)}
+    )
+    lost_confirm_s: float = field(
+        default=0.5, metadata={"doc": "a fast descent that reached floor level (or low with the trunk tipping "
+                                      "over), then the person not seen for this long, is reported as a fall "
+                                      "(falling, feature lost_after_descent)", "unit": "s", "range": (0.1, 5.0)}
     )
     on_floor_confirm_s: float = field(
         default=1.0, metadata={"doc": "lying at floor level without a fast descent (slow fall, found lying) "

@@ -5,7 +5,10 @@ States: ``up`` (anything that is not on the floor: standing, walking, sitting on
 without recovering). Messages (``FallEvent``, all with the event's id):
 
 - ``falling``: a fast pelvis descent (``fall_velocity_rel``) reached floor level within ``impact_window_s``
-  and stayed there ``confirm_s`` — a fall was seen;
+  and stayed there ``confirm_s`` — a fall was seen; or such a descent, then the person lost for
+  ``lost_confirm_s`` (feature ``lost_after_descent``: pose extractors lose people lying on the floor); the
+  descent profile (``impact_abrupt``, ``supported_phase_before``) sets the confidence, and a braked descent
+  from sitting or kneeling (lying down on purpose) raises no ``falling``;
 - ``on_floor``: lying at floor level for ``on_floor_confirm_s`` — a slow fall, a person found lying who
   was not seen falling, or (after ``falling``) the person is still down;
 - ``alarm``: down ``alarm_after_s`` after the impact without recovering (the timer runs while the person is
@@ -15,9 +18,10 @@ without recovering). Messages (``FallEvent``, all with the event's id):
 
 Heights are relative to the person's standing pelvis height (learned while they stand upright with straight
 legs; before that, estimated from the fitted leg length). The floor is the configured camera height
-(``camera_height_m``), refined from the feet of a person standing upright (``learn_floor``). Frames that
-cannot be judged (no person, failed fit, shoulders or hips out of view or invisible) change nothing; gaps up
-to ``max_gap_s`` are bridged. See docs/falls.md for every threshold's reason.
+(``camera_height_m``), refined from the feet of a person standing upright (``learn_floor``); gravity is the
+configured tilt and roll, learned ones (``camera_*_auto``, :mod:`falls.geometry`) or the IMU's. Frames that
+cannot be judged (no person, failed fit, fewer than three of the shoulders and hips in view) change nothing
+but the lost-after-descent rule and the alarm timer; gaps up to ``max_gap_s`` are bridged. See docs/falls.md for every threshold's reason.
 """
 
 from __future__ import annotations
@@ -39,7 +43,14 @@ from falls.features import (
     gravity_from_tilt,
     measure,
 )
+from falls.geometry import GravityLearner, tilt_roll_deg
 from fitting import FitResult
+
+LOST_HORIZON_S = 0.4     # lost while falling: the pelvis would reach floor level this soon at its last speed
+PROFILE_WINDOW_S = 0.25  # descent profile: speeds over this window (three frames at 10 fps)
+LYING_HYSTERESIS_REL = 0.1   # a person lying stops lying above lying_pelvis_rel (shoulder_rel) + this
+LYING_HYSTERESIS_DEG = 15.0  # ... or with the trunk this much nearer vertical than lying_trunk_deg
+GRAVITY_STEP_DEG = 1.0   # a learned gravity is applied when it moved this far from the one in use
 
 
 @dataclass
@@ -86,7 +97,14 @@ class FallDetector:
         self.robot_id = robot_id
         self.fit_frame = fit_frame
         self._new_id = id_factory
-        self._gravity = gravity_from_tilt(cfg.camera_tilt_deg, cfg.camera_roll_deg)
+        self._gravity_cfg = gravity_from_tilt(cfg.camera_tilt_deg, cfg.camera_roll_deg)
+        self._gravity = self._gravity_cfg
+        self._gravity_imu: np.ndarray | None = None
+        self._learner = GravityLearner(self._gravity_cfg) if (cfg.camera_tilt_auto or cfg.camera_roll_auto) else None
+        self._roll_deg = cfg.camera_roll_deg
+        self._last_smoothed: Sample | None = None
+        self._last_v = 0.0
+        self._controlled_t: float | None = None   # a controlled descent (lying down on purpose) ended here
         self._floor_cfg = cfg.camera_height_m if cfg.camera_height_m > 0 else None
         self._floor_learned: float | None = None
         self._floor_weight = 0.0
@@ -95,6 +113,7 @@ class FallDetector:
         self._samples: deque[Sample] = deque()
         self._last_valid_t: float | None = None
         self._last_t: float | None = None
+        self._prev_frame_t: float | None = None
         self.state = "up"
         self._descent: _Descent | None = None
         self._floor_start: float | None = None   # pelvis at floor level since
@@ -108,12 +127,49 @@ class FallDetector:
 
     def set_gravity(self, down_camera: np.ndarray | None) -> None:
         """Gravity from an IMU (e.g. the RealSense accelerometer), a down vector in camera coordinates;
-        None returns to the configured tilt and roll."""
+        None returns to the configured (or learned) tilt and roll."""
         if down_camera is None:
-            self._gravity = gravity_from_tilt(self.cfg.camera_tilt_deg, self.cfg.camera_roll_deg)
-            return
-        g = np.asarray(down_camera, float)
-        self._gravity = g / np.linalg.norm(g)
+            self._gravity_imu = None
+        else:
+            g = np.asarray(down_camera, float)
+            n = float(np.linalg.norm(g))
+            if not (np.all(np.isfinite(g)) and n > 1e-9):
+                return  # a broken IMU reading changes nothing
+            self._gravity_imu = g / n
+        self._refresh_gravity()
+
+    def _refresh_gravity(self) -> None:
+        """Gravity: the IMU's, else the learned tilt/roll where ``*_auto`` (once learned), else the config."""
+        cfg = self.cfg
+        if self._gravity_imu is not None:
+            g = self._gravity_imu
+        else:
+            tilt, roll = self._learner.learned() if self._learner is not None else (None, None)
+            g = gravity_from_tilt(tilt if cfg.camera_tilt_auto and tilt is not None else cfg.camera_tilt_deg,
+                                  roll if cfg.camera_roll_auto and roll is not None else cfg.camera_roll_deg)
+        if float(g @ self._gravity) >= math.cos(math.radians(GRAVITY_STEP_DEG)):
+            return  # the learned estimate drifts by less than a step: keep the gravity in use
+        # a new gravity (learned, IMU, or the camera moved): heights measured along the old one are not
+        # comparable with the new ones — relearn the floor and the standing height, forget the motion
+        self._floor_learned, self._floor_weight = None, 0.0
+        self._stand, self._stand_weight = None, 0.0
+        self._gap()
+        self._gravity = g
+        self._roll_deg = tilt_roll_deg(g)[1]
+
+    @property
+    def geometry(self) -> dict:
+        """The camera geometry in use: tilt and roll (deg), floor below the camera (m, None unknown), and
+        where each comes from (config, learned, imu)."""
+        tilt, roll = tilt_roll_deg(self._gravity)
+        l_tilt, l_roll = self._learner.learned() if self._learner is not None else (None, None)
+        src = "imu" if self._gravity_imu is not None else None
+        return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": self.floor_below_camera,
+                "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto else "config"),
+                "roll_from": src or ("learned" if l_roll is not None and self.cfg.camera_roll_auto else "config"),
+                "height_from": "learned" if self._floor_learned is not None and self._floor_weight >= 5
+                else ("config" if self._floor_cfg is not None else "unknown"),
+                "standing_s": 0.0 if self._learner is None else round(self._learner.seconds, 2)}
 
     @property
     def floor_below_camera(self) -> float | None:
@@ -134,6 +190,7 @@ class FallDetector:
         t = float(result.t)
         if self._last_t is not None and t < self._last_t:  # a clock step backwards: start over, keep calibration
             self._reset_tracking()
+        self._prev_frame_t = self._last_t
         self._last_t = t
         out: list[FallEvent] = []
         camera = intrinsics if intrinsics is not None else \
@@ -142,7 +199,11 @@ class FallDetector:
         if fit_frame == "auto":  # the fit says which projection it used (orthographic: axes along the ray)
             fit_frame = "camera" if result.extra.get("projection") == "perspective" else "ray"
         feats = measure(result, landmarks, image_size, camera, self._gravity, self.cfg.min_visibility,
-                        self.cfg.upright_knee_deg, self.cfg.camera_roll_deg, fit_frame)
+                        self.cfg.upright_knee_deg, self._roll_deg, fit_frame, self.cfg.upright_trunk_deg)
+        if feats is not None and self._learner is not None and self._gravity_imu is None and feats.straight_body:
+            dt = t - self._prev_frame_t if self._prev_frame_t is not None else 0.1
+            if self._learner.add(self._gravity, feats.body_up_c, feats.axis_plane_c, dt):
+                self._refresh_gravity()
         sample = self._sample(feats) if feats is not None else None
         self.last_sample = sample
         if sample is not None:
@@ -154,10 +215,68 @@ class FallDetector:
             while self._samples and self._samples[0].t < t - 4.0:
                 self._samples.popleft()
             out += self._step(sample)
-        elif self._last_valid_t is not None and t - self._last_valid_t > self.cfg.max_gap_s:
-            self._gap()
+        else:
+            out += self._lost(t)
+            if self._last_valid_t is not None and t - self._last_valid_t > self.cfg.max_gap_s:
+                self._gap()
         out += self._timers(t)
         return out
+
+    def _lost(self, t: float) -> list[FallEvent]:
+        """Not judged this frame. A fast descent that reached floor level (or came low, or was still on course
+        for it, with the trunk tipping over) and then lost the person for ``lost_confirm_s`` is a fall that
+        ended out of sight: real pose extractors stop finding people lying on the floor."""
+        cfg = self.cfg
+        d, s = self._descent, self._last_smoothed
+        if self.state != "up" or d is None or s is None or self._last_valid_t is None:
+            return []
+        raw = self._samples[-1] if self._samples else None
+        if raw is not None and self._last_v > cfg.fall_velocity_rel and raw.h_rel < s.h_rel:
+            s = raw   # still falling fast in the last frame seen: its height is no outlier, the median lags
+        if self._last_valid_t - d.t_fast > cfg.impact_window_s or t - self._last_valid_t < cfg.lost_confirm_s - 1e-9:
+            return []
+        tipping = s.incl > cfg.recover_trunk_deg
+        # at floor level; or low with the trunk tipping over; or still falling fast with the trunk tipping over
+        # and on course to reach floor level within LOST_HORIZON_S (lost in mid-air, the last frames before
+        # the impact)
+        heading = self._last_v > cfg.fall_velocity_rel and s.h_rel - self._last_v * LOST_HORIZON_S < cfg.floor_pelvis_rel
+        low = s.h_rel < cfg.floor_pelvis_rel or (tipping and (s.h_rel < cfg.lying_pelvis_rel or heading))
+        if not low:
+            return []
+        supporting = self._supporting(s, d.flex_rate)
+        feats = ["pelvis_descent_fast", "lost_after_descent"] + supporting
+        conf = min(0.85, 0.6 + 0.05 * len(supporting) + (0.1 if d.v_peak > 2 * cfg.fall_velocity_rel else 0.0))
+        return [self._raise("falling", d.t_onset, self._impact_time(d.t_fast), t, feats, conf)]
+
+    def _abrupt(self, t_onset: float, t_impact: float) -> bool:
+        """The descent profile: did the pelvis still move at half its peak speed or more in the last
+        ``PROFILE_WINDOW_S`` before it reached its lowest level? A fall is stopped by the floor; lying down on
+        purpose brakes before it."""
+        pts = [x for x in self._samples if t_onset - PROFILE_WINDOW_S <= x.t <= t_impact + 1e-9]
+        if len(pts) < 3:
+            return True   # too few frames to see a braking: no evidence of a controlled descent
+
+        def speed(end: float) -> float | None:
+            win = [x for x in pts if end - PROFILE_WINDOW_S - 1e-9 <= x.t <= end + 1e-9]
+            if len(win) < 2 or win[-1].t - win[0].t <= 0:
+                return None
+            return (win[0].h_rel - win[-1].h_rel) / (win[-1].t - win[0].t)
+
+        speeds = [v for v in (speed(x.t) for x in pts) if v is not None]
+        v_end = speed(t_impact)
+        if not speeds or v_end is None:
+            return True
+        return v_end >= 0.5 * max(speeds)
+
+    def _supported_before(self, t_onset: float) -> bool:
+        """Was the body resting low (sitting on a chair or the floor, kneeling: pelvis below 0.8 of its
+        standing height) for most of the 1.5 s (at least 0.5 s of frames) before the descent began? Lying down
+        on purpose goes through such a supported phase; a fall from standing does not."""
+        before = [x for x in self._samples if t_onset - 1.5 <= x.t < t_onset]
+        if len(before) < 3 or before[-1].t - before[0].t < 0.5:
+            return False
+        low = [x for x in before if x.h_rel < 0.8]
+        return len(low) >= 0.8 * len(before)
 
     def _reset_tracking(self) -> None:
         self._gap()
@@ -226,10 +345,18 @@ class FallDetector:
         cfg = self.cfg
         t = raw.t
         s = self._smoothed()
+        self._last_smoothed = s
         v = self._descent_velocity(t)
+        self._last_v = v
         at_floor = s.h_rel < cfg.floor_pelvis_rel
         lying = (s.h_rel < cfg.lying_pelvis_rel and s.incl > cfg.lying_trunk_deg
                  and s.shoulders_rel < cfg.lying_shoulder_rel)
+        if not lying and self._lying_start is not None:
+            # hysteresis: someone lying stays lying until clearly not (the fitted pelvis height of a person
+            # lying on their side jitters by +-0.05 rel around lying_pelvis_rel)
+            lying = (s.h_rel < cfg.lying_pelvis_rel + LYING_HYSTERESIS_REL
+                     and s.incl > cfg.lying_trunk_deg - LYING_HYSTERESIS_DEG
+                     and s.shoulders_rel < cfg.lying_shoulder_rel + LYING_HYSTERESIS_REL)
         at_floor = at_floor or lying
         self._floor_start = _since(self._floor_start, t) if at_floor else None
         self._lying_start = _since(self._lying_start, t) if lying else None
@@ -249,13 +376,42 @@ class FallDetector:
             d = self._descent
             if d is not None and self._floor_start is not None and t - self._floor_start >= cfg.confirm_s - 1e-9:
                 t_impact = self._impact_time(d.t_fast)
-                feats = ["pelvis_descent_fast", "pelvis_at_floor_level"] + self._supporting(s, d.flex_rate)
-                conf = min(0.99, 0.6 + 0.1 * (len(feats) - 2) + (0.1 if d.v_peak > 2 * cfg.fall_velocity_rel else 0.0))
-                out.append(self._raise("falling", d.t_onset, t_impact, t, feats, conf))
-            elif self._lying_start is not None and t - self._lying_start >= cfg.on_floor_confirm_s - 1e-9:
+                supporting = self._supporting(s, d.flex_rate)
+                # the descent profile: a fall reaches the floor still fast, lying down on purpose slows first
+                abrupt = self._abrupt(d.t_onset, t_impact)
+                supported = self._supported_before(d.t_onset)
+                if supported and not abrupt:
+                    # from sitting or kneeling, slowing down before the floor: lying down on purpose. No
+                    # `falling`; lying there is still reported as on_floor (lower confidence) below.
+                    self._controlled_t = t
+                    self._descent = None
+                else:
+                    feats = ["pelvis_descent_fast", "pelvis_at_floor_level"] + supporting
+                    if abrupt:
+                        feats.append("impact_abrupt")
+                    if supported:
+                        feats.append("supported_phase_before")
+                    conf = (0.55 + 0.1 * len(supporting) + (0.1 if d.v_peak > 2 * cfg.fall_velocity_rel else 0.0)
+                            + (0.1 if abrupt else 0.0) - (0.15 if supported else 0.0))
+                    out.append(self._raise("falling", d.t_onset, t_impact, t, feats, min(0.99, max(0.3, conf))))
+            controlled = self._controlled_t is not None and t - self._controlled_t <= 5.0
+            if not out and controlled and self._floor_start is not None \
+                    and t - self._floor_start >= cfg.on_floor_confirm_s - 1e-9:
+                # after a controlled descent, staying at floor level (lying or sitting) is still reported
+                feats = ["at_floor_level", "controlled_descent"] + self._supporting(s, flex_rate)
+                out.append(self._raise("on_floor", self._slow_onset(self._floor_start), self._floor_start, t, feats,
+                                       min(0.5, 0.35 + 0.05 * (len(feats) - 2))))
+            if not out and self.state == "up" and self._lying_start is not None \
+                    and t - self._lying_start >= cfg.on_floor_confirm_s - 1e-9:
                 onset = self._slow_onset(self._lying_start)
                 feats = ["lying_at_floor_level"] + self._supporting(s, flex_rate)
                 conf = min(0.95, 0.55 + 0.1 * (len(feats) - 1))
+                if self._controlled_t is not None and t - self._controlled_t <= 5.0:
+                    feats.append("controlled_descent")   # lay down on purpose, it seems: less sure
+                    conf = min(conf, 0.5)
+                elif self._supported_before(self._lying_start) or (onset is not None and self._supported_before(onset)):
+                    feats.append("supported_phase_before")   # slowly from sitting or kneeling: less sure
+                    conf = min(conf, 0.5)
                 out.append(self._raise("on_floor", onset, self._lying_start, t, feats, conf))
             return out
 
@@ -334,7 +490,7 @@ class FallDetector:
         ev = self._event
         assert ev is not None
         ev.sent.add(state)
-        s = self.last_sample
+        s = self.last_sample or (self._samples[-1] if self._samples else None)   # lost: the last one seen
         extra = {}
         if s is not None:
             extra = {"pelvis_height_rel": round(s.h_rel, 3), "trunk_inclination_deg": round(s.incl, 1)}

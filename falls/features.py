@@ -66,6 +66,11 @@ class FrameFeatures:
     bbox_aspect: float           # width / height of the visible landmarks, roll-corrected
     flexion: dict[str, float]    # theta_hp_l/r, theta_kn_l/r (deg)
     upright_legs: bool           # hips and knees nearly straight (standing-reference candidate)
+    unobserved: tuple[str, ...] = ()   # body landmarks not observed in this frame (fitted from the rest)
+    body_up_c: np.ndarray | None = None    # mid-ankle -> mid-shoulder of the fit, unit, camera axes
+    axis_plane_c: np.ndarray | None = None  # unit normal of the plane through the camera centre and the
+                                            # image line mid-ankle -> mid-shoulder (normalized coordinates)
+    straight_body: bool = False  # standing or walking: legs extended, trunk in line (whatever the gravity)
 
 
 def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Intrinsics) -> np.ndarray | None:
@@ -101,7 +106,7 @@ def landmark_ok(landmarks: np.ndarray, index: int, min_vis: float, width: float,
 
 def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera: Intrinsics, d_c: np.ndarray,
             min_visibility: float, upright_knee_deg: float, roll_deg: float = 0.0,
-            fit_frame: str = "ray") -> FrameFeatures | None:
+            fit_frame: str = "ray", upright_trunk_deg: float = 20.0) -> FrameFeatures | None:
     """The frame's features, or None when it cannot be judged (no person, failed fit, torso not in view)."""
     if not result.ok or landmarks is None or not result.joints_3d:
         return None
@@ -113,10 +118,13 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
     if any(name not in joints for name in TORSO):
         return None
     visible = {name: landmark_ok(lm, i, min_visibility, width, height) for name, i in LANDMARK_INDEX.items()}
-    if not all(visible[name] for name in TORSO):
+    # a partial body is judged: three of the four torso landmarks (a shoulder or hip off the image, a person
+    # falling towards the camera) locate the body; the fit places the unobserved one
+    if sum(visible[name] for name in TORSO) < 3:
         return None
     names = [n for n, ok in visible.items() if ok and n in joints and np.all(np.isfinite(joints[n]))]
-    hip_px = 0.5 * (lm[23, :2] + lm[24, :2])
+    hips_seen = [lm[LANDMARK_INDEX[n], :2] for n in ("left_hip", "right_hip") if visible[n]]
+    hip_px = np.mean(hips_seen, axis=0) if hips_seen else 0.5 * (lm[23, :2] + lm[24, :2])
     ray = np.array([(hip_px[0] - camera.cx) / camera.fx, (hip_px[1] - camera.cy) / camera.fy, 1.0])
     r_fit = ray_rotation(ray) if fit_frame == "ray" else np.eye(3)
     mid_hip = joints.get("mid_hip", 0.5 * (joints["left_hip"] + joints["right_hip"]))
@@ -149,5 +157,38 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
     ja = result.joint_angles_deg
     flex = {k: float(ja[k]) for k in ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r") if k in ja}
     upright_legs = bool(flex) and all(abs(v) < upright_knee_deg for v in flex.values())
+    body_up = axis_plane = None
+    straight = False
+    if all(n in joints for n in ("left_ankle", "right_ankle")):
+        ankle_mid = 0.5 * (joints["left_ankle"] + joints["right_ankle"])
+        up_fit = 0.5 * (joints["left_shoulder"] + joints["right_shoulder"]) - ankle_mid
+        n_up = float(np.linalg.norm(up_fit))
+        leg_axis = mid_hip - ankle_mid
+        n_leg = float(np.linalg.norm(leg_axis))
+        if n_up > 1e-6 and n_leg > 1e-6:
+            body_up = r_fit @ (up_fit / n_up)
+            # standing or walking, whatever the gravity: the trunk in line with the hips-to-ankles axis and
+            # both legs nearly extended (hip-ankle at least 85 % of thigh + shank: not sitting, squatting or
+            # kneeling); walking's bent swing knee keeps its ankle under the body
+            bend = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk @ leg_axis) / (norm * n_leg)))))
+            extended = all(
+                np.linalg.norm(joints[f"{sd}_ankle"] - joints[f"{sd}_hip"])
+                >= 0.85 * (np.linalg.norm(joints[f"{sd}_knee"] - joints[f"{sd}_hip"])
+                           + np.linalg.norm(joints[f"{sd}_ankle"] - joints[f"{sd}_knee"]))
+                for sd in ("left", "right") if f"{sd}_knee" in joints and f"{sd}_hip" in joints)
+            straight = extended and bend < upright_trunk_deg
+        seen = ("left_shoulder", "right_shoulder", "left_ankle", "right_ankle")
+        if all(visible[n] for n in seen):
+            top = 0.5 * (lm[11, :2] + lm[12, :2])
+            bottom = 0.5 * (lm[23, :2] + lm[24, :2])
+            a = np.array([(bottom[0] - camera.cx) / camera.fx, (bottom[1] - camera.cy) / camera.fy, 1.0])
+            b = np.array([(top[0] - camera.cx) / camera.fx, (top[1] - camera.cy) / camera.fy, 1.0])
+            normal = np.cross(a, b)
+            n_norm = float(np.linalg.norm(normal))
+            if n_norm > 1e-9:
+                axis_plane = normal / n_norm
+    unobserved = tuple(n for n, ok in visible.items() if not ok)
     return FrameFeatures(t=result.t, below_camera_pelvis=float(pelvis @ d_c), below_camera_ankles=below_ankles,
-                         offsets_down=offsets, trunk_incl_deg=incl, leg_length=leg, bbox_aspect=aspect, flexion=flex, upright_legs=upright_legs)
+                         offsets_down=offsets, trunk_incl_deg=incl, leg_length=leg, bbox_aspect=aspect, flexion=flex,
+                         upright_legs=upright_legs, unobserved=unobserved, body_up_c=body_up,
+                         axis_plane_c=axis_plane, straight_body=straight)

@@ -135,14 +135,25 @@ def _quote(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
+MAX_CALIBRATION_BYTES = 65536  # a calibration file is about 1 kB
+
+
 def read_calibration(path: str | os.PathLike) -> BodyDimensions:
     """Read a calibration file; raises CalibrationError naming what is wrong and how to fix it."""
     try:
-        with open(path, encoding="utf-8") as fh:
-            text = fh.read()
+        with open(path, "rb") as fh:        # bounded: a huge file or /dev/zero is an error, not a hang
+            data = fh.read(MAX_CALIBRATION_BYTES + 1)
     except OSError as exc:
         raise CalibrationError(f"{path}: cannot read the calibration file ({exc.strerror}); "
                                "create it with `posed calibrate RECORDING.landmarks.jsonl -o FILE`") from exc
+    if len(data) > MAX_CALIBRATION_BYTES:
+        raise CalibrationError(f"{path}: larger than {MAX_CALIBRATION_BYTES} bytes, not a calibration file (one "
+                               "is about 1 kB); create it with `posed calibrate RECORDING.landmarks.jsonl -o FILE`")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CalibrationError(f"{path}: not UTF-8 text (byte {data[exc.start]:#04x} at offset {exc.start}); "
+                               "create it with `posed calibrate RECORDING.landmarks.jsonl -o FILE`") from None
     values: dict[str, str] = {}
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()

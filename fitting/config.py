@@ -113,7 +113,9 @@ class FitConfig:
                                "range": (0.0, 1.0)}
     )
     min_landmarks: int = field(
-        default=8, metadata={"doc": "fewest usable body landmarks (of 12) for a fit", "range": (4, 12)}
+        default=6, metadata={"doc": "fewest usable body landmarks (of 12) for a fit (6: e.g. shoulders, hips and "
+                                    "knees, what real extractors give of a person falling; see docs/falls.md)",
+                             "range": (4, 12)}
     )
     max_error: float = field(
         default=0.05, metadata={"doc": "reject a fit whose mean 2D error exceeds this fraction of body height",

@@ -37,9 +37,14 @@ class SourceUnsupported(SourceError):
 
 
 class SourceCorrupt(SourceError):
-    """Data that cannot be decoded (a broken video, image or recording); reading may go on after it."""
+    """Data that cannot be decoded (a broken video, image or recording) or a frame larger than the reader
+    takes (``pixels``: its width x height); reading may go on after it."""
 
     retry = True
+
+    def __init__(self, message: str, source: str = "", pixels: int | None = None) -> None:
+        super().__init__(message, source)
+        self.pixels = pixels
 
 
 class SourceTimeout(SourceError):

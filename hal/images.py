@@ -1,13 +1,16 @@
 """Replay of a folder of images (or one image file), in natural name order (img_2 before img_10).
 
 Times come from the folder's ``timestamps.jsonl`` sidecar, else from ``index / source.fps``. An image that
-does not decode raises SourceCorrupt naming the file; the next read goes on with the next image.
+does not decode raises SourceCorrupt naming the file; the next read goes on with the next image. So does an
+image larger than ``Source.max_pixels``: PNG, JPEG and BMP sizes are read from the file's header
+(:func:`header_size`), so such an image is never decoded; other formats are checked after decoding.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import struct
 from pathlib import Path
 
 import cv2
@@ -28,6 +31,43 @@ def list_images(folder: str | os.PathLike) -> list[Path]:
     """The image files of a folder in natural order."""
     files = [p for p in Path(folder).iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
     return sorted(files, key=lambda p: _natural_key(p.name))
+
+
+def header_size(path: str | os.PathLike) -> tuple[int, int] | None:
+    """(width, height) from a PNG, JPEG or BMP header without decoding the pixels; None for other formats
+    or a header that cannot be read."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(32)
+            if head.startswith(b"\x89PNG\r\n\x1a\n") and head[12:16] == b"IHDR":
+                w, h = struct.unpack(">II", head[16:24])
+                return int(w), int(h)
+            if head.startswith(b"BM") and len(head) >= 26:
+                w, h = struct.unpack("<ii", head[18:26])
+                return abs(int(w)), abs(int(h))
+            if head.startswith(b"\xff\xd8"):
+                return _jpeg_size(fh)
+    except (OSError, struct.error):
+        return None
+    return None
+
+
+def _jpeg_size(fh) -> tuple[int, int] | None:
+    """Walk the JPEG markers up to the first start-of-frame (SOF0..SOF15 but DHT, JPG, DAC)."""
+    fh.seek(2)
+    for _ in range(10000):
+        marker = fh.read(2)
+        if len(marker) < 2 or marker[0] != 0xFF:
+            return None
+        kind = marker[1]
+        if kind in (0xD8, 0x01) or 0xD0 <= kind <= 0xD7:
+            continue
+        length = struct.unpack(">H", fh.read(2))[0]
+        if 0xC0 <= kind <= 0xCF and kind not in (0xC4, 0xC8, 0xCC):
+            h, w = struct.unpack(">xHH", fh.read(5))
+            return int(w), int(h)
+        fh.seek(length - 2, os.SEEK_CUR)
+    return None
 
 
 class ImageFolderSource(ReplaySource):
@@ -76,12 +116,23 @@ class ImageFolderSource(ReplaySource):
         index = self._next
         self._next += 1
         path = self.files[index]
+        size = header_size(path) if self.max_pixels else None
+        if size is not None:
+            self._check_size(path, *size)
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if image is None or image.size == 0:
             self.count("corrupt")
             raise SourceCorrupt(f"{path}: cannot decode this image (corrupt or not an image); skipping it — "
                                 "replace or delete the file", self.name)
+        self._check_size(path, image.shape[1], image.shape[0])
         image = np.ascontiguousarray(as_bgr(image))
         if self.size is None:
             self.size = (int(image.shape[1]), int(image.shape[0]))
         return image, index, None
+
+    def _check_size(self, path: Path, width: int, height: int) -> None:
+        if self.max_pixels and width * height > self.max_pixels:
+            self.count("corrupt")
+            raise SourceCorrupt(f"{path}: a {width}x{height} image ({width * height} pixels) is larger than the "
+                                f"{self.max_pixels}-pixel frames this pipeline takes; skipping it", self.name,
+                                pixels=width * height)

@@ -52,12 +52,34 @@ class Timestamps:
         return self.by_frame.get(frame)
 
 
+MAX_LINE_BYTES = 65536     # a sidecar line is under 100 bytes, the header under 1 kB
+
+
+def _read_lines(path: Path, name: str) -> list[str]:
+    """The file's lines (without newlines), each read with at most MAX_LINE_BYTES + 1 bytes: a longer line
+    (a 2 GB line, /dev/zero) is SourceCorrupt, not read whole."""
+    lines: list[str] = []
+    with path.open("rb") as fh:
+        while True:
+            raw = fh.readline(MAX_LINE_BYTES + 1)
+            if not raw:
+                break
+            if len(raw) > MAX_LINE_BYTES:
+                raise SourceCorrupt(f"{name}:{len(lines) + 1}: line longer than {MAX_LINE_BYTES} bytes: not a "
+                                    "timestamps sidecar; delete or fix the file", name)
+            try:
+                lines.append(raw.decode("utf-8").rstrip("\n"))
+            except UnicodeDecodeError:
+                raise SourceCorrupt(f"{name}:{len(lines) + 1}: not UTF-8 text; delete or fix the file",
+                                    name) from None
+    return lines or [""]
+
+
 def read_sidecar(path: str | os.PathLike) -> Timestamps:
     """Parse a sidecar; raises SourceCorrupt naming FILE:LINE for a bad line."""
     path = Path(path)
     name = str(path)
-    with path.open(encoding="utf-8") as fh:
-        lines = fh.read().split("\n")
+    lines = _read_lines(path, name)
     try:
         head = json.loads(lines[0])
     except (json.JSONDecodeError, IndexError):

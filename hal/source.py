@@ -28,6 +28,9 @@ class Source(abc.ABC):
         self._is_open = False
         self.state = "closed"
         self.counters: dict[str, int] = {"frames": 0}
+        # the largest frame (width x height) the reader takes; None: any. Replays of image files check it on
+        # the file's header, before decoding (a 10000x10000 image is skipped as SourceCorrupt, not decoded)
+        self.max_pixels: int | None = None
         self._consecutive_timeouts = 0  # reads in a row that got no frame (cameras; see _timed_out)
 
     # -- public API ---------------------------------------------------------------------------------------

@@ -85,6 +85,8 @@ def _parse_value(name: str, raw: str, tp: type, uri: str) -> typing.Any:
 
 def _check_limits(name: str, v: typing.Any, meta: typing.Mapping, uri: str) -> None:
     lo, hi = meta.get("range", (None, None))
+    if isinstance(v, float) and v != v:
+        raise SourceUnsupported(f"URI option {name}=nan is not a number", uri)
     if isinstance(v, (int, float)) and not isinstance(v, bool) and (
             (lo is not None and v < lo) or (hi is not None and v > hi)):
         raise SourceUnsupported(f"URI option {name}={v} is out of range [{lo}, {'inf' if hi is None else hi}]", uri)

@@ -13,6 +13,9 @@ reads and writes exactly as before.
 
 Reading never raises on a bad frame line: it yields a :class:`RecordingProblem` naming the file and line and
 goes on. Only a header that cannot be understood raises :class:`RecordingError` (nothing after it can be read).
+No line is read whole beyond ``MAX_LINE_BYTES`` (a frame line is a few kB): a longer header is a
+RecordingError, a longer frame line is a RecordingProblem that ends the stream (a 2 GB line or ``/dev/zero``
+is reported in bounded memory, not read).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from camera_model import Intrinsics
 FORMAT = "posed.landmarks"
 VERSION = 1
 NUM_LANDMARKS = 33
+MAX_LINE_BYTES = 1 << 20        # 1 MiB; a frame line with depth is about 3 kB
 
 LANDMARK_NAMES = (
     "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner", "right_eye", "right_eye_outer",
@@ -280,7 +284,11 @@ def iter_recording(path: str | os.PathLike) -> tuple[RecordingHeader, Iterator[L
     """Open a recording: its header and a lazy stream of frames, with problems in place of bad lines."""
     fh = _open(path)
     try:
-        header = _parse_header(fh.readline(), str(path))
+        first = fh.readline(MAX_LINE_BYTES + 1)
+        if _too_long(first):
+            raise RecordingError(f"{path}:1: the first line is {_longer()}: not a landmark recording (its "
+                                 "header line is a few hundred bytes)")
+        header = _parse_header(first, str(path))
     except BaseException:
         fh.close()
         raise
@@ -356,11 +364,37 @@ def _parse_header(raw: bytes, path: str) -> RecordingHeader:
         return RecordingHeader.from_json(obj)
     except (json.JSONDecodeError, ValueError) as exc:
         raise RecordingError(f"{path}:1: bad header: {exc}") from exc
+    except RecursionError:
+        raise RecordingError(f"{path}:1: bad header: JSON nested too deeply to be a header") from None
+
+
+def _too_long(raw: bytes) -> bool:
+    return len(raw) > MAX_LINE_BYTES
+
+
+def _longer() -> str:
+    return f"longer than {MAX_LINE_BYTES} bytes"
+
+
+def _bounded_lines(fh: BinaryIO) -> Iterator[bytes]:
+    """The file's lines, each read with at most MAX_LINE_BYTES + 1 bytes (a longer one comes out cut, and
+    is the last)."""
+    while True:
+        raw = fh.readline(MAX_LINE_BYTES + 1)
+        if not raw:
+            return
+        yield raw
+        if _too_long(raw):
+            return
 
 
 def _frames(fh: BinaryIO, path: str) -> Iterator[LandmarkFrame | RecordingProblem]:
     with fh:
-        for lineno, raw in enumerate(fh, start=2):
+        for lineno, raw in enumerate(_bounded_lines(fh), start=2):
+            if _too_long(raw):
+                yield RecordingProblem(path, lineno, f"line {_longer()} (a frame line is a few kB); the rest "
+                                                     "of the file is not read")
+                return
             try:
                 line = raw.decode("utf-8")
             except UnicodeDecodeError as exc:
@@ -374,3 +408,5 @@ def _frames(fh: BinaryIO, path: str) -> Iterator[LandmarkFrame | RecordingProble
                 yield RecordingProblem(path, lineno, f"not valid JSON: {exc.msg} at column {exc.colno}")
             except ValueError as exc:
                 yield RecordingProblem(path, lineno, str(exc))
+            except RecursionError:
+                yield RecordingProblem(path, lineno, "JSON nested too deeply to be a frame")

@@ -21,8 +21,10 @@ ALLOWED = {
     "hal": {"numpy", "cv2", "pyrealsense2", "hal", "camera_model"},
     "landmarks": {"numpy", "cv2", "onnxruntime", "landmarks", "camera_model"},
     "falls": {"numpy", "falls", "fitting", "camera_model"},
+    "viz": {"numpy", "cv2", "matplotlib", "viz", "fitting", "falls", "camera_model", "client"},
+    "client": {"numpy", "zenoh", "jsonschema", "referencing", "client", "fitting", "falls", "camera_model"},
 }
-RUNTIME = ("daemon", "hal", "landmarks", "fitting", "falls", "camera_model")
+RUNTIME = ("daemon", "hal", "landmarks", "fitting", "falls", "camera_model", "viz", "client")
 # The model converter and its fetcher run only at `posed models fetch`; never in the daemon.
 CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers"}
 # The command line may load the offline package, inside a function, when a command needs it.
@@ -65,7 +67,7 @@ def test_package_imports_only_its_layer(package):
 
 
 def test_nothing_but_bench_imports_daemon():
-    for package in ("hal", "landmarks", "fitting", "falls", "camera_model"):
+    for package in ("hal", "landmarks", "fitting", "falls", "camera_model", "viz", "client"):
         assert all(root != "daemon" for path in (ROOT / package).rglob("*.py") for root, _ in imports(path))
 
 

@@ -37,7 +37,9 @@ STOP_TIMEOUT_S = 15.0   # for the daemon's clean shutdown after SIGTERM, before 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=30.0, help="measured seconds per phase (default 30)")
-    parser.add_argument("--phase", choices=("paced", "unpaced", "both"), default="both")
+    parser.add_argument("--phase", choices=("paced", "unpaced", "both"), default="both",
+                        help="paced: real-time replay (published fraction, latency); unpaced: as fast as it "
+                             "goes (throughput); both (default)")
     parser.add_argument("--source", metavar="PATH", help="a video to replay instead of the squat video (used as is)")
     parser.add_argument("--warmup", type=float, default=3.0, help="seconds after the first pose before measuring")
     add_config_args(parser, source=False)

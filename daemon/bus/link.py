@@ -5,7 +5,9 @@ declared on it (interfaces.md section 4).
   pipeline), ``landmarks`` and ``status`` (DROP), ``events/fall`` (reliable, congestion control BLOCK,
   INTERACTIVE_HIGH: never dropped);
 * the liveliness token ``alive``; the queryables ``state`` and ``events/history`` (:mod:`daemon.bus.queries`);
-  the subscriber ``events/ack``, whose event ids go to the ``on_ack`` callback.
+  the subscriber ``events/ack``, whose acknowledgements (:mod:`daemon.bus.acks`) go to the ``on_ack`` callback
+  as ``(event id, state or None)``; a payload that is not one is counted (``acks_rejected``) and logged with a
+  rate limit (:class:`daemon.proc.throttle.Throttle`), so a flood cannot fill the log.
 
 The session is opened after spawn and entered into the stage's ``ExitStack`` (so it is used inside ``with``);
 when it cannot be opened (client mode without a router, a busy port) ``try_open`` retries every
@@ -18,11 +20,12 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 
-from daemon.bus import queries
+from daemon.bus import acks, queries
 from daemon.bus.payloads import dumps
 from daemon.bus.session import ZenohConfigError, describe_open_error, open_session
 from daemon.bus.topics import Topics
 from daemon.config.sections import ZenohConfig
+from daemon.proc.throttle import Throttle
 
 MATCH_POLL_S = 0.5          # how often the events/fall publisher's matching status is read
 LOG_FAILURE_EVERY = 12      # after the first, every 12th failed attempt to open the session is logged
@@ -50,11 +53,11 @@ class BusLink:
     """The session and its entities; the stage's loop calls ``try_open`` and the ``put_*`` methods, Zenoh's
     threads call the query and ack handlers.
 
-    ``history(since, until, limit)`` answers ``events/history`` queries; ``on_ack(event_id)`` is called for
-    each acknowledgement (on a Zenoh thread)."""
+    ``history(since, until, limit)`` answers ``events/history`` queries; ``on_ack(event_id, state)`` is called
+    for each acknowledgement (on a Zenoh thread; ``state`` None: the whole event)."""
 
     def __init__(self, cfg: ZenohConfig, robot: str, stack: contextlib.ExitStack, log, *,
-                 history: queries.HistoryLookup, on_ack: Callable[[str], None]) -> None:
+                 history: queries.HistoryLookup, on_ack: Callable[[str, str | None], None]) -> None:
         self.cfg = cfg
         self.topics = Topics(robot)
         self.latest = queries.LatestState()
@@ -62,6 +65,8 @@ class BusLink:
         self._stack = stack             # the session lives in the stage's ``with`` (closed on exit)
         self._history = history
         self._on_ack = on_ack
+        self.acks_rejected = 0          # payloads on events/ack that were not an acknowledgement
+        self._throttle = Throttle()
         self.session = None
         self._pubs: dict = {}
         self._keep: list = []           # token, queryables, subscriber: kept referenced (pitfall 6)
@@ -192,9 +197,13 @@ class BusLink:
         queries.answer_history(query, self.topics.history, self._history, self.log)
 
     def _on_ack_sample(self, sample) -> None:
-        raw = sample.payload.to_string()
-        event_id = queries.parse_ack(raw)
-        if not event_id:
-            self.log.warning("bad_ack", payload=raw.strip()[:200], expected="an event id, or JSON {\"id\": ...}")
+        try:
+            ack = acks.parse_ack_message(sample.payload.to_bytes())
+        except acks.BadAck as exc:
+            self.acks_rejected += 1
+            suppressed = self._throttle.allow("bad_ack")
+            if suppressed is not None:
+                self.log.warning("bad_ack", error=str(exc), expected=acks.EXPECTED, rejected=self.acks_rejected,
+                                 suppressed=suppressed)
             return
-        self._on_ack(event_id)
+        self._on_ack(ack.id, ack.state)

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 from collections.abc import Callable, Sequence
 
-from daemon.bus.payloads import dumps
+from daemon.bus import payloads
+from daemon.bus.payloads import JSON_ENCODING, dumps
 
 HISTORY_DEFAULT_LIMIT = 100
 HISTORY_MAX_LIMIT = 10000
@@ -44,9 +46,10 @@ class LatestState:
 
 
 def answer_state(query, key: str, latest: LatestState, log) -> None:
-    """Reply to a ``state`` query with the latest pose and status."""
+    """Reply to a ``state`` query with the latest pose and status (a posed.state message, JSON)."""
     try:
-        query.reply(key, dumps(latest.snapshot()))
+        robot = key.split("/")[1] if key.count("/") >= 2 else ""
+        query.reply(key, dumps(payloads.state_message(latest.snapshot(), robot, time.time())), encoding=JSON_ENCODING)
     except Exception as exc:
         log.warning("state_query_failed", error=repr(exc))
 
@@ -79,29 +82,31 @@ def answer_history(query, base: str, lookup: HistoryLookup, log) -> None:
     try:
         since, until, limit = parse_history_parameters(query.parameters)
     except ValueError as exc:
-        query.reply_err(json.dumps({"error": str(exc), "usage": HISTORY_USAGE}))
+        query.reply_err(json.dumps(payloads.error_message(str(exc), HISTORY_USAGE)), encoding=JSON_ENCODING)
         return
     try:
         stored = lookup(since, until, limit)
         if str(query.key_expr) == base:
-            query.reply(base, json.dumps({"events": [s.to_json() for s in stored], "count": len(stored)}))
+            robot = base.split("/")[1] if base.count("/") >= 2 else ""
+            query.reply(base, dumps(payloads.history_message([s.to_json() for s in stored], robot, time.time())),
+                        encoding=JSON_ENCODING)
         else:
             for s in stored:
-                query.reply(f"{base}/{s.event.id}/{s.event.state}", json.dumps(s.to_json()))
+                query.reply(f"{base}/{s.event.id}/{s.event.state}", dumps(payloads.event_message(s.to_json())),
+                            encoding=JSON_ENCODING)
     except Exception as exc:
         log.warning("history_query_failed", error=repr(exc))
         try:
-            query.reply_err(json.dumps({"error": repr(exc)}))
+            query.reply_err(json.dumps(payloads.error_message(repr(exc))), encoding=JSON_ENCODING)
         except Exception:
             pass
 
 
 def parse_ack(payload: str) -> str:
-    """The event id in an acknowledgement: the text itself, or the ``id`` of a JSON object; "" when none."""
-    raw = payload.strip()
-    if not raw.startswith("{"):
-        return raw
+    """The event id in an acknowledgement (:func:`daemon.bus.acks.parse_ack_message`); "" when none."""
+    from daemon.bus.acks import BadAck, parse_ack_message
+
     try:
-        return str(json.loads(raw).get("id", ""))
-    except (ValueError, AttributeError):
+        return parse_ack_message(payload).id
+    except BadAck:
         return ""

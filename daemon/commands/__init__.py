@@ -5,20 +5,33 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from daemon.config import Config, load_config
+from daemon.config.paths import config_file
+
+CONFIG_HELP = ("config file (default: $POSED_CONFIG, else /etc/posed/config.yaml when it exists, else the "
+               "embedded default)")
 
 
-def add_config_args(parser: argparse.ArgumentParser, source: bool = True) -> None:
-    """The options every command that reads the config takes."""
-    parser.add_argument("--config", metavar="FILE", help="config file (default: the embedded config.yaml)")
+def add_config_args(parser: argparse.ArgumentParser, source: bool = True,
+                    example: str = "fitting.restarts=10") -> None:
+    """The options every command that reads the config takes; ``example`` is a ``--set`` the command uses."""
+    parser.add_argument("--config", metavar="FILE", help=CONFIG_HELP)
     parser.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
-                        help="override one config key (repeatable), e.g. --set fitting.restarts=10")
+                        help=f"override one config key (repeatable), e.g. --set {example}")
     if source:
         parser.add_argument("--source", metavar="URI",
-                            help="camera or recording: realsense:[SERIAL], v4l2:/dev/videoN, file:PATH")
+                            help="camera or recording: realsense:[SERIAL], v4l2:/dev/videoN, "
+                                 "file:PATH[?loop=true&realtime=false]")
+
+
+def config_path(args: argparse.Namespace) -> Path | None:
+    """The config file the command reads (see :mod:`daemon.config.paths`); None: the embedded default."""
+    return config_file(getattr(args, "config", None))
 
 
 def config_from_args(args: argparse.Namespace) -> Config:
     """Load the config named by the common options (raises ConfigError listing every problem)."""
-    return load_config(args.config, overrides=args.overrides, source=getattr(args, "source", None))
+    return load_config(config_path(args), overrides=getattr(args, "overrides", ()),
+                       source=getattr(args, "source", None))

@@ -74,8 +74,7 @@ class Summary:
                for e in events]
         parts = [f"{elapsed_s:5.1f}s"]
         if not poses:
-            state = status.get("state", "?") if status else "waiting for the daemon"
-            parts.append(f"no poses ({state})")
+            parts.append(f"no poses ({waiting_for(status)})")
         else:
             lat = [p["timing_ms"]["total"] for p in poses if (p.get("timing_ms") or {}).get("total") is not None]
             ok = [p for p in poses if p.get("ok")]
@@ -106,6 +105,24 @@ class Summary:
             return {"poses": self.poses_total, "poses_ok": self.poses_ok,
                     "fps": round((len(self._received) - 1) / span, 2) if span > 0 else 0.0,
                     "latency_ms": lat, "knee_deg": knee, "hip_deg": hip, "events": len(self.events)}
+
+
+# What a stage still in its "starting" state is doing (daemon/stages: warm-up before READY).
+WARMING = {"fitting": "compiling the fitting kernels (numba; quick once `posed warmup` ran)",
+           "landmarks": "loading the landmark models", "capture": "opening the camera"}
+
+
+def waiting_for(status: dict | None) -> str:
+    """Why there are no poses yet, from the last status: the daemon's state, and while it starts, what each
+    stage still warming up is doing."""
+    if not status:
+        return "waiting for the daemon"
+    state = status.get("state", "?")
+    if state != "starting":
+        return state
+    busy = [WARMING.get(name, f"{name} starting") for name, st in (status.get("stages") or {}).items()
+            if isinstance(st, dict) and st.get("state") == "starting"]
+    return "starting: " + "; ".join(busy) if busy else "starting"
 
 
 def subscribe(session, robot: str, summary: Summary) -> list:

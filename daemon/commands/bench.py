@@ -5,9 +5,13 @@ is run (listing the names reads the folder, it imports nothing)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
+import io
+import json
 import pkgutil
+import sys
 from pathlib import Path
 
 
@@ -35,4 +39,38 @@ def _run(args: argparse.Namespace) -> int:
                                      description=(module.__doc__ or "").strip().split("\n")[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     module.add_arguments(parser)
-    return int(module.run(parser.parse_args(args.options)) or 0)
+    options = parser.parse_args(args.options)
+    if not options.json:
+        return int(module.run(options) or 0)
+    out = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(out):
+            code = int(module.run(options) or 0)
+    finally:
+        sys.stdout.write(with_version(out.getvalue()))
+        sys.stdout.flush()
+    return code
+
+
+def with_version(text: str) -> str:
+    """A benchmark's ``--json`` output with ``posed_version`` added to its JSON object (or to each JSON-object
+    line); anything else is passed on unchanged."""
+    from daemon.version import __version__
+
+    def tag(obj):
+        return {"posed_version": __version__, **obj} if isinstance(obj, dict) else obj
+
+    try:
+        obj = json.loads(text)
+    except ValueError:
+        lines = []
+        for line in text.splitlines(keepends=True):
+            try:
+                parsed = json.loads(line)
+            except ValueError:
+                lines.append(line)
+                continue
+            lines.append(json.dumps(tag(parsed)) + "\n")
+        return "".join(lines)
+    indent = 2 if text.lstrip().startswith("{\n") else None
+    return json.dumps(tag(obj), indent=indent) + "\n"

@@ -1,13 +1,18 @@
-"""``posed config check FILE`` and ``posed config show``."""
+"""``posed config check FILE`` and ``posed config show``.
+
+``check`` validates the file (every key, with its path) and then runs every check ``posed run`` makes before it
+starts anything (:func:`daemon.preflight.check`: models present and verified, the native Zenoh config, the
+calibration file, hook commands, the fit's row lengths): exit 0, or every problem listed and exit 78."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from dataclasses import asdict
 
 from daemon.commands import add_config_args, config_from_args
-from daemon.config import load_config
+from daemon.config import EX_CONFIG, load_config
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -15,7 +20,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     check = actions.add_parser("check", help="validate a config file: exit 0, or list every problem and exit 78")
     check.add_argument("file", help="the config file to check")
-    check.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
+    check.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
+                       help="check the file with this override applied (repeatable), e.g. --set robot_id=kitchen")
     check.set_defaults(func=_check)
     show = actions.add_parser("show", help="print the effective configuration as JSON")
     add_config_args(show)
@@ -27,7 +33,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _check(args: argparse.Namespace) -> int:
-    load_config(args.file, overrides=args.overrides)
+    from daemon.preflight import check
+
+    problems = check(load_config(args.file, overrides=args.overrides))
+    if problems:
+        for p in problems:
+            print(f"{args.file}: {p}", file=sys.stderr)
+        print(f"posed: {len(problems)} problem(s); `posed run` would not start", file=sys.stderr)
+        return EX_CONFIG
     print(f"{args.file}: OK")
     return 0
 

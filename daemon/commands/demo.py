@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -19,22 +20,38 @@ STOP_TIMEOUT_S = 10.0   # for the daemon's clean shutdown after SIGTERM, before 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("demo", help="run the daemon on the embedded demo input for a while and show its output")
     parser.add_argument("--seconds", type=float, default=20.0, help="how long to publish (default 20)")
-    add_config_args(parser, source=False)
+    add_config_args(parser, source=False, example="fitting.restarts=10")
     parser.add_argument("--source", metavar="URI", help="input instead of the embedded demo video")
     parser.set_defaults(func=_demo)
 
 
 def _demo(args: argparse.Namespace) -> int:
+    endpoint = free_endpoint()
+    state = tempfile.mkdtemp(prefix="posed-demo-")
+    # the embedded demo input unless --source (never the camera of a config found in /etc/posed)
+    demo_input = [] if args.source else ["source.type=file", "source.path="]
+    cmd = run_command([*demo_input, "source.loop=true", f"zenoh.listen=[{endpoint}]", "zenoh.connect=[]",
+                       "zenoh.mode=peer", f"pipeline.state_dir={state}", "robot_id=demo", "logging.format=json"],
+                      args.config, args.source, args.overrides)
+    try:
+        code = _run_demo(args, cmd, endpoint, state)
+    except BaseException:
+        shutil.rmtree(state, ignore_errors=True)
+        raise
+    if code == 0:
+        shutil.rmtree(state, ignore_errors=True)   # its journal, history and logs: nothing to keep
+    else:
+        print(f"posed demo: the daemon's logs are kept in {state}", file=sys.stderr)
+    return code
+
+
+def _run_demo(args: argparse.Namespace, cmd: list[str], endpoint: str, state: str) -> int:
     from daemon.commands._viewer import Summary, subscribe
     from daemon.commands.watch import open_viewer
 
-    endpoint = free_endpoint()
-    state = tempfile.mkdtemp(prefix="posed-demo-")
-    cmd = run_command(["source.loop=true", f"zenoh.listen=[{endpoint}]", "zenoh.connect=[]", "zenoh.mode=peer",
-                       f"pipeline.state_dir={state}", "robot_id=demo", "logging.format=json"],
-                      args.config, args.source, args.overrides)
     log_path = os.path.join(state, "daemon.log")
-    print(f"posed demo: starting the daemon (log: {log_path}); listening on {endpoint}", flush=True)
+    print(f"posed demo: starting the daemon, listening on {endpoint} (its logs are kept only if it fails)",
+          flush=True)
     err_path = os.path.join(state, "daemon.err")
     with open(log_path, "w") as log, open(err_path, "w") as errlog:
         daemon = subprocess.Popen(cmd, stdout=log, stderr=errlog, text=True)

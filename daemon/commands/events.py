@@ -1,20 +1,53 @@
-"""``posed events [--since T] [--until T] [--limit N] [--unacked] [--json]``: list stored fall events."""
+"""``posed events [list] [--since T] [--until T] [--limit N] [--unacked] [--json]``: list stored fall events;
+``posed events ack ID [--state S]``: acknowledge one (a Zenoh put on ``posed/ROBOT/events/ack``)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import time
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args
-from daemon.config.paths import events_path
+from daemon.commands import add_config_args, config_from_args, config_path
+from daemon.config.paths import EVENTS_FILE, reading_state_dir
 from daemon.timeparse import parse_time
+
+STATES = ("falling", "on_floor", "alarm", "recovered")  # falls.FALL_STATES (not imported: no numpy here)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("events", help="list the fall events stored in the journal (state dir)")
-    add_config_args(parser, source=False)
+    parser = sub.add_parser("events", help="list the fall events stored in the journal, or acknowledge one",
+                            description="Without an action: list (as `posed events list`).")
+    _list_options(parser)
+    parser.set_defaults(func=run)
+    actions = parser.add_subparsers(dest="action", metavar="ACTION")
+    listing = actions.add_parser("list", help="list the stored fall events (the default)")
+    _list_options(listing)
+    listing.set_defaults(func=run)
+    ack = actions.add_parser(
+        "ack", help="acknowledge a fall event: the daemon stops republishing it",
+        description="Puts {\"id\": ID, \"state\": S} on posed/ROBOT/events/ack of the running daemon (its "
+                    "endpoint and robot id from the config). An id prefix, as `posed events` prints it, is "
+                    "completed from the journal when the journal is readable.")
+    add_config_args(ack, source=False, example="robot_id=kitchen")
+    ack.add_argument("id", metavar="ID", help="the event id (or a unique prefix of it)")
+    ack.add_argument("--state", choices=STATES,
+                     help="acknowledge only this message of the event (default: every message so far)")
+    ack.add_argument("--connect", metavar="ENDPOINT",
+                     help="the daemon's Zenoh endpoint (default: from the config's zenoh.listen, e.g. "
+                          "tcp/127.0.0.1:7447)")
+    ack.add_argument("--robot", metavar="ROBOT", help="robot id (default: the config's robot_id)")
+    ack.add_argument("--journal", metavar="FILE",
+                     help="journal file to complete the id and confirm the ack (default: the state dir's)")
+    ack.add_argument("--wait", type=float, default=5.0, metavar="S",
+                     help="keep trying to connect, then to see the ack in the journal, this long (default 5 s)")
+    ack.set_defaults(func=run_ack)
+
+
+def _list_options(parser: argparse.ArgumentParser) -> None:
+    add_config_args(parser, source=False, example="pipeline.state_dir=/var/lib/posed")
     parser.add_argument("--since", metavar="TIME", help="from this time: 2h, 7d, today, 2024-05-01T14:00, ...")
     parser.add_argument("--until", metavar="TIME", help="up to this time (same forms as --since)")
     parser.add_argument("--limit", type=int, default=None, metavar="N",
@@ -22,7 +55,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--unacked", action="store_true", help="only messages not yet acknowledged")
     parser.add_argument("--journal", metavar="FILE", help="journal file (default: events.sqlite3 in the state dir)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.set_defaults(func=run)
+
+
+def journal_path(args: argparse.Namespace, cfg=None) -> Path:
+    """``--journal``, else events.sqlite3 in the state dir a reading command opens (daemon.config.paths)."""
+    if args.journal:
+        return Path(args.journal)
+    cfg = cfg or config_from_args(args)
+    return reading_state_dir(cfg.pipeline, config_path(args), EVENTS_FILE) / EVENTS_FILE
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,7 +74,11 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"posed events: {exc}", file=sys.stderr)
         return 2
-    path = Path(args.journal) if args.journal else events_path(config_from_args(args).pipeline)
+    path = journal_path(args)
+    if path.parent.is_dir() and not os.access(path.parent, os.R_OK | os.X_OK):
+        print(f"posed events: cannot read {path.parent} (permission denied){_permission_hint(path, PermissionError())}",
+              file=sys.stderr)
+        return 1
     if not path.is_file():
         if args.json:
             print(json.dumps({"journal": str(path), "events": []}))
@@ -44,8 +88,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         with EventJournal(path, readonly=True) as journal:
             stored = journal.query(since, until, args.limit, unacked=args.unacked)
-    except (JournalError, FileNotFoundError) as exc:
-        print(f"posed events: {exc}", file=sys.stderr)
+    except (JournalError, FileNotFoundError, PermissionError) as exc:
+        print(f"posed events: {exc}{_permission_hint(path, exc)}", file=sys.stderr)
         return 1
     if args.json:
         print(json.dumps({"journal": str(path), "events": [s.to_json() for s in stored]}))
@@ -59,3 +103,79 @@ def run(args: argparse.Namespace) -> int:
         print(f"{e.wall_time[:23]:<24} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
               f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3}  {','.join(e.features)}")
     return 0
+
+
+def _permission_hint(path: Path, exc: BaseException) -> str:
+    if isinstance(exc, PermissionError) or "permission" in str(exc).lower():
+        return (f"\n  {path.parent} belongs to the service: run as its user (sudo -u posed posed events) or "
+                "with sudo")
+    return ""
+
+
+def _read_journal(path: Path):
+    """Every stored message, or None when the journal is missing or unreadable (the ack is sent anyway)."""
+    from daemon.outbox.journal import EventJournal, JournalError
+
+    if not path.is_file():
+        return None
+    try:
+        with EventJournal(path, readonly=True) as journal:
+            return journal.query()
+    except (JournalError, OSError):
+        return None
+
+
+def run_ack(args: argparse.Namespace) -> int:
+    from daemon.commands._bus import daemon_endpoints, open_client
+
+    cfg = config_from_args(args)
+    event_id = args.id.strip()
+    if not event_id:
+        print("posed events ack: the event id is empty; `posed events` lists them", file=sys.stderr)
+        return 2
+    path = journal_path(args, cfg)
+    stored = _read_journal(path)
+    if stored is not None:
+        ids = sorted({s.event.id for s in stored if s.event.id.startswith(event_id)})
+        if event_id not in ids and len(ids) == 1:
+            event_id = ids[0]
+        elif len(ids) > 1 and event_id not in ids:
+            print(f"posed events ack: {args.id!r} is the start of {len(ids)} event ids ({', '.join(ids[:5])}); "
+                  "give more of it", file=sys.stderr)
+            return 2
+        elif not ids:
+            print(f"posed events ack: {event_id!r} is not in {path}; sending it anyway", file=sys.stderr)
+    robot = args.robot or cfg.robot_id
+    endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg)
+    session = open_client(cfg, endpoints, args.wait, "posed events ack")
+    if session is None:
+        return 1
+    key = f"posed/{robot}/events/ack"
+    with session:
+        from client import PosedClient
+
+        # the client puts the ack (posed.ack JSON) and, reading the robot's event history over Zenoh, puts it
+        # again until the daemon shows it acknowledged (a put racing the route to the daemon can be lost)
+        confirmed = PosedClient(session).ack(robot, event_id, args.state, by="posed events ack",
+                                             confirm_s=args.wait)
+        what = f"event {event_id}" + (f" ({args.state})" if args.state else "")
+        print(f"posed events ack: sent {what} to {key} via {', '.join(endpoints)}", flush=True)
+        if stored is None:
+            if confirmed:
+                print(f"posed events ack: robot {robot} acknowledged {what} (its event history says so)")
+                return 0
+            print(f"posed events ack: robot {robot}'s event history does not show {what} acknowledged after "
+                  f"{args.wait:g} s (is its daemon running, and is the id right?)", file=sys.stderr)
+            return 1
+        # confirm from the journal the daemon writes (readable when it is ours or we may read the service's)
+        deadline = time.monotonic() + args.wait
+        while time.monotonic() < deadline:
+            mine = [s for s in (_read_journal(path) or []) if s.event.id == event_id
+                    and (args.state is None or s.event.state == args.state)]
+            if mine and all(s.acked_at for s in mine):
+                print(f"posed events ack: the daemon acknowledged {what} in {path}")
+                return 0
+            time.sleep(0.2)
+    print(f"posed events ack: {path} does not show {what} acknowledged after {args.wait:g} s (is the daemon "
+          f"for robot {robot} running and using that journal?)", file=sys.stderr)
+    return 1

@@ -44,11 +44,20 @@ def run(args: argparse.Namespace) -> int:
     except RecordingError as exc:
         _err(str(exc))
         return 2
+    if cfg.calibration:                     # bounded first: a huge file or /dev/zero is not read whole
+        from daemon.preflight import calibration_problems
+
+        for problem in calibration_problems(cfg.calibration):
+            _err(problem)
+            return 2
     try:
         fitter = Fitter(cfg)
     except CalibrationError as exc:
         _err(f"{exc} (fitting.calibration in the config)")
         return 2
+    from daemon.commands.warmup import warm_fitter
+
+    warm_fitter(fitter, _err)        # compile before frame 0: its fit_ms must be the fit alone
     intrinsics = header.camera
     out = sys.stdout if args.output == "-" else None
     if out is None:

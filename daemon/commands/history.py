@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from daemon.commands import add_config_args, config_from_args
-from daemon.config.paths import history_path
+from daemon.commands import add_config_args, config_from_args, config_path
+from daemon.config.paths import HISTORY_FILE, reading_state_dir
 from daemon.timeparse import iso, parse_time
 
 if TYPE_CHECKING:
@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("history", help="export or summarise the stored joint-angle history")
-    add_config_args(parser, source=False)
+    add_config_args(parser, source=False, example="pipeline.state_dir=/var/lib/posed")
     add_range_args(parser)
     parser.add_argument("--csv", action="store_true", help="write CSV (one row per kept frame)")
     parser.add_argument("-o", "--output", metavar="FILE", help="write to FILE instead of stdout")
@@ -45,8 +45,14 @@ def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = Non
     if args.db:
         path = Path(args.db)
     else:
-        path = history_path(pipeline if pipeline is not None else config_from_args(args).pipeline)
+        path = history_path(pipeline if pipeline is not None else config_from_args(args).pipeline,
+                            config_path(args))
     return AngleHistory(path, readonly=True), since, until
+
+
+def history_path(pipeline: PipelineConfig, config_file: Path | None) -> Path:
+    """history.sqlite3 in the state dir a reading command opens (the service's when it is the one in use)."""
+    return reading_state_dir(pipeline, config_file, HISTORY_FILE) / HISTORY_FILE
 
 
 def run(args: argparse.Namespace) -> int:

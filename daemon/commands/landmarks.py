@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -53,6 +54,7 @@ class FrameSource:
     frames: Iterator[InputFrame]
     camera: Intrinsics | None = None  # of the image, when the input knows it
     has_depth: bool = False           # the frames come with aligned depth
+    total: int = 0                    # frames expected (a video's frame count, a folder's files); 0 unknown
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -69,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--fps", type=float, default=None,
                         help="frame rate for images and folders (t = seq / fps); default: the video's own, "
                              "else source.fps")
-    add_config_args(parser, source=False)
+    add_config_args(parser, source=False, example="landmarks.threads=2")
     parser.set_defaults(func=run)
 
 
@@ -125,7 +127,7 @@ def _image_files(files: list[Path], kind: str, fps: float) -> FrameSource:
             else:
                 yield InputFrame(seq, t, image)
 
-    return FrameSource(kind, fps, size, frames())
+    return FrameSource(kind, fps, size, frames(), total=len(files))
 
 
 def _video(path: Path, fps: float | None, default_fps: float) -> FrameSource:
@@ -166,7 +168,7 @@ def _video(path: Path, fps: float | None, default_fps: float) -> FrameSource:
         finally:
             cap.release()
 
-    return FrameSource("video", rate, size, frames())
+    return FrameSource("video", rate, size, frames(), total=max(count, 0))
 
 
 def _realsense(path: Path, fps: float | None, default_fps: float) -> FrameSource:
@@ -209,6 +211,34 @@ def _realsense(path: Path, fps: float | None, default_fps: float) -> FrameSource
                        has_depth=first.depth is not None)
 
 
+class Progress:
+    """A progress line on stderr every ``period_s`` (rewritten in place on a terminal); none for one image."""
+
+    def __init__(self, total: int, period_s: float = 2.0) -> None:
+        self.total, self.period_s = total, period_s
+        self.t0 = time.monotonic()
+        self.next = self.t0 + period_s
+        self.tty = sys.stderr.isatty()
+        self.shown = False
+
+    def frame(self, done: int, found: int) -> None:
+        now = time.monotonic()
+        if now < self.next or (self.total == 1):
+            return
+        self.next = now + self.period_s
+        rate = done / max(now - self.t0, 1e-9)
+        of = f"/{self.total} ({100.0 * done / self.total:.0f} %)" if self.total else ""
+        left = f", about {(self.total - done) / rate:.0f} s left" if self.total and rate > 0 else ""
+        line = f"posed landmarks: frame {done}{of}, {rate:.1f} frames/s, person in {found}{left}"
+        print(("\r" + line + "\033[K") if self.tty else line, end="" if self.tty else "\n", file=sys.stderr,
+              flush=True)
+        self.shown = True
+
+    def end(self) -> None:
+        if self.shown and self.tty:
+            print(file=sys.stderr, flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     from landmarks import DepthSource, ModelMissingError, PoseLandmarker, RecordingHeader, dumps, with_depth
 
@@ -231,6 +261,7 @@ def run(args: argparse.Namespace) -> int:
                              camera=source.camera, depth=DepthSource("realsense", "color") if source.has_depth
                              else None)
     problems = written = found = 0
+    progress = Progress(source.total if source.kind != "image" else 0)
     try:
         out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
     except OSError as exc:
@@ -249,12 +280,14 @@ def run(args: argparse.Namespace) -> int:
             out.flush()
             written += 1
             found += result.landmarks is not None
+            progress.frame(written + problems, found)
     except OSError as exc:
         _err(f"cannot write {args.output}: {exc.strerror or exc}")
         return 2
     finally:
         if out is not sys.stdout:
             out.close()
+    progress.end()
     summary = f"{written} frame(s), person found in {found}"
     if problems:
         summary += f", {problems} problem(s) reported above"

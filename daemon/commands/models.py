@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
-    add_config_args(parser, source=False)
+    add_config_args(parser, source=False, example="landmarks.models_dir=/var/lib/posed/models")
     parser.add_argument("--models-dir", metavar="DIR",
                         help="models folder (default: landmarks.models_dir, else $POSED_MODELS_DIR, "
                              "else $XDG_CACHE_HOME/posed/models)")
@@ -54,8 +54,11 @@ def _fetch(args: argparse.Namespace) -> int:
     try:
         from landmarks.convert import FetchError, fetch_models
     except ImportError as exc:  # a runtime-only install lacks the converter's tflite/onnx packages
-        print(f"posed models fetch: the converter needs the `convert` extra ({exc}); run "
-              f"`pip install 'posed[convert]'` (or copy a models folder made elsewhere)", file=sys.stderr)
+        missing = exc.name or str(exc)
+        print(f"posed models fetch: the converter needs the Python package {missing!r}, part of posed's "
+              f"`convert` extra: run `{sys.executable} -m pip install 'posed[convert]'` (from a wheel: "
+              "`pip install 'posed-VERSION-py3-none-any.whl[convert]'`), or copy a models folder made elsewhere "
+              "(posed models where)", file=sys.stderr)
         return 69
 
     models_dir = _models_dir(args)

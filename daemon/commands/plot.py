@@ -1,97 +1,226 @@
-"""``posed plot history [--since T] [--until T] [--panels torso,sagittal] -o FILE.png``: joint-angle plots."""
+"""``posed plot history|fit ... -o FILE.png``: joint-angle plots a person can read (viz.plots, matplotlib).
+
+``posed plot history [--since T] [--until T]``: the joint-angle history database; x is the robot's clock in
+its local time zone (``--tz`` another), fall events from the journal beside it. ``posed plot fit FIT.jsonl``:
+a ``posed fit`` output; a fit file carries only capture times (seconds from the recording's first frame), so
+x is that time unless ``--start`` gives the clock time of the first frame; fall events from a ``posed falls``
+output (``--events``), on the same capture clock.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args
-from daemon.commands.history import add_range_args, open_history
-from daemon.config.paths import EVENTS_FILE, events_path
-from daemon.history.plot import PANELS, Mark, draw_history
-from daemon.timeparse import iso
+from daemon.commands import add_config_args, config_from_args, config_path
+from daemon.commands.history import add_range_args, history_path, open_history
+from daemon.config.paths import EVENTS_FILE
+from viz.names import PANELS
+
+# the older panel names, still accepted
+PANEL_ALIASES = {"torso": ("trunk",), "sagittal": ("arms", "legs")}
+DEFAULT_PANELS = "legs,trunk,arms"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("plot", help="draw stored data as a PNG")
+    parser = sub.add_parser("plot", help="draw joint angles (history database or a fit file) as a PNG")
     what = parser.add_subparsers(dest="what", metavar="WHAT", required=True)
-    hist = what.add_parser("history", help="joint-angle trajectories (like the paper's Figures 12 and 16)")
-    add_config_args(hist, source=False)
+    hist = what.add_parser("history", help="joint angles from the history database, on the robot's clock, "
+                                           "with the fall events")
+    add_config_args(hist, source=False, example="pipeline.state_dir=/var/lib/posed")
     add_range_args(hist)
-    hist.add_argument("--panels", default="torso,sagittal",
-                      help=f"comma-separated panels: {', '.join(PANELS)}, or angle names joined by '+' "
-                           "(e.g. theta_hp_l+theta_kn_l)")
+    _common(hist)
     hist.add_argument("--no-events", action="store_true", help="do not mark fall events")
-    hist.add_argument("--width", type=int, default=1200, help="image width in pixels")
-    hist.add_argument("-o", "--output", required=True, metavar="FILE.png", help="the image to write")
     hist.set_defaults(func=run)
+    fit = what.add_parser("fit", help="joint angles of a `posed fit` output (a recording)")
+    fit.add_argument("input", metavar="FIT.jsonl", help="fit results (posed fit -o FIT.jsonl)")
+    fit.add_argument("--start", metavar="TIME", help="clock time of the recording's first frame (e.g. "
+                                                     "2024-05-01T14:30:05); without it x is the recording time")
+    fit.add_argument("--events", metavar="EVENTS.jsonl",
+                     help="fall-event messages on the recording's capture clock (posed falls output)")
+    _common(fit)
+    fit.set_defaults(func=run_fit)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--panels", default=DEFAULT_PANELS,
+                   help=f"comma-separated panels: {', '.join(PANELS)}, or angle names joined by '+' "
+                        "(e.g. theta_hp_l+theta_kn_l)")
+    p.add_argument("--tz", metavar="ZONE", help="time zone of the clock axis (IANA name, e.g. Europe/Berlin; "
+                                                "default: this machine's, the robot's)")
+    p.add_argument("--width", type=int, default=1200, help="image width in pixels")
+    p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="the image to write")
 
 
 def parse_panels(spec: str) -> list[tuple[str, tuple[str, ...]]]:
-    from daemon.history.store import ANGLE_COLUMNS  # not at import: it pulls in structlog
+    from fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES
+    from viz.names import MEASURED_ANGLES
 
+    known = [n for n in JOINT_ANGLE_NAMES + BODY_ANGLE_NAMES if n in MEASURED_ANGLES]
     panels = []
     for item in filter(None, (s.strip() for s in spec.split(","))):
-        if item in PANELS:
-            panels.append((item, PANELS[item]))
+        if item in PANELS or item in PANEL_ALIASES:
+            panels += [(k, PANELS[k]) for k in PANEL_ALIASES.get(item, (item,))]
             continue
         names = tuple(n.strip() for n in item.split("+") if n.strip())
-        bad = [n for n in names if n not in ANGLE_COLUMNS]
+        bad = [n for n in names if n not in known]
         if bad or not names:
             raise ValueError(f"unknown panel or angle {item!r}; panels: {', '.join(PANELS)}; angles: "
-                             f"{', '.join(ANGLE_COLUMNS)}")
+                             f"{', '.join(known)} (the head, hip rotation and ankles are not measured)")
         panels.append(("+".join(names), names))
     if not panels:
-        raise ValueError("--panels is empty; e.g. --panels torso,sagittal")
+        raise ValueError(f"--panels is empty; e.g. --panels {DEFAULT_PANELS}")
     return panels
 
 
-def run(args: argparse.Namespace) -> int:
-    import cv2
-    import numpy as np
-
-    from daemon.history.store import ANGLE_COLUMNS
-    from daemon.outbox.journal import EventJournal, JournalError
+def _prepare(args, cmd: str):
+    """(panels, tz) or an exit status after reporting the problem."""
+    from viz.plots import local_zone
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
-        print(f"posed plot history: {out} must end in .png", file=sys.stderr)
+        print(f"{cmd}: {out} must end in .png", file=sys.stderr)
         return 2
     try:
-        panels = parse_panels(args.panels)
+        return parse_panels(args.panels), local_zone(args.tz)
+    except ValueError as exc:
+        print(f"{cmd}: {exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:   # zoneinfo.ZoneInfoNotFoundError is a KeyError
+        print(f"{cmd}: unknown time zone {args.tz!r} ({exc}); use an IANA name such as Europe/Berlin",
+              file=sys.stderr)
+        return 2
+
+
+def _write(out: Path, png: bytes, cmd: str) -> bool:
+    try:
+        out.write_bytes(png)
+        return True
+    except OSError as exc:
+        print(f"{cmd}: cannot write {out}: {exc.strerror or exc} (does the folder exist and is it writable?)",
+              file=sys.stderr)
+        return False
+
+
+def run(args: argparse.Namespace) -> int:
+    from daemon.history.plot import angle_series, event_marks
+    from daemon.history.store import ANGLE_COLUMNS
+    from daemon.outbox.journal import EventJournal, JournalError
+    from viz.plots import plot_angles, zone_text
+    from viz.series import episodes
+
+    cmd = "posed plot history"
+    prepared = _prepare(args, cmd)
+    if isinstance(prepared, int):
+        return prepared
+    panels, tz = prepared
+    try:
         pipeline = None if args.db else config_from_args(args).pipeline
         hist, since, until = open_history(args, pipeline)
     except (ValueError, FileNotFoundError) as exc:
-        print(f"posed plot history: {exc}", file=sys.stderr)
+        print(f"{cmd}: {exc}", file=sys.stderr)
         return 2
     try:
         rows = list(hist.rows(since, until))
     finally:
         hist.close()
     if not rows:
-        print("posed plot history: no joint angles stored for that time range (try a wider --since)",
-              file=sys.stderr)
+        print(f"{cmd}: no joint angles stored for that time range (try a wider --since)", file=sys.stderr)
         return 1
-    data = np.array([[np.nan if v is None else v for v in r] for r in rows], float)
-    wall = data[:, 0]
-    angles = {name: data[:, 4 + i] for i, name in enumerate(ANGLE_COLUMNS)}
-    marks: list[Mark] = []
+    series = angle_series(rows, ANGLE_COLUMNS)
+    falls = []
     if not args.no_events:
-        path = Path(args.db).with_name(EVENTS_FILE) if args.db else events_path(pipeline)
+        path = (Path(args.db) if args.db else history_path(pipeline, config_path(args))).with_name(EVENTS_FILE)
         if path.is_file():
             try:
                 with EventJournal(path, readonly=True) as journal:
-                    marks = [Mark(s.wall, s.event.state) for s in journal.query(wall[0], wall[-1])]
+                    falls = episodes(event_marks(journal.query(series.time[0], series.time[-1])))
             except (JournalError, FileNotFoundError) as exc:
-                print(f"posed plot history: {exc}; --no-events draws the angles without the event marks",
-                      file=sys.stderr)
+                print(f"{cmd}: {exc}; --no-events draws the angles without the event marks", file=sys.stderr)
                 return 1
-    image = draw_history(wall, angles, panels, marks, title=f"joint angles from {iso(wall[0])} UTC",
-                         width=args.width)
-    if not cv2.imwrite(str(out), image):
-        print(f"posed plot history: cannot write {out} (does the folder exist and is it writable?)",
-              file=sys.stderr)
+    import datetime as dt
+
+    day = dt.datetime.fromtimestamp(series.time[0], tz).strftime("%A %d %B %Y")
+    png = plot_angles(series, panels, falls, tz=tz, width_px=args.width,
+                      title=f"Joint angles, {day} (robot clock, {zone_text(tz, series.time[0])})")
+    if not _write(Path(args.output), png, cmd):
         return 1
-    print(f"{out}: {len(rows)} frames, {len(marks)} event marks", file=sys.stderr)
+    print(f"{args.output}: {len(rows)} frames, {len(falls)} fall event(s)", file=sys.stderr)
     return 0
+
+
+def run_fit(args: argparse.Namespace) -> int:
+    from falls import FallEvent
+    from fitting import FitResult
+    from viz.plots import plot_angles
+    from viz.series import AngleSeries, EventMark, episodes
+
+    cmd = "posed plot fit"
+    prepared = _prepare(args, cmd)
+    if isinstance(prepared, int):
+        return prepared
+    panels, tz = prepared
+    try:
+        start = _start_time(args.start, tz) if args.start else None
+    except ValueError as exc:
+        print(f"{cmd}: --start: {exc}", file=sys.stderr)
+        return 2
+    results, problems = _read_jsonl(args.input, FitResult.from_json, cmd)
+    if results is None:
+        return 2
+    if not results:
+        print(f"{cmd}: {args.input} holds no fit result", file=sys.stderr)
+        return 2
+    results.sort(key=lambda r: r.t)
+    t0 = results[0].t
+    series = AngleSeries.from_fits(results, start)
+    falls = []
+    if args.events:
+        events, bad = _read_jsonl(args.events, FallEvent.from_json, cmd)
+        if events is None:
+            return 2
+        problems += bad
+        shift = (start - t0) if start is not None else -t0
+        falls = episodes(EventMark(e.id, e.state, e.t_detect + shift) for e in events)
+    ok = sum(r.ok for r in results)
+    png = plot_angles(series, panels, falls, tz=tz, width_px=args.width, acks=False,
+                      title=f"Joint angles of {Path(args.input).name} ({ok} of {len(results)} frames fitted)")
+    if not _write(Path(args.output), png, cmd):
+        return 1
+    print(f"{args.output}: {len(results)} frames, {len(falls)} fall event(s)", file=sys.stderr)
+    return 1 if problems else 0
+
+
+def _start_time(text: str, tz) -> float:
+    """``--start``: an ISO date-time without an offset is in the plot's zone (``--tz``, else this machine's);
+    anything else as ``--since`` takes it."""
+    import datetime as dt
+
+    from daemon.timeparse import parse_time
+
+    try:
+        d = dt.datetime.fromisoformat(text.strip())
+    except ValueError:
+        return parse_time(text)
+    return (d if d.tzinfo else d.replace(tzinfo=tz)).timestamp()
+
+
+def _read_jsonl(path: str, parse, cmd: str):
+    """(parsed objects, lines skipped), or (None, 0) when the file cannot be read at all."""
+    items, problems = [], 0
+    try:
+        with open(path, encoding="utf-8") as fh:
+            for lineno, line in enumerate(fh, 1):
+                if not line.strip():
+                    continue
+                try:
+                    items.append(parse(json.loads(line)))
+                except (ValueError, KeyError, TypeError) as exc:
+                    print(f"{path}:{lineno}: {exc}", file=sys.stderr)
+                    problems += 1
+    except OSError as exc:
+        print(f"{cmd}: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
+        return None, 0
+    return items, problems

@@ -21,7 +21,7 @@ from daemon.commands import add_config_args, config_from_args
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("record", help="save what a camera or recording sees (video + timestamps, or .db3 "
                                            "with depth) so that it can be replayed with --source file:PATH")
-    add_config_args(parser)
+    add_config_args(parser, example="source.width=1280")
     parser.add_argument("-o", "--output", required=True, metavar="PATH",
                         help="NAME.mkv (lossless), NAME.avi, NAME.mp4, NAME.db3 (RealSense, keeps depth) or a folder")
     parser.add_argument("--seconds", type=float, metavar="N", help="stop after N seconds (default: until Ctrl-C "

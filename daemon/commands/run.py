@@ -27,7 +27,7 @@ def _run(args: argparse.Namespace) -> int:
             print(f"posed: {p}", file=sys.stderr)
         print(f"posed: {len(problems)} problem(s); nothing was started", file=sys.stderr)
         return EX_CONFIG
-    logs.configure(cfg.logging.level, cfg.logging.format)
+    logs.configure(cfg.logging.level, cfg.logging.format, robot=cfg.robot_id)
     return Supervisor(cfg).run()
 
 

@@ -1,4 +1,5 @@
-"""``posed watch [ROBOT] [--connect ENDPOINT]``: show a running daemon's poses, status and fall events."""
+"""``posed watch [ROBOT] [--connect ENDPOINT]``: show a running daemon's poses, status and fall events (read with
+the :mod:`client` package; ``--json`` prints every raw message instead)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,16 @@ import json
 import sys
 import time
 
+from daemon.commands import add_config_args, config_from_args
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("watch", help="subscribe to a daemon and show its live poses, status and events")
     parser.add_argument("robot", nargs="?", default="*", help="robot id (default: every robot, *)")
-    parser.add_argument("--connect", metavar="ENDPOINT", default="tcp/127.0.0.1:7447",
-                        help="the daemon's or a router's Zenoh endpoint (default: tcp/127.0.0.1:7447)")
+    parser.add_argument("--connect", metavar="ENDPOINT",
+                        help="the daemon's or a router's Zenoh endpoint (default: where the config's daemon "
+                             "listens, zenoh.listen; tcp/127.0.0.1:7447 for the default config)")
+    add_config_args(parser, source=False, example="zenoh.listen=[tcp/127.0.0.1:7448]")
     parser.add_argument("--seconds", type=float, default=0.0, help="stop after this long (default: until Ctrl-C)")
     parser.add_argument("--json", action="store_true", help="print every message as a JSON line instead")
     parser.add_argument("--wait", type=float, default=10.0, metavar="S",
@@ -43,10 +48,36 @@ def open_viewer(endpoint: str, wait_s: float, quiet: bool = False):
             time.sleep(0.25)
 
 
-def _watch(args: argparse.Namespace) -> int:
-    from daemon.commands._viewer import Summary, subscribe
+class _Decoded:
+    """A message the client decoded, handed to the Summary (which reads JSON samples) as its JSON again."""
 
-    session = open_viewer(args.connect, args.wait)
+    def __init__(self, obj) -> None:
+        self.payload = self
+        self._text = json.dumps(obj)
+
+    def to_string(self) -> str:
+        return self._text
+
+
+def _subscribe(posed, robot: str, summary) -> list:
+    """The Summary fed by the client (:mod:`client`): poses, status and fall events decoded; robots coming and
+    going printed as they happen."""
+    return [posed.on_pose(robot, lambda _r, fit: summary.on_pose(_Decoded(fit.to_json()))),
+            posed.on_status(robot, lambda _r, status: summary.on_status(_Decoded(status.raw))),
+            posed.on_event(robot, lambda _r, event: summary.on_event(_Decoded(event.to_json()))),
+            posed.on_alive(lambda a: print(f"posed watch: robot {a.robot} {'up' if a.alive else 'gone'}",
+                                           flush=True), robot)]
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from client import PosedClient
+    from daemon.commands._bus import daemon_endpoints, open_client
+    from daemon.commands._viewer import Summary
+
+    cfg = config_from_args(args)
+    endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg)
+    args.connect = ", ".join(endpoints)
+    session = open_client(cfg, endpoints, args.wait, "posed watch")
     if session is None:
         return 1
     t0 = time.monotonic()
@@ -54,7 +85,7 @@ def _watch(args: argparse.Namespace) -> int:
         if args.json:
             return _print_json(session, args, t0)
         summary = Summary()
-        keep = subscribe(session, args.robot, summary)
+        keep = _subscribe(PosedClient(session), args.robot, summary)
         print(f"posed watch: {args.connect}, robot {args.robot} (Ctrl-C to stop)", flush=True)
         next_line = t0 + 1.0
         try:

@@ -17,6 +17,32 @@ HEADER = """\
 """
 
 
+WHICH_FILE = """\
+## Which config file a command reads
+
+Every `posed` command that reads a configuration (`run`, `demo`, `watch`, `events`, `history`, `plot`,
+`fit`, `landmarks`, `record`, `calibrate`, `models`, `warmup`, `config show`, the benchmarks) finds it the same
+way, first match wins:
+
+1. `--config FILE`;
+2. the environment variable `POSED_CONFIG`;
+3. `/etc/posed/config.yaml`, when it exists (the service's, written by `deploy/install.sh`);
+4. the embedded default: built from the code, the same text as `posed config template` and the repository's
+   `config.yaml` (an installed wheel needs no file).
+
+`posed config check FILE` checks the file it is given. So on the robot, `posed watch`, `posed events`,
+`posed events ack ID` and `posed history` reach the service with no option: its Zenoh endpoint comes from
+`zenoh.listen` (a wildcard host such as 0.0.0.0 is reached at 127.0.0.1), its robot id from `robot_id`.
+
+The state dir (events.sqlite3, history.sqlite3): `pipeline.state_dir` if set, else `$STATE_DIRECTORY`
+(systemd's `StateDirectory=`, `/var/lib/posed` for the service), else `$XDG_STATE_HOME/posed`, else
+`~/.local/state/posed`. The commands that only read it (`posed events`, `posed history`, `posed plot
+history`, and `posed events ack` to complete an id and confirm the acknowledgement) open the service's
+`/var/lib/posed` instead of that last default when the config in effect is `/etc/posed/config.yaml`, or when
+only `/var/lib/posed` holds the file they read. Reading the service's files needs its permissions (`sudo`, or
+`sudo -u posed`)."""
+
+
 def _yaml_value(value: typing.Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -82,6 +108,7 @@ def reference() -> str:
            "problem is reported at once with its key path, the bad value and the valid choices or range;",
            "`posed config check FILE` exits 0 or 78 (EX_CONFIG). `--set key.path=value` (value parsed as YAML)",
            "and `--source URI` override the file.", "",
+           *WHICH_FILE.splitlines(), "",
            "| key | type | default | unit / range / choices | meaning |", "|---|---|---|---|---|"]
     for path, type_s, default, limits, doc in describe(Config):
         out.append(f"| `{path}` | {type_s} | `{default}` | {limits} | {doc} |".replace("|  |", "| |"))

@@ -194,8 +194,8 @@ def apply_override(data: dict, assignment: str) -> ConfigProblem | None:
         return ConfigProblem("--set", f"{assignment!r} has an empty key")
     try:
         value = yaml.safe_load(raw) if raw.strip() else ""
-    except yaml.YAMLError as exc:
-        return ConfigProblem(key, f"value {raw!r} is not valid YAML: {exc}")
+    except (yaml.YAMLError, RecursionError) as exc:
+        return ConfigProblem(key, f"value {raw[:80]!r} is not valid YAML: {exc}")
     node = data
     for part in parts[:-1]:
         child = node.get(part)
@@ -235,3 +235,63 @@ def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str, str, str]
         type_s = str(tp).replace("typing.", "") if not isinstance(tp, type) else tp.__name__
         rows.append((path, type_s, repr(default), "; ".join(limits), meta.get("doc", "")))
     return rows
+
+
+MAX_CONFIG_BYTES = 1 << 20     # the documented config.yaml is about 20 kB
+
+
+def read_config_bytes(path) -> bytes:
+    """The bytes of a config file, read with a bound: a file larger than MAX_CONFIG_BYTES (or /dev/zero) is
+    a ConfigError, not read whole. Raises OSError as ``open`` does."""
+    with open(path, "rb") as fh:
+        raw = fh.read(MAX_CONFIG_BYTES + 1)
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError([ConfigProblem("", f"the file is larger than {MAX_CONFIG_BYTES} bytes: not a posed "
+                                             "config (config.yaml is about 20 kB)")], str(path))
+    return raw
+
+
+def parse_yaml(raw: bytes) -> tuple[Any, list[ConfigProblem]]:
+    """The YAML document in ``raw`` (UTF-8) and the problems that do not stop reading it (duplicate keys:
+    the last one would silently win, so each is reported with its key path and both lines).
+
+    Raises ConfigError for text that is not UTF-8 or not YAML (nothing more can be checked then)."""
+    import yaml
+
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise ConfigError([ConfigProblem("", f"the file is not UTF-8 text: byte 0x{raw[exc.start]:02x} at line "
+                                             f"{line}; save it as UTF-8 (e.g. iconv -f latin1 -t utf-8)")]) from None
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError([ConfigProblem("", f"not valid YAML: {exc}")]) from exc
+    except RecursionError:
+        raise ConfigError([ConfigProblem("", "not a config: lists or mappings nested too deeply")]) from None
+    problems: list[ConfigProblem] = []
+    if node is not None:
+        _duplicates(node, "", problems)
+    return data, problems
+
+
+def _duplicates(node: Any, path: str, problems: list[ConfigProblem]) -> None:
+    import yaml
+
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[str, int] = {}
+        for key, value in node.value:
+            name = str(key.value) if isinstance(key, yaml.ScalarNode) else "?"
+            where = f"{path}.{name}" if path else name
+            line = key.start_mark.line + 1
+            if name in seen and name != "<<":
+                problems.append(ConfigProblem(where, f"duplicate key (lines {seen[name]} and {line}); the last "
+                                                     "one would win silently: remove one"))
+            else:
+                seen[name] = line
+            _duplicates(value, where, problems)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _duplicates(item, f"{path}[{i}]", problems)

@@ -10,10 +10,22 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
-
-from daemon.config.load import ConfigError, ConfigProblem, apply_override, build
-from daemon.config.sections import HooksConfig, LoggingConfig, PipelineConfig, ZenohConfig
+from daemon.config.load import (
+    ConfigError,
+    ConfigProblem,
+    apply_override,
+    build,
+    parse_yaml,
+    read_config_bytes,
+)
+from daemon.config.sections import (
+    HooksConfig,
+    LoggingConfig,
+    PipelineConfig,
+    Ros2Config,
+    WebConfig,
+    ZenohConfig,
+)
 from falls.config import FallsConfig
 from fitting import FitConfig
 from hal import SourceConfig
@@ -39,6 +51,8 @@ class Config:
     falls: FallsConfig = FallsConfig()
     hooks: HooksConfig = HooksConfig()
     logging: LoggingConfig = LoggingConfig()
+    web: WebConfig = WebConfig()
+    ros2: Ros2Config = Ros2Config()
 
 
 def source_override(uri: str) -> tuple[dict, list[ConfigProblem]]:
@@ -60,25 +74,32 @@ def source_override(uri: str) -> tuple[dict, list[ConfigProblem]]:
     return {}, [ConfigProblem("--source", f"{scheme!r} is not one of: realsense, v4l2, file")]
 
 
+def _embedded_text() -> str:
+    from daemon.config.doc import template  # doc imports this module
+
+    return template()
+
+
 def load_config(
     path: str | os.PathLike | None = None,
     overrides: list[str] | tuple[str, ...] = (),
     source: str | None = None,
 ) -> Config:
-    """Read, override and validate a config file (default: the embedded config.yaml)."""
+    """Read, override and validate a config file (None: the embedded default, config.yaml's text built from
+    the code by ``daemon.config.doc.template``, so an installed wheel needs no file)."""
+    embedded = path is None
     path = Path(path) if path is not None else DEFAULT_CONFIG
     origin = str(path.name if path == DEFAULT_CONFIG else path)
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = _embedded_text().encode() if embedded else read_config_bytes(path)
     except OSError as exc:
         raise ConfigError([ConfigProblem("", f"cannot read the config file: {exc.strerror}")], str(path)) from exc
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError([ConfigProblem("", f"not valid YAML: {exc}")], origin) from exc
+        data, problems = parse_yaml(raw)          # not UTF-8, not YAML: raised; duplicate keys: listed
+    except ConfigError as exc:
+        raise ConfigError(exc.problems, origin) from None
     if data is None:
         data = {}
-    problems: list[ConfigProblem] = []
     if not isinstance(data, dict):
         raise ConfigError([ConfigProblem("", "the top level must be a mapping of sections")], origin)
     for assignment in overrides:

@@ -108,14 +108,16 @@ class ZenohConfig:
 
 @dataclass(frozen=True)
 class LoggingConfig:
-    """structlog output: readable on a terminal, JSON lines otherwise (journald collects stdout)."""
+    """structlog output: journald's own fields under systemd, readable on a terminal, JSON lines otherwise."""
 
     level: str = field(
         default="info", metadata={"doc": "lowest level logged", "choices": ("debug", "info", "warning", "error")}
     )
     format: str = field(
-        default="auto", metadata={"doc": "auto = console on a TTY, JSON otherwise",
-                                  "choices": ("auto", "console", "json")}
+        default="auto", metadata={"doc": "auto = journal when journald collects the output (systemd), else "
+                                         "console on a TTY, else JSON; journal = structured journald entries "
+                                         "(POSED_STAGE, POSED_ROBOT, POSED_EVENT_ID, PRIORITY ...)",
+                                  "choices": ("auto", "console", "json", "journal")}
     )
     stats_period_s: float = field(
         default=10.0, metadata={"doc": "period of the stats log event", "unit": "s", "range": (1.0, 3600.0)}
@@ -143,4 +145,90 @@ class HooksConfig:
     output_limit: int = field(
         default=4096, metadata={"doc": "bytes of a hook's stdout and of its stderr that are logged",
                                 "unit": "B", "range": (0, 1048576)}
+    )
+    queue_limit: int = field(
+        default=100, metadata={"doc": "events waiting for each hook; when full the oldest waiting one is "
+                                      "dropped (counted and logged; it stays in the journal)",
+                               "range": (1, 100000)}
+    )
+
+
+@dataclass(frozen=True)
+class WebConfig:
+    """The live web view (posed web): what the Zenoh topics carry, in a browser; never an image."""
+
+    enabled: bool = field(
+        default=False, metadata={"doc": "serve the page from the daemon itself (a stage of its own, started and "
+                                        "watched by the supervisor); otherwise run `posed web` beside it"}
+    )
+    host: str = field(
+        default="127.0.0.1", metadata={"doc": "address the page is served on; anything but a loopback address "
+                                              "(127.0.0.1, ::1, localhost) needs a token"}
+    )
+    port: int = field(default=8780, metadata={"doc": "TCP port of the page", "range": (1, 65535)})
+    token: str = field(
+        default="", metadata={"doc": "secret every request must carry (?token=... in the page's address); "
+                                     "required when host is not a loopback address; at least 16 characters"}
+    )
+    pose_rate_hz: float = field(
+        default=15.0, metadata={"doc": "most poses per second sent to each browser", "unit": "Hz",
+                                "range": (1.0, 60.0)}
+    )
+
+    def __post_init__(self) -> None:
+        loopback = self.host in ("127.0.0.1", "::1", "localhost")
+        if not loopback and not self.token:
+            raise ValueError(f"token: serving on {self.host!r} (beyond this machine) needs a token of at least "
+                             "16 characters; or keep host: 127.0.0.1")
+        if self.token and len(self.token) < 16:
+            raise ValueError("token: at least 16 characters (e.g. the output of `openssl rand -hex 16`)")
+
+
+ROS2_TOPIC = r"/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*"
+
+
+@dataclass(frozen=True)
+class Ros2Config:
+    """ROS 2 robots see posed through rmw_zenoh (docs/ros2.md): standard messages on the daemon's Zenoh session."""
+
+    enabled: bool = field(
+        default=False, metadata={"doc": "publish JointState, a skeleton MarkerArray, the person's position and fall "
+                                        "diagnostics with rmw_zenoh's key expressions (join the ROS router with "
+                                        "zenoh.connect)"}
+    )
+    domain_id: int = field(default=0, metadata={"doc": "ROS_DOMAIN_ID of the ROS 2 robots", "range": (0, 232)})
+    distro: str = field(
+        default="jazzy", metadata={"doc": "ROS 2 distribution of the subscribers: type hashes (RIHS01) from jazzy "
+                                          "on; humble's rmw_zenoh uses TypeHashNotSupported",
+                                   "choices": ("jazzy", "humble")}
+    )
+    namespace: str = field(
+        default="", metadata={"doc": "ROS namespace of the posed node and of relative topic names, e.g. /robot1",
+                              "pattern": r"(/[A-Za-z][A-Za-z0-9_]*)*"}
+    )
+    node_name: str = field(default="posed", metadata={"doc": "the ROS node name", "pattern": r"[A-Za-z][A-Za-z0-9_]*"})
+    joint_states_topic: str = field(
+        default="posed/joint_states", metadata={"doc": "sensor_msgs/msg/JointState: the 23 joint angles, radians",
+                                                "pattern": ROS2_TOPIC}
+    )
+    skeleton_topic: str = field(
+        default="posed/skeleton", metadata={"doc": "visualization_msgs/msg/MarkerArray: the skeleton (RViz)",
+                                            "pattern": ROS2_TOPIC}
+    )
+    position_topic: str = field(
+        default="posed/person_position", metadata={"doc": "geometry_msgs/msg/PointStamped: the mid-hip in the "
+                                                          "camera frame (root_cam_m), when known",
+                                                   "pattern": ROS2_TOPIC}
+    )
+    fall_topic: str = field(
+        default="posed/fall_events", metadata={"doc": "diagnostic_msgs/msg/DiagnosticArray: fall events",
+                                               "pattern": ROS2_TOPIC}
+    )
+    frame_id: str = field(
+        default="camera_color_optical_frame", metadata={"doc": "TF frame of the camera (optical: x right, y down, "
+                                                               "z forward; posed's camera frame)"}
+    )
+    body_frame_id: str = field(
+        default="posed_mid_hip", metadata={"doc": "frame of a skeleton whose position is unknown (no intrinsics): "
+                                                  "camera-aligned axes, origin at the person's mid-hip"}
     )

@@ -3,7 +3,10 @@
 For each new message :meth:`EventOutbox.post` appends it to the journal (fsync'd) *before* publishing it,
 then hands the stored message to the hooks (their own threads). Messages that could not be published (no
 session) go out when the session opens; unacknowledged ones are published again when a subscriber appears
-and every ``zenoh.event_republish_s`` while one is there. A receiver acknowledges an event by its id.
+and every ``zenoh.event_republish_s`` while one is there. A receiver acknowledges an event by its id (every
+message so far), or one message by its id and state; the rest is still republished. Acknowledgements are
+counted (``accepted``, ``unknown``: no such unacknowledged message) and an unknown one is logged with a rate
+limit, since anyone on the bus can send them.
 
 The outbox publishes through a ``send(obj) -> bool`` callable (False: no session, nothing sent), so it knows
 nothing of Zenoh. Times are seconds on the monotonic clock.
@@ -16,6 +19,7 @@ from collections.abc import Callable, Iterable
 from daemon import clock
 from daemon.outbox.hooks import HookRunner
 from daemon.outbox.journal import EventJournal
+from daemon.proc.throttle import Throttle, shown
 from falls.event import FallEvent
 
 
@@ -30,6 +34,8 @@ class EventOutbox:
         self.republish_s = republish_s
         self.published = 0                       # messages sent, republications included
         self._send = send
+        self.acks = {"accepted": 0, "unknown": 0}
+        self._throttle = Throttle()
         self._next_republish = (clock.now() if now is None else now) + republish_s
 
     def post(self, event: FallEvent) -> FallEvent:
@@ -76,19 +82,28 @@ class EventOutbox:
         if subscribed:
             self.publish(self.journal.unacknowledged(), "period")
 
-    def acknowledge(self, event_id: str) -> int:
-        """A receiver acknowledged ``event_id`` (all its messages so far); returns how many (called on a
-        Zenoh thread: the journal is thread-safe)."""
-        n = self.journal.acknowledge(event_id)
-        self.log.info("fall_event_acknowledged", id=event_id, messages=n)
-        return n
+    def acknowledge(self, event_id: str, state: str | None = None) -> int:
+        """A receiver acknowledged ``event_id``: all its messages so far, or only the one of ``state``.
+        Returns how many (called on a Zenoh thread: the journal is thread-safe). ``event_id`` is bounded
+        (:mod:`daemon.bus.acks`) and shortened in the log line."""
+        n = self.journal.acknowledge(event_id, state)
+        if n:
+            self.acks["accepted"] += 1
+            self.log.info("fall_event_acknowledged", id=shown(event_id), state=state, messages=n)
+            return n
+        self.acks["unknown"] += 1
+        suppressed = self._throttle.allow("unknown")
+        if suppressed is not None:
+            self.log.warning("ack_of_unknown_event", id=shown(event_id), state=state, unknown=self.acks["unknown"],
+                             suppressed=suppressed, note="no unacknowledged message has this id (and state)")
+        return 0
 
     def status(self) -> dict:
         """The ``events`` part of the status object."""
         journal = self.journal
         return {"unacknowledged": len(journal.unacknowledged()),
                 "journal": "ok" if journal.healthy else (journal.last_error or "degraded"),
-                "published": self.published}
+                "published": self.published, "acks": dict(self.acks)}
 
     def close(self, hook_timeout_s: float = 1.0) -> None:
         """Give the hooks ``hook_timeout_s`` to finish, then write and close the journal."""

@@ -2,30 +2,48 @@
 
 Each configured hook (``hooks.on_event``) has its own worker thread and queue, so a hanging hook delays
 neither the pipeline nor the other hooks. A hook is an argv list run without a shell (arguments stay
-literal: ``;``, ``$(...)``, quotes and globs mean nothing), in its own session so that a timeout kills it and
-every child it started. The event's JSON is on its stdin, and ``POSED_EVENT_*`` environment variables carry
-the main fields. A non-zero exit, a timeout or a missing program is retried ``retries`` times with a delay;
-stdout and stderr (the first ``output_limit`` bytes) are logged with structlog. The event itself is already
-in the journal before a hook sees it, so a failing hook never loses it.
+literal: ``;``, ``$(...)``, quotes and globs mean nothing), in its own session (its own process group) so
+that a timeout kills it and every child it started. The event's JSON is on its stdin, and ``POSED_EVENT_*``
+environment variables carry the main fields. A non-zero exit, a timeout or a missing program is retried
+``retries`` times with a delay. The event itself is already in the journal before a hook sees it, so a
+failing hook never loses it.
+
+Bounds, whatever a hook does:
+
+* output: the first ``output_limit`` bytes of stdout and of stderr are kept (and logged); the rest is read
+  and discarded as it comes, so a hook printing hundreds of megabytes costs no memory;
+* the queue: at most ``queue_limit`` events wait for each hook; when it is full the oldest waiting one is
+  dropped (``dropped``, logged with a rate limit) and ``submit`` never blocks;
+* shutdown (:meth:`HookRunner.close`, on SIGTERM of the daemon with or without systemd): no new run or retry
+  starts, running hooks get the close timeout, then their process groups get SIGTERM and, after
+  ``TERM_GRACE_S``, SIGKILL;
+* a publisher that dies without closing (kill -9): every hook carries ``POSED_HOOK_OWNER`` (supervisor and
+  publisher pids) in its environment, and the supervisor ends what the dead publisher left
+  (:mod:`daemon.proc.orphans`) before it starts a new one.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import queue
+import selectors
 import signal
 import subprocess
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass
 
 from daemon import logs
 from daemon.config.sections import HookConfig, HooksConfig
+from daemon.proc import orphans
+from daemon.proc.throttle import Throttle
 from falls.event import FallEvent
 
-_STOP = object()
 KEEP_OUTCOMES = 200   # HookRunner.outcomes keeps this many of the latest runs
+TERM_GRACE_S = 1.0    # at shutdown: SIGTERM to a hook's process group, SIGKILL this much later
+READ_CHUNK = 65536
+EXIT_GRACE_S = 1.0    # after the hook exited, how long its children may keep its output pipes open
 
 
 def event_environment(event: FallEvent) -> dict[str, str]:
@@ -65,35 +83,99 @@ class HookOutcome:
 
 
 class _Worker:
-    def __init__(self, index: int, hook: HookConfig, cfg: HooksConfig, outcomes) -> None:
+    """One hook's queue, thread and the process it is running."""
+
+    def __init__(self, index: int, hook: HookConfig, cfg: HooksConfig, outcomes, throttle: Throttle) -> None:
         self.index = index
         self.hook = hook
         self.cfg = cfg
-        self.queue: queue.Queue = queue.Queue()
+        self.dropped = 0
+        self._events: deque[FallEvent] = deque()
+        self._cond = threading.Condition()
+        self._busy = False
+        self._proc: subprocess.Popen | None = None
+        self._proc_lock = threading.Lock()     # the running process (not _cond: submit never waits on a fork)
         self._outcomes = outcomes
+        self._throttle = throttle
         self._stopping = threading.Event()
         self.log = logs.get("hooks", hook=index, program=hook.argv[0] if hook.argv else "")
         self.thread = threading.Thread(target=self._loop, name=f"posed-hook-{index}", daemon=True)
         self.thread.start()
 
+    # ---------------------------------------------------------------- the queue
+    def put(self, event: FallEvent) -> None:
+        with self._cond:
+            if self._stopping.is_set():
+                return
+            if len(self._events) >= self.cfg.queue_limit:
+                old = self._events.popleft()
+                self.dropped += 1
+                suppressed = self._throttle.allow(f"queue_full.{self.index}")
+                if suppressed is not None:
+                    self.log.warning("hook_queue_full", dropped_event=old.id, dropped_state=old.state,
+                                     dropped=self.dropped, queue_limit=self.cfg.queue_limit, suppressed=suppressed,
+                                     note="the hook is slower than the events; the oldest waiting event was "
+                                          "dropped (it stays in the journal)")
+            self._events.append(event)
+            self._cond.notify()
+
+    def pending(self) -> int:
+        with self._cond:
+            return len(self._events) + int(self._busy)
+
+    def running(self) -> int:
+        with self._proc_lock:
+            return int(self._proc is not None)
+
     def _loop(self) -> None:
         while True:
-            item = self.queue.get()
-            if item is _STOP:
-                self.queue.task_done()
-                return
+            with self._cond:
+                while not self._events and not self._stopping.is_set():
+                    self._cond.wait()
+                if self._stopping.is_set():
+                    return
+                event = self._events.popleft()
+                self._busy = True
             try:
-                self._deliver(item)
+                self._deliver(event)
             except Exception as exc:  # a bug here must not kill the worker
-                self.log.error("hook_worker_error", error=repr(exc), event_id=item.id)
+                self.log.error("hook_worker_error", error=repr(exc), event_id=event.id)
             finally:
-                self.queue.task_done()
+                with self._cond:
+                    self._busy = False
+                    self._cond.notify_all()
 
+    # ---------------------------------------------------------------- shutdown
+    def stop(self) -> int:
+        """No new run or retry from now on; returns how many queued events were abandoned."""
+        with self._cond:
+            self._stopping.set()
+            abandoned = len(self._events)
+            self._events.clear()
+            self._cond.notify_all()
+        return abandoned
+
+    def end_process(self) -> None:
+        """SIGTERM to the running hook's process group, SIGKILL after TERM_GRACE_S."""
+        with self._proc_lock:
+            proc = self._proc
+        if proc is None:
+            return
+        self.log.warning("hook_ended_at_shutdown", pid=proc.pid, grace_s=TERM_GRACE_S)
+        _signal_group(proc, signal.SIGTERM)
+        try:
+            proc.wait(TERM_GRACE_S)
+        except subprocess.TimeoutExpired:
+            pass
+        _signal_group(proc, signal.SIGKILL)     # the leader may have left children in its group
+
+    # ---------------------------------------------------------------- one event
     def _deliver(self, event: FallEvent) -> None:
         attempts = 1 + self.hook.retries
         for attempt in range(1, attempts + 1):
-            if self._stopping.is_set() and attempt > 1:
-                self.log.warning("hook_abandoned_at_shutdown", event_id=event.id, state=event.state)
+            if self._stopping.is_set():
+                if attempt > 1:
+                    self.log.warning("hook_abandoned_at_shutdown", event_id=event.id, state=event.state)
                 return
             outcome = self._run_once(event, attempt)
             self._outcomes(outcome)
@@ -124,6 +206,8 @@ class _Worker:
         env = dict(os.environ)
         env.update(event_environment(event))
         env["POSED_HOOK_ATTEMPT"] = str(attempt)
+        # lets the supervisor end this hook and its children if this process dies without closing (kill -9)
+        env[orphans.OWNER_ENV] = orphans.owner_tag(os.getppid(), os.getpid())
         payload = json.dumps(event.to_json()).encode()
         t0 = time.monotonic()
 
@@ -135,34 +219,92 @@ class _Worker:
         if not self.hook.argv:
             return outcome(False, None, False, f"hooks.on_event[{self.index}].argv is empty; give a program "
                                                "and its arguments as a list")
-        try:
-            proc = subprocess.Popen(list(self.hook.argv), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                    stderr=subprocess.PIPE, env=env, start_new_session=True, close_fds=True)
-        except OSError as exc:
-            return outcome(False, None, False,
-                           f"cannot start {self.hook.argv[0]!r}: {exc.strerror or exc}; fix "
-                           f"hooks.on_event[{self.index}].argv[0] (an absolute path to an executable)")
-        try:
-            out, err = proc.communicate(payload, timeout=self.hook.timeout_s)
-        except subprocess.TimeoutExpired:
-            _kill_group(proc)
+        with self._proc_lock:
+            if self._stopping.is_set():
+                return outcome(False, None, False, "not started: the daemon is stopping")
             try:
-                out, err = proc.communicate(timeout=2.0)
-            except subprocess.TimeoutExpired:
-                out, err = b"", b""
-            return outcome(False, proc.returncode, True, "timeout", out or b"", err or b"")
-        except BrokenPipeError:  # the hook exited without reading stdin: not an error in itself
-            out, err = proc.communicate()
-        return outcome(proc.returncode == 0, proc.returncode, False, "", out or b"", err or b"")
+                proc = subprocess.Popen(list(self.hook.argv), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, env=env, start_new_session=True, close_fds=True)
+            except OSError as exc:
+                return outcome(False, None, False,
+                               f"cannot start {self.hook.argv[0]!r}: {exc.strerror or exc}; fix "
+                               f"hooks.on_event[{self.index}].argv[0] (an absolute path to an executable)")
+            self._proc = proc
+        try:
+            out, err, timed_out = _exchange(proc, payload, limit, self.hook.timeout_s)
+            if timed_out:
+                _signal_group(proc, signal.SIGKILL)
+            rc = proc.wait()
+        finally:
+            with self._proc_lock:
+                self._proc = None
+        if timed_out:
+            return outcome(False, rc, True, "timeout", out, err)
+        return outcome(rc == 0, rc, False, "", out, err)
 
 
-def _kill_group(proc: subprocess.Popen) -> None:
+def _exchange(proc: subprocess.Popen, payload: bytes, limit: int, timeout_s: float) -> tuple[bytes, bytes, bool]:
+    """Write ``payload`` to the hook's stdin and read its stdout and stderr until they close, keeping the
+    first ``limit`` bytes of each and discarding the rest. Returns (stdout, stderr, timed out)."""
+    deadline = time.monotonic() + timeout_s
+    out_fd, err_fd = proc.stdout.fileno(), proc.stderr.fileno()
+    kept = {out_fd: bytearray(), err_fd: bytearray()}
+    exited_at: float | None = None
+    timed_out = False
+    view = memoryview(payload)
+    with selectors.DefaultSelector() as sel:
+        for fd in kept:
+            sel.register(fd, selectors.EVENT_READ)
+        if view:
+            os.set_blocking(proc.stdin.fileno(), False)
+            sel.register(proc.stdin.fileno(), selectors.EVENT_WRITE)
+        else:
+            proc.stdin.close()
+        while sel.get_map():
+            now = time.monotonic()
+            if now >= deadline:
+                timed_out = True
+                break
+            if exited_at is None and proc.poll() is not None:
+                exited_at = now
+            if exited_at is not None and now - exited_at > EXIT_GRACE_S:
+                break                       # the hook is gone; a child of it holds the pipes open
+            for key, _ in sel.select(min(0.2, deadline - now)):
+                fd = key.fd
+                if fd in kept:
+                    chunk = os.read(fd, READ_CHUNK)
+                    if not chunk:
+                        sel.unregister(fd)
+                    elif len(kept[fd]) < limit:
+                        kept[fd] += chunk[: limit - len(kept[fd])]
+                    continue
+                try:
+                    view = view[os.write(fd, view[:READ_CHUNK]):]
+                except OSError:             # BrokenPipeError: the hook exited without reading stdin (fine)
+                    view = view[:0]
+                if not view:
+                    sel.unregister(fd)
+                    proc.stdin.close()
+    _close_pipes(proc)
+    return bytes(kept[out_fd]), bytes(kept[err_fd]), timed_out
+
+
+def _close_pipes(proc: subprocess.Popen) -> None:
+    for f in (proc.stdin, proc.stdout, proc.stderr):
+        try:
+            f.close()
+        except (OSError, ValueError):
+            pass
+
+
+def _signal_group(proc: subprocess.Popen, sig: int) -> None:
+    """``sig`` to the hook's process group (its pid: it leads its own session), or to the hook alone."""
     try:
-        os.killpg(proc.pid, signal.SIGKILL)
+        os.killpg(proc.pid, sig)
     except (ProcessLookupError, PermissionError):
         try:
-            proc.kill()
-        except ProcessLookupError:
+            proc.send_signal(sig)
+        except (ProcessLookupError, OSError):
             pass
 
 
@@ -173,7 +315,8 @@ class HookRunner:
         self.cfg = cfg
         self._lock = threading.Lock()
         self.outcomes: list[HookOutcome] = []  # the last KEEP_OUTCOMES runs, newest last
-        self._workers = [_Worker(i, h, cfg, self._record) for i, h in enumerate(cfg.on_event)]
+        throttle = Throttle()
+        self._workers = [_Worker(i, h, cfg, self._record, throttle) for i, h in enumerate(cfg.on_event)]
         self._closed = False
 
     def _record(self, outcome: HookOutcome) -> None:
@@ -182,15 +325,24 @@ class HookRunner:
             del self.outcomes[: max(0, len(self.outcomes) - KEEP_OUTCOMES)]
 
     def submit(self, event: FallEvent) -> None:
-        """Queue the event for every hook; never blocks, never raises."""
+        """Queue the event for every hook; never blocks, never raises (a full queue drops its oldest)."""
         if self._closed:
             return
         for worker in self._workers:
-            worker.queue.put(event)
+            worker.put(event)
+
+    @property
+    def dropped(self) -> int:
+        """Events dropped from full queues, summed over the hooks."""
+        return sum(w.dropped for w in self._workers)
 
     def pending(self) -> int:
         """Events queued or running, summed over the hooks."""
-        return sum(w.queue.unfinished_tasks for w in self._workers)
+        return sum(w.pending() for w in self._workers)
+
+    def running(self) -> int:
+        """Hook processes running now."""
+        return sum(w.running() for w in self._workers)
 
     def wait_idle(self, timeout: float) -> bool:
         """Wait until every queued event has been handled; True if so before ``timeout`` seconds."""
@@ -202,16 +354,22 @@ class HookRunner:
         return self.pending() == 0
 
     def close(self, timeout: float = 5.0) -> None:
-        """Stop the workers: queued events still run for up to ``timeout`` seconds, no new retries start."""
+        """Stop: no new run or retry starts (queued events are abandoned: they are in the journal); running
+        hooks get ``timeout`` seconds, then SIGTERM to their process groups and SIGKILL TERM_GRACE_S later."""
         self._closed = True
         for worker in self._workers:
-            worker.queue.put(_STOP)
+            abandoned = worker.stop()
+            if abandoned:
+                worker.log.warning("hooks_abandoned_at_shutdown", queued=abandoned,
+                                   note="the events are kept in the journal")
         deadline = time.monotonic() + timeout
         for worker in self._workers:
             worker.thread.join(max(0.0, deadline - time.monotonic()))
+        for worker in self._workers:
             if worker.thread.is_alive():
-                worker._stopping.set()
-                worker.log.warning("hook_still_running_at_shutdown", queued=worker.queue.qsize())
+                worker.end_process()
+        for worker in self._workers:
+            worker.thread.join(2.0)
 
     def __enter__(self) -> HookRunner:
         return self

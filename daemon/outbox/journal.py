@@ -210,7 +210,9 @@ class EventJournal:
                     known += rows.count_unacked(self._db, event_id, state)
                 except sqlite3.DatabaseError as exc:
                     self._fail("cannot read the event journal", exc)
-            self._record(event_id, state, "acked_at")
+                    known = max(known, 1)        # unreadable: record the acknowledgement for later
+            if known:                            # nothing to mark: no write (a flood of unknown ids is cheap)
+                self._record(event_id, state, "acked_at")
             return known
 
     def _record(self, event_id: str, state: str | None, column: str) -> None:

@@ -15,7 +15,11 @@ class JournalError(RuntimeError):
 
 
 def default_connect(path: Path) -> sqlite3.Connection:
-    """The daemon's connection: autocommit (transactions are explicit), 5 s busy timeout, any thread."""
+    """The daemon's connection: autocommit (transactions are explicit), 5 s busy timeout, any thread; the
+    file is created (or kept) private, mode 0600 (:mod:`daemon.outbox.private`)."""
+    from daemon.outbox.private import private_file
+
+    private_file(path)
     return sqlite3.connect(path, timeout=5.0, isolation_level=None, check_same_thread=False)
 
 

@@ -17,7 +17,7 @@ from daemon.messages import StageHealth
 FIELDS = (
     "pid", "beat", "step_started", "frames", "drops", "state", "ready", "stop", "fps",
     "step_p50_ms", "step_p95_ms", "step_max_ms", "lat_p50_ms", "lat_p95_ms", "lat_max_ms",
-    "camera", "skipped", "errors", "started", "go",
+    "camera", "skipped", "errors", "started", "go", "bad_frames",
 )
 F = {name: i for i, name in enumerate(FIELDS)}
 

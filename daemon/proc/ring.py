@@ -46,6 +46,18 @@ class FrameTooLarge(ValueError):
     """A frame has more pixels than a ring slot holds."""
 
 
+def too_large_fix(pixels: int) -> str:
+    """What to do about a frame of ``pixels`` that did not fit: a value of ``pipeline.frame_max_pixels``
+    within the key's own range, or (above its maximum) scaling the image down."""
+    from daemon.config.sections import PipelineConfig
+
+    hi = PipelineConfig.__dataclass_fields__["frame_max_pixels"].metadata["range"][1]
+    if pixels <= hi:
+        return f"raise pipeline.frame_max_pixels to at least {pixels}"
+    return (f"scale the image down: {pixels} pixels is more than the largest ring slot (pipeline.frame_max_pixels "
+            f"at most {hi}, 8192x8192), or remove it")
+
+
 class FrameRing:
     """A view of the ring; :meth:`create` in the supervisor, :meth:`attach` in the stages."""
 
@@ -88,8 +100,8 @@ class FrameRing:
             raise ValueError(f"frames must be H x W x 3 uint8 BGR, got {image.shape} {image.dtype}")
         if h * w > self.spec.capacity_px:
             raise FrameTooLarge(
-                f"a {w}x{h} frame does not fit a ring slot of {self.spec.capacity_px} pixels; raise "
-                f"pipeline.frame_max_pixels to at least {w * h}")
+                f"a {w}x{h} frame does not fit a ring slot of {self.spec.capacity_px} pixels; "
+                f"{too_large_fix(w * h)}")
         has_depth = depth is not None and self._depths is not None
         slot = self._next
         self._next = (self._next + 1) % self.spec.slots

@@ -179,6 +179,10 @@ class StageRuntime:
     def error(self, n: int = 1) -> None:
         self.row.add("errors", n)
 
+    def bad_frame(self, n: int = 1) -> None:
+        """A frame that could not be used (corrupt, too large) was skipped."""
+        self.row.add("bad_frames", n)
+
     def _write_stats(self, now: float) -> None:
         p50, p95, mx = self._steps.percentiles()
         self.row.set("step_p50_ms", p50)
@@ -221,7 +225,7 @@ def stage_main(args: StageArgs, doorbells: dict) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if os.getppid() != args.supervisor_pid:
         sys.exit(EXIT_FAILED)
-    logs.configure(args.config.logging.level, args.config.logging.format)
+    logs.configure(args.config.logging.level, args.config.logging.format, robot=args.config.robot_id)
     control = Control.attach(args.control, doorbells)
     ring = FrameRing.attach(args.ring) if args.ring is not None else None
     rt = StageRuntime(args, control, ring)

@@ -11,6 +11,10 @@
   of its slowest stage and a benchmark measures throughput without drops.
 * A disconnected or failing camera is closed and opened again with backoff (camera state ``lost``); a
   recording that ended leaves the stage idle (``ended``). A missing file or an unsupported source is fatal.
+* A bad frame (one that does not decode, or one larger than a ring slot: a 10000x10000 image in a folder) is
+  skipped and counted (``bad_frames`` in the status), logged with a rate limit (``frame_skipped``, with the
+  fix), never fatal; the source reads on with the next frame. Image files are measured on their header, so
+  an oversized one is never decoded.
 
 ``run_recording`` replaces capture *and* landmarks for a ``*.landmarks.jsonl`` source: it reads the
 recording (``landmarks.recording``) and sends LandmarkMsg straight to the fitting stage, with capture
@@ -25,6 +29,8 @@ from __future__ import annotations
 
 from daemon import clock
 from daemon.messages import LandmarkMsg, origin
+from daemon.proc.ring import FrameTooLarge, too_large_fix
+from daemon.proc.throttle import Throttle
 from daemon.stages.base import StageRuntime, sleep_until
 
 REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
@@ -46,7 +52,7 @@ class _Thinner:
 
 def run(rt: StageRuntime) -> None:
     import hal
-    from hal import EndOfStream, SourceError, SourceNotFound, SourceTimeout, SourceUnsupported
+    from hal import EndOfStream, SourceCorrupt, SourceError, SourceNotFound, SourceTimeout, SourceUnsupported
 
     src_cfg = rt.config.source
     paced = not (src_cfg.type == "file" and not src_cfg.realtime)
@@ -54,6 +60,7 @@ def run(rt: StageRuntime) -> None:
     source = None
     failures = 0
     reported_ready = False
+    throttle = Throttle()
     rt.row.set_camera("opening")
     try:
         while True:
@@ -75,6 +82,7 @@ def run(rt: StageRuntime) -> None:
                         rt.ready()
                     continue
                 failures = 0
+                source.max_pixels = rt.ring.spec.capacity_px
                 rt.row.set_camera("open")
                 rt.report(camera=_info(source))
                 rt.log.info("camera_open", **_info(source))
@@ -87,6 +95,9 @@ def run(rt: StageRuntime) -> None:
                 t_origin = None if paced else clock.now()    # unpaced: latency counts from the read
             except SourceTimeout:
                 rt.error()
+                continue
+            except SourceCorrupt as exc:
+                _bad_frame(rt, throttle, str(exc), exc.pixels)
                 continue
             except EndOfStream:
                 rt.row.set_camera("ended")
@@ -110,14 +121,30 @@ def run(rt: StageRuntime) -> None:
                 rt.wait_taken()
             with rt.step():
                 t0 = clock.now()
-                ref = rt.ring.write(frame.image, frame.seq, frame.t, frame.depth,
-                                    float(getattr(frame, "depth_scale", 0.0) or 0.0),
-                                    getattr(frame, "intrinsics", None), t_origin=t_origin)
-                rt.send(ref)
-            rt.done(clock.now() - t0, origin(ref))
+                try:
+                    ref = rt.ring.write(frame.image, frame.seq, frame.t, frame.depth,
+                                        float(getattr(frame, "depth_scale", 0.0) or 0.0),
+                                        getattr(frame, "intrinsics", None), t_origin=t_origin)
+                except FrameTooLarge as exc:
+                    ref = None
+                    _bad_frame(rt, throttle, str(exc), None)
+                if ref is not None:
+                    rt.send(ref)
+            if ref is not None:
+                rt.done(clock.now() - t0, origin(ref))
     finally:
         _close(source)
         rt.row.set_camera("none")
+
+
+def _bad_frame(rt: StageRuntime, throttle: Throttle, error: str, pixels: int | None) -> None:
+    """Skip and count a frame that cannot be used; log it (at most a few lines a minute)."""
+    rt.bad_frame()
+    suppressed = throttle.allow("bad_frame")
+    if suppressed is not None:
+        fix = too_large_fix(pixels) if pixels else "replace or delete the file"
+        rt.log.warning("frame_skipped", error=error, fix=fix, bad_frames=int(rt.row.get("bad_frames")),
+                       suppressed=suppressed)
 
 
 def _failed_open(rt: StageRuntime, source, exc: Exception, failures: int):

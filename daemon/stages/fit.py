@@ -2,7 +2,10 @@
 
 Warm-up compiles (or loads from the numba cache) the fitting kernels before the stage reports ready. Video
 mode: each frame starts from the previous one; the fitter is reset when the stream starts again (sequence
-number going back) or after a gap of more than a second of capture time.
+number going back) or after a gap of more than a second of capture time. Frames without a person
+(``landmarks`` None) are passed on as ``ok: false`` results, like any other: the fall detector's timers and
+its "lost after a descent" rule need them. :class:`StreamFit` is that per-frame logic, shared with the
+offline ``posed falls``.
 """
 
 from __future__ import annotations
@@ -14,16 +17,35 @@ from daemon.stages.base import StageRuntime
 RESET_GAP_S = 1.0
 
 
+class StreamFit:
+    """The fit as this stage runs it: video mode, reset when the stream restarts or after a gap."""
+
+    def __init__(self, fitter) -> None:
+        self.fitter = fitter
+        self.last: tuple[int, float] | None = None
+
+    def fit(self, frame, t_capture: float, image_size, intrinsics):
+        """Fit one LandmarkFrame (``landmarks`` None: no person, an ``ok: false`` result)."""
+        if self.last is not None and (frame.seq <= self.last[0] or t_capture - self.last[1] > RESET_GAP_S):
+            self.fitter.reset()
+        self.last = (frame.seq, t_capture)
+        return self.fitter.fit(frame.landmarks, frame.seq, t_capture, image_size, mode="video",
+                               intrinsics=intrinsics, depth_m=frame.depth_m)
+
+
 def run(rt: StageRuntime) -> None:
-    from fitting import FitResult, Fitter
+    from fitting import CalibrationError, FitResult, Fitter
 
     with rt.step():
-        fitter = Fitter(rt.config.fitting)
+        try:
+            fitter = Fitter(rt.config.fitting)
+        except CalibrationError as exc:          # checked before start; the file changed since: restarting
+            rt.fatal(f"fitting.calibration: {exc}", fix="fix or remove fitting.calibration")   # cannot cure it
         fitter.warmup()
     rt.ready()
     inbox = rt.input
     failures = 0
-    last: tuple[int, float] | None = None
+    stream = StreamFit(fitter)
     while True:
         rt.beat()
         rt.check_stop()
@@ -33,12 +55,8 @@ def run(rt: StageRuntime) -> None:
         frame = msg.frame
         with rt.step():
             t_in = clock.now()
-            if last is not None and (frame.seq <= last[0] or msg.t_capture - last[1] > RESET_GAP_S):
-                fitter.reset()
-            last = (frame.seq, msg.t_capture)
             try:
-                result = fitter.fit(frame.landmarks, frame.seq, msg.t_capture, msg.image_size, mode="video",
-                                    intrinsics=msg.intrinsics, depth_m=frame.depth_m)
+                result = stream.fit(frame, msg.t_capture, msg.image_size, msg.intrinsics)
             except Exception as exc:  # the fitter should never raise; if it does, keep the pipeline going
                 failures += 1
                 rt.error()

@@ -29,11 +29,13 @@ def is_landmark_recording(cfg: Config) -> bool:
 
 
 def default_plan(cfg: Config) -> tuple[StageSpec, ...]:
-    """capture -> landmarks -> fitting -> publisher; a ``*.landmarks.jsonl`` source skips the landmark stage."""
+    """capture -> landmarks -> fitting -> publisher (-> web, when ``web.enabled``: the live page, a receiver of
+    the publisher's topics); a ``*.landmarks.jsonl`` source skips the landmark stage."""
     fit = StageSpec("fitting", "daemon.stages.fit:run", "landmarks", "fits")
     pub = StageSpec("publisher", "daemon.stages.publish:run", "fits", None)
+    web = (StageSpec("web", "daemon.stages.web:run"),) if cfg.web.enabled else ()
     if is_landmark_recording(cfg):
-        return (StageSpec("capture", "daemon.stages.capture:run_recording", None, "landmarks"), fit, pub)
+        return (StageSpec("capture", "daemon.stages.capture:run_recording", None, "landmarks"), fit, pub, *web)
     return (StageSpec("capture", "daemon.stages.capture:run", None, "frames", uses_ring=True),
             StageSpec("landmarks", "daemon.stages.landmark:run", "frames", "landmarks", uses_ring=True),
-            fit, pub)
+            fit, pub, *web)

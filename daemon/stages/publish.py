@@ -18,7 +18,8 @@ events/fall appears and every ``zenoh.event_republish_s``; history maintenance. 
 liveliness token ``posed/ROBOT/alive``, the queryables ``posed/ROBOT/state`` (latest pose + status) and
 ``posed/ROBOT/events/history`` (stored events; parameters ``since``, ``until`` (unix seconds or ISO 8601),
 ``limit``), and the subscriber ``posed/ROBOT/events/ack``: a receiver puts an event id there (text, or JSON
-``{"id": ...}``) to acknowledge it.
+``{"id": ...}``) to acknowledge every message of that event so far, or ``{"id": ..., "state": ...}`` for only
+that state's message (:mod:`daemon.bus.acks`).
 
 The session is opened here, after spawn, inside ``with``; when it cannot be opened (client mode without a
 router, a busy port) the stage keeps consuming frames, journals events and retries every
@@ -31,7 +32,8 @@ import contextlib
 
 from daemon import clock
 from daemon.bus.link import BusLink
-from daemon.bus.payloads import landmarks_message, pose_message
+from daemon.bus.payloads import event_message, landmarks_message, pose_message, stamp_event, status_message
+from daemon.bus.ros2 import Ros2Bridge
 from daemon.bus.session import ZenohConfigError
 from daemon.config import paths
 from daemon.history.recorder import HistoryRecorder
@@ -40,6 +42,7 @@ from daemon.messages import FitMsg, origin
 from daemon.outbox.delivery import EventOutbox
 from daemon.outbox.hooks import HookRunner
 from daemon.outbox.journal import EventJournal
+from daemon.outbox.private import private_file, private_folder
 from daemon.stages.base import StageRuntime
 from daemon.stages.fall_watch import FallWatch
 
@@ -53,8 +56,13 @@ class PublisherStage:
         self.falls = FallWatch.from_config(cfg.falls, cfg.robot_id, rt.log, on_error=rt.error)
         self.bus = BusLink(cfg.zenoh, cfg.robot_id, stack, rt.log,
                            history=self._stored_events, on_ack=self._acknowledge)
+        private_folder(paths.state_dir(cfg.pipeline), rt.log)         # health data: 0700, files 0600
+        if cfg.falls.history_enabled:
+            private_file(paths.history_path(cfg.pipeline))
         self.outbox = EventOutbox(EventJournal(paths.events_path(cfg.pipeline)), HookRunner(cfg.hooks),
-                                  self.bus.put_event, rt.log, cfg.zenoh.event_republish_s)
+                                  self._send_event, rt.log, cfg.zenoh.event_republish_s)
+        self.ros2 = Ros2Bridge(cfg.ros2, rt.log) if cfg.ros2.enabled else None    # docs/ros2.md
+        self._stack = stack
         self.history = HistoryRecorder(
             AngleHistory(paths.history_path(cfg.pipeline), cfg.falls) if cfg.falls.history_enabled else None,
             rt.log)
@@ -66,14 +74,19 @@ class PublisherStage:
         except ZenohConfigError as exc:
             self.rt.fatal(str(exc), fix="fix zenoh.config_file")
         if opened:
+            if self.ros2 is not None:
+                self.ros2.open(self.bus.session, self._stack)
             self.outbox.session_opened()
 
     def handle(self, msg: FitMsg) -> None:
-        self.bus.put_pose(pose_message(msg, clock.now()))
+        pose = pose_message(msg, clock.now(), self.rt.config.robot_id)
+        self.bus.put_pose(pose)
+        if self.ros2 is not None:
+            self.ros2.publish_pose(pose)
         if self.bus.wants_landmarks:
-            self.bus.put_landmarks(landmarks_message(msg))
+            self.bus.put_landmarks(landmarks_message(msg, self.rt.config.robot_id))
         for event in self.falls.update(msg):
-            self.outbox.post(event)
+            self.outbox.post(stamp_event(event))    # unix times before the journal
         self.history.add(msg.result, msg.t_capture)
 
     def periodic(self, now: float) -> None:
@@ -90,20 +103,31 @@ class PublisherStage:
         status = dict(status)
         status["zenoh"] = self.bus.status()
         status["events"] = self.outbox.status()
-        self.bus.put_status(status)
+        status["events"]["acks"]["rejected"] = self.bus.acks_rejected
+        if self.ros2 is not None:
+            status["ros2"] = self.ros2.status()
+        self.bus.put_status(status_message(status, self.rt.config.robot_id, clock.now()))
 
     def close(self) -> None:
         """Close everything but the session (the ``with`` around the stage closes it)."""
         self.bus.forget()
-        self.outbox.close(hook_timeout_s=1.0)
+        self.outbox.close(hook_timeout_s=0.5)     # then TERM, KILL: within pipeline.shutdown_timeout_s
         self.history.close()
+
+    def _send_event(self, obj: dict) -> bool:
+        """Publish one fall-event message (and to ROS 2 when enabled); False when there is no session."""
+        out = event_message(obj)
+        sent = self.bus.put_event(out)
+        if sent and self.ros2 is not None:
+            self.ros2.publish_event(out)
+        return sent
 
     # Zenoh threads
     def _stored_events(self, since: float | None, until: float | None, limit: int):
         return self.outbox.journal.query(since, until, limit)
 
-    def _acknowledge(self, event_id: str) -> None:
-        self.outbox.acknowledge(event_id)
+    def _acknowledge(self, event_id: str, state: str | None) -> None:
+        self.outbox.acknowledge(event_id, state)
 
 
 def run(rt: StageRuntime) -> None:

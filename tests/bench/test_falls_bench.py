@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from bench.bvh import CMU_UNIT_M, cmu_landmark_world, forward_kinematics, read_bvh
 from daemon.cli import main
@@ -61,3 +62,43 @@ def test_real_fit_detects_a_fall_and_not_lying_on_a_bed():
     assert fall.detected and fall.states[0] == "falling" and 0.0 <= fall.latency_s <= 1.0
     assert not bed.detected and bed.states == []
     assert bed.min_pelvis_rel_lying is not None and bed.min_pelvis_rel_lying > 0.45
+
+
+def _labelled_folder(shared_data, tmp_path, clips):
+    import shutil
+
+    src = shared_data / "falls" / "urfd_dev"
+    labels = json.loads((src / "labels.json").read_text())
+    labels["clips"] = [c for c in labels["clips"] if c["clip"] in clips]
+    for c in clips:
+        shutil.copy(src / f"{c}.landmarks.jsonl", tmp_path / f"{c}.landmarks.jsonl")
+    (tmp_path / "labels.json").write_text(json.dumps(labels))
+    return tmp_path
+
+
+def test_bench_scores_labelled_real_recordings(shared_data, tmp_path, capsys):
+    """`posed bench falls --recordings DIR`: a real fall found with its latency from the labelled impact, a
+    real daily activity quiet; the same fit and detector as `posed falls`."""
+    folder = _labelled_folder(shared_data, tmp_path, ["urfd_02_fall", "urfd_22_adl"])
+    code = main(["bench", "falls", "--split", "none", "--recordings", str(folder), "--json", "--no-cache"])
+    report = json.loads(capsys.readouterr().out)["recordings"]
+    by = {c["name"]: c for c in report["clips"]}
+    assert report["falls"] == 1 and report["adl"] == 1 and report["geometry"] == "labels"
+    assert report["falls_config"] == {"camera_tilt_deg": 0.0, "camera_roll_deg": 0.0, "camera_height_m": 0.85}
+    fall = by["urfd_02_fall"]
+    assert fall["detected"] and fall["states"][0] == "falling" and abs(fall["latency_s"]) <= 1.0
+    assert not by["urfd_22_adl"]["detected"] and by["urfd_22_adl"]["states"] == []
+    assert report["recall"] == 1.0 and report["false_alarms"] == 0 and code == 0
+
+
+def test_bench_recordings_folder_errors_name_the_problem(tmp_path):
+    from bench.falls_recordings import read_labels
+
+    with pytest.raises(FileNotFoundError, match="labels.json"):
+        read_labels(tmp_path)
+    (tmp_path / "labels.json").write_text(json.dumps({"clips": [{"clip": "a", "label": "fell"}]}))
+    with pytest.raises(ValueError, match="valid: fall, adl"):
+        read_labels(tmp_path)
+    (tmp_path / "labels.json").write_text(json.dumps({"clips": [{"clip": "a", "label": "fall"}]}))
+    with pytest.raises(FileNotFoundError, match="a.landmarks.jsonl"):
+        read_labels(tmp_path)

@@ -78,13 +78,13 @@ class FakeQuery:
         self.replies: list[tuple[str, str]] = []
         self.errors: list[str] = []
 
-    def reply(self, key: str, payload: str) -> None:
+    def reply(self, key: str, payload: str, **_options) -> None:
         self.replies.append((key, payload))
 
-    def reply_err(self, payload: str) -> None:
+    def reply_err(self, payload: str, **_options) -> None:
         self.errors.append(payload)
 
 
 def sample(text: str):
     """A received sample whose payload is ``text``."""
-    return SimpleNamespace(payload=SimpleNamespace(to_string=lambda: text))
+    return SimpleNamespace(payload=SimpleNamespace(to_string=lambda: text, to_bytes=lambda: text.encode()))

@@ -84,11 +84,14 @@ def test_state_answers_the_latest_pose_and_status():
     latest = queries.LatestState()
     q = FakeQuery("posed/r1/state")
     queries.answer_state(q, "posed/r1/state", latest, RecordingLog())
-    assert json.loads(q.replies[0][1]) == {"pose": None, "status": None}
+    first = json.loads(q.replies[0][1])
+    assert {k: first[k] for k in ("pose", "status", "format", "version", "robot")} == \
+        {"pose": None, "status": None, "format": "posed.state", "version": 1, "robot": "r1"}
     latest.set_pose({"seq": 1, "x": math.nan})
     latest.set_status({"state": "running"})
     queries.answer_state(q, "posed/r1/state", latest, RecordingLog())
-    assert json.loads(q.replies[1][1]) == {"pose": {"seq": 1, "x": None}, "status": {"state": "running"}}
+    second = json.loads(q.replies[1][1])
+    assert (second["pose"], second["status"]) == ({"seq": 1, "x": None}, {"state": "running"})
 
 
 @pytest.mark.parametrize("payload, expected", [("e1", "e1"), ("  e1\n", "e1"), ('{"id": "e2"}', "e2"),
@@ -117,7 +120,8 @@ def test_link_declares_each_stream_with_its_qos_and_releases_them(fake_zenoh):
     sessions, _ = fake_zenoh
     acks, log = [], RecordingLog()
     with contextlib.ExitStack() as stack:
-        link = BusLink(ZenohConfig(), "r1", stack, log, history=lambda *a: [], on_ack=acks.append)
+        link = BusLink(ZenohConfig(), "r1", stack, log, history=lambda *a: [],
+                       on_ack=lambda i, st: acks.append(i))
         assert link.put_pose({"seq": 0}) is False and not link.wants_landmarks     # no session yet: dropped
         assert link.try_open(0.0) is True and link.try_open(1.0) is False
         s = sessions[0]

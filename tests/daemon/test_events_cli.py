@@ -5,15 +5,25 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
 
 from daemon.cli import main
 from daemon.history.store import AngleHistory
 from daemon.outbox.journal import EventJournal
+from daemon.version import __version__
 from falls.config import FallsConfig
 from falls.event import FallEvent
 from fitting import JOINT_ANGLE_NAMES, FitResult
 
+ROOT = Path(__file__).resolve().parents[2]
 GARBAGE = b"this is not a database" * 100
 
 
@@ -119,3 +129,107 @@ def test_plot_loads_the_config_once(tmp_path, monkeypatch):
     assert main(["plot", "history", "--set", f"pipeline.state_dir={state}", "--since", "1699999999",
                  "-o", str(tmp_path / "a.png")]) == 0
     assert len(loads) == 1
+
+
+def _fall_recording(path) -> None:
+    """A landmark recording of a scripted fall (bench.falls_scenarios), for the real daemon to detect."""
+    from bench import falls_scenarios as scenarios
+    from landmarks import LandmarkFrame, RecordingHeader, write_recording
+    from tests.daemon.plan_stages import FALL_SCENARIO
+
+    sc = next(s for s in scenarios.catalogue("tune") if s.name == FALL_SCENARIO)
+    frames = [LandmarkFrame(fr.seq, fr.t, fr.landmarks) for fr in scenarios.frames(sc)]
+    write_recording(path, RecordingHeader((sc.camera.width, sc.camera.height), sc.fps, source=sc.name,
+                                          camera=sc.camera.intrinsics), frames)
+
+
+def _journal_states(path, starting: bool = False) -> dict[str, float | None]:
+    from daemon.outbox.journal_file import JournalError
+
+    try:
+        with EventJournal(path, readonly=True) as journal:
+            return {s.event.state: s.acked_at for s in journal.query()}
+    except JournalError:
+        if starting:                      # the file is there, its table not yet: the daemon is creating it
+            return {}
+        raise
+
+
+@pytest.mark.timeout(180)
+def test_events_ack_against_a_running_daemon(tmp_path):
+    """`posed run` on a recorded fall (real fit, real Zenoh), found by `posed events ack` through the same
+    config ($POSED_CONFIG): `--state alarm` with the id prefix `posed events` prints acknowledges that message,
+    then the id alone acknowledges the rest; the journal the daemon writes says so."""
+    from tests.daemon.plan_stages import FALL_OVERRIDES
+    from tests.daemon.zenoh_util import free_port
+
+    recording = tmp_path / "fall.landmarks.jsonl"
+    _fall_recording(recording)
+    state = tmp_path / "state"
+    cfg_file = tmp_path / "posed.yaml"
+    lines = ["robot_id: acker", f"pipeline: {{state_dir: '{state}'}}",
+             f"zenoh: {{listen: ['tcp/127.0.0.1:{free_port()}']}}",
+             "falls: {" + ", ".join(o.removeprefix("falls.").replace("=", ": ") for o in FALL_OVERRIDES) + "}",
+             f"source: {{type: file, path: '{recording}'}}", "logging: {format: json}"]
+    cfg_file.write_text("\n".join(lines) + "\n")
+    env = {**os.environ, "POSED_CONFIG": str(cfg_file)}
+    proc = subprocess.Popen([sys.executable, "-m", "daemon.cli", "run"], cwd=ROOT, env=env,
+                            stdout=open(tmp_path / "out.log", "w"), stderr=subprocess.STDOUT)
+    journal = state / "events.sqlite3"
+    try:
+        deadline = time.monotonic() + 120
+        while not (journal.is_file() and "alarm" in _journal_states(journal, starting=True)):
+            assert proc.poll() is None, (tmp_path / "out.log").read_text()
+            assert time.monotonic() < deadline, "no alarm in the journal after 120 s"
+            time.sleep(0.2)
+        states = _journal_states(journal)
+        assert {"falling", "on_floor", "alarm"} <= set(states) and not any(states.values()), states
+        # `posed watch` finds the daemon through the same config; the status carries the version
+        watch = subprocess.run([sys.executable, "-m", "daemon.cli", "watch", "--json", "--seconds", "3"], cwd=ROOT,
+                               env=env, capture_output=True, text=True, timeout=60)
+        msgs = [json.loads(line) for line in watch.stdout.splitlines()]
+        status = [m["value"] for m in msgs if m["key"] == "posed/acker/status"]
+        assert status and status[-1]["posed_version"] == __version__, watch.stdout[-2000:] + watch.stderr
+        listed = subprocess.run([sys.executable, "-m", "daemon.cli", "events"], cwd=ROOT, env=env,
+                                capture_output=True, text=True, timeout=60)
+        prefix = listed.stdout.splitlines()[1].split()[1]          # the 12-character id column
+        ack = subprocess.run([sys.executable, "-m", "daemon.cli", "events", "ack", prefix, "--state", "alarm"],
+                             cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+        assert ack.returncode == 0, ack.stdout + ack.stderr
+        assert "acknowledged" in ack.stdout and "(alarm)" in ack.stdout
+        states = _journal_states(journal)
+        assert states["alarm"] is not None
+        assert states["falling"] is None and states["on_floor"] is None, "only the alarm was acknowledged"
+        ack = subprocess.run([sys.executable, "-m", "daemon.cli", "events", "ack", prefix], cwd=ROOT, env=env,
+                             capture_output=True, text=True, timeout=60)
+        assert ack.returncode == 0, ack.stdout + ack.stderr
+        assert all(v is not None for v in _journal_states(journal).values())
+        bad = subprocess.run([sys.executable, "-m", "daemon.cli", "events", "ack", prefix, "--state", "lying"],
+                             cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+        assert bad.returncode == 2 and "falling, on_floor, alarm, recovered" in bad.stderr.replace("'", "")
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def test_events_list_is_the_listing(tmp_path, capsys):
+    """deploy/README.md's `posed events list` works, the same as `posed events`."""
+    path = tmp_path / "events.sqlite3"
+    with EventJournal(path, clock=lambda: 1_700_000_000.0) as journal:
+        journal.append(fall("e1", 10.0))
+    assert main(["events", "list", "--journal", str(path), "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)
+    assert main(["events", "--journal", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == listed and [e["id"] for e in listed["events"]] == ["e1"]
+
+
+def test_events_ack_without_a_daemon_says_so(tmp_path, capsys):
+    from tests.daemon.zenoh_util import free_port
+
+    code = main(["events", "ack", "abc", "--connect", f"tcp/127.0.0.1:{free_port()}", "--wait", "0.5",
+                 "--journal", str(tmp_path / "none.sqlite3")])
+    assert code == 1
+    assert "cannot connect" in capsys.readouterr().err

@@ -90,9 +90,10 @@ def test_republished_until_acknowledged(tmp_path):
     box.tick(65.0, subscribed=False)                                  # nobody listens: not sent
     assert len(bus.sent) == 4
     assert box.acknowledge("e1") == 1
-    assert ("info", "fall_event_acknowledged", {"id": "e1", "messages": 1}) in log.lines
+    assert ("info", "fall_event_acknowledged", {"id": "e1", "state": None, "messages": 1}) in log.lines
     box.tick(95.0, subscribed=True)
     assert [i for i, _, _ in bus.sent[4:]] == ["e2"]
     reasons = [f["reason"] for lv, e, f in log.lines if e == "fall_events_republished"]
     assert reasons == ["subscriber appeared", "period", "period"]
-    assert box.status() == {"unacknowledged": 1, "journal": "ok", "published": 7}
+    assert box.status() == {"unacknowledged": 1, "journal": "ok", "published": 7,
+                            "acks": {"accepted": 1, "unknown": 0}}

@@ -13,6 +13,7 @@ import zenoh
 
 from tests.daemon.harness import Harness
 from tests.daemon.plan_stages import FALL_OVERRIDES
+from tests.daemon.redteam_util import until
 from tests.daemon.zenoh_util import client, free_port, router
 
 
@@ -30,15 +31,6 @@ def _collect(session, key):
     return got, sub
 
 
-def _until(pred, timeout, what):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        v = pred()
-        if v:
-            return v
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
-
 
 def test_publisher_topics_events_queries_and_ack(tmp_path):
     hook_out = tmp_path / "hook.jsonl"
@@ -51,7 +43,7 @@ def test_publisher_topics_events_queries_and_ack(tmp_path):
             alive = s.liveliness().get("posed/r7/alive", timeout=5)
             assert [str(r.ok.key_expr) for r in alive if r.ok is not None] == ["posed/r7/alive"]
             # the fall happens while nobody listens to events/fall: journalled, not lost
-            st = _until(lambda: next((x for x in reversed(statuses)
+            st = until(lambda: next((x for x in reversed(statuses)
                                       if x.get("events", {}).get("unacknowledged", 0) >= 3), None), 30,
                         "three unacknowledged events in the status")
             assert st["robot"] == "r7" and st["zenoh"]["session"] == "open"
@@ -63,7 +55,7 @@ def test_publisher_topics_events_queries_and_ack(tmp_path):
             assert [r[0] for r in rows] == ["falling", "on_floor", "alarm"]
             # a subscriber appears: the unacknowledged events are published again
             events, _e = _collect(s, "posed/r7/events/fall")
-            _until(lambda: len(events) >= 3, 5, "republished events")
+            until(lambda: len(events) >= 3, 5, "republished events")
             assert [e["state"] for e in events[:3]] == ["falling", "on_floor", "alarm"]
             event_id = events[0]["id"]
             assert all(e["id"] == event_id for e in events[:3]) and events[0]["robot"] == "r7"
@@ -88,11 +80,11 @@ def test_publisher_topics_events_queries_and_ack(tmp_path):
             assert state and state[0]["pose"]["seq"] >= 0 and state[0]["status"]["robot"] == "r7"
             # acknowledge
             s.put("posed/r7/events/ack", event_id)
-            _until(lambda: statuses and statuses[-1]["events"]["unacknowledged"] == 0, 5, "acknowledgement")
+            until(lambda: statuses and statuses[-1]["events"]["unacknowledged"] == 0, 5, "acknowledgement")
             acked = db.execute("SELECT count(*) FROM messages WHERE acked_at IS NOT NULL").fetchone()[0]
             assert acked == 3
             # the hook got every event message on stdin; the joint angles went to the history
-            _until(lambda: hook_out.exists() and len(hook_out.read_text().split()) >= 3, 10, "hook runs")
+            until(lambda: hook_out.exists() and len(hook_out.read_text().split()) >= 3, 10, "hook runs")
             hooked = [json.loads(x) for x in hook_out.read_text().splitlines() if x.strip()]
             assert sorted(e["state"] for e in hooked) == ["alarm", "falling", "on_floor"]
             hist = sqlite3.connect(tmp_path / "state" / "history.sqlite3")
@@ -102,7 +94,7 @@ def test_publisher_topics_events_queries_and_ack(tmp_path):
             code, _, err, took = h.stop()
             assert code == 0, err
             assert took < 5.0
-            _until(lambda: zenoh.SampleKind.DELETE in gone, 5, "the alive token to disappear")
+            until(lambda: zenoh.SampleKind.DELETE in gone, 5, "the alive token to disappear")
     finally:
         if h.proc.poll() is None:
             h.stop()
@@ -118,14 +110,14 @@ def test_through_a_router_and_without_one(tmp_path):
     try:
         with client(rep) as s:
             poses, _p = _collect(s, "posed/r7/pose")
-            _until(lambda: len(poses) >= 3, 30, "poses through the router")
+            until(lambda: len(poses) >= 3, 30, "poses through the router")
         r.close()
         time.sleep(1.0)
         assert h.proc.poll() is None
         before = h.latest()["stages"]["publisher"]["frames"]
         with client(ep) as s:                         # still serving its own listener
             statuses, _s = _collect(s, "posed/r7/status")
-            _until(lambda: statuses, 5, "status without the router")
+            until(lambda: statuses, 5, "status without the router")
         assert h.latest()["stages"]["publisher"]["frames"] >= before
     finally:
         code, _, err, _ = h.stop()

@@ -133,6 +133,7 @@ def test_single_bad_frame_is_ignored():
 
 
 def test_torso_out_of_view_is_not_judged():
+    """Three of the four torso landmarks are a partial body that is judged; two missing are not."""
     sc = TUNE["tune/fall/found-lying-backward/v30"]
     fr = next(iter(frames(sc)))
     lm = fr.landmarks.copy()
@@ -141,10 +142,12 @@ def test_torso_out_of_view_is_not_judged():
     res = truth_result(fr, sc.camera)
     lm_out = lm.copy()
     lm_out[23, 1] = 10_000.0                    # the left hip below the image
+    lm_out[11, 1] = 10_000.0                    # and the left shoulder
     det.update(res, lm_out, (640, 480), intrinsics=sc.camera.intrinsics)
     assert det.last_sample is None
     lm_hidden = lm.copy()
     lm_hidden[12, 3] = 0.1                      # the right shoulder not visible
+    lm_hidden[24, 3] = 0.1                      # nor the right hip
     det.update(res, lm_hidden, (640, 480), intrinsics=sc.camera.intrinsics)
     assert det.last_sample is None
     det.update(res, lm, (640, 480), intrinsics=sc.camera.intrinsics)

@@ -80,3 +80,15 @@ def test_implausible_length_rejected(tmp_path):
     with pytest.raises(CalibrationError, match="thigh_m"):
         read_calibration(path)
     assert np.isfinite(BodyDimensions.from_height(1.7).leg_m)
+
+
+def test_huge_or_binary_calibration_files_are_clear_errors(tmp_path):
+    """Read with a bound: /dev/zero or a huge file is an error naming the size, binary data one naming the byte."""
+    from fitting import CalibrationError, read_calibration
+
+    with pytest.raises(CalibrationError, match="larger than 65536 bytes"):
+        read_calibration("/dev/zero")
+    binary = tmp_path / "cal.yaml"
+    binary.write_bytes(b"format: x\n\xff\xfe")
+    with pytest.raises(CalibrationError, match="not UTF-8"):
+        read_calibration(binary)

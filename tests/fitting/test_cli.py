@@ -26,7 +26,7 @@ def recording(path: Path, camera=None) -> Path:
     out = [LandmarkFrame(i, t, lm) for i, (t, lm, _p) in enumerate(frames[:8])]
     out.append(LandmarkFrame(8, 0.8, None))                       # no person
     partial = frames[9][1].copy()
-    partial[[25, 26, 27, 28, 15]] = np.nan                        # knees, ankles, a wrist unknown
+    partial[[25, 26, 27, 28, 15, 13, 14]] = np.nan                # knees, ankles, a wrist, elbows unknown
     out.append(LandmarkFrame(9, 0.9, partial))
     header = RecordingHeader((640, 480), 10.0, "test",
                              S.Camera(model="pinhole").intrinsics((640, 480)) if camera else None)

@@ -1,0 +1,98 @@
+"""The inputs of the chaos campaign (``posed bench chaos``), made from real data with a corrupt frame every N:
+
+* ``squat``: the real squat video (tfjs_pose_squats) as a folder of JPEG images, every N-th replaced by bytes
+  that do not decode (the capture stage must skip and count it, hal.images);
+* ``falls``: real UR Fall Detection recordings (urfd_dev, camera 0) joined into one landmark recording, falls
+  alternating with daily activities so that each pass has several falls and the person stands up between
+  them; every N-th frame line is replaced by text that is not a frame (the reader reports and skips it).
+
+Both are replayed in a loop at their own frame rate (``source.loop``, ``source.realtime``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+SQUAT_VIDEO = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"
+URFD = Path("falls") / "urfd_dev"
+# falls whose person stays in view after the impact (labels.json person_after_impact_s >= 1 s), each followed
+# by a daily activity with a standing person
+FALL_SEQUENCE = ("urfd_02_fall", "urfd_16_adl", "urfd_04_fall", "urfd_22_adl", "urfd_10_fall", "urfd_38_adl",
+                 "urfd_14_fall", "urfd_40_adl")
+CORRUPT_BYTES = b"\xff\xd8\xff\xe0 posed chaos: this is not a JPEG \x00\x01\x02"
+CORRUPT_LINE = '{"seq": "posed chaos: this is not a frame", "landmarks": [[1, 2]'
+
+
+@dataclass(frozen=True)
+class ChaosInput:
+    """One prepared input: the ``--source`` URI, the config overrides it needs, and what it holds."""
+
+    name: str
+    source: str
+    overrides: tuple[str, ...]
+    frames: int             # frames per pass, corrupt ones included
+    corrupt: int            # corrupt frames per pass
+    falls_per_pass: int
+    pass_s: float           # seconds of one pass at the recording's frame rate
+
+
+def squat_images(shared: Path, out: Path, corrupt_every: int) -> ChaosInput:
+    """The squat video's frames as JPEG files ``frame_<i>.jpg``; every ``corrupt_every``-th is garbage."""
+    import cv2
+
+    video = shared / SQUAT_VIDEO
+    if not video.is_file():
+        raise FileNotFoundError(f"{video}: the real squat video is missing (POSED_SHARED_DATA)")
+    out.mkdir(parents=True, exist_ok=True)
+    cap = cv2.VideoCapture(str(video))
+    fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
+    n = corrupt = 0
+    try:
+        while True:
+            ok, image = cap.read()
+            if not ok:
+                break
+            path = out / f"frame_{n}.jpg"
+            if corrupt_every and n % corrupt_every == corrupt_every - 1:
+                path.write_bytes(CORRUPT_BYTES)
+                corrupt += 1
+            else:
+                cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, 90])
+            n += 1
+    finally:
+        cap.release()
+    return ChaosInput("squat", f"file:{out}", (f"source.fps={fps:g}",), n, corrupt, 0, n / fps)
+
+
+def fall_recording(shared: Path, out: Path, corrupt_every: int) -> ChaosInput:
+    """The clips of FALL_SEQUENCE joined into one recording (seq and t renumbered, 30 fps), every
+    ``corrupt_every``-th frame line replaced by CORRUPT_LINE; the falls settings from labels.json."""
+    folder = shared / URFD
+    labels = json.loads((folder / "labels.json").read_text())
+    cam = labels["camera"]
+    header = None
+    lines: list[str] = []
+    for clip in FALL_SEQUENCE:
+        rows = (folder / f"{clip}.landmarks.jsonl").read_text().splitlines()
+        header = header or json.loads(rows[0])
+        for row in rows[1:]:
+            if not row.strip():
+                continue
+            frame = json.loads(row)
+            frame["seq"] = len(lines)
+            frame["t"] = round(len(lines) / float(header["fps"]), 4)
+            lines.append(json.dumps(frame))
+    corrupt = 0
+    for i in range(len(lines)):
+        if corrupt_every and i % corrupt_every == corrupt_every - 1:
+            lines[i] = CORRUPT_LINE
+            corrupt += 1
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(header) + "\n" + "\n".join(lines) + "\n")
+    overrides = (f"falls.camera_height_m={cam['camera_height_m']}", f"falls.camera_tilt_deg={cam['camera_tilt_deg']}",
+                 f"falls.camera_roll_deg={cam['camera_roll_deg']}", "pipeline.target_fps=30")
+    falls = sum(1 for c in FALL_SEQUENCE if c.endswith("_fall"))
+    return ChaosInput("falls", f"file:{out}", overrides, len(lines), corrupt, falls,
+                      len(lines) / float(header["fps"]))

@@ -1,0 +1,21 @@
+"""posed's client: read a posed daemon (or a fleet of them behind a Zenoh router) from any Python program.
+
+The message contract (formats, versions, JSON Schemas) is :mod:`client.contract`; the Zenoh client is
+:class:`client.PosedClient` (docs/client.md). Imports zenoh, numpy, :mod:`camera_model` and the public result
+types of :mod:`fitting` and :mod:`falls` only — never the daemon.
+"""
+
+__all__ = ["Alive", "HistoryEntry", "Landmarks", "PosedClient", "PosedClientError", "State", "Status"]
+_API = {"Alive", "PosedClient", "PosedClientError"}
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from client import api
+
+        return getattr(api, name)
+    if name in __all__:
+        from client import types
+
+        return getattr(types, name)
+    raise AttributeError(f"module 'client' has no attribute {name!r}")

@@ -1,0 +1,67 @@
+"""Acknowledgements put on ``posed/ROBOT/events/ack`` (interfaces.md section 4, docs/falls.md).
+
+A payload is the event id as text, or JSON ``{"id": "<event id>"}`` (every message of the event so far) or
+``{"id": ..., "state": "alarm"}`` (only that state's message). Anyone on the bus can put anything there, so
+:func:`parse_ack_message` takes raw bytes and accepts only a bounded, printable id: UTF-8, at most
+``MAX_PAYLOAD_BYTES`` bytes, an id of at most ``MAX_ID_CHARS`` characters without whitespace or control
+characters inside, and a state that is one of :data:`falls.FALL_STATES`. Everything else raises
+:class:`BadAck` saying what is wrong (bounded, one line).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+from daemon.proc.throttle import shown
+from falls import FALL_STATES
+
+MAX_PAYLOAD_BYTES = 4096
+MAX_ID_CHARS = 128          # event ids are 32 hex digits (uuid4().hex)
+EXPECTED = 'an event id, or JSON {"id": "<event id>"} or {"id": ..., "state": "<state>"}'
+
+
+class BadAck(ValueError):
+    """An acknowledgement that cannot be used; the message says why (bounded, one line)."""
+
+
+@dataclass(frozen=True)
+class Ack:
+    """One acknowledgement: ``state`` None acknowledges every message of event ``id`` so far."""
+
+    id: str
+    state: str | None = None
+
+
+def parse_ack_message(payload: bytes | str) -> Ack:
+    """The acknowledgement in a payload; raises :class:`BadAck`."""
+    if isinstance(payload, str):
+        payload = payload.encode("utf-8", "surrogatepass")
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        raise BadAck(f"payload of {len(payload)} bytes, more than {MAX_PAYLOAD_BYTES}")
+    try:
+        raw = payload.decode("utf-8").strip()
+    except UnicodeDecodeError as exc:
+        raise BadAck(f"payload is not UTF-8 text (byte {exc.start})") from None
+    state = None
+    if raw.startswith("{"):
+        try:
+            obj = json.loads(raw)
+        except (ValueError, RecursionError):    # RecursionError: nested deeper than Python's limit
+            raise BadAck("payload starts with '{' but is not JSON") from None
+        if not isinstance(obj, dict) or "id" not in obj:
+            raise BadAck('JSON payload without an "id"')
+        event_id = obj["id"] if isinstance(obj["id"], str) else json.dumps(obj["id"])
+        state = obj.get("state")
+        if state is not None and state not in FALL_STATES:
+            raise BadAck(f"state {shown(str(state))!r} is not one of: {', '.join(FALL_STATES)}")
+    else:
+        event_id = raw
+    event_id = event_id.strip()
+    if not event_id:
+        raise BadAck("empty event id")
+    if len(event_id) > MAX_ID_CHARS:
+        raise BadAck(f"event id of {len(event_id)} characters is too long (at most {MAX_ID_CHARS})")
+    if not event_id.isprintable() or any(c.isspace() for c in event_id):
+        raise BadAck("event id holds whitespace or control characters")
+    return Ack(event_id, state)

@@ -1,0 +1,132 @@
+"""``posed falls RECORDING.landmarks.jsonl [--config FILE] [--set K=V]``: the fall detector offline.
+
+The frames the capture stage would take (no more than ``pipeline.target_fps`` by capture time, as
+``posed run --source file:REC`` replays it), the fit (video mode, reset as the fitting stage resets it:
+:class:`daemon.stages.fit.StreamFit`) and the fall detector (:class:`daemon.stages.fall_watch.FallWatch`, as the publisher stage runs it) on every frame of a
+landmark recording, frames without a person included. Each event message is printed as one JSON line,
+exactly the payload ``posed/ROBOT/events/fall`` would carry (:func:`event_payload`: the publisher's
+``stamp_event`` and ``event_message``, ``wall_time`` as the journal fills it, the bus's ``dumps``; the unix
+times count the recording's t from when the command started). The recording's time line is the capture clock; the header's
+``camera`` intrinsics go to the fit and the detector, as in ``posed run --source file:...``.
+
+Exit status: 0 read whole, 1 some lines were skipped, 2 the recording cannot be read at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Iterable, Iterator
+
+from daemon.commands import add_config_args, config_from_args
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("falls", help="run the fit and the fall detector on a landmark recording "
+                                          "(one JSON line per fall-event message)")
+    parser.add_argument("input", metavar="RECORDING.landmarks.jsonl", help="landmark recording to judge")
+    parser.add_argument("--summary", action="store_true",
+                        help="also print one line per message on stderr (state, time, confidence, features)")
+    add_config_args(parser, source=False)
+    parser.set_defaults(func=run)
+
+
+def _err(msg: str) -> None:
+    print(f"posed falls: {msg}", file=sys.stderr, flush=True)
+
+
+def taken_frames(pipeline_config, frames: Iterable) -> Iterator:
+    """The frames the capture stage takes from a recording: at most ``target_fps`` by capture time."""
+    from daemon.stages.capture import _Thinner
+
+    thinner = _Thinner(pipeline_config.target_fps)
+    for frame in frames:
+        if thinner.take(frame.t):
+            yield frame
+
+
+def fit_frames(fit_config, header, frames: Iterable) -> Iterator[tuple[object, object]]:
+    """(LandmarkFrame, FitResult) per frame, fitted as the fitting stage fits them."""
+    from daemon.stages.fit import StreamFit
+    from fitting import Fitter
+
+    stream = StreamFit(Fitter(fit_config))
+    for frame in frames:
+        yield frame, stream.fit(frame, frame.t, tuple(header.image_size), header.camera)
+
+
+def detect(cfg, header, fitted: Iterable[tuple[object, object]], log=None) -> Iterator[tuple[object, object, list]]:
+    """(frame, result, fall-event messages) per frame, through the publisher stage's FallWatch."""
+    from daemon.messages import FitMsg
+    from daemon.stages.fall_watch import FallWatch
+
+    if log is None:
+        import structlog
+
+        log = structlog.get_logger("posed.falls")
+    watch = FallWatch.from_config(cfg.falls, cfg.robot_id, log)
+    size = tuple(header.image_size)
+    for frame, result in fitted:
+        yield frame, result, watch.update(FitMsg(result, frame, frame.t, size, (), header.camera))
+
+
+def event_payload(event, wall0: float | None = None) -> str:
+    """The text the publisher stage puts on events/fall for ``event``: ``stamp_event`` (format, version, unix
+    times), ``wall_time`` as the journal fills it, ``event_message``, the bus's ``dumps``. Offline the unix
+    times map the recording's time line onto the wall clock with its t = 0 at ``wall0`` (default: now)."""
+    from dataclasses import replace
+
+    from daemon.bus.payloads import dumps, event_message, stamp_event
+    from daemon.clock import iso
+
+    wall0 = time.time() if wall0 is None else wall0
+
+    def unix(t):
+        return None if t is None else round(wall0 + t, 4)
+
+    ev = stamp_event(event)
+    extra = {**ev.extra, "time_unix": unix(ev.t_detect), "t_onset_unix": unix(ev.t_onset),
+             "t_impact_unix": unix(ev.t_impact)}
+    ev = replace(ev, extra=extra, wall_time=ev.wall_time or iso(wall0 + ev.t_detect))
+    return dumps(event_message(ev.to_json()))
+
+
+def run(args: argparse.Namespace) -> int:
+    from fitting import CalibrationError
+    from landmarks import RecordingError, RecordingProblem, iter_recording
+
+    cfg = config_from_args(args)
+    try:
+        header, stream = iter_recording(args.input)
+    except (RecordingError, OSError) as exc:
+        _err(str(exc))
+        return 2
+    skipped = 0
+
+    def frames():
+        nonlocal skipped
+        for item in stream:
+            if isinstance(item, RecordingProblem):
+                print(str(item), file=sys.stderr, flush=True)
+                skipped += 1
+                continue
+            yield item
+
+    n = events = 0
+    wall0 = time.time()
+    try:
+        for _frame, _result, messages in detect(cfg, header, fit_frames(cfg.fitting, header,
+                                                                      taken_frames(cfg.pipeline, frames()))):
+            n += 1
+            for ev in messages:
+                events += 1
+                print(event_payload(ev, wall0), flush=True)
+                if args.summary:
+                    _err(f"{ev.state:10} t={ev.t_detect:.3f} s  confidence {ev.confidence:.2f}  "
+                         f"{','.join(ev.features)}")
+    except CalibrationError as exc:
+        _err(f"{exc} (fitting.calibration in the config)")
+        return 2
+    _err(f"{n} frames, {events} event message(s), {skipped} lines skipped")
+    return 1 if skipped else 0

@@ -1,0 +1,233 @@
+"""``posed render INPUT -o OUT.webm``: the video with what posed found drawn on it (viz.render).
+
+INPUT is a video (the landmark stage and the fit run here, in video mode, as the daemon runs them) or a
+landmark recording (``.landmarks.jsonl``) with its fit (``--fit FIT.jsonl``, from ``posed fit``) and, when
+there is one, the source video (``--video``; otherwise the drawing is on a grey background). The fall
+detector runs on the fits when ``falls.enabled``. Camera intrinsics: the recording's header, else the
+config's ``source.fx``.. (as the daemon), else ``--hfov`` when given; without any the fit is orthographic.
+
+Exit status: 0 written, 1 written but some frames or lines were unreadable, 2 nothing written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from daemon.commands import add_config_args, config_from_args
+
+VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("render", help="draw the landmarks, the fitted skeleton, joint angles and the fall "
+                                           "state over a video (with a side view)")
+    parser.add_argument("input", metavar="INPUT", help="a video, or a .landmarks.jsonl recording (then --fit)")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT.webm",
+                        help="video to write: .webm (VP8, plays in browsers), .mp4 (H.264, needs ffmpeg) or .avi")
+    parser.add_argument("--fit", metavar="FIT.jsonl", help="the fit of a landmark recording (posed fit output)")
+    parser.add_argument("--video", metavar="VIDEO", help="the source video of a landmark recording")
+    parser.add_argument("--hfov", type=float, metavar="DEG",
+                        help="assume a camera of this horizontal field of view when the input has no "
+                             "intrinsics (a video input is then fitted with the perspective model; a fit "
+                             "file keeps the model it was made with)")
+    parser.add_argument("--camera-height", type=float, default=0.0, metavar="M",
+                        help="the camera's height above the floor, for the side view's floor with a "
+                             "perspective fit (default: the floor is estimated below the lowest joint)")
+    parser.add_argument("--max-height", type=int, default=720, metavar="PX",
+                        help="scale the output down to at most this height (default 720; 0 = the input's "
+                             "size): encoding dominates the time on large frames")
+    parser.add_argument("--no-falls", action="store_true", help="do not run the fall detector")
+    parser.add_argument("--progress", action="store_true",
+                        help="show a progress bar on stderr (default: only when stderr is a terminal)")
+    add_config_args(parser, source=False)
+    parser.set_defaults(func=run)
+
+
+def _err(msg: str) -> None:
+    print(f"posed render: {msg}", file=sys.stderr, flush=True)
+
+
+def _intrinsics(header_camera, image_size, config, hfov):
+    from camera_model import Intrinsics
+
+    if header_camera is not None:
+        return header_camera
+    src = config.source
+    w, h = int(image_size[0]), int(image_size[1])
+    if src.fx > 0:
+        return Intrinsics(src.fx, src.fy or src.fx, src.cx or w / 2.0, src.cy or h / 2.0, src.width,
+                          src.height).scaled(w, h)
+    if hfov:
+        return Intrinsics.from_hfov(hfov, w, h)
+    return None
+
+
+def _fit_video(args, config, progress_on):
+    """Landmarks + fit over a video (video mode, like the daemon): (source info, intrinsics, items, problems)."""
+    from dataclasses import replace
+
+    from daemon.commands.landmarks import open_input
+    from daemon.stages.fit import StreamFit
+    from fitting import Fitter
+    from landmarks import PoseLandmarker
+    from viz.video import Progress
+
+    source = open_input(Path(args.input), None, config.source.fps)
+    intrinsics = _intrinsics(source.camera, source.image_size, config, args.hfov)
+    landmarker = PoseLandmarker(replace(config.landmarks, tracking=True))
+    stream = StreamFit(Fitter(config.fitting))   # the fitting stage's own video-mode logic
+    items, problems = [], 0
+    count = _frame_count(args.input)
+    bar = Progress(count, "landmarks + fit", progress_on)
+    for frame in source.frames:
+        if frame.image is None:
+            _err(frame.problem)
+            problems += 1
+            continue
+        lf = landmarker.process(frame.image, frame.t, frame.seq)
+        result = stream.fit(lf, lf.t, source.image_size, intrinsics)
+        items.append((lf.seq, lf.t, lf.landmarks, result))
+        bar.step()
+    bar.finish()
+    return source.image_size, source.fps, intrinsics, items, problems
+
+
+def _frame_count(path) -> int | None:
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    cap.release()
+    return n or None
+
+
+def _read_fit(path: str):
+    from fitting import FitResult
+
+    out, problems = {}, 0
+    with open(path, encoding="utf-8") as fh:
+        for lineno, line in enumerate(fh, 1):
+            if not line.strip():
+                continue
+            try:
+                r = FitResult.from_json(json.loads(line))
+            except ValueError as exc:   # json.JSONDecodeError is a ValueError
+                print(f"{path}:{lineno}: {exc}", file=sys.stderr)
+                problems += 1
+                continue
+            out[r.seq] = r
+    return out, problems
+
+
+def _from_recording(args, config):
+    from landmarks import RecordingProblem, iter_recording
+
+    header, frames = iter_recording(args.input)   # RecordingError: caller reports
+    fits, problems = _read_fit(args.fit)
+    items = []
+    for f in frames:
+        if isinstance(f, RecordingProblem):
+            print(str(f), file=sys.stderr)
+            problems += 1
+            continue
+        items.append((f.seq, f.t, f.landmarks, fits.get(f.seq)))
+    intrinsics = _intrinsics(header.camera, header.image_size, config, args.hfov)
+    return header.image_size, header.fps, intrinsics, items, problems
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+
+    from daemon.commands.landmarks import InputError
+    from landmarks import ModelMissingError, RecordingError
+    from viz.render import ClipRenderer, FrameInput
+    from viz.video import Progress, VideoError, VideoOut
+
+    config = config_from_args(args)
+    progress_on = args.progress or sys.stderr.isatty()
+    path = Path(args.input)
+    is_recording = path.name.endswith(".jsonl")
+    if not path.exists():
+        _err(f"{path}: no such file")
+        return 2
+    try:
+        if is_recording:
+            if not args.fit:
+                _err(f"{path} is a landmark recording: give its fit with --fit FIT.jsonl "
+                     f"(posed fit {path} -o FIT.jsonl)")
+                return 2
+            image_size, fps, intrinsics, items, problems = _from_recording(args, config)
+            video_path = args.video
+        else:
+            if args.fit:
+                _err("--fit goes with a landmark recording; a video is fitted here")
+                return 2
+            image_size, fps, intrinsics, items, problems = _fit_video(args, config, progress_on)
+            video_path = str(path)
+    except (InputError, RecordingError, ModelMissingError, OSError) as exc:
+        _err(str(exc))
+        return 2
+    if not items:
+        _err("the input holds no frame to draw")
+        return 2
+    states = _falls(items, image_size, intrinsics, config) if config.falls.enabled and not args.no_falls \
+        else [(None, None)] * len(items)
+    renderer = ClipRenderer(image_size, intrinsics, [it[3] for it in items],
+                             camera_height_m=args.camera_height)
+    cap = None
+    if video_path:
+        cap = cv2.VideoCapture(video_path)
+        if not cap.isOpened():
+            _err(f"{video_path}: cannot open the video (drawing on a grey background instead)")
+            cap, problems = None, problems + 1
+    bar = Progress(len(items), "render", progress_on)
+    w, h = renderer.size
+    k = args.max_height / h if 0 < args.max_height < h else 1.0
+    size = (int(round(w * k)), int(round(h * k)))
+    try:
+        with VideoOut(args.output, fps, size) as out:
+            next_index = 0
+            image = None
+            for (seq, t, lm, result), (state, event) in zip(items, states, strict=True):
+                if cap is not None:
+                    while next_index <= seq:           # the video frame of this seq (seq = frame index)
+                        ok, image = cap.read()
+                        next_index += 1
+                        if not ok:
+                            image = None
+                            break
+                    if image is not None and (image.shape[1], image.shape[0]) != tuple(image_size):
+                        image = cv2.resize(image, tuple(int(v) for v in image_size))
+                frame = renderer.frame(image, FrameInput(seq, t, lm, result, state, event))
+                if k != 1.0:
+                    frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
+                out.write(frame)
+                bar.step()
+    except VideoError as exc:
+        _err(str(exc))
+        return 2
+    finally:
+        if cap is not None:
+            cap.release()
+    bar.finish()
+    how = "perspective" if renderer.absolute else "orthographic"
+    _err(f"{len(items)} frames -> {args.output} ({out.size[0]}x{out.size[1]}, {fps:g} fps, "
+         f"{how} reprojection)")
+    return 1 if problems else 0
+
+
+def _falls(items, image_size, intrinsics, config):
+    """The fall detector's state after each frame and the last event message's state."""
+    from falls import FallDetector
+
+    detector = FallDetector(config.falls, config.robot_id)
+    out, last = [], None
+    for _seq, _t, lm, result in items:
+        if result is not None:
+            for ev in detector.update(result, lm, image_size, intrinsics):
+                last = ev.state
+        out.append((detector.state, last))
+    return out

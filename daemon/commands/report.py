@@ -1,0 +1,109 @@
+"""``posed report --day YYYY-MM-DD [-o REPORT.html]``: the day's summary for a caregiver (viz.report).
+
+Reads the joint-angle history and the event journal (read-only, like ``posed plot history``) and writes one
+self-contained HTML file: time standing, sitting, lying and not seen, sit-to-stand transitions, walking
+bouts, falls and how they ended, the day's joint-angle ranges, a posture timeline and the angle plot. The
+day runs from local midnight to midnight in the robot's time zone (``--tz`` another).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from daemon.commands import add_config_args, config_from_args, config_path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("report", help="a day's summary for a caregiver as one self-contained HTML file")
+    parser.add_argument("--day", required=True, metavar="YYYY-MM-DD", help="the day (local time), or today, "
+                                                                           "yesterday")
+    parser.add_argument("-o", "--output", metavar="REPORT.html", help="file to write (default: "
+                                                                      "posed-report-YYYY-MM-DD.html here)")
+    parser.add_argument("--db", metavar="FILE", help="history file (default: history.sqlite3 in the state dir)")
+    parser.add_argument("--journal", metavar="FILE", help="event journal (default: events.sqlite3 beside the "
+                                                          "history)")
+    parser.add_argument("--tz", metavar="ZONE", help="time zone (IANA name; default: this machine's)")
+    add_config_args(parser, source=False, example="pipeline.state_dir=/var/lib/posed")
+    parser.set_defaults(func=run)
+
+
+def _err(msg: str) -> None:
+    print(f"posed report: {msg}", file=sys.stderr, flush=True)
+
+
+def _day(text: str, tz):
+    import datetime as dt
+
+    now = dt.datetime.now(tz).date()
+    if text == "today":
+        return now
+    if text == "yesterday":
+        return now - dt.timedelta(days=1)
+    try:
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        raise ValueError(f"--day {text!r} is not a date; use YYYY-MM-DD (e.g. 2024-05-01), today or "
+                         "yesterday") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    import datetime as dt
+
+    import numpy as np
+
+    from daemon.commands.history import history_path
+    from daemon.config.paths import EVENTS_FILE
+    from daemon.history.plot import angle_series, event_marks
+    from daemon.history.store import ANGLE_COLUMNS, AngleHistory
+    from daemon.outbox.journal import EventJournal, JournalError
+    from viz.plots import local_zone
+    from viz.report import day_report
+    from viz.series import episodes
+
+    try:
+        tz = local_zone(args.tz)
+    except Exception as exc:  # zoneinfo.ZoneInfoNotFoundError is a KeyError
+        _err(f"unknown time zone {args.tz!r} ({exc}); use an IANA name such as Europe/Berlin")
+        return 2
+    try:
+        day = _day(args.day, tz)
+    except ValueError as exc:
+        _err(str(exc))
+        return 2
+    out = Path(args.output or f"posed-report-{day.isoformat()}.html")
+    if out.suffix.lower() not in (".html", ".htm"):
+        _err(f"{out} must end in .html (the report is one self-contained HTML file)")
+        return 2
+    config = config_from_args(args)
+    db = Path(args.db) if args.db else history_path(config.pipeline, config_path(args))
+    journal_path = Path(args.journal) if args.journal else db.with_name(EVENTS_FILE)
+    start = dt.datetime.combine(day, dt.time(0), tz).timestamp()
+    end = dt.datetime.combine(day + dt.timedelta(days=1), dt.time(0), tz).timestamp()
+    try:
+        with AngleHistory(db, readonly=True) as hist:
+            rows = list(hist.rows(start, end))
+    except FileNotFoundError as exc:
+        _err(str(exc))
+        return 2
+    series = angle_series(rows, ANGLE_COLUMNS)
+    falls = []
+    if journal_path.is_file():
+        try:
+            with EventJournal(journal_path, readonly=True) as journal:
+                falls = episodes(event_marks(journal.query(start, end)))
+        except (JournalError, FileNotFoundError) as exc:
+            _err(f"{exc}; the report needs the journal for the falls")
+            return 1
+    step = float(np.median(np.diff(series.time))) if len(series.time) > 1 else 1.0
+    text = day_report(series, falls, day, tz, robot=config.robot_id, max_step_s=max(1.0, 3.0 * step),
+                      sources=f"{db} ({len(rows)} samples) and "
+                              + (f"{journal_path}" if journal_path.is_file() else "no event journal"))
+    try:
+        out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        _err(f"cannot write {out}: {exc.strerror or exc}")
+        return 1
+    _err(f"{out}: {len(rows)} samples, {len(falls)} fall(s)")
+    return 0

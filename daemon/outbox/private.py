@@ -1,0 +1,60 @@
+"""The state folder and its files are private to the daemon's user: fall events and joint-angle history
+are health data.
+
+:func:`private_folder` creates the state folder with mode 0700 (its parents with the default mode) and
+tightens an existing one that holds nothing but the daemon's files; a folder shared with other files is
+left alone with one warning. :func:`private_file` creates a file with mode 0600 before SQLite opens it
+(SQLite gives its ``-wal`` and ``-shm`` files the main file's mode) and tightens an existing one. Only
+files and folders this user owns are changed. systemd's ``StateDirectory=`` comes out the same way.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+FOLDER_MODE = 0o700
+FILE_MODE = 0o600
+OWN_PREFIXES = ("events.sqlite3", "history.sqlite3")      # with -wal, -shm and *.corrupt-* siblings
+
+
+def private_folder(folder: Path, log=None) -> None:
+    """Create ``folder`` (0700) or make an existing one of ours 0700 when it holds only the daemon's files."""
+    folder = Path(folder)
+    if not folder.exists():
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            folder.mkdir(mode=FOLDER_MODE)
+        except FileExistsError:
+            pass
+    try:
+        st = folder.stat()
+        if st.st_uid != os.geteuid() or stat.S_IMODE(st.st_mode) == FOLDER_MODE:
+            return
+        if all(p.name.startswith(OWN_PREFIXES) for p in folder.iterdir()):
+            folder.chmod(FOLDER_MODE)
+        elif stat.S_IMODE(st.st_mode) & 0o077 and log is not None:
+            log.warning("state_folder_not_private", folder=str(folder), mode=oct(stat.S_IMODE(st.st_mode)),
+                        fix=f"the folder holds other files too; give posed a folder of its own "
+                            f"(pipeline.state_dir) or chmod 700 {folder}")
+    except OSError:
+        pass
+
+
+def private_file(path: Path) -> None:
+    """Create ``path`` empty with mode 0600 if it is missing; make an existing file of ours (and its SQLite
+    ``-wal``/``-shm`` siblings) 0600."""
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT, FILE_MODE)
+        os.close(fd)
+    except OSError:
+        return                  # the caller's open reports what is wrong with the folder or the disk
+    for p in (path, path.with_name(path.name + "-wal"), path.with_name(path.name + "-shm")):
+        try:
+            st = p.stat()
+            if st.st_uid == os.geteuid() and stat.S_IMODE(st.st_mode) != FILE_MODE:
+                p.chmod(FILE_MODE)
+        except OSError:
+            pass

@@ -1,0 +1,137 @@
+"""The shipped secured-bus configuration (deploy/zenoh/): a throwaway CA and certificates made by
+deploy/zenoh/make-certs.sh (Debian's openssl), the real supervisor and publisher stage (scripted fall) on a
+TLS listener on 127.0.0.1 with the shipped access control, and real Zenoh clients built from the shipped
+receiver config. A certificate whose common name is listed acknowledges events and reads the history; one
+that is not listed only watches (its ack changes nothing, its history query gets no reply); a client without
+a certificate, or without TLS, cannot connect at all."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from tests.daemon.harness import Harness
+from tests.daemon.plan_stages import FALL_OVERRIDES
+from tests.daemon.redteam_util import until
+from tests.daemon.zenoh_util import config, free_port
+
+ROOT = Path(__file__).resolve().parents[2]
+DEPLOY = ROOT / "deploy" / "zenoh"
+INSTALLED_TLS_DIR = "/etc/posed/tls/"       # where the shipped templates look for the certificates
+LISTED = "caregiver-app"                    # a common name the shipped posed-daemon.json5 lists as receiver
+
+
+def _render(template: Path, out: Path, tls_dir: Path, endpoint: str | None = None) -> Path:
+    """The shipped template with its certificate folder (and, for a receiver, its endpoint) replaced."""
+    text = template.read_text()
+    assert INSTALLED_TLS_DIR in text, f"{template} no longer names {INSTALLED_TLS_DIR}"
+    text = text.replace(INSTALLED_TLS_DIR, f"{tls_dir}/")
+    if endpoint is not None:
+        assert "tls/127.0.0.1:7447" in text
+        text = text.replace("tls/127.0.0.1:7447", endpoint)
+    out.write_text(text)
+    return out
+
+
+def _receiver(tmp_path: Path, certs: Path, cn: str, endpoint: str) -> zenoh.Session:
+    """A client opened from the shipped receiver.json5, holding the certificate of ``cn``."""
+    d = tmp_path / f"client-{cn}"
+    d.mkdir()
+    shutil.copy(certs / "ca.pem", d / "ca.pem")
+    shutil.copy(certs / f"{cn}.pem", d / "receiver.pem")
+    shutil.copy(certs / f"{cn}.key", d / "receiver.key")
+    cfg = _render(DEPLOY / "receiver.json5", d / "receiver.json5", d, endpoint)
+    deadline = time.monotonic() + 30
+    while True:         # the daemon may still be starting
+        try:
+            return zenoh.open(zenoh.Config.from_file(str(cfg)))
+        except Exception:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+
+
+
+def _statuses(session: zenoh.Session, robot: str) -> tuple[list, object]:
+    got: list = []
+    sub = session.declare_subscriber(f"posed/{robot}/status", lambda s: got.append(json.loads(s.payload.to_string())))
+    return got, sub
+
+
+def _history(session: zenoh.Session, robot: str) -> list[str]:
+    replies = session.get(f"posed/{robot}/events/history/**?limit=10",
+                          consolidation=zenoh.ConsolidationMode.NONE, timeout=3)
+    return sorted(str(r.ok.key_expr) for r in replies if r.ok is not None)
+
+
+def test_only_listed_receivers_ack_and_read_history(tmp_path):
+    assert shutil.which("openssl"), "Debian's openssl is missing: deploy/bootstrap.sh installs it"
+    certs = tmp_path / "certs"
+    r = subprocess.run(["sh", str(DEPLOY / "make-certs.sh"), str(certs), LISTED, "stranger"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert (certs / "ca.key").stat().st_mode & 0o077 == 0, "private keys must not be readable by others"
+    daemon_cfg = _render(DEPLOY / "posed-daemon.json5", tmp_path / "posed-daemon.json5", certs)
+    ep = f"tls/127.0.0.1:{free_port()}"
+    h = Harness(tmp_path, f"zenoh.listen=[{ep}]", f"zenoh.config_file={daemon_cfg}",
+                f"pipeline.state_dir={tmp_path / 'state'}", "robot_id=sec", "zenoh.event_republish_s=600",
+                *FALL_OVERRIDES, publisher=True)
+    try:
+        with _receiver(tmp_path, certs, "stranger", ep) as stranger:
+            # an unlisted certificate from the same CA may watch: it gets the status ...
+            statuses, _sub = _statuses(stranger, "sec")
+            until(lambda: any(s.get("events", {}).get("unacknowledged", 0) >= 3 for s in statuses), 60,
+                   "three unacknowledged fall events in the status (seen by the unlisted client)")
+            # ... but its history query is refused (no reply) and its ack has no effect
+            assert _history(stranger, "sec") == []
+            event_id = _journal(tmp_path)[0][0]
+            stranger.put("posed/sec/events/ack", event_id)
+            stranger.put("posed/sec/events/ack", json.dumps({"id": event_id}))
+            n = len(statuses)
+            until(lambda: len(statuses) >= n + 5, 10, "five more status messages")   # 5 x 0.2 s periods
+            assert statuses[-1]["events"]["unacknowledged"] == 3
+            assert all(acked is None for _, acked in _journal(tmp_path)), "an unlisted client acknowledged"
+
+        with _receiver(tmp_path, certs, LISTED, ep) as listed:
+            statuses, _sub = _statuses(listed, "sec")
+            keys = _history(listed, "sec")
+            assert keys == sorted(f"posed/sec/events/history/{event_id}/{st}"
+                                  for st in ("falling", "on_floor", "alarm"))
+            # the documented way for an administrator: `posed events ack` with a receiver config holding a
+            # listed certificate (its session takes zenoh.config_file like the daemon's)
+            r = subprocess.run([sys.executable, "-m", "daemon.cli", "events", "ack", event_id, "--connect", ep,
+                                "--robot", "sec", "--journal", str(tmp_path / "state" / "events.sqlite3"),
+                                "--set", f"zenoh.config_file={tmp_path / f'client-{LISTED}' / 'receiver.json5'}"],
+                               cwd=ROOT, capture_output=True, text=True, timeout=60)
+            assert r.returncode == 0, r.stdout + r.stderr
+            until(lambda: statuses and statuses[-1]["events"]["unacknowledged"] == 0, 10, "the listed ack")
+            assert all(acked is not None for _, acked in _journal(tmp_path))
+
+        # no certificate at all, or plain TCP to the TLS port: no session
+        nocert = tmp_path / "nocert.json5"
+        nocert.write_text(json.dumps({"mode": "client", "connect": {"endpoints": [ep]},
+                                      "scouting": {"multicast": {"enabled": False}},
+                                      "transport": {"link": {"tls": {"root_ca_certificate": str(certs / "ca.pem")}}}}))
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(zenoh.Config.from_file(str(nocert)))
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(config("client", connect=[ep.replace("tls/", "tcp/")]))
+        assert h.proc.poll() is None
+        code, _, err, _ = h.stop()
+        assert code == 0, err
+    finally:
+        if h.proc.poll() is None:
+            h.stop()
+
+
+def _journal(tmp_path: Path) -> list[tuple[str, float | None]]:
+    with sqlite3.connect(tmp_path / "state" / "events.sqlite3") as db:
+        return db.execute("SELECT event_id, acked_at FROM messages ORDER BY wall").fetchall()

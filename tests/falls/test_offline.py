@@ -1,0 +1,74 @@
+"""``posed falls RECORDING``: the fit and the detector offline on real recordings (shared/data/falls/urfd_dev).
+
+The clips are real falls and daily activities of the UR Fall Detection dataset, landmarks by MediaPipe
+Holistic (no elbows, people lost once they lie on the floor). The camera geometry is the labels' (level,
+0.85 m), given with ``--set`` as a user would.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from daemon.cli import main
+from falls.event import FallEvent
+
+GEOMETRY = ["--set", "falls.camera_tilt_deg=0", "--set", "falls.camera_roll_deg=0",
+            "--set", "falls.camera_height_m=0.85", "--set", "robot_id=bench1"]
+
+
+def clip(shared_data, name: str):
+    path = shared_data / "falls" / "urfd_dev" / f"{name}.landmarks.jsonl"
+    if not path.is_file():
+        pytest.fail(f"{path} is missing: the urfd_dev recordings live in shared/data/falls (see its README)")
+    return path
+
+
+def run(capsys, path, *extra) -> tuple[int, list[dict], str]:
+    code = main(["falls", str(path), *GEOMETRY, *extra])
+    out = capsys.readouterr()
+    return code, [json.loads(line) for line in out.out.splitlines()], out.err
+
+
+def labels(shared_data) -> dict:
+    return {c["clip"]: c for c in json.loads((shared_data / "falls" / "urfd_dev" / "labels.json").read_text())["clips"]}
+
+
+def test_a_real_fall_that_ends_out_of_sight_is_found(shared_data, capsys):
+    """urfd_00: the extractor loses the person 0.17 s after the impact; the descent before it is the event."""
+    code, events, err = run(capsys, clip(shared_data, "urfd_00_fall"))
+    assert code == 0, err
+    assert events, f"no event; stderr: {err}"
+    first = events[0]
+    assert first["state"] == "falling" and first["robot"] == "bench1"
+    assert "lost_after_descent" in first["features"] and "pelvis_descent_fast" in first["features"]
+    impact = labels(shared_data)["urfd_00_fall"]["impact_t"]
+    assert 0.0 <= first["t_detect"] - impact <= 1.0
+    assert 0.5 <= first["confidence"] < 0.9            # not seen on the floor: less sure than a seen fall
+    assert first["wall_time"] and FallEvent.from_json(first).to_json() == first
+    from client.contract import errors
+
+    assert errors(first) == []                                     # the published message's contract
+    assert first["format"] == "posed.fall_event" and first["time_unix"] - first["t_detect"] > 1e9
+
+
+def test_a_real_fall_seen_on_the_floor(shared_data, capsys):
+    code, events, _err = run(capsys, clip(shared_data, "urfd_08_fall"))
+    assert code == 0 and events[0]["state"] == "falling"
+    assert "pelvis_at_floor_level" in events[0]["features"]
+    assert abs(events[0]["t_detect"] - labels(shared_data)["urfd_08_fall"]["impact_t"]) <= 1.0
+
+
+def test_a_daily_activity_stays_quiet(shared_data, capsys):
+    """urfd_16: a daily activity with the person in view throughout."""
+    code, events, err = run(capsys, clip(shared_data, "urfd_16_adl"), "--summary")
+    assert code == 0 and events == []
+    assert "40 frames, 0 event message(s)" in err   # 4 s at 30 fps, taken at pipeline.target_fps 10
+
+
+def test_unreadable_recording_is_named(tmp_path, capsys):
+    bad = tmp_path / "x.landmarks.jsonl"
+    bad.write_text("not json\n")
+    assert main(["falls", str(bad)]) == 2
+    assert str(bad) in capsys.readouterr().err

@@ -1,0 +1,132 @@
+"""The wheel: built offline from a copy of the tree (``pip wheel --no-deps --no-build-isolation``), it holds every
+module and data file of the packages, the licence and the ``posed`` script; installed into a fresh venv (its
+dependencies taken from the project's venv through a path entry, never the project's own source), ``posed``
+runs from it with the embedded default config and no file beside it, and ``posed demo`` works."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tomllib
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+IGNORE = shutil.ignore_patterns(".venv", ".git", "build", "dist", "*.egg-info", "__pycache__", ".pytest_cache",
+                                ".ruff_cache", "*.pyc", "*.nbi", "*.nbc")
+
+
+def _packages() -> list[str]:
+    """The top-level packages pyproject.toml ships (its packages.find include patterns, matched on folders)."""
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    patterns = meta["tool"]["setuptools"]["packages"]["find"]["include"]
+    roots = sorted({p.rstrip("*").rstrip(".") for p in patterns})
+    return [r for r in roots if (ROOT / r / "__init__.py").is_file()]
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    tmp = tmp_path_factory.mktemp("wheel")
+    src = tmp / "src"
+    shutil.copytree(ROOT, src, ignore=IGNORE)
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "--no-index",
+                        "-w", str(tmp / "dist"), str(src)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    (whl,) = (tmp / "dist").glob("posed-*.whl")
+    return whl
+
+
+def test_every_top_level_folder_with_code_is_shipped():
+    """A new package (a folder with __init__.py) must be added to packages.find, or the wheel lacks it."""
+    shipped = set(_packages())
+    code = {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file() and p.name != "tests"}
+    assert code <= shipped, f"add to [tool.setuptools.packages.find] include: {sorted(code - shipped)}"
+
+
+def test_the_wheel_holds_every_module_data_file_licence_and_script(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    expected = []
+    for pkg in _packages():
+        for path in (ROOT / pkg).rglob("*"):
+            rel = path.relative_to(ROOT)
+            if path.is_file() and "__pycache__" not in rel.parts and path.suffix not in (".pyc", ".nbi", ".nbc"):
+                expected.append(rel.as_posix())          # modules and every data file the code may open
+    missing = sorted(set(expected) - names)
+    assert not missing, f"not in the wheel (package-data in pyproject.toml?): {missing[:20]}"
+    assert not [n for n in names if "__pycache__" in n or n.endswith((".nbi", ".nbc"))]
+    # what the code opens beside its modules: the fitting kernels' sources (hashed by fitting.jitcache), the
+    # MediaPipe peer script of `posed bench peer`
+    assert {"fitting/udeas.py", "fitting/refine.py", "bench/commands/_mediapipe_peer.py"} <= names
+    dist_info = next(n.split("/")[0] for n in names if n.endswith(".dist-info/METADATA"))
+    meta = zipfile.ZipFile(wheel).read(f"{dist_info}/METADATA").decode()
+    assert "License-Expression: Apache-2.0" in meta
+    from daemon.version import __version__
+
+    assert f"\nVersion: {__version__}\n" in meta and wheel.name.startswith(f"posed-{__version__}-")
+    licence = zipfile.ZipFile(wheel).read(f"{dist_info}/licenses/LICENSE").decode()
+    assert licence == (ROOT / "LICENSE").read_text() and "Apache License" in licence and "Version 2.0" in licence
+    assert "posed = daemon.cli:main" in zipfile.ZipFile(wheel).read(f"{dist_info}/entry_points.txt").decode()
+
+
+@pytest.fixture(scope="module")
+def installed(wheel, tmp_path_factory) -> Path:
+    """A fresh venv holding only the wheel; the dependencies come from the project's venv by a path entry
+    (a plain path in a .pth is not a site dir: the project's editable-install hook there is not run)."""
+    venv = tmp_path_factory.mktemp("venv") / "v"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True, timeout=120)
+    py = venv / "bin" / "python"
+    r = subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "-q", "--no-deps", "--no-index",
+                        str(wheel)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    site = Path(subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                               capture_output=True, text=True, check=True).stdout.strip())
+    (site / "zz_project_deps.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    return venv
+
+
+def _posed(venv: Path, *args: str, env: dict | None = None, timeout: float = 120):
+    environ = {k: v for k, v in os.environ.items() if k not in ("POSED_CONFIG", "PYTHONPATH")}
+    return subprocess.run([str(venv / "bin" / "posed"), *args], capture_output=True, text=True, timeout=timeout,
+                          cwd=venv, env={**environ, **(env or {})})
+
+
+def test_the_installed_wheel_runs_from_its_own_files(installed):
+    r = _posed(installed, "--version")
+    from daemon.version import __version__
+
+    assert r.returncode == 0 and r.stdout.strip() == f"posed {__version__}", r.stdout + r.stderr
+    where = subprocess.run([str(installed / "bin" / "python"), "-c", "import daemon, fitting; "
+                            "print(daemon.__file__); print(fitting.__file__)"],
+                           capture_output=True, text=True, cwd=installed, check=True).stdout.split()
+    assert all(str(installed) in w for w in where), where          # not the checkout
+    r = _posed(installed, "config", "template")
+    from daemon.config.doc import template
+
+    assert r.returncode == 0 and r.stdout == template(), r.stderr
+    show = _posed(installed, "config", "show", "--set", "robot_id=wheel")
+    assert show.returncode == 0, show.stderr                      # no config.yaml beside the package: embedded
+    assert '"robot_id": "wheel"' in show.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1000)
+def test_models_verify_and_demo_from_the_installed_wheel(installed, tmp_path, shared_data):
+    """`posed models verify` and `posed demo` from the wheel, on the models `make` fetched (`posed models fetch`
+    from a wheel needs the `convert` extra, as the README says; its error names it)."""
+    from landmarks import default_models_dir
+
+    env = {"POSED_MODELS_DIR": str(default_models_dir(None)), "POSED_SHARED_DATA": str(shared_data),
+           "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    r = _posed(installed, "models", "verify", env=env)
+    assert r.returncode == 0 and "intact" in r.stdout, r.stdout + r.stderr
+    r = _posed(installed, "warmup", env=env, timeout=600)       # what deploy/install.sh and `make` do
+    assert r.returncode == 0 and "a new process loads them in" in r.stdout, r.stdout + r.stderr
+    r = _posed(installed, "demo", "--seconds", "2", env={**env, "TMPDIR": str(tmp_path)}, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.splitlines()[-1].startswith("posed demo:") and "daemon exit status 0" in r.stdout
+    assert not list(tmp_path.glob("posed-demo-*")), "posed demo left its temporary state behind"

@@ -1,0 +1,162 @@
+"""Plots and the daily report, from a history database and journal made by replaying real recordings with a
+fall (tests/viz/day.py): clock axis in the robot's zone, plain names, fall markers that do not overlap,
+unmeasured angles absent, and a report that holds everything inline."""
+
+from __future__ import annotations
+
+import base64
+import datetime as dt
+import re
+from zoneinfo import ZoneInfo
+
+import cv2
+import numpy as np
+import pytest
+
+from daemon.cli import main
+from daemon.history.plot import angle_series, event_marks
+from daemon.history.store import ANGLE_COLUMNS, AngleHistory
+from daemon.outbox.journal import EventJournal
+from tests.viz.day import build_day
+from viz import posture
+from viz.names import FIXED_ANGLES, PANELS, label
+from viz.plots import angle_figure
+from viz.series import AngleSeries, Episode, episodes
+
+TZ = ZoneInfo("America/New_York")   # not the machine's zone (UTC here): the axis must follow --tz
+DAY = dt.date(2026, 7, 14)          # summer time: UTC-04:00
+
+
+@pytest.fixture(scope="module")
+def day(tmp_path_factory, shared_data):
+    folder = tmp_path_factory.mktemp("day")
+    written = build_day(folder, shared_data, DAY, TZ)
+    assert written["rows"] > 50 and any(s == "falling" for _, s, _ in written["events"])
+    return folder, written
+
+
+def _series_and_falls(folder):
+    with AngleHistory(folder / "history.sqlite3", readonly=True) as h:
+        rows = list(h.rows())
+    with EventJournal(folder / "events.sqlite3", readonly=True) as j:
+        falls = episodes(event_marks(j.query()))
+    return angle_series(rows, ANGLE_COLUMNS), falls
+
+
+def test_history_plot_reads_as_clock_time_with_plain_names_and_fall_markers(day):
+    folder, written = day
+    series, falls = _series_and_falls(folder)
+    assert len(falls) == len({eid for eid, _, _ in written["events"]}) >= 2
+    fig = angle_figure(series, [(k, PANELS[k]) for k in ("legs", "trunk")], falls, title="t", tz=TZ)
+    fig.canvas.draw()
+    axes = fig.axes
+    ticks = [t.get_text() for t in axes[-1].get_xticklabels() if t.get_text()]
+    # the sessions run 08:10 .. 19:20 local (New York): clock ticks of that day, in that zone
+    hours = [int(m.group(1)) for t in ticks if (m := re.fullmatch(r"(\d\d):00", t))]
+    assert hours and min(hours) >= 8 and max(hours) <= 20
+    assert "America/New_York, UTC-04:00" in axes[-1].get_xlabel()
+    legend = [t.get_text() for ax in axes for t in ax.get_legend().get_texts()]
+    assert "left knee flexion" in legend and "right hip flexion" in legend
+    assert not any(label(n) in legend for n in FIXED_ANGLES) and not any("theta" in t for t in legend)
+    styles = {line.get_label(): line.get_linestyle() for line in axes[0].get_lines() if line.get_label()[0] != "_"}
+    assert styles["left knee flexion"] == "-" and styles["right knee flexion"] == "--"
+    marks = [c for c in axes[0].texts if c.get_text().startswith("fall ")]
+    assert len(marks) == len(falls)          # hours apart: one label each
+    boxes = [m.get_window_extent() for m in marks]
+    assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+def test_fall_markers_close_together_do_not_overlap():
+    t = np.arange(0, 600, 1.0) + 1.78e9
+    series = AngleSeries(t, {"theta_kn_l": np.full(len(t), 20.0)}, clock=True)
+    falls = [Episode(str(i), 1.78e9 + 100 + 3 * i, 1.78e9 + 110 + 3 * i, ("falling",)) for i in range(5)]
+    fig = angle_figure(series, [("legs", PANELS["legs"])], falls, title="t", tz=TZ)
+    fig.canvas.draw()
+    marks = [c for c in fig.axes[0].texts if c.get_text().startswith("fall")]
+    boxes = [m.get_window_extent() for m in marks]
+    assert [m.get_text() for m in marks] == ["falls 1-5"]    # 3 s apart on a 10 min axis: one label
+    falls += [Episode("6", 1.78e9 + 400, 1.78e9 + 401, ("falling",))]
+    fig = angle_figure(series, [("legs", PANELS["legs"])], falls, title="t", tz=TZ)
+    fig.canvas.draw()
+    marks = [c for c in fig.axes[0].texts if c.get_text().startswith("fall")]
+    assert [m.get_text() for m in marks] == ["falls 1-5", "fall 6"]
+    boxes = [m.get_window_extent() for m in marks]
+    assert not boxes[0].overlaps(boxes[1])
+
+
+def test_unmeasured_angles_are_gaps_not_zero():
+    from fitting import FitResult
+
+    ok = FitResult(0, 0.0, True, joint_angles_deg={"theta_kn_l": 30.0, "theta_el_l": 0.0, "theta_hd": 0.0},
+                   variables={"theta_bd": 1.0}, extra={"unobserved": ["theta_el_l"]})
+    bad = FitResult.failure(1, 0.1, "no person")
+    s = AngleSeries.from_fits([ok, bad, ok])
+    assert "theta_hd" not in s.angles                       # held fixed by the model: never a series
+    assert np.isnan(s.angles["theta_el_l"]).all()           # not observed in that frame
+    assert s.angles["theta_kn_l"][0] == 30.0 and np.isnan(s.angles["theta_kn_l"][1])
+    assert not s.clock and s.time[0] == 0.0
+
+
+def test_plot_commands_write_pngs(day, tmp_path, capsys):
+    folder, _ = day
+    png = tmp_path / "h.png"
+    assert main(["plot", "history", "--db", str(folder / "history.sqlite3"), "--since", "2026-07-01",
+                 "--tz", "America/New_York", "-o", str(png)]) == 0
+    img = cv2.imread(str(png))
+    assert img is not None and img.shape[1] == 1200
+    assert main(["plot", "history", "--db", str(folder / "history.sqlite3"), "--tz", "Mars/Olympus",
+                 "-o", str(png)]) == 2
+    assert "unknown time zone" in capsys.readouterr().err
+
+
+def test_posture_rules_on_the_model():
+    assert posture.classify({"theta_bd": 0.0, "phi_bd": 0.0, "psi_bd": 0.0}) == "standing"
+    assert posture.classify({"theta_bd": 0.0, "phi_bd": 0.0, "psi_bd": 0.0, "theta_hp_l": 90.0,
+                             "theta_hp_r": 90.0, "theta_kn_l": 90.0, "theta_kn_r": 90.0}) == "sitting"
+    assert posture.classify({"theta_bd": 90.0, "phi_bd": 0.0, "psi_bd": 0.0}) == "lying"
+    assert posture.classify({"theta_bd": 0.0, "phi_bd": 85.0, "psi_bd": 0.0}) == "lying"
+    trunk, thigh = posture.inclinations({"theta_bd": 30.0, "phi_bd": 0.0, "psi_bd": 0.0})
+    assert trunk == pytest.approx(30.0, abs=0.5) and thigh == pytest.approx(30.0, abs=0.5)
+
+
+def test_report_is_one_self_contained_html_with_the_day(day, tmp_path):
+    folder, written = day
+    out = tmp_path / "r.html"
+    assert main(["report", "--day", DAY.isoformat(), "--db", str(folder / "history.sqlite3"),
+                 "--tz", "America/New_York", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert not re.search(r"(src|href)=['\"](?!data:)", text)          # nothing loaded from anywhere
+    pngs = re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)", text)
+    assert len(pngs) >= 2
+    for p in pngs:
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(p), np.uint8), cv2.IMREAD_COLOR)
+        assert img is not None and img.shape[0] > 100
+    for word in ("standing", "sitting", "lying", "not seen", "sit-to-stand", "walking bouts",
+                 "left knee flexion", "how it ended"):
+        assert word in text
+    first_id, _, first_at = written["events"][0]
+    started = dt.datetime.fromtimestamp(first_at, TZ).strftime("%H:%M:%S")
+    acked = dt.datetime.fromtimestamp(first_at + 95.0, TZ).strftime("%H:%M:%S")
+    assert re.search(rf"<td>fall 1</td><td>{started}</td>.*<td>{acked}</td>", text)
+    n_falls = len({eid for eid, _, _ in written["events"]})
+    assert text.count("<td>fall ") == n_falls
+    assert "<b class='warn'>no</b>" in text                             # the second fall was never acknowledged
+
+
+def test_plot_fit_takes_the_start_in_the_plot_zone_and_marks_posed_falls_events(shared_data, tmp_path, capsys):
+    from daemon.commands.plot import _start_time
+
+    assert _start_time("2026-07-14T10:00:00", TZ) == dt.datetime(2026, 7, 14, 14, 0, tzinfo=dt.UTC).timestamp()
+    assert _start_time("2026-07-14T10:00:00Z", TZ) == dt.datetime(2026, 7, 14, 10, 0, tzinfo=dt.UTC).timestamp()
+    rec = shared_data / "falls" / "urfd_dev" / "urfd_04_fall.landmarks.jsonl"
+    fit, events = tmp_path / "fit.jsonl", tmp_path / "events.jsonl"
+    assert main(["fit", str(rec), "-o", str(fit)]) == 0
+    geometry = ["--set", "falls.camera_height_m=0.85"]
+    assert main(["falls", str(rec), *geometry]) == 0
+    events.write_text(capsys.readouterr().out)
+    assert events.read_text().strip(), "posed falls found no fall in urfd_04 (the detector changed?)"
+    png = tmp_path / "fit.png"
+    assert main(["plot", "fit", str(fit), "--events", str(events), "--start", "2026-07-14T10:00:00",
+                 "--tz", "America/New_York", "-o", str(png)]) == 0
+    assert "1 fall event(s)" in capsys.readouterr().err
+    assert cv2.imread(str(png)) is not None

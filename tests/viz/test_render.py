@@ -1,0 +1,134 @@
+"""`posed render` on the real squat video: the output decodes, has every frame, and the fitted skeleton is
+drawn on the person (inside the box of the reference BlazePose landmarks, tfjs-models' own output)."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from camera_model import Intrinsics
+from daemon.cli import main
+from viz.reproject import reproject
+
+FRAMES = 65          # pose_squats.mp4 (data README)
+SIZE = (720, 1280)
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory, shared_data):
+    out = tmp_path_factory.mktemp("render") / "squat.webm"
+    video = shared_data / "reference" / "tfjs_pose_squats" / "pose_squats.mp4"
+    assert main(["render", str(video), "-o", str(out), "--max-height", "0"]) == 0   # full size: pixels compared
+    return out, video
+
+
+def _frames(path):
+    cap = cv2.VideoCapture(str(path))
+    out = []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            break
+        out.append(f)
+    cap.release()
+    return out
+
+
+def _skeleton_mask(img: np.ndarray) -> np.ndarray:
+    """Pixels in the fitted skeleton's saturated colours (orange left, blue right, green centre)."""
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    h, s, v = hsv[..., 0], hsv[..., 1], hsv[..., 2]
+    strong = (s > 150) & (v > 150)
+    return strong & (((h >= 8) & (h <= 22)) | ((h >= 95) & (h <= 110)) | ((h >= 50) & (h <= 70)))
+
+
+@pytest.mark.slow
+def test_render_plays_every_frame_with_a_side_view(rendered):
+    out, _ = rendered
+    frames = _frames(out)
+    assert len(frames) == FRAMES
+    w, h = SIZE
+    assert frames[0].shape[0] == h and frames[0].shape[1] > w   # the image plus the side view beside it
+
+
+@pytest.mark.slow
+def test_drawn_skeleton_lies_on_the_person(rendered, shared_data):
+    out, video = rendered
+    ref = json.loads((shared_data / "reference" / "tfjs_pose_squats" / "pose_squats.full.json").read_text())
+    drawn, source = _frames(out), _frames(video)
+    assert len(drawn) == len(source) == len(ref) == FRAMES
+    w, h = SIZE
+    s = min(w, h) / 640.0
+    checked = 0
+    for img, src, lms in zip(drawn, source, ref, strict=True):
+        pts = np.array(lms, float)[:, :2]
+        lo, hi = pts.min(0), pts.max(0)
+        # margin: a joint dot's radius and a line's half width (viz.overlay, 5 s and 2 s px) plus the fit's
+        # largest accepted 2D error, 5 % of the body height (fitting.max_error)
+        margin = 7 * s + 0.05 * (hi[1] - lo[1])
+        mask = _skeleton_mask(img[:, :w]) & ~_skeleton_mask(src)
+        mask[: int(240 * s), : int(340 * s)] = False          # the angle table (coloured text)
+        mask[h - int(100 * s):, :] = False                     # the key and the reprojection note
+        ys, xs = np.nonzero(mask)
+        if len(xs) < 100:
+            continue
+        inside = (xs >= lo[0] - margin) & (xs <= hi[0] + margin) & (ys >= lo[1] - margin) & (ys <= hi[1] + margin)
+        assert inside.mean() > 0.97, f"{(~inside).sum()} skeleton pixels off the person"
+        checked += 1
+    assert checked >= FRAMES - 5   # the person is in every frame; a frame or two may have no fit
+
+
+def test_perspective_reprojection_is_the_pinhole_of_the_fitted_joints():
+    cam = Intrinsics(600.0, 600.0, 320.0, 240.0, 640, 480)
+    joints = {"mid_hip": (0.0, 0.0, 0.0), "left_knee": (0.1, 0.45, -0.05), "left_shoulder": (0.18, -0.5, 0.02)}
+    root = (0.3, 0.1, 3.0)
+    r = reproject(joints, root, cam, None)
+    assert r.how == "perspective"
+    for name, p in joints.items():
+        x, y, z = (np.array(p) + np.array(root))
+        assert r.pixels[name] == pytest.approx((600 * x / z + 320, 600 * y / z + 240))
+
+
+def test_orthographic_reprojection_recovers_scale_and_offset():
+    joints = {"left_hip": (0.1, 0.0, 0.0), "right_hip": (-0.1, 0.0, 0.0), "left_knee": (0.12, 0.45, 0.0),
+              "right_knee": (-0.1, 0.44, 0.1), "left_shoulder": (0.2, -0.5, 0.0)}
+    lm = np.full((33, 5), np.nan)
+    idx = {"left_hip": 23, "right_hip": 24, "left_knee": 25, "right_knee": 26, "left_shoulder": 11}
+    for n, i in idx.items():
+        lm[i] = (300 + 250 * joints[n][0], 200 + 250 * joints[n][1], 0, 1, 1)
+    r = reproject(joints, None, None, lm)
+    assert r.how.startswith("orthographic")
+    for n, i in idx.items():
+        assert r.pixels[n] == pytest.approx(tuple(lm[i, :2]))
+
+
+def test_render_refuses_a_recording_without_its_fit(shared_data, tmp_path, capsys):
+    rec = shared_data / "falls" / "urfd_dev" / "urfd_04_fall.landmarks.jsonl"
+    assert main(["render", str(rec), "-o", str(tmp_path / "x.webm")]) == 2
+    assert "--fit" in capsys.readouterr().err
+
+
+def test_render_a_recording_with_its_fit_every_frame_perspective(shared_data, tmp_path, capsys):
+    rec = shared_data / "falls" / "urfd_dev" / "urfd_04_fall.landmarks.jsonl"
+    fit = tmp_path / "fit.jsonl"
+    assert main(["fit", str(rec), "-o", str(fit)]) == 0
+    out = tmp_path / "fall.webm"
+    assert main(["render", str(rec), "--fit", str(fit), "-o", str(out), "--set", "falls.camera_height_m=0.85",
+                 "--camera-height", "0.85"]) == 0
+    assert "perspective reprojection" in capsys.readouterr().err     # the recording carries intrinsics
+    frames = _frames(out)
+    lines = rec.read_text().splitlines()
+    assert len(frames) == len(lines) - 1                             # one per recorded frame (header excluded)
+    assert frames[0].shape[:2] == (480, 640 + 400)
+
+
+def test_render_reports_bad_inputs(tmp_path, capsys):
+    assert main(["render", str(tmp_path / "none.mp4"), "-o", str(tmp_path / "x.webm")]) == 2
+    assert "no such file" in capsys.readouterr().err
+    bad = tmp_path / "bad.mp4"
+    bad.write_bytes(b"not a video at all" * 100)
+    assert main(["render", str(bad), "-o", str(tmp_path / "x.webm")]) == 2
+    assert "cannot open" in capsys.readouterr().err

@@ -1,0 +1,186 @@
+"""Joint-angle plots a person can read (matplotlib's Agg canvas drawn directly: no pyplot, no GUI, no global
+backend state).
+
+One panel per group of angles (``names.PANELS``), y in degrees, x the clock in the robot's local time zone
+(``AngleSeries.clock``) or the time from the recording's first frame. Every line is named in plain words
+("left knee flexion"); left is a solid line, right a dashed one (and the trunk's three angles solid, dash-dot
+and dotted), so the sides can be told apart in grey print too. Not-measured samples are gaps, never 0. Fall
+episodes are shaded from their first to their last message, numbered above the top panel (nearby episodes
+share one label, ``falls 2-4``, so labels never overlap), and described one per line under the plot.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import io
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from zoneinfo import ZoneInfo
+
+import numpy as np
+from matplotlib import dates as mdates
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
+
+from viz.names import PANEL_TITLES, label, side
+from viz.series import AngleSeries, Episode
+
+# one colour per joint family; the side is told by the line style
+FAMILY_COLOURS = {"hp": "#1f5fa8", "kn": "#7b3294", "sh": "#2e8b57", "el": "#b8860b", "tr": "#333333",
+                  "bd": "#7f6000"}
+AXIS_STYLES = {"theta": "-", "phi": "-.", "psi": ":"}
+FALL_COLOUR = "#d62728"
+
+
+def local_zone(name: str | None = None) -> dt.tzinfo:
+    """The time zone ``name`` (IANA, e.g. ``Europe/Berlin``), else this machine's (the robot's) local zone:
+    ``$TZ``, else the zone /etc/localtime points at (so summer time is right on every date), else the current
+    UTC offset as a fixed zone. Raises ``zoneinfo.ZoneInfoNotFoundError`` (a KeyError) for an unknown name."""
+    if name:
+        return ZoneInfo(name)
+    env = os.environ.get("TZ", "").lstrip(":")
+    if env:
+        try:
+            return ZoneInfo(env)
+        except (KeyError, ValueError):
+            pass
+    link = Path("/etc/localtime")
+    if link.is_symlink():
+        target = str(link.resolve())
+        if "zoneinfo/" in target:
+            try:
+                return ZoneInfo(target.split("zoneinfo/", 1)[1])
+            except (KeyError, ValueError):
+                pass
+    return dt.datetime.now().astimezone().tzinfo
+
+
+def zone_text(tz: dt.tzinfo, at: float) -> str:
+    """``Europe/Berlin, UTC+01:00`` (or the abbreviation when the zone has no IANA key)."""
+    d = dt.datetime.fromtimestamp(at, tz)
+    off = d.strftime("%z")
+    off = f"UTC{off[:3]}:{off[3:]}" if off else "UTC"
+    key = getattr(tz, "key", None) or d.tzname() or ""
+    return f"{key}, {off}" if key else off
+
+
+def time_formatter(series: AngleSeries, tz: dt.tzinfo):
+    """A function formatting one time of ``series`` for the text (clock ``14:03:05`` or ``1:23.4``)."""
+    if series.clock:
+        return lambda t: dt.datetime.fromtimestamp(t, tz).strftime("%H:%M:%S")
+    return lambda t: f"{int(t // 60)}:{t % 60:04.1f}"
+
+
+def _style(name: str) -> dict:
+    parts = name.split("_")
+    family = parts[1] if len(parts) > 1 else ""
+    if family in ("tr", "bd"):
+        return {"color": FAMILY_COLOURS[family], "linestyle": AXIS_STYLES.get(parts[0], "-")}
+    return {"color": FAMILY_COLOURS.get(family, "#555555"), "linestyle": "--" if side(name) == "right" else "-"}
+
+
+def _x(series: AngleSeries, t: np.ndarray) -> np.ndarray:
+    return t / 86400.0 if series.clock else t      # matplotlib dates: days since 1970-01-01 UTC
+
+
+def plot_angles(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]], falls: Sequence[Episode],
+                *, title: str, tz: dt.tzinfo | None = None, width_px: int = 1400, dpi: int = 110,
+                acks: bool = True) -> bytes:
+    """The PNG bytes of the angle plot (``angle_figure``)."""
+    fig = angle_figure(series, panels, falls, title=title, tz=tz, width_px=width_px, dpi=dpi, acks=acks)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]], falls: Sequence[Episode],
+                 *, title: str, tz: dt.tzinfo | None = None, width_px: int = 1400, dpi: int = 110,
+                 acks: bool = True) -> Figure:
+    """The angle plot as a matplotlib Figure (Agg canvas). ``panels``: (panel key or title, angle names);
+    ``falls`` on the same clock as ``series``; ``acks``: whether the falls' acknowledgements are known (a
+    journal)."""
+    tz = tz or local_zone()
+    s = series.with_gaps()
+    fmt = time_formatter(series, tz)
+    n = len(panels)
+    notes = len(falls)
+    height_in = 2.5 * n + 1.2 + 0.22 * notes
+    fig = Figure(figsize=(width_px / dpi, height_in), dpi=dpi)
+    FigureCanvasAgg(fig)
+    bottom = (0.55 + 0.22 * notes) / height_in + 0.05
+    axes = fig.subplots(n, 1, sharex=True, squeeze=False)[:, 0]
+    fig.subplots_adjust(left=0.07, right=0.76, top=1 - 0.95 / height_in, bottom=bottom, hspace=0.28)
+    x = _x(s, s.time)
+    for ax, (key, names) in zip(axes, panels, strict=True):
+        drawn = 0
+        for name in names:
+            v = s.angles.get(name)
+            if v is None or not np.any(np.isfinite(v)):
+                continue
+            ax.plot(x, v, linewidth=1.4, label=label(name), **_style(name))
+            drawn += 1
+        ax.set_title(PANEL_TITLES.get(key, key), loc="left", fontsize=10)
+        ax.set_ylabel("degrees")
+        ax.grid(True, color="#dddddd", linewidth=0.6)
+        if drawn:
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.5, frameon=False)
+        else:
+            ax.text(0.5, 0.5, "not measured in this time range", transform=ax.transAxes, ha="center",
+                    va="center", color="#888888")
+            ax.set_yticks([])
+        for ep in falls:
+            x0, x1 = _x(s, np.array([ep.start, ep.end]))
+            ax.axvspan(x0, max(x1, x0), color=FALL_COLOUR, alpha=0.12, linewidth=0)
+            ax.axvline(x0, color=FALL_COLOUR, linewidth=1.2)
+    if len(s.time):
+        lo, hi = _x(s, np.array([s.time.min(), s.time.max()]))
+        for ep in falls:
+            lo, hi = min(lo, _x(s, np.array([ep.start]))[0]), max(hi, _x(s, np.array([ep.end]))[0])
+        pad = (hi - lo) * 0.01 or (1.0 / 86400 if s.clock else 1.0)
+        axes[0].set_xlim(lo - pad, hi + pad)
+    _number_falls(axes[0], s, falls)
+    bottom_ax = axes[-1]
+    if s.clock:
+        loc = mdates.AutoDateLocator(tz=tz, minticks=4, maxticks=10)
+        bottom_ax.xaxis.set_major_locator(loc)
+        bottom_ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(loc, tz=tz))
+        at = float(s.time[0]) if len(s.time) else 0.0
+        bottom_ax.set_xlabel(f"clock time of the robot ({zone_text(tz, at)})")
+    else:
+        bottom_ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{int(v // 60)}:{int(v % 60):02d}"))
+        bottom_ax.set_xlabel("time in the recording (minutes:seconds from its first frame; a fit file has no "
+                             "clock time)")
+    fig.suptitle(title, x=0.07, ha="left", fontsize=12)
+    for i, ep in enumerate(falls, 1):
+        fig.text(0.07, (0.12 + 0.22 * (notes - i)) / height_in, f"fall {i}: {ep.describe(fmt, acks)}",
+                 fontsize=9, color=FALL_COLOUR)
+    return fig
+
+
+def _number_falls(ax, s: AngleSeries, falls: Sequence[Episode]) -> None:
+    """Episode numbers above the top panel. Episodes closer together than a label's width share one label
+    (``falls 2-4``), centred on them: two labels are then always more than a label's width apart, so they
+    never overlap, however many falls there are."""
+    if not falls:
+        return
+    lo, hi = ax.get_xlim()
+    span = (hi - lo) or 1.0
+    fig = ax.get_figure()
+    axes_px = ax.get_position().width * fig.get_figwidth() * fig.dpi
+    fontsize = 8.5
+    width = (len("falls 88-88") * 0.62 * fontsize * fig.dpi / 72.0 + 8.0) / axes_px   # axes fraction
+    xs = [(_x(s, np.array([ep.start]))[0] - lo) / span for ep in falls]
+    clusters: list[list[int]] = []
+    for i, xf in enumerate(xs):
+        if clusters and xf - xs[clusters[-1][-1]] < width:
+            clusters[-1].append(i)
+        else:
+            clusters.append([i])
+    for members in clusters:
+        first, last = members[0] + 1, members[-1] + 1
+        text = f"fall {first}" if first == last else f"falls {first}-{last}"
+        xc = float(np.mean([xs[i] for i in members]))
+        ax.text(xc, 1.0, text, transform=ax.transAxes, ha="center", va="bottom", fontsize=fontsize,
+                color="white", bbox={"boxstyle": "round,pad=0.2", "fc": FALL_COLOUR, "ec": "none"})

@@ -1,0 +1,84 @@
+"""A rendered frame: the camera image with the landmarks, the reprojected fit and the angles (``overlay``),
+and beside it the side view of the fitted skeleton (``side_view``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from camera_model import Intrinsics
+from viz import overlay
+from viz.overlay import FrameInfo
+from viz.reproject import camera_joints, reproject
+from viz.side_view import SideFrame, render_side
+
+BLANK = (90, 90, 90)   # the background when there is no source video (a landmark recording alone)
+
+
+@dataclass(frozen=True)
+class FrameInput:
+    """One frame to draw. ``result``: the fit's JSON-derived ``fitting.FitResult`` or None (no fit)."""
+
+    seq: int
+    t: float
+    landmarks: np.ndarray | None     # 33 x 5 [x_px, y_px, z, visibility, presence]
+    result: object | None            # fitting.FitResult
+    fall_state: str | None = None
+    fall_event: str | None = None
+
+
+def joints_for_side(result, absolute: bool) -> dict[str, np.ndarray] | None:
+    """The joints the side view draws: camera-frame when ``absolute`` (root known), else mid-hip relative."""
+    if result is None or not result.ok or not result.joints_3d:
+        return None
+    root = result.root_cam_m
+    if absolute and root is not None:
+        return camera_joints(result.joints_3d, root)
+    joints = {k: np.asarray(v, float) for k, v in result.joints_3d.items()}
+    lowest = max(float(v[1]) for v in joints.values())     # y is down: stand the lowest joint on y = 0
+    return {k: v - np.array([0.0, lowest, 0.0]) for k, v in joints.items()}
+
+
+class ClipRenderer:
+    """Draws the frames of one clip at a fixed layout: image (W x H) + side panel (``side_width`` x H)."""
+
+    def __init__(self, image_size: tuple[int, int], intrinsics: Intrinsics | None, results: Sequence,
+                 side_width: int | None = None, camera_height_m: float = 0.0) -> None:
+        self.image_size = (int(image_size[0]), int(image_size[1]))
+        self.intrinsics = intrinsics
+        ok = [r for r in results if r is not None and r.ok]
+        self.absolute = bool(ok) and intrinsics is not None and all(r.root_cam_m is not None for r in ok)
+        self.side = SideFrame.for_clip([joints_for_side(r, self.absolute) or {} for r in ok], self.absolute,
+                                       camera_height_m)
+        h = self.image_size[1]
+        self.side_width = side_width or max(400, int(round(h * 0.6)))
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return (self.image_size[0] + self.side_width, self.image_size[1])
+
+    def frame(self, image: np.ndarray | None, item: FrameInput) -> np.ndarray:
+        w, h = self.image_size
+        canvas = np.full((h, w, 3), BLANK, np.uint8) if image is None else image.copy()
+        result = item.result
+        reproj = None
+        angles: dict[str, float] = {}
+        note = ""
+        if result is not None and result.ok:
+            reproj = reproject(result.joints_3d, result.root_cam_m, self.intrinsics, item.landmarks)
+            unobserved = set(result.extra.get("unobserved") or ())
+            angles = {k: v for k, v in result.joint_angles_deg.items() if k not in unobserved}
+        elif result is not None:
+            note = result.reason or "fit failed"
+        elif item.landmarks is None:
+            note = "no person"
+        overlay.draw_landmarks(canvas, item.landmarks)
+        overlay.draw_model(canvas, reproj)
+        overlay.draw_info(canvas, FrameInfo(item.t, angles, note, item.fall_state, item.fall_event,
+                                            reproj.how if reproj else ""))
+        overlay.legend(canvas)
+        side = render_side(joints_for_side(result, self.absolute), self.side, (self.side_width, h),
+                           "" if self.absolute else "depth relative to the hips (no camera intrinsics)")
+        return np.concatenate([canvas, side], axis=1)

@@ -1,0 +1,145 @@
+"""Joint-angle time series and fall episodes, as the plots and the report take them (plain values, no I/O).
+
+Time is either a clock (unix seconds, shown in the robot's local time zone) or seconds from a recording's
+first frame (a fit file carries only capture times). Angles are degrees; NaN means not measured (no fit, or a
+variable no landmark observed in that frame, ``extra.unobserved``) and is never drawn as 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from viz.names import FIXED_ANGLES
+
+# messages of one event, in the order they can happen (falls.FALL_STATES)
+STATE_WORDS = {"falling": "fall", "on_floor": "on the floor", "alarm": "ALARM", "recovered": "got up"}
+
+
+@dataclass(frozen=True)
+class AngleSeries:
+    """``time`` (N,) seconds, increasing: unix time when ``clock``, else from the first frame; ``angles``:
+    name -> (N,) degrees, NaN = not measured."""
+
+    time: np.ndarray
+    angles: dict[str, np.ndarray]
+    clock: bool
+
+    @classmethod
+    def from_rows(cls, wall: Sequence[float], columns: dict[str, Sequence[float | None]]) -> AngleSeries:
+        """History rows: unix times and angle columns (None = unknown). The angles the model holds fixed are
+        left out (they are constants, not measurements)."""
+        t = np.asarray(wall, float)
+        angles = {k: np.array([np.nan if v is None else v for v in vals], float)
+                  for k, vals in columns.items() if k not in FIXED_ANGLES}
+        return cls(t, angles, clock=True)
+
+    @classmethod
+    def from_fits(cls, results: Iterable, start_unix: float | None = None) -> AngleSeries:
+        """Fit results (``fitting.FitResult``) of a recording: ``t`` from its first frame, or clock times
+        ``start_unix + t`` when the recording's start is known. A failed fit is NaN for every angle; a
+        variable listed in ``extra.unobserved`` is NaN in that frame."""
+        results = list(results)
+        if not results:
+            return cls(np.zeros(0), {}, clock=start_unix is not None)
+        t = np.array([r.t for r in results], float)
+        names = [n for n in _names(results) if n not in FIXED_ANGLES]
+        angles = {n: np.full(len(results), np.nan) for n in names}
+        for i, r in enumerate(results):
+            if not r.ok:
+                continue
+            hidden = set(r.extra.get("unobserved") or ())
+            values = {**r.joint_angles_deg, **{k: r.variables[k] for k in ("theta_bd", "phi_bd", "psi_bd")
+                                               if k in r.variables}}
+            for n in names:
+                v = values.get(n)
+                if v is not None and n not in hidden:
+                    angles[n][i] = float(v)
+        if start_unix is not None:
+            return cls(start_unix + (t - t[0]), angles, clock=True)
+        return cls(t - t[0], angles, clock=False)
+
+    def with_gaps(self, gap_s: float | None = None) -> AngleSeries:
+        """A NaN sample inserted in every gap longer than ``gap_s`` (default: 5 sampling periods, at least 2 s),
+        so lines are broken where nothing was recorded."""
+        if len(self.time) < 2:
+            return self
+        dt = np.diff(self.time)
+        gap = gap_s if gap_s is not None else max(2.0, 5.0 * float(np.median(dt)))
+        cut = np.nonzero(dt > gap)[0]
+        if not len(cut):
+            return self
+        t = np.insert(self.time, cut + 1, self.time[cut] + dt[cut] / 2)
+        angles = {k: np.insert(v, cut + 1, np.nan) for k, v in self.angles.items()}
+        return AngleSeries(t, angles, self.clock)
+
+
+@dataclass(frozen=True)
+class EventMark:
+    """One fall-event message: its event ``id``, ``state`` (falls.FALL_STATES), time (same clock as the
+    series) and when it was acknowledged (same clock; None = not)."""
+
+    id: str
+    state: str
+    time: float
+    acked: float | None = None
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One fall event's messages together: when it started and last changed, its states in order, how it
+    ended (``recovered``, ``alarm``, ``on the floor`` or ``falling`` — the last state) and whether someone
+    acknowledged it."""
+
+    id: str
+    start: float
+    end: float
+    states: tuple[str, ...]
+    acked: float | None = None
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def outcome(self) -> str:
+        last = self.states[-1] if self.states else ""
+        if "recovered" in self.states:
+            return "got up (recovered)"
+        if last == "alarm":
+            return "alarm raised (on the floor too long)"
+        if last == "on_floor":
+            return "on the floor; no recovery seen"
+        return "no further message (the person left the view)"
+
+    def describe(self, fmt, acks: bool = True) -> str:
+        """One line: ``14:03:05 fall -> on the floor -> ALARM; acknowledged 14:05:10``; ``fmt`` formats a time;
+        ``acks`` False: the source knows nothing of acknowledgements (a ``posed falls`` output)."""
+        text = f"{fmt(self.start)} " + " -> ".join(STATE_WORDS.get(s, s) for s in self.states)
+        if acks:
+            text += f"; acknowledged {fmt(self.acked)}" if self.acked is not None else "; not acknowledged"
+        return text
+
+
+def episodes(marks: Iterable[EventMark]) -> list[Episode]:
+    """The fall episodes of these messages, in time order (one per event id)."""
+    by_id: dict[str, list[EventMark]] = {}
+    for m in sorted(marks, key=lambda m: m.time):
+        by_id.setdefault(m.id, []).append(m)
+    out = []
+    for eid, ms in by_id.items():
+        states: list[str] = []
+        for m in ms:
+            if m.state not in states:
+                states.append(m.state)
+        acked = [m.acked for m in ms if m.acked is not None]
+        out.append(Episode(eid, ms[0].time, ms[-1].time, tuple(states), min(acked) if acked else None))
+    return sorted(out, key=lambda e: e.start)
+
+
+def _names(results: list) -> list[str]:
+    seen: dict[str, None] = {}
+    for r in results:
+        if r.ok:
+            seen.update(dict.fromkeys(r.joint_angles_deg))
+            seen.update(dict.fromkeys(k for k in ("theta_bd", "phi_bd", "psi_bd") if k in r.variables))
+    return list(seen)

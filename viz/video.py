@@ -1,0 +1,117 @@
+"""Writing the rendered video, and the progress bar of long renders.
+
+Codecs, by the output's suffix (what this OpenCV build can write and a browser plays): ``.webm`` VP8 (every
+current browser plays it; opencv-python-headless's FFmpeg has no H.264 encoder, so ``.mp4`` is written as
+H.264 only when ``ffmpeg`` is installed — frames are piped to it — and refused otherwise, naming ``.webm``);
+``.avi`` Motion-JPEG (plays in desktop players, not in browsers).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import TextIO
+
+import cv2
+import numpy as np
+
+SUFFIXES = (".webm", ".mp4", ".avi")
+
+
+class VideoError(Exception):
+    """The output cannot be written (the message names the fix)."""
+
+
+class VideoOut:
+    """Frames (BGR uint8, all of one size) to a video file at ``fps``; a context manager."""
+
+    def __init__(self, path: str | Path, fps: float, size: tuple[int, int]) -> None:
+        self.path = Path(path)
+        self.size = (int(size[0]) // 2 * 2, int(size[1]) // 2 * 2)   # even sizes: every codec takes them
+        self.frames = 0
+        self._writer = None
+        self._ffmpeg: subprocess.Popen | None = None
+        suffix = self.path.suffix.lower()
+        if suffix not in SUFFIXES:
+            raise VideoError(f"{self.path}: unknown video type {suffix or '(none)'}; use one of "
+                             f"{', '.join(SUFFIXES)} (.webm plays in every browser)")
+        if not self.path.parent.is_dir():
+            raise VideoError(f"{self.path}: the folder {self.path.parent} does not exist")
+        if suffix == ".mp4":
+            exe = shutil.which("ffmpeg")
+            if exe is None:
+                raise VideoError(f"{self.path}: writing H.264 (.mp4) needs ffmpeg (apt-get install ffmpeg); "
+                                 "this OpenCV has no H.264 encoder. Or write .webm (VP8), which browsers play")
+            self._ffmpeg = subprocess.Popen(
+                [exe, "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24", "-s",
+                 f"{self.size[0]}x{self.size[1]}", "-r", f"{fps:.6g}", "-i", "-", "-c:v", "libx264",
+                 "-pix_fmt", "yuv420p", "-movflags", "+faststart", str(self.path)], stdin=subprocess.PIPE)
+        else:
+            fourcc = cv2.VideoWriter_fourcc(*("VP80" if suffix == ".webm" else "MJPG"))
+            self._writer = cv2.VideoWriter(str(self.path), fourcc, float(fps), self.size)
+            if not self._writer.isOpened():
+                raise VideoError(f"{self.path}: OpenCV cannot open a {suffix} writer here; try another of "
+                                 f"{', '.join(SUFFIXES)}")
+
+    def write(self, frame: np.ndarray) -> None:
+        if (frame.shape[1], frame.shape[0]) != self.size:
+            frame = np.ascontiguousarray(frame[: self.size[1], : self.size[0]])
+        if self._ffmpeg is not None:
+            try:
+                self._ffmpeg.stdin.write(frame.tobytes())
+            except BrokenPipeError:
+                raise VideoError(f"{self.path}: ffmpeg stopped (see its message above)") from None
+        else:
+            self._writer.write(frame)
+        self.frames += 1
+
+    def close(self) -> None:
+        if self._ffmpeg is not None:
+            self._ffmpeg.stdin.close()
+            if self._ffmpeg.wait() != 0:
+                raise VideoError(f"{self.path}: ffmpeg failed (exit {self._ffmpeg.returncode})")
+            self._ffmpeg = None
+        if self._writer is not None:
+            self._writer.release()
+            self._writer = None
+
+    def __enter__(self) -> VideoOut:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class Progress:
+    """A one-line progress bar on ``stream`` (standard error), redrawn at most 5 times a second; silent
+    unless ``enabled``."""
+
+    def __init__(self, total: int | None, label: str, enabled: bool, stream: TextIO = sys.stderr) -> None:
+        self.total, self.label, self.enabled, self.stream = total, label, enabled, stream
+        self.done = 0
+        self._last = 0.0
+
+    def step(self, n: int = 1) -> None:
+        self.done += n
+        now = time.monotonic()
+        if self.enabled and (now - self._last >= 0.2 or self.done == self.total):
+            self._last = now
+            self._draw()
+
+    def _draw(self) -> None:
+        if self.total:
+            frac = min(1.0, self.done / self.total)
+            bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
+            self.stream.write(f"\r{self.label} [{bar}] {self.done}/{self.total}")
+        else:
+            self.stream.write(f"\r{self.label} {self.done} frames")
+        self.stream.flush()
+
+    def finish(self) -> None:
+        if self.enabled:
+            self._draw()
+            self.stream.write("\n")
+            self.stream.flush()

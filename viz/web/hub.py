@@ -1,0 +1,140 @@
+"""What the browsers are sent: the robot's messages reduced to what the page draws, fanned out to every open
+page (one queue per page; a page that does not keep up loses its oldest messages, never blocks the others).
+
+Messages (JSON objects with ``type``): ``pose`` (at most ``pose_rate_hz`` per second: the 13 joints in metres,
+camera axes — x image right, y image down, z away from the camera — relative to the mid-hip, the mid-hip's
+camera position when known, and the main joint angles, null when not measured), ``status``, ``event`` (each
+fall-event message once per (id, state)), ``acked``, ``alive``. ``snapshot()`` is what a page that opens
+now needs first: the last status, the last minute of angles, the events seen, whether the robot is up.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections import deque
+
+from viz.names import MAIN_ANGLES, short_label
+
+CHART_ANGLES = ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r", "theta_tr")
+WINDOW_S = 60.0
+QUEUE_LIMIT = 256
+
+
+def _num(v) -> float | None:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+class Hub:
+    """Thread-safe: the Zenoh callbacks call ``on_*``, the HTTP threads ``subscribe``/``snapshot``."""
+
+    def __init__(self, robot: str, pose_rate_hz: float = 15.0, clock=time.monotonic) -> None:
+        self.robot = robot
+        self.min_pose_gap = 1.0 / pose_rate_hz
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._queues: list[queue.Queue] = []
+        self._last_pose_at = -math.inf
+        self._angles: deque = deque()       # (time_unix, {name: deg|None})
+        self._status: dict | None = None
+        self._pose: dict | None = None
+        self._events: dict[tuple[str, str], dict] = {}
+        self._acked: set[str] = set()
+        self._alive: bool | None = None
+        self.poses_in = 0
+
+    # ------------------------------------------------------------------ browsers
+    def subscribe(self) -> queue.Queue:
+        q: queue.Queue = queue.Queue(QUEUE_LIMIT)
+        with self._lock:
+            self._queues.append(q)
+        return q
+
+    def unsubscribe(self, q: queue.Queue) -> None:
+        with self._lock:
+            if q in self._queues:
+                self._queues.remove(q)
+
+    def _send(self, msg: dict) -> None:
+        with self._lock:
+            queues = list(self._queues)
+        for q in queues:
+            while True:
+                try:
+                    q.put_nowait(msg)
+                    break
+                except queue.Full:
+                    try:
+                        q.get_nowait()
+                    except queue.Empty:
+                        pass
+
+    def snapshot(self) -> dict:
+        with self._lock:
+            return {"type": "snapshot", "robot": self.robot, "status": self._status, "pose": self._pose,
+                    "angles": [{"time_unix": t, "angles": a} for t, a in self._angles],
+                    "events": list(self._events.values()), "acked": sorted(self._acked), "alive": self._alive,
+                    "labels": {n: short_label(n) for n in (*MAIN_ANGLES, *CHART_ANGLES)}}
+
+    # ------------------------------------------------------------------ robot
+    def on_pose(self, robot: str, result) -> None:
+        """A ``fitting.FitResult`` from posed/ROBOT/pose (``extra`` holds ``time_unix`` when sent)."""
+        now = self._clock()
+        self.poses_in += 1
+        if now - self._last_pose_at < self.min_pose_gap:
+            return
+        self._last_pose_at = now
+        t_unix = _num(result.extra.get("time_unix")) or time.time()
+        hidden = set(result.extra.get("unobserved") or ())
+        angles = {n: (None if n in hidden or not result.ok else _num(result.joint_angles_deg.get(n)))
+                  for n in dict.fromkeys((*MAIN_ANGLES, *CHART_ANGLES))}
+        msg = {"type": "pose", "seq": result.seq, "t": result.t, "time_unix": t_unix, "ok": result.ok,
+               "reason": result.reason, "joints": {k: [_num(c) for c in v] for k, v in result.joints_3d.items()},
+               "root": list(result.root_cam_m) if result.root_cam_m is not None else None, "angles": angles,
+               "latency_ms": _num((result.extra.get("timing_ms") or {}).get("total"))}
+        with self._lock:
+            self._pose = msg
+            self._angles.append((t_unix, angles))
+            while self._angles and self._angles[0][0] < t_unix - WINDOW_S:
+                self._angles.popleft()
+        self._send(msg)
+
+    def on_status(self, robot: str, status) -> None:
+        """A ``client.Status``."""
+        msg = {"type": "status", "state": status.state, "fps": _num(status.fps),
+               "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
+               "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
+               "time_unix": _num(status.time_unix)}
+        with self._lock:
+            self._status = msg
+        self._send(msg)
+
+    def on_event(self, robot: str, event) -> None:
+        """A ``falls.FallEvent`` message; repeats (the daemon republishes until acknowledged) are dropped."""
+        key = (event.id, event.state)
+        msg = {"type": "event", "id": event.id, "state": event.state, "t_detect": event.t_detect,
+               "wall_time": event.wall_time, "confidence": _num(event.confidence),
+               "features": list(event.features)}
+        with self._lock:
+            if key in self._events:
+                return
+            self._events[key] = msg
+            self._acked.discard(event.id)   # a new state needs its own acknowledgement
+        self._send(msg)
+
+    def on_acked(self, event_id: str, confirmed: bool) -> None:
+        with self._lock:
+            if confirmed:
+                self._acked.add(event_id)
+        self._send({"type": "acked", "id": event_id, "confirmed": confirmed})
+
+    def on_alive(self, alive: bool) -> None:
+        with self._lock:
+            self._alive = alive
+        self._send({"type": "alive", "alive": alive})

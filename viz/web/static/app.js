@@ -1,0 +1,294 @@
+// posed live view: draws what the robot's Zenoh topics carry (poses, status, fall events). Written for
+// posed; no library, nothing fetched from a network. State for tests and curious users: window.posedView.
+"use strict";
+
+const TOKEN = new URLSearchParams(location.search).get("token");
+const withToken = (url) => TOKEN ? url + (url.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(TOKEN) : url;
+
+const BONES = [ // [from, to, side] between the fitted joints (camera axes, metres, mid-hip origin)
+  ["left_shoulder", "right_shoulder", "c"], ["left_hip", "right_hip", "c"], ["mid_hip", "mid_shoulder", "c"],
+  ["left_shoulder", "left_elbow", "l"], ["left_elbow", "left_wrist", "l"],
+  ["right_shoulder", "right_elbow", "r"], ["right_elbow", "right_wrist", "r"],
+  ["left_hip", "left_knee", "l"], ["left_knee", "left_ankle", "l"],
+  ["right_hip", "right_knee", "r"], ["right_knee", "right_ankle", "r"]];
+const SIDE_COLOUR = {l: "#ff8c00", r: "#00a0ff", c: "#3cdc3c"};
+const CHART = [ // [angle, colour, dash]
+  ["theta_hp_l", "#1f5fa8", []], ["theta_hp_r", "#1f5fa8", [7, 5]],
+  ["theta_kn_l", "#7b3294", []], ["theta_kn_r", "#7b3294", [7, 5]], ["theta_tr", "#333333", [2, 3]]];
+const STATE_WORDS = {falling: "fall", on_floor: "on the floor", alarm: "ALARM (on the floor too long)",
+                     recovered: "got up"};
+const ANKLE_HEIGHT = 0.08, WINDOW_S = 60;
+
+const view = window.posedView = {
+  connected: false, poses: 0, drawn: 0, lastPose: null, status: null, fpsText: "",
+  events: {}, acked: {}, history: [], labels: {}, yaw: -35, pitch: 20, zoom: 1.0, floorY: null, lastGood: null};
+const angleLog = []; // {time_unix, angles}
+
+// ------------------------------------------------------------------ 3D skeleton
+const sk = document.getElementById("skeleton"), g = sk.getContext("2d");
+
+function worldPoints(pose) {
+  // camera frame (x right, y down, z away) -> world (x right, up, z away), feet on the floor at height 0
+  const j = Object.assign({}, pose.joints);
+  if (j.left_shoulder && j.right_shoulder)
+    j.mid_shoulder = j.left_shoulder.map((v, i) => (v + j.right_shoulder[i]) / 2);
+  let lowest = -Infinity;
+  for (const p of Object.values(j)) lowest = Math.max(lowest, p[1]);
+  let floor;
+  if (pose.root) {  // the mid-hip's camera position is known: the floor is where the lowest joint has been
+    const abs = lowest + pose.root[1] + ANKLE_HEIGHT;
+    view.floorY = view.floorY === null ? abs : Math.max(view.floorY, abs);
+    floor = view.floorY - pose.root[1];
+  } else {
+    floor = lowest + ANKLE_HEIGHT;
+  }
+  const out = {};
+  for (const [k, p] of Object.entries(j)) out[k] = [p[0], floor - p[1], p[2]];
+  return out;
+}
+
+function project(p, w, h) {
+  const yaw = view.yaw * Math.PI / 180, pitch = view.pitch * Math.PI / 180;
+  let x = p[0], y = p[1] - 0.9, z = p[2];                              // orbit about a point 0.9 m up
+  [x, z] = [x * Math.cos(yaw) - z * Math.sin(yaw), x * Math.sin(yaw) + z * Math.cos(yaw)];
+  [y, z] = [y * Math.cos(pitch) - z * Math.sin(pitch), y * Math.sin(pitch) + z * Math.cos(pitch)];
+  const d = 3.4 / view.zoom, f = h * 1.1;
+  const depth = Math.max(0.1, d + z);
+  return [w / 2 + f * x / depth, h * 0.55 - f * y / depth];
+}
+
+function drawSkeleton() {
+  const w = sk.width, h = sk.height;
+  g.fillStyle = "#1e1e1e"; g.fillRect(0, 0, w, h);
+  g.lineWidth = 1; g.strokeStyle = "#444";
+  for (let a = -2; a <= 2.001; a += 0.5) {  // floor grid, 4 m x 4 m, 0.5 m squares
+    line(project([a, 0, -2], w, h), project([a, 0, 2], w, h));
+    line(project([-2, 0, a], w, h), project([2, 0, a], w, h));
+  }
+  const pose = view.lastPose;
+  const note = document.getElementById("pose-note");
+  const fitted = pose && pose.ok && Object.keys(pose.joints).length;
+  const shown = fitted ? pose : view.lastGood;
+  if (!fitted) {  // say why, and keep the last fitted skeleton in grey
+    g.fillStyle = "#bbb"; g.font = "15px sans-serif";
+    const why = pose ? "no fit: " + (pose.reason || "no person") : "waiting for poses…";
+    g.fillText(why.length > 70 ? why.slice(0, 69) + "…" : why, 16, 26);
+    if (shown && pose) g.fillText(`grey: the last fit, ${Math.max(0, pose.time_unix - shown.time_unix).toFixed(1)} s ago`, 16, 48);
+    note.textContent = "";
+    if (!shown) return;
+  }
+  const pts = worldPoints(shown);
+  g.lineCap = "round";
+  for (const [a, b, s] of BONES) {
+    if (!pts[a] || !pts[b]) continue;
+    g.strokeStyle = fitted ? SIDE_COLOUR[s] : "#777"; g.lineWidth = 5; g.setLineDash(s === "r" ? [10, 7] : []);
+    line(project(pts[a], w, h), project(pts[b], w, h));
+  }
+  g.setLineDash([]); g.fillStyle = fitted ? "#eee" : "#999";
+  for (const [k, p] of Object.entries(pts)) {
+    if (k === "mid_shoulder") continue;
+    const [u, v] = project(p, w, h); g.beginPath(); g.arc(u, v, 4, 0, 2 * Math.PI); g.fill();
+  }
+  if (!fitted) return;
+  view.drawn += 1;
+  note.textContent = `turned ${Math.round(view.yaw)}°, tilted ${Math.round(view.pitch)}°`;
+}
+
+function line(a, b) { g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke(); }
+
+let drag = null;
+sk.addEventListener("pointerdown", (e) => { drag = [e.clientX, e.clientY]; sk.setPointerCapture(e.pointerId); });
+sk.addEventListener("pointerup", () => { drag = null; });
+sk.addEventListener("pointermove", (e) => {
+  if (!drag) return;
+  view.yaw += (e.clientX - drag[0]) * 0.5;
+  view.pitch = Math.max(-10, Math.min(89, view.pitch + (e.clientY - drag[1]) * 0.5));
+  drag = [e.clientX, e.clientY]; drawSkeleton();
+});
+sk.addEventListener("wheel", (e) => {
+  e.preventDefault(); view.zoom = Math.max(0.3, Math.min(4, view.zoom * (e.deltaY < 0 ? 1.1 : 0.9))); drawSkeleton();
+}, {passive: false});
+for (const b of document.querySelectorAll("[data-view]")) b.addEventListener("click", () => {
+  [view.yaw, view.pitch] = {front: [0, 5], side: [-90, 5], top: [0, 89]}[b.dataset.view]; drawSkeleton();
+});
+
+// ------------------------------------------------------------------ angles
+const ch = document.getElementById("chart"), c2 = ch.getContext("2d");
+const label = (n) => view.labels[n] || n;
+
+function drawChart() {
+  const w = ch.width, h = ch.height, L = 46, R = 190, T = 10, B = 28;
+  c2.clearRect(0, 0, w, h);
+  const now = angleLog.length ? angleLog[angleLog.length - 1].time_unix : Date.now() / 1000;
+  let lo = -10, hi = 120;
+  for (const s of angleLog) for (const [n] of CHART) {
+    const v = s.angles[n]; if (v !== null && v !== undefined) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  }
+  const X = (t) => L + (w - L - R) * (1 - (now - t) / WINDOW_S), Y = (v) => T + (h - T - B) * (hi - v) / (hi - lo);
+  c2.strokeStyle = "#ddd"; c2.lineWidth = 1; c2.fillStyle = "#555"; c2.font = "11px sans-serif";
+  for (let v = Math.ceil(lo / 30) * 30; v <= hi; v += 30) {
+    c2.beginPath(); c2.moveTo(L, Y(v)); c2.lineTo(w - R, Y(v)); c2.stroke(); c2.fillText(v + "°", 8, Y(v) + 4);
+  }
+  for (let s = 0; s <= WINDOW_S; s += 10) c2.fillText(s ? `-${s} s` : "now", X(now - s) - 12, h - 8);
+  CHART.forEach(([n, colour, dash], i) => {
+    c2.strokeStyle = colour; c2.setLineDash(dash); c2.lineWidth = 2; c2.beginPath();
+    let pen = false;
+    for (const s of angleLog) {
+      const v = s.angles[n];
+      if (v === null || v === undefined || now - s.time_unix > WINDOW_S) { pen = false; continue; }
+      if (pen) c2.lineTo(X(s.time_unix), Y(v)); else c2.moveTo(X(s.time_unix), Y(v));
+      pen = true;
+    }
+    c2.stroke();
+    const ly = T + 14 + 20 * i;  // legend: plain names, same line style
+    c2.beginPath(); c2.moveTo(w - R + 10, ly); c2.lineTo(w - R + 40, ly); c2.stroke();
+    c2.setLineDash([]); c2.fillStyle = "#222"; c2.fillText(label(n), w - R + 46, ly + 4);
+  });
+  c2.setLineDash([]);
+}
+
+function showAnglesNow(pose) {
+  const rows = Object.entries(pose.angles).map(([n, v]) =>
+    `<tr><th>${label(n)}</th><td>${v === null ? "not measured" : Math.round(v) + "°"}</td></tr>`);
+  document.getElementById("angles-now").innerHTML = rows.join("");
+}
+
+// ------------------------------------------------------------------ status, events, history
+const ZONE = Intl.DateTimeFormat().resolvedOptions().timeZone;
+
+function localTime(t) {  // an ISO time (UTC unless it says otherwise) or ms since 1970, in this browser's zone
+  if (t === null || t === undefined || t === "") return "–";
+  const d = typeof t === "number" ? new Date(t) : new Date(/[zZ]|[+-]\d\d:?\d\d$/.test(t) ? t : t + "Z");
+  return isNaN(d) ? String(t) : d.toLocaleString(undefined, {hour12: false});
+}
+
+function setText(id, text) { document.getElementById(id).textContent = text; }
+
+function showStatus(s) {
+  view.status = s;
+  view.fpsText = s.fps === null ? "–" : s.fps.toFixed(1);
+  setText("st-state", s.state); setText("st-fps", view.fpsText);
+  setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
+  setText("st-camera", s.camera || "–"); setText("st-drops", s.drops); setText("st-restarts", s.restarts);
+}
+
+function showAlive(alive) {
+  const el = document.getElementById("alive");
+  el.textContent = alive === null ? "robot: ?" : alive ? "robot: up" : "robot: GONE";
+  el.className = "pill" + (alive ? "" : " off");
+}
+
+function fallsById() {
+  const by = {};
+  for (const e of Object.values(view.events)) (by[e.id] = by[e.id] || []).push(e);
+  return by;
+}
+
+function showEvents() {
+  const by = fallsById(), ul = document.getElementById("events");
+  const ids = Object.keys(by);
+  if (!ids.length) return;
+  ul.innerHTML = "";
+  let open = 0;
+  for (const id of ids) {
+    const msgs = by[id].sort((a, b) => a.t_detect - b.t_detect);
+    const li = document.createElement("li");
+    li.innerHTML = `<span class="fall">${msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → ")}</span>
+      <span class="note">${localTime(msgs[0].wall_time)} · ${id.slice(0, 8)}</span> `;
+    li.dataset.eventId = id;
+    if (view.acked[id]) {
+      li.insertAdjacentHTML("beforeend", '<span class="ok">acknowledged ✓</span>');
+    } else {
+      open += 1;
+      const b = document.createElement("button");
+      b.className = "ack"; b.textContent = "Acknowledge"; b.dataset.eventId = id;
+      b.addEventListener("click", () => acknowledge(id, b));
+      li.appendChild(b);
+    }
+    ul.appendChild(li);
+  }
+  const alarm = document.getElementById("alarm");
+  alarm.hidden = open === 0;
+  alarm.textContent = open ? `${open} fall event(s) not acknowledged` : "";
+}
+
+async function acknowledge(id, button) {
+  button.disabled = true; button.textContent = "acknowledging…";
+  try {
+    const r = await fetch(withToken("/api/ack"), {method: "POST", headers: {"Content-Type": "application/json",
+      "X-Posed": "ack"}, body: JSON.stringify({id})});
+    const body = await r.json();
+    if (r.ok && body.confirmed) { view.acked[id] = true; showEvents(); loadHistory(); return; }
+    button.textContent = "not confirmed — retry"; button.disabled = false;
+  } catch (err) {
+    button.textContent = "failed — retry"; button.disabled = false;
+  }
+}
+
+let historyAsked = 0;
+async function loadHistory() {
+  const mine = ++historyAsked;  // answers can come back out of order: only the newest request's is shown
+  try {
+    const r = await fetch(withToken("/api/history"));
+    const body = await r.json();
+    if (mine !== historyAsked) return;
+    const t = document.getElementById("history");
+    if (!r.ok) { t.innerHTML = `<tr><td class="note">${body.error || r.status}</td></tr>`; return; }
+    view.history = body.events;
+    if (!body.events.length) { t.innerHTML = '<tr><td class="note">no fall events stored</td></tr>'; return; }
+    t.innerHTML = `<tr><th>time (${ZONE})</th><th>event</th><th>state</th><th>acknowledged</th></tr>` +
+      body.events.slice().reverse().map((e) => `<tr><td>${localTime(e.wall_time)}</td>
+        <td>${e.id.slice(0, 8)}</td><td>${STATE_WORDS[e.state] || e.state}</td>
+        <td>${e.acked_at ? localTime(e.acked_at * 1000) : "no"}</td></tr>`).join("");
+    showEvents();
+  } catch (err) { /* the next refresh tries again */ }
+}
+
+// ------------------------------------------------------------------ the stream
+function onMessage(m) {
+  if (m.type === "snapshot") {
+    view.labels = m.labels || {}; setText("robot", m.robot);
+    for (const a of m.angles) angleLog.push(a);
+    if (m.status) showStatus(m.status);
+    for (const e of m.events) view.events[e.id + "/" + e.state] = e;
+    for (const id of m.acked) view.acked[id] = true;
+    showAlive(m.alive);
+    if (m.pose) { view.lastPose = m.pose; if (m.pose.ok) view.lastGood = m.pose; drawSkeleton(); }
+    showEvents(); drawChart();
+  } else if (m.type === "pose") {
+    view.poses += 1; view.lastPose = m; setText("st-poses", view.poses);
+    if (m.ok && Object.keys(m.joints).length) view.lastGood = m;
+    angleLog.push({time_unix: m.time_unix, angles: m.angles});
+    while (angleLog.length && angleLog[0].time_unix < m.time_unix - WINDOW_S) angleLog.shift();
+    showAnglesNow(m);
+    requestDraw();
+  } else if (m.type === "status") {
+    showStatus(m);
+  } else if (m.type === "event") {
+    // a new state of an acknowledged event is a new message: the robot needs it acknowledged too
+    view.events[m.id + "/" + m.state] = m; delete view.acked[m.id]; showEvents(); loadHistory();
+  } else if (m.type === "acked") {
+    if (m.confirmed) view.acked[m.id] = true; showEvents();
+  } else if (m.type === "alive") {
+    showAlive(m.alive);
+  }
+}
+
+let drawPending = false;
+function requestDraw() {
+  if (drawPending) return;
+  drawPending = true;
+  const draw = () => { drawPending = false; drawSkeleton(); drawChart(); };
+  if (document.hidden) setTimeout(draw, 0); else requestAnimationFrame(draw);
+}
+
+function connect() {
+  const es = new EventSource(withToken("/stream"));
+  const conn = document.getElementById("conn");
+  es.onopen = () => { view.connected = true; conn.textContent = "live"; conn.className = "pill"; };
+  es.onerror = () => { view.connected = false; conn.textContent = "reconnecting…"; conn.className = "pill off"; };
+  es.onmessage = (ev) => onMessage(JSON.parse(ev.data));
+}
+
+drawSkeleton(); drawChart(); connect(); loadHistory();
+setInterval(loadHistory, 20000);
