@@ -148,12 +148,14 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
         cmd += ["--set", o]
     import zenoh
 
+    from client import session_config
+
     faults = {"kill9": 0, "sigstop": 0, "by_stage": {}}
     stopped: dict[int, float] = {}          # pid -> when to SIGCONT
     report: dict = {"input": inp.name, "source": inp.source, "frames_per_pass": inp.frames,
                     "corrupt_frames_per_pass": inp.corrupt, "falls_per_pass": inp.falls_per_pass}
     out_log = work / "daemon.out.log"
-    with zenoh.open(chaos_bus.zenoh_config("router", listen=[router_ep])) as _router, \
+    with zenoh.open(session_config("router", listen=[router_ep])) as _router, \
             chaos_bus.open_client(router_ep) as session:
         obs = chaos_bus.Observer(session, robot, plan.ack_share, seed)
         proc = subprocess.Popen(cmd, stdout=open(out_log, "wb"), stderr=open(work / "daemon.err.log", "wb"),

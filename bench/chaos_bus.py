@@ -11,25 +11,16 @@ import threading
 import time
 
 
-def zenoh_config(mode: str, listen=(), connect=()):
-    import zenoh
-
-    c = zenoh.Config()
-    c.insert_json5("mode", json.dumps(mode))
-    c.insert_json5("listen/endpoints", json.dumps(list(listen)))
-    c.insert_json5("connect/endpoints", json.dumps(list(connect)))
-    c.insert_json5("scouting/multicast/enabled", "false")
-    return c
-
-
 def open_client(endpoint: str, timeout_s: float = 30.0):
     """A client session to ``endpoint``, retried until it answers."""
     import zenoh
 
+    from client import session_config
+
     deadline = time.monotonic() + timeout_s
     while True:
         try:
-            return zenoh.open(zenoh_config("client", connect=[endpoint]))
+            return zenoh.open(session_config("client", connect=[endpoint]))
         except Exception:
             if time.monotonic() > deadline:
                 raise

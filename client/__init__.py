@@ -5,8 +5,9 @@ The message contract (formats, versions, JSON Schemas) is :mod:`client.contract`
 types of :mod:`fitting` and :mod:`falls` only — never the daemon.
 """
 
-__all__ = ["Alive", "HistoryEntry", "Landmarks", "PosedClient", "PosedClientError", "State", "Status"]
-_API = {"Alive", "PosedClient", "PosedClientError"}
+__all__ = ["Alive", "HistoryEntry", "Landmarks", "PosedClient", "PosedClientError", "State", "Status",
+           "session_config"]
+_API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 
 
 def __getattr__(name: str):

@@ -36,10 +36,14 @@ class Alive:
     alive: bool
 
 
-def _config(endpoints: Iterable[str], mode: str, config_file: str | None, listen: Iterable[str]) -> zenoh.Config:
+def session_config(mode: str, connect: Iterable[str] = (), listen: Iterable[str] = (),
+                   config_file: str | None = None) -> zenoh.Config:
+    """A ``zenoh.Config`` for a session in ``mode`` (client, peer, router) connecting to ``connect`` and
+    listening on ``listen``, multicast scouting off; ``config_file``: a Zenoh JSON5 file read first (TLS,
+    credentials)."""
     zc = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
     zc.insert_json5("mode", json.dumps(mode))
-    zc.insert_json5("connect/endpoints", json.dumps(list(endpoints)))
+    zc.insert_json5("connect/endpoints", json.dumps(list(connect)))
     zc.insert_json5("listen/endpoints", json.dumps(list(listen)))
     zc.insert_json5("scouting/multicast/enabled", "false")
     return zc
@@ -72,7 +76,7 @@ class PosedClient:
         deadline = time.monotonic() + wait_s
         while True:
             try:
-                return cls(zenoh.open(_config(eps, mode, config_file, listen)), owns_session=True)
+                return cls(zenoh.open(session_config(mode, eps, listen, config_file)), owns_session=True)
             except zenoh.ZError as exc:
                 if time.monotonic() >= deadline:
                     raise PosedClientError(

@@ -147,7 +147,7 @@ def read_calibration(path: str | os.PathLike) -> BodyDimensions:
         raise CalibrationError(f"{path}: cannot read the calibration file ({exc.strerror}); "
                                "create it with `posed calibrate RECORDING.landmarks.jsonl -o FILE`") from exc
     if len(data) > MAX_CALIBRATION_BYTES:
-        raise CalibrationError(f"{path}: larger than {MAX_CALIBRATION_BYTES} bytes, not a calibration file (one "
+        raise CalibrationError(f"{path} is larger than {MAX_CALIBRATION_BYTES} bytes: not a calibration file (one "
                                "is about 1 kB); create it with `posed calibrate RECORDING.landmarks.jsonl -o FILE`")
     try:
         text = data.decode("utf-8")

@@ -84,11 +84,9 @@ def _free_port() -> int:
 def _router(endpoint: str):
     import zenoh
 
-    c = zenoh.Config()
-    c.insert_json5("mode", '"router"')
-    c.insert_json5("listen/endpoints", json.dumps([endpoint]))
-    c.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(c)
+    from client import session_config
+
+    return zenoh.open(session_config("router", listen=[endpoint]))
 
 
 def _children(pid: int) -> list[int]:

@@ -14,6 +14,19 @@ from pathlib import Path
 
 from daemon.config.sections import ZenohConfig
 
+_ANY_HOST = ("0.0.0.0", "[::]", "::")
+
+
+def daemon_endpoints(cfg: ZenohConfig) -> tuple[str, ...]:
+    """Where a receiver on this machine finds the daemon of ``cfg``: its listen endpoints (a wildcard host as
+    127.0.0.1), else the routers it connects to."""
+    out = []
+    for ep in cfg.listen:
+        proto, _, rest = ep.partition("/")
+        host, _, port = rest.rpartition(":")
+        out.append(f"{proto}/127.0.0.1:{port}" if host in _ANY_HOST else ep)
+    return tuple(out) or tuple(cfg.connect)
+
 
 class ZenohConfigError(ValueError):
     """The native Zenoh config file cannot be used."""

@@ -9,19 +9,6 @@ import time
 
 from daemon.config import Config
 
-_ANY_HOST = ("0.0.0.0", "[::]", "::")
-
-
-def daemon_endpoints(cfg: Config) -> tuple[str, ...]:
-    """Where a client on this machine finds the daemon: its listen endpoints (a wildcard host as 127.0.0.1),
-    else the routers it connects to."""
-    out = []
-    for ep in cfg.zenoh.listen:
-        proto, _, rest = ep.partition("/")
-        host, _, port = rest.rpartition(":")
-        out.append(f"{proto}/127.0.0.1:{port}" if host in _ANY_HOST else ep)
-    return tuple(out) or tuple(cfg.zenoh.connect)
-
 
 def open_client(cfg: Config, endpoints: tuple[str, ...], wait_s: float, who: str):
     """A client session to ``endpoints`` (with the config's ``zenoh.config_file``: TLS, credentials), retried

@@ -126,7 +126,8 @@ def _read_journal(path: Path):
 
 
 def run_ack(args: argparse.Namespace) -> int:
-    from daemon.commands._bus import daemon_endpoints, open_client
+    from daemon.bus.session import daemon_endpoints
+    from daemon.commands._bus import open_client
 
     cfg = config_from_args(args)
     event_id = args.id.strip()
@@ -146,7 +147,7 @@ def run_ack(args: argparse.Namespace) -> int:
         elif not ids:
             print(f"posed events ack: {event_id!r} is not in {path}; sending it anyway", file=sys.stderr)
     robot = args.robot or cfg.robot_id
-    endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg)
+    endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg.zenoh)
     session = open_client(cfg, endpoints, args.wait, "posed events ack")
     if session is None:
         return 1

@@ -71,11 +71,12 @@ def _subscribe(posed, robot: str, summary) -> list:
 
 def _watch(args: argparse.Namespace) -> int:
     from client import PosedClient
-    from daemon.commands._bus import daemon_endpoints, open_client
+    from daemon.bus.session import daemon_endpoints
+    from daemon.commands._bus import open_client
     from daemon.commands._viewer import Summary
 
     cfg = config_from_args(args)
-    endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg)
+    endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg.zenoh)
     args.connect = ", ".join(endpoints)
     session = open_client(cfg, endpoints, args.wait, "posed watch")
     if session is None:

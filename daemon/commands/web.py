@@ -37,12 +37,10 @@ def _err(msg: str) -> None:
 
 def endpoints(config, given: list[str] | None) -> list[str]:
     """Where the daemon is: ``given``, else the config's connect list, else its own listen endpoints (a
-    wildcard address replaced by 127.0.0.1)."""
-    if given:
-        return given
-    if config.zenoh.connect:
-        return list(config.zenoh.connect)
-    return [ep.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]") for ep in config.zenoh.listen]
+    wildcard address as 127.0.0.1)."""
+    from daemon.bus.session import daemon_endpoints
+
+    return list(given or config.zenoh.connect or daemon_endpoints(config.zenoh))
 
 
 def run(args: argparse.Namespace) -> int:

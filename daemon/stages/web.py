@@ -5,7 +5,7 @@ It is a receiver like any other: it connects to this daemon's own Zenoh endpoint
 and shows what the topics carry (poses, status, fall events, the history; never an image), and acknowledges
 through the same ack key as every other receiver. It is ready at once, whether or not the page could be served
 or the publisher's session is up yet (a port in use is logged and retried every 5 s; the page says "waiting"
-until the session is up): a browser view must never hold back, or stop, the pipeline and its fall detection. The address is logged (``web_serving``) and reported to the supervisor.
+until the session is up): a browser view must never hold back, or stop, the pipeline and its fall detection. The address is logged (``web_serving``).
 """
 
 from __future__ import annotations
@@ -13,18 +13,11 @@ from __future__ import annotations
 import threading
 import time
 
+from daemon.bus.session import daemon_endpoints
 from daemon.stages.base import StageRuntime
 
 CONNECT_TRY_S = 0.5
 BIND_RETRY_S = 5.0
-
-
-def endpoints(config) -> list[str]:
-    """This daemon's own endpoints, as a receiver on this machine reaches them (a wildcard address becomes
-    the loopback one), or the configured connect list when the daemon listens nowhere."""
-    if config.zenoh.listen:
-        return [ep.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]") for ep in config.zenoh.listen]
-    return list(config.zenoh.connect)
 
 
 def run(rt: StageRuntime) -> None:
@@ -38,7 +31,7 @@ def run(rt: StageRuntime) -> None:
     hub = Hub(config.robot_id, web.pose_rate_hz)
     link = _LateLink()
     rt.ready()      # nothing to warm up; a failing page must not hold back (or stop) fall detection
-    server, client, eps = None, None, endpoints(config)
+    server, client, eps = None, None, list(daemon_endpoints(config.zenoh))
     next_bind, warned = 0.0, False
     try:
         while True:
@@ -60,7 +53,6 @@ def run(rt: StageRuntime) -> None:
                 threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.2}, name="posed-web",
                                  daemon=True).start()
                 rt.log.info("web_serving", url=server.url)
-                rt.report(web_url=server.url)
             if client is None:
                 try:
                     client = PosedClient.connect(eps, wait_s=CONNECT_TRY_S,

@@ -43,6 +43,12 @@ class NotifyListener:
 class Harness:
     def __init__(self, tmp_path: Path, *overrides: str, fatal: bool = False, publisher: bool = False,
                  env: dict | None = None) -> None:
+        self.proc = subprocess.Popen(self.command(tmp_path, overrides, fatal, publisher), cwd=ROOT,
+                                     env={**os.environ, **(env or {})}, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True)
+
+    def command(self, tmp_path: Path, overrides, fatal: bool, publisher: bool) -> list[str]:
+        """The supervisor under test (tests.daemon.supervise_plan) writing its statuses to ``status_file``."""
         self.status_file = tmp_path / "status.jsonl"
         cmd = [sys.executable, "-m", "tests.daemon.supervise_plan", str(self.status_file),
                "--set", "pipeline.status_period_s=0.2"]
@@ -52,8 +58,7 @@ class Harness:
             cmd.append("--fatal")
         if publisher:
             cmd.append("--publisher")
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, **(env or {})}, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
+        return cmd
 
     def statuses(self) -> list[dict]:
         if not self.status_file.exists():

@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -19,14 +18,8 @@ class FileHarness(Harness):
     """:class:`Harness` with the supervisor's stdout/stderr in ``tmp_path/out.log`` and ``err.log``."""
 
     def __init__(self, tmp_path: Path, *overrides: str, publisher: bool = True, env: dict | None = None) -> None:
-        self.status_file = tmp_path / "status.jsonl"
+        cmd = self.command(tmp_path, overrides, False, publisher)
         self.out_path, self.err_path = tmp_path / "out.log", tmp_path / "err.log"
-        cmd = [sys.executable, "-m", "tests.daemon.supervise_plan", str(self.status_file),
-               "--set", "pipeline.status_period_s=0.2"]
-        for o in overrides:
-            cmd += ["--set", o]
-        if publisher:
-            cmd.append("--publisher")
         with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
             self.proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, **(env or {})}, stdout=out, stderr=err,
                                          text=True, start_new_session=True)     # its own group: kill -9 it whole

@@ -81,14 +81,14 @@ def test_read_only_commands_find_the_service_state(tmp_path):
 
 
 def test_clients_reach_the_daemon_where_it_listens():
-    from daemon.commands._bus import daemon_endpoints
+    from daemon.bus.session import daemon_endpoints
 
     cfg = load_config(None)
-    assert daemon_endpoints(cfg) == ("tcp/127.0.0.1:7447",)
+    assert daemon_endpoints(cfg.zenoh) == ("tcp/127.0.0.1:7447",)
     cfg = load_config(None, overrides=["zenoh.listen=[tcp/0.0.0.0:7450, tcp/192.168.1.5:7451]"])
-    assert daemon_endpoints(cfg) == ("tcp/127.0.0.1:7450", "tcp/192.168.1.5:7451")
+    assert daemon_endpoints(cfg.zenoh) == ("tcp/127.0.0.1:7450", "tcp/192.168.1.5:7451")
     cfg = load_config(None, overrides=["zenoh.listen=[]", "zenoh.connect=[tcp/10.0.0.1:7447]", "zenoh.mode=client"])
-    assert daemon_endpoints(cfg) == ("tcp/10.0.0.1:7447",)
+    assert daemon_endpoints(cfg.zenoh) == ("tcp/10.0.0.1:7447",)
 
 
 def test_version(capsys):

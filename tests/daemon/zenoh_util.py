@@ -3,11 +3,12 @@ Multicast scouting is always off."""
 
 from __future__ import annotations
 
-import json
 import socket
 import time
 
 import zenoh
+
+from client import session_config
 
 
 def free_port() -> int:
@@ -19,12 +20,7 @@ def free_port() -> int:
 
 
 def config(mode: str, listen=(), connect=()) -> zenoh.Config:
-    c = zenoh.Config()
-    c.insert_json5("mode", json.dumps(mode))
-    c.insert_json5("listen/endpoints", json.dumps(list(listen)))
-    c.insert_json5("connect/endpoints", json.dumps(list(connect)))
-    c.insert_json5("scouting/multicast/enabled", "false")
-    return c
+    return session_config(mode, connect=connect, listen=listen)
 
 
 def client(endpoint: str, timeout: float = 30.0) -> zenoh.Session:
