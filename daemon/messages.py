@@ -37,21 +37,25 @@ class FrameRef:
     intrinsics: Intrinsics | None = None   # of the frame's image, when known
     t_origin: float | None = None   # latency is measured from here (None: from t_capture); set only for
                                     # unpaced replays: the time the capture stage read the frame
+    gravity: tuple[float, float, float] | None = None   # down, unit vector, colour camera axes (hal.Frame)
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in ("slot", "seq", "t_capture", "width", "height", "has_depth")}
         out["intrinsics"] = None if self.intrinsics is None else self.intrinsics.to_json()
         out["t_origin"] = self.t_origin
+        out["gravity"] = None if self.gravity is None else list(self.gravity)
         return out
 
     @classmethod
     def from_json(cls, obj: dict) -> FrameRef:
         intr = obj.get("intrinsics")
         t_origin = obj.get("t_origin")
+        gravity = obj.get("gravity")
         return cls(**{k: obj[k] for k in ("slot", "seq", "t_capture", "width", "height")},
                    has_depth=bool(obj.get("has_depth", False)),
                    intrinsics=None if intr is None else Intrinsics.from_json(intr),
-                   t_origin=None if t_origin is None else float(t_origin))
+                   t_origin=None if t_origin is None else float(t_origin),
+                   gravity=None if gravity is None else tuple(float(v) for v in gravity))
 
 
 @dataclass(frozen=True)

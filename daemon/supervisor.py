@@ -365,7 +365,7 @@ class Supervisor:
             state = "running"
         return {
             "robot": self.config.robot_id,
-            "version": __version__,
+            "posed_version": __version__,      # "version" is the message format's (daemon.bus.payloads)
             "time": clock.iso(time.time()),
             "uptime_s": round(now - self._t0, 1),
             "state": state,

@@ -37,8 +37,9 @@ class FallsConfig:
                                         "until 5 s of standing were seen)"}
     )
     imu_gravity: bool = field(
-        default=True, metadata={"doc": "use the camera's IMU gravity when a frame carries it (frame field "
-                                       "\"gravity\", camera axes); it replaces the tilt and roll, set or learned"}
+        default=True, metadata={"doc": "use the camera's IMU gravity when a frame carries it (a RealSense with an "
+                                       "accelerometer and source.imu, or a recording's \"gravity\"); it "
+                                       "replaces the tilt and roll, set or learned"}
     )
     camera_height_m: float = field(
         default=1.0, metadata={"doc": "camera height above the floor (set it for your robot); 0 = unknown: "

@@ -37,6 +37,10 @@ class SourceConfig:
         default=2.0, metadata={"doc": "longest wait for one frame", "unit": "s", "range": (0.05, 60.0)}
     )
     depth: bool = field(default=True, metadata={"doc": "realsense: also stream depth, aligned to colour"})
+    imu: bool = field(default=True, metadata={
+        "doc": "realsense: read the accelerometer (D435i, D455; a recording's accel stream) for the direction of "
+               "gravity, which falls.imu_gravity uses instead of the camera tilt and roll; cameras without one "
+               "(D435, D415) stream as before"})
     fx: float = field(default=0.0, metadata={
         "doc": "v4l2/file: focal length x at width x height; 0 = unknown (frames carry no intrinsics)",
         "unit": "px", "range": (0.0, 100000.0)})

@@ -7,6 +7,10 @@ the frames' ``seq``, so a replay shows the same numbers and gaps.
 
 Depth may have its own intrinsics and an extrinsic transform to colour (a raw depth stream, as a camera
 delivers it); ``posed record`` writes depth already aligned to colour (same intrinsics, identity transform).
+An accelerometer stream (``accel_fps``) holds motion frames in the depth sensor's axes, m/s^2, as a D435i's
+(:mod:`hal.imu`); ``posed record`` writes one sample per frame that carried gravity, the opposite of the
+frame's down vector times g (the low-passed reading, not the raw samples).
+
 Note: ``rs.extrinsics()`` starts with an all-zero rotation; an unset rotation makes alignment map all depth to
 0, so the identity is always written explicitly.
 """
@@ -31,13 +35,14 @@ class Db3Writer:
 
     ``depth_scale`` None records colour only. ``depth_intrinsics`` default: the colour intrinsics (depth
     already aligned); ``depth_to_colour`` = (rotation 9 values row-major, translation 3 values in metres),
-    default identity.
+    default identity. ``accel_fps``: also record an accelerometer stream at this rate (``write_accel``).
     """
 
     def __init__(self, path: str | os.PathLike, intrinsics: Intrinsics, fps: float,
                  depth_scale: float | None = None, depth_intrinsics: Intrinsics | None = None,
                  depth_to_colour: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
-                 serial: str = "posed-recording", name: str = "posed recording") -> None:
+                 serial: str = "posed-recording", name: str = "posed recording",
+                 accel_fps: int | None = None) -> None:
         self.path = Path(path)
         if self.path.suffix.lower() != ".db3":
             raise SourceUnsupported(f"{self.path}: librealsense 2.59 records ROS 2 .db3 files only; name the "
@@ -70,15 +75,27 @@ class Db3Writer:
             ext.rotation = [float(v) for v in rotation]
             ext.translation = [float(v) for v in translation]
             self._depth_profile.register_extrinsics_to(self._colour_profile, ext)
+        self._accel_sensor = None
+        self._accel_profile = None
+        if accel_fps is not None:
+            ms = dev.add_sensor("Motion Module")
+            m = rs.motion_stream()
+            m.type, m.index, m.uid = rs.stream.accel, 0, 2
+            m.fps, m.fmt = max(1, int(accel_fps)), rs.format.motion_xyz32f
+            m.intrinsics = rs.motion_device_intrinsic()
+            self._accel_profile = ms.add_motion_stream(m)
+            self._accel_sensor = ms
         self._device = dev
         self._recorder: Any = rs.recorder(str(self.path), dev)
-        self._sensors = [s for s in (self._depth_sensor, cs) if s is not None]
-        for sensor, profile in ((self._depth_sensor, self._depth_profile), (cs, self._colour_profile)):
+        self._sensors = [s for s in (self._depth_sensor, cs, self._accel_sensor) if s is not None]
+        for sensor, profile in ((self._depth_sensor, self._depth_profile), (cs, self._colour_profile),
+                                (self._accel_sensor, self._accel_profile)):
             if sensor is not None:
                 sensor.open(profile)
                 sensor.start(_ignore)
         self.depth_scale = depth_scale
         self.frames = 0
+        self.accel_samples = 0
 
     def write(self, image: np.ndarray, depth: np.ndarray | None, t_ms: float, number: int) -> None:
         """Add one colour image (BGR uint8, H x W x 3) and its depth (uint16 on the depth grid, or None)."""
@@ -93,6 +110,23 @@ class Db3Writer:
                        depth_units=float(self.depth_scale or 0.001))
         self._send(self._colour_sensor, self._colour_profile, image, 3, t_ms, number)
         self.frames += 1
+
+    def write_accel(self, t_ms: float, xyz: tuple[float, float, float]) -> None:
+        """Add one accelerometer sample (m/s^2, depth sensor axes: about (0, -9.8, 0) level and at rest),
+        stamped ``t_ms`` on the frames' clock."""
+        if self._accel_sensor is None:
+            raise ValueError("this recording has no accelerometer stream: open the writer with accel_fps")
+        rs = self._rs
+        v = rs.vector()
+        v.x, v.y, v.z = (float(c) for c in xyz)
+        f = rs.software_motion_frame()
+        f.data = v
+        f.timestamp = float(t_ms)
+        f.domain = rs.timestamp_domain.hardware_clock
+        f.frame_number = self.accel_samples
+        f.profile = self._accel_profile.as_motion_stream_profile()
+        self._accel_sensor.on_motion_frame(f)
+        self.accel_samples += 1
 
     def _send(self, sensor: Any, profile: Any, pixels: np.ndarray, bpp: int, t_ms: float, number: int,
               depth_units: float | None = None) -> None:

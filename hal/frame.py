@@ -21,6 +21,8 @@ class Frame:
     t            capture time, seconds on the ``time.monotonic()`` clock of this machine
     seq          frame number from the source (increasing; a gap means frames were lost)
     intrinsics   of ``image``, or None when unknown
+    gravity      the direction of gravity (down), a unit vector in the colour camera's axes (x right, y down,
+                 z forward), from the camera's accelerometer (:mod:`hal.imu`); None without one
     """
 
     image: np.ndarray
@@ -29,8 +31,14 @@ class Frame:
     t: float
     seq: int
     intrinsics: Intrinsics | None = None
+    gravity: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
+        if self.gravity is not None:
+            g = tuple(float(v) for v in self.gravity)
+            if len(g) != 3 or not all(np.isfinite(g)) or abs(float(np.linalg.norm(g)) - 1.0) > 1e-6:
+                raise ValueError(f"Frame.gravity must be a unit vector (3 finite numbers), got {self.gravity!r}")
+            object.__setattr__(self, "gravity", g)
         img = self.image
         if not (isinstance(img, np.ndarray) and img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3):
             raise ValueError(f"Frame.image must be H x W x 3 uint8 BGR, got {getattr(img, 'shape', None)} "

@@ -7,7 +7,11 @@ which reads the recorded sensors directly and loses no frame however slow the re
 code path (``try_wait_for_frames`` + ``rs.align``); the clock mapping and the end of the stream differ.
 
 Per frame: the colour image (BGR), depth aligned to colour by ``rs.align(rs.stream.color)`` (uint16, units of
-``depth_scale`` metres, from the depth sensor), the colour intrinsics (valid for the aligned depth too).
+``depth_scale`` metres, from the depth sensor), the colour intrinsics (valid for the aligned depth too), and
+with ``source.imu`` on a camera or recording that has an accelerometer (D435i, D455) the direction of gravity
+(:mod:`hal.imu`: low-passed samples stamped up to the colour frame's time, turned into the colour camera's
+axes by the depth -> colour rotation). Live, the motion sensor is opened on its own beside the pipeline, so
+its 63-250 samples per second never crowd colour framesets out of the pipeline's one-frameset queue.
 Playback delivers every colour frame of the recording exactly once, with the depth frame recorded with it;
 frame numbers not above the last one delivered are skipped (a playback re-opened after a stall starts the
 file again) and counted as ``duplicates``. Live, a frameset repeating the last colour frame is skipped too.
@@ -27,6 +31,7 @@ librealsense cannot be caught here: run the capture in its own process (the daem
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable
@@ -45,6 +50,7 @@ from hal.errors import (
     SourceUnsupported,
 )
 from hal.frame import Frame
+from hal.imu import GravityEstimate, find_accel, rotation_of, sample_sink
 from hal.replay import Timeline
 from hal.rs_playback import PlaybackPipeline
 from hal.source import Source
@@ -97,6 +103,9 @@ class RealSenseSource(Source):
         self.colour_format = ""
         self.counters.update(timeouts=0, reopens=0, reopen_failures=0, hardware_resets=0, disconnects=0,
                              duplicates=0, passes=0)
+        self._gravity: GravityEstimate | None = None   # this start's accelerometer filter, when there is one
+        self._imu_sensor: Any = None                   # live: the motion sensor opened beside the pipeline
+        self.imu = "off" if not config.imu else "none"  # off | none (no accelerometer) | streaming | error: ...
 
     # -- Source -------------------------------------------------------------------------------------------
     def _open(self) -> None:
@@ -124,7 +133,8 @@ class RealSenseSource(Source):
                 "width": self.size[0], "height": self.size[1], "fps": self.fps, "has_depth": self._has_depth(),
                 "depth_scale": self.depth_scale, "colour_format": self.colour_format,
                 "depth_alignment": getattr(self, "_depth_mode", "none"),
-                "intrinsics": self.intrinsics.to_json() if self.intrinsics else None,
+                "intrinsics": self.intrinsics.to_json() if self.intrinsics else None, "imu": self.imu,
+                **(self._gravity.counters() if self._gravity is not None else {}),
                 "realtime": self.config.realtime if self.playback else True}
 
     def _has_depth(self) -> bool:
@@ -156,6 +166,7 @@ class RealSenseSource(Source):
             # not rs.pipeline: it drops framesets when the reader is slow and may pair colour with the depth
             # of another frame (see hal.rs_playback)
             pipe = (self._pipeline_factory or PlaybackPipeline)(rs)  # a factory returns a PlaybackPipeline
+            self._gravity = GravityEstimate() if c.imu else None
         else:
             pipe = (self._pipeline_factory or rs.pipeline)()  # a factory must return an rs.pipeline (subclass)
             cfg = rs.config()
@@ -165,7 +176,12 @@ class RealSenseSource(Source):
             if c.depth:
                 cfg.enable_stream(rs.stream.depth, c.width, c.height, rs.format.z16, int(round(c.fps)))
         try:
-            profile = pipe.start(self.playback, c.depth) if self.playback is not None else pipe.start(cfg)
+            if self.playback is None:
+                profile = pipe.start(cfg)
+            elif self._gravity is not None:
+                profile = pipe.start(self.playback, c.depth, motion=sample_sink(rs, self._gravity))
+            else:
+                profile = pipe.start(self.playback, c.depth)
         except RuntimeError as exc:
             if self.playback is not None:
                 raise SourceCorrupt(f"{self.playback}: librealsense cannot play this recording ({exc}); it may be "
@@ -212,11 +228,52 @@ class RealSenseSource(Source):
             else:
                 self._depth_mode = "align"
                 self._align = rs.align(rs.stream.color)
+        self._configure_imu(dev, streams, colour)
         for key, attr in ((rs.camera_info.serial_number, "serial"), (rs.camera_info.name, "device_name")):
             if dev.supports(key):  # a software/played-back device may lack some infos
                 setattr(self, attr, dev.get_info(key))
 
+    def _configure_imu(self, dev: Any, streams: dict[Any, Any], colour: Any) -> None:
+        """Gravity from the accelerometer: a recording's accel stream (already playing), or live the motion
+        sensor opened and started here. Samples are in the depth sensor's axes (module doc of hal.imu)."""
+        rs = self._rs
+        if not self.config.imu:
+            return
+        rotation = np.eye(3)
+        depth = streams.get(rs.stream.depth)
+        if depth is not None:
+            try:
+                rotation = rotation_of(depth.get_extrinsics_to(colour))
+            except RuntimeError:
+                pass  # not calibrated: colour and depth axes agree within a degree on the D400s
+        if self.playback is not None:
+            has_accel = rs.stream.accel in streams
+            self.imu = "streaming" if has_accel else "none"
+            if self._gravity is not None:
+                self._gravity.rotation = rotation
+            if not has_accel:
+                self._gravity = None
+            return
+        found = find_accel(rs, dev)
+        if found is None:
+            self.imu, self._gravity = "none", None
+            return
+        sensor, profile = found
+        self._gravity = GravityEstimate(rotation)
+        try:
+            sensor.open(profile)
+            sensor.start(sample_sink(rs, self._gravity))
+        except RuntimeError as exc:  # busy (another program streams it) or lost: colour and depth go on
+            self.imu, self._gravity = f"error: {exc}", None
+            _stop_quietly(sensor, close=True)
+            return
+        self._imu_sensor = sensor
+        self.imu = "streaming"
+
     def _stop(self) -> None:
+        sensor, self._imu_sensor = self._imu_sensor, None
+        if sensor is not None:
+            _stop_quietly(sensor, close=True)
         pipe, self._pipe = self._pipe, None
         if pipe is not None:
             _stop_quietly(pipe)
@@ -380,8 +437,12 @@ class RealSenseSource(Source):
             self._first_number = number
         t = self._timestamp(colour, arrival)
         seq = self._timeline.add_frame(number if self.playback is not None else number - self._first_number)
+        # playback: the samples recorded up to this frame (the same gravity on every replay); live: every
+        # sample so far (the motion sensor may stamp in another clock domain than colour)
+        gravity = None if self._gravity is None else self._gravity.at(
+            float(colour.get_timestamp()) / 1000.0 if self.playback is not None else math.inf)
         return Frame(image=image, depth=depth, depth_scale=self.depth_scale if depth is not None else 0.0, t=t,
-                     seq=seq, intrinsics=self.intrinsics)
+                     seq=seq, intrinsics=self.intrinsics, gravity=gravity)
 
     def _timestamp(self, colour: Any, arrival: float) -> float:
         rs = self._rs
@@ -410,11 +471,13 @@ def _same_grid(depth: Any, colour: Any) -> bool:
     return bool(same_k and no_distortion and identity)
 
 
-def _stop_quietly(pipe: Any) -> None:
-    try:
-        pipe.stop()
-    except RuntimeError:
-        pass
+def _stop_quietly(pipe: Any, close: bool = False) -> None:
+    """Stop a pipeline or sensor (and close the sensor), ignoring librealsense's complaints."""
+    for action in (pipe.stop, pipe.close) if close else (pipe.stop,):
+        try:
+            action()
+        except RuntimeError:
+            pass
 
 
 def _copy(image: np.ndarray) -> np.ndarray:

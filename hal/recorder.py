@@ -6,7 +6,8 @@ The output format follows the name given:
 ``NAME.mkv``           FFV1 video (lossless) + ``NAME.timestamps.jsonl``
 ``NAME.avi``           MJPG video + sidecar (small, lossy)
 ``NAME.mp4``           MPEG-4 part 2 video + sidecar (small, lossy)
-``NAME.db3``           RealSense recording: colour + depth aligned to colour, intrinsics, depth scale
+``NAME.db3``           RealSense recording: colour + depth aligned to colour, intrinsics, depth scale, and
+                       the accelerometer's gravity (one sample per frame that carried it)
                        (needs intrinsics: a RealSense source, or source.fx for others)
 ``NAME`` (no suffix)   a folder of PNG images + ``NAME/timestamps.jsonl``
 =====================  ===========================================================================
@@ -28,6 +29,7 @@ import numpy as np
 
 from hal.errors import EndOfStream, SourceCorrupt, SourceDisconnected, SourceTimeout, SourceUnsupported
 from hal.frame import Frame
+from hal.imu import G_M_S2
 from hal.sidecar import SidecarWriter, sidecar_path
 from hal.source import Source
 
@@ -136,7 +138,9 @@ class _Db3Sink(_Sink):
         if (k.width, k.height) != (first.width, first.height):
             k = k.scaled(first.width, first.height)
         self.has_depth = first.depth is not None
-        self.writer = Db3Writer(path, k, fps, depth_scale=first.depth_scale if self.has_depth else None)
+        # always an accelerometer stream: the first frames of an IMU carry no gravity yet (hal.imu.MIN_SAMPLES)
+        self.writer = Db3Writer(path, k, fps, depth_scale=first.depth_scale if self.has_depth else None,
+                                accel_fps=max(1, int(round(fps))))
         self.t0 = first.t
         self.size = (first.width, first.height)
 
@@ -144,7 +148,10 @@ class _Db3Sink(_Sink):
         depth = frame.depth if self.has_depth else None
         if self.has_depth and depth is None:
             depth = np.zeros((frame.height, frame.width), np.uint16)  # a frame without depth: 0 = unknown
-        self.writer.write(frame.image, depth, (frame.t - self.t0) * 1000.0, frame.seq)
+        t_ms = (frame.t - self.t0) * 1000.0
+        if frame.gravity is not None:  # before the colour frame: playback folds samples up to its time
+            self.writer.write_accel(t_ms, tuple(-G_M_S2 * c for c in frame.gravity))
+        self.writer.write(frame.image, depth, t_ms, frame.seq)
 
     def close(self) -> None:
         self.writer.close()

@@ -12,6 +12,10 @@ The playback device starts reading when its first sensor starts, and drops frame
 yet; so once all are started the file is rewound (``seek(0)``) and the frames already seen come again: a frame
 not later than the last one of its stream is a repeat and is dropped.
 
+A recording's accelerometer stream (a D435i's, or what ``posed record`` wrote) is played too when ``start`` is
+given a ``motion`` callback: its frames go to that callback (:func:`hal.imu.sample_sink`) as they are read,
+never into the queue, and never hold the reader back.
+
 It offers the part of the ``rs.pipeline`` interface :mod:`hal.realsense` uses (``start``,
 ``try_wait_for_frames``, ``stop``) plus ``finished()``: the file has been read and every frame handed out.
 """
@@ -23,6 +27,7 @@ import queue
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 # Frames in flight between librealsense's playback threads and the reader (the back-pressure window).
@@ -67,22 +72,27 @@ class PlaybackPipeline:
         self._pair_with: Any = None
         self._composer: Any = None
         self._composed: Any = None
+        self._motion: Callable[[Any], None] | None = None
 
     # -- life cycle ---------------------------------------------------------------------------------------
-    def start(self, path: str, depth: bool) -> PlaybackProfile:
+    def start(self, path: str, depth: bool, motion: Callable[[Any], None] | None = None) -> PlaybackProfile:
+        """Play ``path``: colour (and its depth when ``depth``); accelerometer frames to ``motion``, if given."""
         rs = self._rs
+        self._motion = motion
         self._ctx = rs.context()
         dev = self._ctx.load_device(path)  # RuntimeError for a file librealsense cannot read
         self._playback = dev.as_playback()
         self._playback.set_real_time(False)  # before streaming: the reader then waits for the callbacks
         wanted = (rs.stream.color, rs.stream.depth) if depth else (rs.stream.color,)
+        if motion is not None:
+            wanted += (rs.stream.accel,)
         chosen: dict[Any, tuple[Any, Any]] = {}
         for sensor in dev.query_sensors():
             for p in sensor.get_stream_profiles():
                 if p.stream_type() in wanted and p.stream_type() not in chosen:
                     chosen[p.stream_type()] = (sensor, p)
         self._has_depth = rs.stream.depth in chosen
-        periods = [1000.0 / p.fps() for _, p in chosen.values() if p.fps() > 0]
+        periods = [1000.0 / p.fps() for kind, (_, p) in chosen.items() if p.fps() > 0 and kind != rs.stream.accel]
         self._tolerance_ms = 0.5 * max(periods) if periods else 0.0
         by_sensor: dict[int, tuple[Any, list[Any]]] = {}
         for sensor, p in chosen.values():
@@ -135,6 +145,10 @@ class PlaybackPipeline:
         if last is not None and (ts < last[0] or (ts, number) == last):
             return  # seen before the rewind
         self._last[stream] = (ts, number)
+        if stream == self._rs.stream.accel:
+            if self._motion is not None:
+                self._motion(frame)
+            return
         frame.keep()
         # while rewinding (start) the reader must not wait: seek() waits for it
         while not self._rewinding and self._queue.qsize() >= QUEUE_FRAMES and not self._stopping.is_set():

@@ -163,6 +163,9 @@ class LandmarkFrame:
     depth_m: (33,) float64, the depth in metres along the camera's z axis that a depth camera aligned to the
     image measured at each landmark's pixel (:func:`landmarks.sample_depth`), NaN where unknown; None when
     the frame has no depth (no depth camera, or no person).
+    gravity: the direction of gravity (down) in the camera's axes (x right, y down, z forward; any length), from
+    the camera's accelerometer (a RealSense D435i/D455, ``hal.imu``), or None. A recording line's ``"gravity"``
+    that is not three finite numbers stays in ``extra`` (so the line and its landmarks are kept).
     """
 
     seq: int
@@ -170,6 +173,7 @@ class LandmarkFrame:
     landmarks: np.ndarray | None
     extra: dict = field(default_factory=dict)
     depth_m: np.ndarray | None = None
+    gravity: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.landmarks is not None:
@@ -189,11 +193,17 @@ class LandmarkFrame:
                                  f"({LANDMARK_NAMES[i]}) is {float(depth[i])!r}")
             depth.setflags(write=False)
             object.__setattr__(self, "depth_m", depth)
+        if self.gravity is not None:
+            g = _parse_gravity(self.gravity)
+            if g is None:
+                raise ValueError(f"gravity must be three finite numbers, not all zero (camera axes), got "
+                                 f"{self.gravity!r}")
+            object.__setattr__(self, "gravity", g)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LandmarkFrame):
             return NotImplemented
-        if (self.seq, self.t, self.extra) != (other.seq, other.t, other.extra):
+        if (self.seq, self.t, self.extra, self.gravity) != (other.seq, other.t, other.extra, other.gravity):
             return False
         if (self.depth_m is None) != (other.depth_m is None) or (
                 self.depth_m is not None and not np.array_equal(self.depth_m, other.depth_m, equal_nan=True)):
@@ -211,6 +221,8 @@ class LandmarkFrame:
         out: dict[str, Any] = {"seq": self.seq, "t": self.t, "landmarks": lms}
         if self.depth_m is not None:
             out["depth_m"] = [None if np.isnan(v) else float(v) for v in self.depth_m]
+        if self.gravity is not None:
+            out["gravity"] = list(self.gravity)
         for k, v in self.extra.items():
             out.setdefault(k, v)
         return out
@@ -245,9 +257,11 @@ class LandmarkFrame:
                     )
                 arr[i] = lm
         depth = _parse_depth_m(obj.get("depth_m"))
-        known = ("seq", "t", "landmarks") + (("depth_m",) if depth is not None else ())
+        gravity = _parse_gravity(obj.get("gravity"))
+        known = ("seq", "t", "landmarks") + (("depth_m",) if depth is not None else ()) + (
+            ("gravity",) if gravity is not None else ())
         extra = {k: v for k, v in obj.items() if k not in known}
-        return cls(seq, float(t), arr, extra, depth)
+        return cls(seq, float(t), arr, extra, depth, gravity)
 
 
 def _parse_depth_m(raw: Any) -> np.ndarray | None:
@@ -266,6 +280,14 @@ def _parse_depth_m(raw: Any) -> np.ndarray | None:
                              f"got {v!r}")
         depth[i] = v
     return depth
+
+
+def _parse_gravity(raw: Any) -> tuple[float, float, float] | None:
+    """Three finite numbers, not all zero, as a tuple of floats; None for anything else."""
+    if not isinstance(raw, (list, tuple)) or len(raw) != 3 or not all(_is_number(v) for v in raw):
+        return None
+    g = (float(raw[0]), float(raw[1]), float(raw[2]))
+    return g if any(g) else None
 
 
 @dataclass(frozen=True)

@@ -77,10 +77,9 @@ def landmarks_message(msg: FitMsg, robot: str = "") -> dict:
 
 def status_message(status: dict, robot: str, now: float) -> dict:
     """The status object plus ``format`` posed.status, ``version``, ``robot``, ``time_unix`` and ``t`` (when it
-    was composed, unix seconds and the monotonic clock); the software's version string is ``posed_version``."""
+    was composed, unix seconds and the monotonic clock). The supervisor names the software's version
+    ``posed_version``: every message's ``version`` is its format's."""
     out = dict(status)
-    if isinstance(out.get("version"), str):        # the software's version, where the contract's belongs:
-        out.setdefault("posed_version", out.pop("version"))   # every message's "version" is its format's
     out.setdefault("t", round(now, 4))
     return stamp(out, "posed.status", robot, _unix(now))
 

@@ -4,7 +4,8 @@ section 1).
 
 A RealSense recording also gives the header its ``camera`` (the colour intrinsics) and, when it has depth,
 each frame its ``depth_m`` (the aligned depth at the landmarks, ``landmarks.with_depth``) and the header its
-``"depth": {"source": "realsense", "aligned_to": "color"}``; the other inputs write neither.
+``"depth": {"source": "realsense", "aligned_to": "color"}``; when it has an accelerometer stream (D435i,
+D455, or ``posed record``), each frame its ``gravity`` (hal.imu); the other inputs write none of these.
 
 Frame times: a video's or RealSense recording's own frame timestamps (seconds from its first frame); images:
 ``seq / fps``. A frame that cannot be decoded is reported on stderr and left out (its ``seq`` is skipped, so
@@ -44,6 +45,7 @@ class InputFrame:
     problem: str = ""
     depth: np.ndarray | None = None   # H x W uint16 aligned to the image, 0 = none
     depth_scale: float = 0.0          # metres per depth unit
+    gravity: tuple[float, float, float] | None = None   # down, colour camera axes (hal.Frame.gravity)
 
 
 @dataclass
@@ -194,7 +196,8 @@ def _realsense(path: Path, fps: float | None, default_fps: float) -> FrameSource
         try:
             while True:
                 t = frame.t - first.t if fps is None else n / rate
-                yield InputFrame(frame.seq, t, frame.image, depth=frame.depth, depth_scale=frame.depth_scale)
+                yield InputFrame(frame.seq, t, frame.image, depth=frame.depth, depth_scale=frame.depth_scale,
+                                 gravity=frame.gravity)
                 n += 1
                 try:
                     frame = source.read(READ_TIMEOUT_S)
@@ -276,6 +279,8 @@ def run(args: argparse.Namespace) -> int:
                 continue
             result = with_depth(landmarker.process(frame.image, frame.t, frame.seq), frame.depth,
                                 frame.depth_scale)
+            if frame.gravity is not None:
+                result = replace(result, gravity=frame.gravity)
             out.write(dumps(result.to_json()) + "\n")
             out.flush()
             written += 1

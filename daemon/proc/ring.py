@@ -93,8 +93,9 @@ class FrameRing:
 
     def write(self, image: np.ndarray, seq: int, t_capture: float, depth: np.ndarray | None = None,
               depth_scale: float = 0.0, intrinsics: Intrinsics | None = None,
-              t_origin: float | None = None) -> FrameRef:
-        """Copy one frame (H x W x 3 uint8, optional H x W uint16 depth) into the next slot."""
+              t_origin: float | None = None, gravity: tuple[float, float, float] | None = None) -> FrameRef:
+        """Copy one frame (H x W x 3 uint8, optional H x W uint16 depth) into the next slot; ``gravity`` (three
+        numbers) and the other small values travel on the FrameRef."""
         h, w = image.shape[:2]
         if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
             raise ValueError(f"frames must be H x W x 3 uint8 BGR, got {image.shape} {image.dtype}")
@@ -114,7 +115,7 @@ class FrameRing:
             self._depths[slot, : h * w] = np.asarray(depth, np.uint16).reshape(-1)
         hdr[0] += 1                                   # even: stable
         return FrameRef(slot=slot, seq=seq, t_capture=t_capture, width=w, height=h, has_depth=has_depth,
-                        intrinsics=intrinsics, t_origin=t_origin)
+                        intrinsics=intrinsics, t_origin=t_origin, gravity=gravity)
 
     def read(self, ref: FrameRef) -> tuple[np.ndarray, np.ndarray | None, float] | None:
         """Copies of (image, depth or None, depth_scale) of ``ref``, or None if it was overwritten."""

@@ -19,13 +19,16 @@
 ``run_recording`` replaces capture *and* landmarks for a ``*.landmarks.jsonl`` source: it reads the
 recording (``landmarks.recording``) and sends LandmarkMsg straight to the fitting stage, with capture
 timestamps on the recording's time line from the start of the replay (like hal's replays); a frame's
-``depth_m``, when the recording has it, travels on with the frame as the landmark stage's would.
+``depth_m`` and ``gravity``, when the recording has them, travel on with the frame as the landmark stage's
+would.
 
 For unpaced replays the capture timestamps follow the recording, not the wall clock, so the FrameRef also
 carries ``t_origin`` (when the frame was read), from which latency is measured.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 from daemon import clock
 from daemon.messages import LandmarkMsg, origin
@@ -124,7 +127,8 @@ def run(rt: StageRuntime) -> None:
                 try:
                     ref = rt.ring.write(frame.image, frame.seq, frame.t, frame.depth,
                                         float(getattr(frame, "depth_scale", 0.0) or 0.0),
-                                        getattr(frame, "intrinsics", None), t_origin=t_origin)
+                                        getattr(frame, "intrinsics", None), t_origin=t_origin,
+                                        gravity=getattr(frame, "gravity", None))
                 except FrameTooLarge as exc:
                     ref = None
                     _bad_frame(rt, throttle, str(exc), None)
@@ -174,7 +178,7 @@ def _close(source) -> None:
 
 def run_recording(rt: StageRuntime) -> None:
     """Replay a ``*.landmarks.jsonl`` recording as the landmark stage's output."""
-    from landmarks import LandmarkFrame, RecordingError, RecordingProblem, iter_recording
+    from landmarks import RecordingError, RecordingProblem, iter_recording
 
     src = rt.config.source
     thinner = _Thinner(rt.config.pipeline.target_fps)
@@ -218,7 +222,7 @@ def run_recording(rt: StageRuntime) -> None:
             with rt.step():
                 t_in = clock.now()
                 t_capture = t_start + (item.t - t_first)      # the recording's time line
-                frame = LandmarkFrame(item.seq, t_capture, item.landmarks, depth_m=item.depth_m)
+                frame = replace(item, t=t_capture)   # depth_m, gravity and unknown fields travel on
                 msg = LandmarkMsg(frame, t_capture, tuple(header.image_size), intrinsics, (),
                                   None if src.realtime else t_in)
                 rt.send(msg)

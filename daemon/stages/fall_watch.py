@@ -6,9 +6,10 @@ poses: the frame then yields no event, the stage's error counter goes up and the
 first three, then every hundredth).
 
 IMU gravity: a frame whose landmark frame carries ``gravity`` (three numbers, the accelerometer's down
-vector in the colour camera's axes, any length; a ``*.landmarks.jsonl`` line's extra field ``"gravity"``)
-sets the detector's gravity when ``falls.imu_gravity`` is on. No capture source fills it yet (the RealSense
-motion stream is not read); recordings can carry it.
+vector in the colour camera's axes, any length: ``LandmarkFrame.gravity``, filled by a RealSense camera or
+recording with an accelerometer through hal.imu, or a ``*.landmarks.jsonl`` line's ``"gravity"``) sets the
+detector's gravity when ``falls.imu_gravity`` is on. A malformed one (kept in the frame's ``extra``) is
+counted and logged, and the gravity in use is kept.
 """
 
 from __future__ import annotations
@@ -37,13 +38,24 @@ class FallWatch:
                     on_error: Callable[[], None] = lambda: None) -> FallWatch:
         return cls(FallDetector(cfg, robot_id) if cfg.enabled else None, log, on_error)
 
+    def status(self) -> dict:
+        """For the status message: whether detection runs, the camera geometry in use (tilt, roll, floor and
+        where each comes from: config, learned or imu), malformed IMU readings and detector failures."""
+        if self.detector is None:
+            return {"enabled": False}
+        geometry = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in self.detector.geometry.items()}
+        return {"enabled": True, "geometry": geometry, "bad_gravity": self.bad_gravity, "failures": self.failures}
+
     def update(self, msg: FitMsg) -> list[FallEvent]:
         """The fall-event messages this frame caused (usually none)."""
         if self.detector is None:
             return []
         cfg = getattr(self.detector, "cfg", None)
-        extra = getattr(msg.landmarks, "extra", None) or {}
-        gravity = extra.get("gravity") if cfg is not None and cfg.imu_gravity else None
+        gravity = None
+        if cfg is not None and cfg.imu_gravity:
+            gravity = getattr(msg.landmarks, "gravity", None)
+            if gravity is None:
+                gravity = (getattr(msg.landmarks, "extra", None) or {}).get("gravity")
         if gravity is not None:
             try:
                 self.detector.set_gravity(_vector3(gravity))

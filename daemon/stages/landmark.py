@@ -7,9 +7,14 @@ A FrameRef whose slot was overwritten before it was read is dropped.
 Depth: when the frame came with a depth image aligned to it (``FrameRef.has_depth``: a RealSense camera or
 recording), the depth at each landmark (``landmarks.with_depth``, metres) goes to the fitting stage on the
 frame itself, ``LandmarkMsg.frame.depth_m``; otherwise (no depth, or no person) ``depth_m`` is None.
+
+Gravity: the camera accelerometer's down direction (``FrameRef.gravity``, hal.imu) goes on the frame too,
+``LandmarkMsg.frame.gravity``, person or not: the fall detector's camera geometry follows it.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 from daemon import clock
 from daemon.messages import LandmarkMsg, origin
@@ -47,6 +52,8 @@ def run(rt: StageRuntime) -> None:
             last_seq = ref.seq
             try:
                 frame = with_depth(landmarker.process(image, ref.t_capture, ref.seq), depth, depth_scale)
+                if ref.gravity is not None:
+                    frame = replace(frame, gravity=ref.gravity)
             except Exception as exc:  # one bad frame must not stop the pipeline
                 failures += 1
                 rt.error()

@@ -104,6 +104,7 @@ class PublisherStage:
         status["zenoh"] = self.bus.status()
         status["events"] = self.outbox.status()
         status["events"]["acks"]["rejected"] = self.bus.acks_rejected
+        status["falls"] = self.falls.status()
         if self.ros2 is not None:
             status["ros2"] = self.ros2.status()
         self.bus.put_status(status_message(status, self.rt.config.robot_id, clock.now()))

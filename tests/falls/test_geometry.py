@@ -150,3 +150,7 @@ def test_frame_gravity_reaches_the_detector_through_the_publisher_stage():
     off = FallWatch.from_config(FallsConfig(camera_tilt_deg=5.0, imu_gravity=False), "r", log)
     off.update(FitMsg(FitResult.failure(0, 0.0, "no person"), frame, 0.0, (640, 480)))
     assert off.detector.geometry["tilt_from"] == "config" and off.detector.geometry["tilt_deg"] == pytest.approx(5.0)
+    status = watch.status()                                   # what the status message carries
+    assert status["enabled"] and status["bad_gravity"] == 1 and status["failures"] == 0
+    assert status["geometry"]["tilt_from"] == "imu" and status["geometry"]["tilt_deg"] == pytest.approx(20.0)
+    assert FallWatch.from_config(FallsConfig(enabled=False), "r", log).status() == {"enabled": False}

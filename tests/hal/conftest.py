@@ -83,3 +83,44 @@ def squat_db3(tmp_path_factory: pytest.TempPathFactory, squat_frames: list[np.nd
             w.write(image, synthetic_depth(i), TS0_MS + pts[i], i)
     assert path.stat().st_size > 0
     return Db3Recording(path, colour, pts)
+
+
+# The RealSense recording with an accelerometer (a D435i's "Motion Module"): the squat video's colour, and
+# accelerometer samples at ACCEL_HZ of a camera tilted IMU_TILT_DEG down and rolled IMU_ROLL_DEG, with noise
+# and a few bumps (samples far from 1 g that the filter must skip).
+IMU_TILT_DEG, IMU_ROLL_DEG = 20.0, -3.0
+IMU_FRAMES = 15
+ACCEL_HZ = 100
+ACCEL_NOISE_M_S2 = 0.05     # per axis, about the BMI055's at 63 Hz (datasheet: 150 ug/sqrt(Hz))
+
+
+def imu_down(tilt_deg: float = IMU_TILT_DEG, roll_deg: float = IMU_ROLL_DEG) -> np.ndarray:
+    from falls.features import gravity_from_tilt
+
+    return np.asarray(gravity_from_tilt(tilt_deg, roll_deg), dtype=np.float64)
+
+
+@pytest.fixture(scope="session")
+def squat_imu_db3(tmp_path_factory: pytest.TempPathFactory, squat_frames: list[np.ndarray]) -> Db3Recording:
+    """Colour (the real squat video) + accelerometer, recorded by pyrealsense2's software device + recorder."""
+    from hal.db3 import Db3Writer
+    from hal.imu import G_M_S2
+
+    path = tmp_path_factory.mktemp("imu") / "squat_imu.db3"
+    colour = [cv2.resize(f, (COLOUR_K.width, COLOUR_K.height), interpolation=cv2.INTER_AREA)
+              for f in squat_frames[20:20 + IMU_FRAMES]]
+    pts = [i * 1000.0 / SQUAT_FPS for i in range(IMU_FRAMES)]
+    rng = np.random.default_rng(7)
+    reading = -G_M_S2 * imu_down()                       # an accelerometer at rest reads the support's push
+    period_ms = 1000.0 / ACCEL_HZ
+    with Db3Writer(path, COLOUR_K, SQUAT_FPS, accel_fps=ACCEL_HZ, name="squat imu test") as w:
+        n = 0
+        for i, image in enumerate(colour):
+            while n * period_ms <= pts[i]:
+                sample = reading + rng.normal(0.0, ACCEL_NOISE_M_S2, 3)
+                if n % 37 == 5:
+                    sample = sample + np.array([0.0, 6.0, 0.0])   # a bump: |a| far from g, skipped
+                w.write_accel(TS0_MS + n * period_ms, sample)
+                n += 1
+            w.write(image, None, TS0_MS + pts[i], i)
+    return Db3Recording(path, colour, pts)

@@ -181,12 +181,12 @@ class StallingPipeline(PlaybackPipeline):
 
     plan: dict = {}
 
-    def start(self, *args):
+    def start(self, *args, **kwargs):
         if self.plan.get("failing_starts", 0) > 0 and self.plan["started"] >= 1:
             self.plan["failing_starts"] -= 1
             raise RuntimeError("simulated: No device connected")
         self.plan["started"] += 1
-        return super().start(*args)
+        return super().start(*args, **kwargs)
 
     def try_wait_for_frames(self, timeout_ms=5000):
         p = self.plan

@@ -43,7 +43,7 @@ def test_an_event_journalled_by_an_older_posed_is_completed():
 
 
 def test_status_keeps_the_software_version_apart():
-    out = payloads.status_message({"version": "0.1.0", "state": "running"}, "r1", clock.now())
+    out = payloads.status_message({"posed_version": "0.1.0", "state": "running"}, "r1", clock.now())
     assert out["version"] == contract.VERSION and out["posed_version"] == "0.1.0"
     assert out["format"] == "posed.status" and out["robot"] == "r1"
     assert out["time_unix"] == pytest.approx(time.time(), abs=0.05)

@@ -1,0 +1,107 @@
+"""The RealSense accelerometer's gravity through ``posed run``, real processes end to end: a recording with an
+accelerometer stream (the real squat video's colour, a camera tilted 20 deg down and rolled -3 deg) -> capture
+(gravity on the FrameRef) -> landmark stage (on the frame) -> the landmarks topic carries it, and the fall
+detector's camera geometry in the status comes from the IMU. ``posed landmarks`` writes the same gravity into
+a recording, and a replay of that recording gives the detector the same geometry."""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from daemon.cli import main
+from landmarks import read_recording
+from tests.daemon.test_run_e2e import posed_run
+from tests.daemon.zenoh_util import client, free_port, router
+from tests.hal.conftest import IMU_FRAMES, IMU_ROLL_DEG, IMU_TILT_DEG, imu_down
+
+ANGLE_TOL_DEG = 0.5   # as tests/hal/test_imu.py: 3-sigma noise of the average is 0.12 deg
+
+
+def _angle(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return math.degrees(math.acos(float(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0))))
+
+
+def _run(tmp_path, source, robot: str) -> tuple[list[dict], list[dict]]:
+    """The daemon on ``source`` (unpaced, lossless, stopping at the end, status every 0.1 s): the landmarks
+    messages by seq and the status messages in arrival order."""
+    rep = f"tcp/127.0.0.1:{free_port()}"
+    r = router(rep)
+    lock = threading.Lock()
+    landmarks: list[dict] = []
+    statuses: list[dict] = []
+
+    def keep(into):
+        def on(sample) -> None:
+            with lock:
+                into.append(json.loads(sample.payload.to_string()))
+        return on
+
+    try:
+        with client(rep) as s:
+            subs = [s.declare_subscriber(f"posed/{robot}/landmarks", keep(landmarks)),
+                    s.declare_subscriber(f"posed/{robot}/status", keep(statuses))]
+            proc = posed_run(tmp_path, source, f"robot_id={robot}", "source.realtime=false",
+                             "pipeline.stop_at_end=true", "pipeline.status_period_s=0.1",
+                             "zenoh.publish_landmarks=true",
+                             f"zenoh.listen=[tcp/127.0.0.1:{free_port()}]", f"zenoh.connect=[{rep}]")
+            try:
+                code = proc.wait(timeout=120)
+            finally:
+                if proc.poll() is None:
+                    proc.kill()
+            time.sleep(0.3)
+            del subs
+        assert code == 0, (tmp_path / "err.log").read_text()
+    finally:
+        r.close()
+    with lock:
+        return sorted(landmarks, key=lambda m: m["seq"]), list(statuses)
+
+
+def _imu_geometry(statuses: list[dict]) -> dict:
+    found = [s["falls"]["geometry"] for s in statuses
+             if s.get("falls", {}).get("geometry", {}).get("tilt_from") == "imu"]
+    assert found, f"no status with the IMU's geometry among {len(statuses)}: " \
+                  f"{[s.get('falls') for s in statuses[-3:]]}"
+    return found[-1]
+
+
+@pytest.mark.timeout(300)
+def test_accelerometer_gravity_reaches_the_topic_and_the_fall_detector(tmp_path, squat_imu_db3, capsys):
+    run_dir = tmp_path / "db3"
+    run_dir.mkdir()
+    msgs, statuses = _run(run_dir, squat_imu_db3.path, "imu")
+    assert [m["seq"] for m in msgs] == list(range(IMU_FRAMES))
+    with_gravity = [m for m in msgs if "gravity" in m]
+    assert len(with_gravity) >= IMU_FRAMES - 1                          # all but possibly the first frame
+    for m in with_gravity:
+        assert _angle(m["gravity"], imu_down()) < ANGLE_TOL_DEG
+    geo = _imu_geometry(statuses)
+    assert geo["roll_from"] == "imu"
+    assert geo["tilt_deg"] == pytest.approx(IMU_TILT_DEG, abs=ANGLE_TOL_DEG)
+    assert geo["roll_deg"] == pytest.approx(IMU_ROLL_DEG, abs=ANGLE_TOL_DEG)
+
+    # posed landmarks writes the gravity into the recording; its replay gives the detector the same geometry
+    recording = tmp_path / "squat_imu.landmarks.jsonl"
+    assert main(["landmarks", str(squat_imu_db3.path), "-o", str(recording)]) == 0
+    capsys.readouterr()
+    _, frames, _ = read_recording(recording)
+    by_seq = {m["seq"]: m for m in with_gravity}
+    assert sum(f.gravity is not None for f in frames) >= IMU_FRAMES - 1
+    for f in frames:
+        if f.gravity is not None and f.seq in by_seq:
+            assert _angle(f.gravity, by_seq[f.seq]["gravity"]) < 0.05
+    run_dir = tmp_path / "jsonl"
+    run_dir.mkdir()
+    replayed, statuses = _run(run_dir, recording, "replay")
+    assert [m.get("gravity") for m in replayed] == [None if f.gravity is None else list(f.gravity) for f in frames]
+    geo = _imu_geometry(statuses)
+    assert geo["tilt_deg"] == pytest.approx(IMU_TILT_DEG, abs=ANGLE_TOL_DEG)
+
