@@ -26,7 +26,6 @@ but the lost-after-descent rule and the alarm timer; gaps up to ``max_gap_s`` ar
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -34,23 +33,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camera_model import Intrinsics
+from falls.camera_geometry import CameraGeometry
 from falls.config import FallsConfig
 from falls.event import FallEvent
-from falls.features import (
-    ANKLE_OVER_LEG,
-    PELVIS_OVER_LEG,
-    FrameFeatures,
-    gravity_from_tilt,
-    measure,
-)
-from falls.geometry import GravityLearner, tilt_roll_deg
+from falls.features import ANKLE_OVER_LEG, PELVIS_OVER_LEG, FrameFeatures, measure
 from fitting import FitResult
 
 LOST_HORIZON_S = 0.4     # lost while falling: the pelvis would reach floor level this soon at its last speed
 PROFILE_WINDOW_S = 0.25  # descent profile: speeds over this window (three frames at 10 fps)
 LYING_HYSTERESIS_REL = 0.1   # a person lying stops lying above lying_pelvis_rel (shoulder_rel) + this
 LYING_HYSTERESIS_DEG = 15.0  # ... or with the trunk this much nearer vertical than lying_trunk_deg
-GRAVITY_STEP_DEG = 1.0   # a learned gravity is applied when it moved this far from the one in use
 
 
 @dataclass
@@ -97,19 +89,10 @@ class FallDetector:
         self.robot_id = robot_id
         self.fit_frame = fit_frame
         self._new_id = id_factory
-        self._gravity_cfg = gravity_from_tilt(cfg.camera_tilt_deg, cfg.camera_roll_deg)
-        self._gravity = self._gravity_cfg
-        self._gravity_imu: np.ndarray | None = None
-        self._learner = GravityLearner(self._gravity_cfg) if (cfg.camera_tilt_auto or cfg.camera_roll_auto) else None
-        self._roll_deg = cfg.camera_roll_deg
+        self.camera = CameraGeometry(cfg)       # gravity, floor, standing height (falls.camera_geometry)
         self._last_smoothed: Sample | None = None
         self._last_v = 0.0
         self._controlled_t: float | None = None   # a controlled descent (lying down on purpose) ended here
-        self._floor_cfg = cfg.camera_height_m if cfg.camera_height_m > 0 else None
-        self._floor_learned: float | None = None
-        self._floor_weight = 0.0
-        self._stand: float | None = None       # standing pelvis height (m), learned
-        self._stand_weight = 0.0
         self._samples: deque[Sample] = deque()
         self._last_valid_t: float | None = None
         self._last_t: float | None = None
@@ -127,56 +110,19 @@ class FallDetector:
 
     def set_gravity(self, down_camera: np.ndarray | None) -> None:
         """Gravity from an IMU (e.g. the RealSense accelerometer), a down vector in camera coordinates;
-        None returns to the configured (or learned) tilt and roll."""
-        if down_camera is None:
-            self._gravity_imu = None
-        else:
-            g = np.asarray(down_camera, float)
-            n = float(np.linalg.norm(g))
-            if not (np.all(np.isfinite(g)) and n > 1e-9):
-                return  # a broken IMU reading changes nothing
-            self._gravity_imu = g / n
-        self._refresh_gravity()
-
-    def _refresh_gravity(self) -> None:
-        """Gravity: the IMU's, else the learned tilt/roll where ``*_auto`` (once learned), else the config."""
-        cfg = self.cfg
-        if self._gravity_imu is not None:
-            g = self._gravity_imu
-        else:
-            tilt, roll = self._learner.learned() if self._learner is not None else (None, None)
-            g = gravity_from_tilt(tilt if cfg.camera_tilt_auto and tilt is not None else cfg.camera_tilt_deg,
-                                  roll if cfg.camera_roll_auto and roll is not None else cfg.camera_roll_deg)
-        if float(g @ self._gravity) >= math.cos(math.radians(GRAVITY_STEP_DEG)):
-            return  # the learned estimate drifts by less than a step: keep the gravity in use
-        # a new gravity (learned, IMU, or the camera moved): heights measured along the old one are not
-        # comparable with the new ones — relearn the floor and the standing height, forget the motion
-        self._floor_learned, self._floor_weight = None, 0.0
-        self._stand, self._stand_weight = None, 0.0
-        self._gap()
-        self._gravity = g
-        self._roll_deg = tilt_roll_deg(g)[1]
+        None returns to the configured (or learned) tilt and roll. A new gravity forgets the motion."""
+        if self.camera.set_imu(down_camera):
+            self._gap()
 
     @property
     def geometry(self) -> dict:
-        """The camera geometry in use: tilt and roll (deg), floor below the camera (m, None unknown), and
-        where each comes from (config, learned, imu)."""
-        tilt, roll = tilt_roll_deg(self._gravity)
-        l_tilt, l_roll = self._learner.learned() if self._learner is not None else (None, None)
-        src = "imu" if self._gravity_imu is not None else None
-        return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": self.floor_below_camera,
-                "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto else "config"),
-                "roll_from": src or ("learned" if l_roll is not None and self.cfg.camera_roll_auto else "config"),
-                "height_from": "learned" if self._floor_learned is not None and self._floor_weight >= 5
-                else ("config" if self._floor_cfg is not None else "unknown"),
-                "standing_s": 0.0 if self._learner is None else round(self._learner.seconds, 2)}
+        """The camera geometry in use (:meth:`falls.camera_geometry.CameraGeometry.summary`)."""
+        return self.camera.summary()
 
     @property
     def floor_below_camera(self) -> float | None:
         """The floor's distance below the camera along gravity (m), learned or configured."""
-        if self._floor_learned is not None and self._floor_weight >= 5:
-            return self._floor_learned
-        return self._floor_cfg
+        return self.camera.floor_below_camera
 
     # ------------------------------------------------------------------ the frame loop
 
@@ -198,12 +144,13 @@ class FallDetector:
         fit_frame = self.fit_frame
         if fit_frame == "auto":  # the fit says which projection it used (orthographic: axes along the ray)
             fit_frame = "camera" if result.extra.get("projection") == "perspective" else "ray"
-        feats = measure(result, landmarks, image_size, camera, self._gravity, self.cfg.min_visibility,
-                        self.cfg.upright_knee_deg, self._roll_deg, fit_frame, self.cfg.upright_trunk_deg)
-        if feats is not None and self._learner is not None and self._gravity_imu is None and feats.straight_body:
+        geo = self.camera
+        feats = measure(result, landmarks, image_size, camera, geo.gravity, self.cfg.min_visibility,
+                        self.cfg.upright_knee_deg, geo.roll_deg, fit_frame, self.cfg.upright_trunk_deg)
+        if feats is not None and feats.straight_body:
             dt = t - self._prev_frame_t if self._prev_frame_t is not None else 0.1
-            if self._learner.add(self._gravity, feats.body_up_c, feats.axis_plane_c, dt):
-                self._refresh_gravity()
+            if geo.learn(feats.body_up_c, feats.axis_plane_c, dt):
+                self._gap()   # heights along the old gravity are not comparable: forget the motion
         sample = self._sample(feats) if feats is not None else None
         self.last_sample = sample
         if sample is not None:
@@ -290,20 +237,19 @@ class FallDetector:
 
     def _sample(self, f: FrameFeatures) -> Sample | None:
         cfg = self.cfg
-        floor = self.floor_below_camera
+        geo = self.camera
         # learn the floor and the standing height from a person standing upright with straight legs
         standing = f.trunk_incl_deg < cfg.upright_trunk_deg and f.upright_legs
-        if standing and f.below_camera_ankles is not None and cfg.learn_floor:
-            obs = f.below_camera_ankles + ANKLE_OVER_LEG * f.leg_length
-            self._floor_learned, self._floor_weight = _ema(self._floor_learned, self._floor_weight, obs)
-            floor = self.floor_below_camera
+        if standing and f.below_camera_ankles is not None:
+            geo.observe_floor(f.below_camera_ankles + ANKLE_OVER_LEG * f.leg_length)
+        floor = geo.floor_below_camera
         if floor is None:  # no floor known: judge against the lowest fitted joint instead
             floor = f.below_camera_pelvis + max(max(f.offsets_down.values()), 0.0) + ANKLE_OVER_LEG * f.leg_length
         h_pelvis = floor - f.below_camera_pelvis
         if standing and f.below_camera_ankles is not None:
-            self._stand, self._stand_weight = _ema(self._stand, self._stand_weight, h_pelvis)
-        stand = self._stand if self._stand is not None and self._stand_weight >= 3 else PELVIS_OVER_LEG * f.leg_length
-        stand = max(stand, 0.2)
+            geo.observe_standing_pelvis(h_pelvis)
+        stand = geo.standing_pelvis()
+        stand = max(stand if stand is not None else PELVIS_OVER_LEG * f.leg_length, 0.2)
         shoulders = h_pelvis - 0.5 * (f.offsets_down.get("left_shoulder", 0.0)
                                       + f.offsets_down.get("right_shoulder", 0.0))
         return Sample(t=f.t, h_rel=h_pelvis / stand, shoulders_rel=shoulders / stand, incl=f.trunk_incl_deg,
@@ -503,10 +449,3 @@ class FallDetector:
 def _since(start: float | None, t: float) -> float:
     return t if start is None else start
 
-
-def _ema(value: float | None, weight: float, obs: float, max_weight: float = 30.0) -> tuple[float, float]:
-    """Running mean that becomes an exponential average after ``max_weight`` observations."""
-    if value is None or not math.isfinite(value):
-        return obs, 1.0
-    weight = min(weight + 1.0, max_weight)
-    return value + (obs - value) / weight, weight
