@@ -16,7 +16,10 @@ Metrics per frame against the mocap truth in the camera frame (metres), over the
 * ``pa_mpjpe_mm``: the same after the best similarity transform (rotation, translation, scale; Procrustes).
 * ``depth_flip_rate``: of the 8 limb segments (upper arm, forearm, thigh, shank, both sides), those whose true
   depth difference |z_child - z_parent| exceeds ``FLIP_MIN_DZ_M``, the fraction whose fitted difference has
-  the other sign.
+  the other sign. ``depth_flips_by_true_dz``: the same by bins of the true |dz|, next to how often the
+  simulated depth camera itself has the sign wrong there (its measured depth difference of the two
+  endpoints has the other sign; ``sensor_unknown_rate``: no depth at an endpoint) — what depth alone can
+  tell apart.
 * ``angle_err_deg``: mean absolute difference of 8 angles computed from 3D positions the same way for truth
   and fit (:func:`segment_angles`: knee and elbow flexion = angle between the two segments; hip and shoulder
   = angle between the trunk's downward axis and the thigh / upper arm).
@@ -80,6 +83,24 @@ def mpjpe(pred: np.ndarray, truth: np.ndarray) -> float:
 
 def pa_mpjpe(pred: np.ndarray, truth: np.ndarray) -> float:
     return mpjpe(procrustes_align(pred, truth), truth)
+
+
+FLIP_BINS_M = (0.05, 0.08, 0.12, 0.20, math.inf)   # true |dz| bins of depth_flips_by_true_dz
+
+
+def flip_table(pred: np.ndarray, truth: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """Per true-|dz| bin (``FLIP_BINS_M``) over the 8 limb segments: [counted, fit flipped, sensor wrong sign,
+    sensor unknown]; ``measured``: (12,) depth at the body landmarks (m, NaN unknown)."""
+    out = np.zeros((len(FLIP_BINS_M) - 1, 4), dtype=np.int64)
+    for a, b in SEGMENTS:
+        dz_t = truth[b, 2] - truth[a, 2]
+        k = int(np.searchsorted(FLIP_BINS_M, abs(dz_t), side="left")) - 1
+        if abs(dz_t) <= FLIP_BINS_M[0] or k < 0:
+            continue
+        dz_m = measured[b] - measured[a]
+        out[k] += (1, (pred[b, 2] - pred[a, 2]) * dz_t < 0, np.isfinite(dz_m) and dz_m * dz_t < 0,
+                   not np.isfinite(dz_m))
+    return out
 
 
 def depth_flips(pred: np.ndarray, truth: np.ndarray, min_dz: float = FLIP_MIN_DZ_M) -> tuple[int, int]:
@@ -218,6 +239,7 @@ class _Acc:
         self.pa: list[float] = []
         self.mp: list[float] = []
         self.flip = [0, 0]
+        self.flip_bins = np.zeros((len(FLIP_BINS_M) - 1, 4), dtype=np.int64)
         self.ang: list[np.ndarray] = []
         self.root: list[float] = []
         self.root_missing = 0
@@ -246,6 +268,7 @@ class _Acc:
         f, c = depth_flips(pred, truth)
         self.flip[0] += f
         self.flip[1] += c
+        self.flip_bins += flip_table(pred, truth, seq.depth[i][M.BODY12_IDX])
         self.ang.append(np.abs(segment_angles(pred) - segment_angles(truth)))
         rc = root_cam(result)
         if rc is None:
@@ -267,6 +290,13 @@ class _Acc:
             "mpjpe_mm": _r(np.mean(self.mp) * 1e3, 1) if self.mp else None,
             "depth_flip_rate": _r(self.flip[0] / self.flip[1], 4) if self.flip[1] else None,
             "depth_flip_segments": self.flip[1],
+            "depth_flips_by_true_dz": [
+                {"true_dz_m": f"{lo:g}-{hi:g}", "segments": int(n),
+                 "fit_flip_rate": _r(fl / n, 4) if n else None,
+                 "sensor_wrong_sign_rate": _r(wr / n, 4) if n else None,
+                 "sensor_unknown_rate": _r(un / n, 4) if n else None}
+                for (lo, hi), (n, fl, wr, un) in zip(zip(FLIP_BINS_M[:-1], FLIP_BINS_M[1:], strict=True), self.flip_bins,
+                                                     strict=True)],
             "angle_err_deg": _r(ang.mean(), 2) if len(ang) else None,
             "angle_err_by_angle_deg": {n: _r(v, 2) for n, v in zip(ANGLE_NAMES, ang.mean(0), strict=True)}
             if len(ang) else {},

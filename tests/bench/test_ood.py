@@ -63,6 +63,22 @@ def test_depth_flips_count_only_segments_with_a_clear_true_depth_difference():
     assert ood.depth_flips(pred, truth) == (2, 4)
 
 
+def test_flip_table_bins_the_fit_and_the_sensor_by_true_depth_difference():
+    truth = _standing()
+    i = {n: k for k, n in enumerate(M.BODY12)}
+    measured = truth[:, 2] + 3.0                           # a depth camera 3 m away, exact
+    table = ood.flip_table(truth, truth, measured)
+    # forearms: |dz| 0.25 (last bin); shanks: 0.17 (0.12-0.2); thighs (3 cm) and upper arms not counted
+    assert table.tolist() == [[0, 0, 0, 0], [0, 0, 0, 0], [2, 0, 0, 0], [2, 0, 0, 0]]
+    pred = truth.copy()
+    pred[i["left_wrist"], 2] = +0.25                       # the fit flips the left forearm
+    measured[i["right_ankle"]] = measured[i["right_knee"]] - 0.01   # the sensor says the right shank comes closer
+    measured[i["left_ankle"]] = np.nan                     # a hole
+    table = ood.flip_table(pred, truth, measured)
+    assert table.tolist() == [[0, 0, 0, 0], [0, 0, 0, 0], [2, 0, 1, 1], [2, 1, 0, 0]]
+    assert table.sum(0)[:2].tolist() == list(ood.depth_flips(pred, truth))[::-1]
+
+
 def test_segment_angles_from_positions():
     j = _standing()
     a = dict(zip(ood.ANGLE_NAMES, ood.segment_angles(j), strict=True))
@@ -169,6 +185,10 @@ def test_tiny_end_to_end_run_has_every_metric(shared_data):
             assert r[key] is not None and r[key] >= 0, key
         assert r["pa_mpjpe_mm"] <= r["mpjpe_mm"] + 1e-6        # the similarity can only lower the error
         assert 0.0 <= r["depth_flip_rate"] <= 1.0 and r["depth_flip_segments"] > 0
+        bins = r["depth_flips_by_true_dz"]
+        assert sum(b["segments"] for b in bins) == r["depth_flip_segments"]
+        assert sum(b["segments"] * (b["fit_flip_rate"] or 0) for b in bins) == pytest.approx(
+            r["depth_flip_rate"] * r["depth_flip_segments"], abs=0.01)
         assert r["depth_used"] == (r["depth"] and takes)
         assert "root_cam_err_m" in r                           # null until the fitter reports root_cam_m
     # image mode: the 15 fps frames are the even 30 fps frames, fitted once, so identical numbers
