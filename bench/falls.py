@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
+import zlib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -27,6 +28,7 @@ from bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
 from camera_model import Intrinsics
 from falls.config import FallsConfig
 from falls.detector import FallDetector
+from falls.features import gravity_from_tilt
 from fitting import FitResult
 
 DETECTING_STATES = ("falling", "on_floor")
@@ -105,11 +107,42 @@ def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed:
     return out
 
 
+IMU_BIAS_DEG = 0.5    # rms error of a calibrated accelerometer's down direction, constant over a scene (per axis)
+IMU_NOISE_DEG = 0.05  # rms frame-to-frame noise of the filtered direction (tests/hal/test_imu.py: ~0.1 at 3 sigma)
+
+# How the detector learns the synthetic camera's tilt and roll (its height is always given):
+GEOMETRIES = {
+    "given": "the scene's true tilt and roll in the config",
+    "unknown": "tilt and roll 0 in the config (a mount nobody measured), nothing learned",
+    "auto": "tilt and roll 0 in the config, learned from the person (camera_tilt_auto, camera_roll_auto)",
+    "imu": "tilt and roll 0 in the config; every frame carries the accelerometer's gravity (the true one, off "
+           f"by a constant {IMU_BIAS_DEG} deg rms bias per scene and {IMU_NOISE_DEG} deg rms noise per frame, per "
+           "axis), as FallWatch passes it",
+}
+
+
+def _imu_gravity(cam, rng: np.random.Generator, bias_rad: np.ndarray) -> np.ndarray:
+    """The true down direction of ``cam`` turned by the scene's bias and a frame's noise (radians, 2 axes)."""
+    g = np.asarray(gravity_from_tilt(cam.tilt, cam.roll), dtype=float)
+    err = bias_rad + rng.normal(0.0, math.radians(IMU_NOISE_DEG), 2)
+    tilted = g + err[0] * np.cross(g, [1.0, 0.0, 0.0]) + err[1] * np.cross(g, [0.0, 0.0, 1.0])
+    return tilted / np.linalg.norm(tilted)
+
+
 def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int, int], Intrinsics], FitResult],
-             cfg: FallsConfig, fit_frame: str) -> Outcome:
+             cfg: FallsConfig, fit_frame: str, geometry: str = "given") -> Outcome:
     cam = case.camera
     image_size = (cam.width, cam.height)
-    det = FallDetector(replace(cfg, camera_tilt_deg=cam.tilt, camera_height_m=cam.z), "bench", fit_frame=fit_frame)
+    if geometry not in GEOMETRIES:
+        raise ValueError(f"geometry {geometry!r} is not one of: {', '.join(GEOMETRIES)}")
+    if geometry == "given":
+        cfg = replace(cfg, camera_tilt_deg=cam.tilt, camera_roll_deg=cam.roll)
+    else:
+        cfg = replace(cfg, camera_tilt_deg=0.0, camera_roll_deg=0.0,
+                      camera_tilt_auto=geometry == "auto", camera_roll_auto=geometry == "auto")
+    det = FallDetector(replace(cfg, camera_height_m=cam.z), "bench", fit_frame=fit_frame)
+    imu_rng = np.random.default_rng(zlib.crc32(case.name.encode())) if geometry == "imu" else None
+    imu_bias = imu_rng.normal(0.0, math.radians(IMU_BIAS_DEG), 2) if imu_rng is not None else None
     messages = []
     failures = 0
     fit_ms = []
@@ -122,6 +155,8 @@ def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int
             failures += 1
         if result.fit_ms is not None:
             fit_ms.append(result.fit_ms)
+        if imu_rng is not None:
+            det.set_gravity(_imu_gravity(cam, imu_rng, imu_bias))
         messages += det.update(result, fr.landmarks, image_size, intrinsics=cam.intrinsics)
         if det.last_sample is not None:
             recent = (recent + [det.last_sample])[-3:]
@@ -211,7 +246,8 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
 
 def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
               only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
-              fit_config=None, with_intrinsics: bool = True, cache: Path | None = None) -> dict:
+              fit_config=None, with_intrinsics: bool = True, cache: Path | None = None,
+              geometry: str = "given") -> dict:
     cfg = cfg or FallsConfig()
     cases: list[Case] = []
     for split in splits:
@@ -235,7 +271,7 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             def fn(lm, seq, t, size, intr, by_seq=by_seq, cam=case.camera):
                 return truth_result(by_seq[seq], cam)
 
-        outcome = run_case(case, fn, cfg, fit_frame)
+        outcome = run_case(case, fn, cfg, fit_frame, geometry)
         outcomes.append(outcome)
         if progress:
             progress(outcome)
@@ -243,5 +279,6 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
     report["splits"] = {s: summarise(o for o in outcomes if o.split == s) for s in dict.fromkeys(o.split for o in outcomes)}
     report["fit"] = fit_kind if fit_kind != "real" else ("real, perspective (intrinsics given)" if with_intrinsics
                                                          else "real, orthographic (no intrinsics)")
+    report["geometry"] = {"mode": geometry, "meaning": GEOMETRIES[geometry]}
     report["seconds"] = round(time.monotonic() - t0, 1)
     return report

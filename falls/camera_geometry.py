@@ -8,7 +8,10 @@ down. Heights are metres along ``g``.
   learned (:mod:`falls.geometry`), else the configured ``camera_tilt_deg``/``camera_roll_deg``. A new gravity
   is applied only when it moved more than ``GRAVITY_STEP_DEG`` from the one in use; heights measured along
   the old one are then forgotten (the floor and the standing height are learned again) and the caller is
-  told, so it can forget the motion too.
+  told, so it can forget the motion too. Except from one IMU reading to the next: the accelerometer measures
+  the camera's own rotation (a robot turning its head), which moves neither the floor nor the camera's
+  height above it, and each frame's heights are measured along that frame's true gravity, so they stay
+  comparable: each reading is used as it comes, and nothing is forgotten.
 * **Floor**: its distance below the camera, learned from the ankles of a person standing upright
   (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m`` (0: unknown).
 * **Standing pelvis height**: learned the same way (after ``STAND_MIN_WEIGHT`` observations).
@@ -58,6 +61,10 @@ class CameraGeometry:
             g = np.asarray(down_camera, float)
             n = float(np.linalg.norm(g))
             if not (np.all(np.isfinite(g)) and n > 1e-9):
+                return False
+            if self._gravity_imu is not None:   # the camera turned (or the reading moved): nothing to forget
+                self._gravity_imu = self.gravity = g / n
+                self.roll_deg = tilt_roll_deg(self.gravity)[1]
                 return False
             self._gravity_imu = g / n
         return self._refresh()

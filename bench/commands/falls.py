@@ -24,6 +24,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--geometry", choices=("labels", "config"), default="labels",
                         help="recordings: camera tilt/roll/height from labels.json (default) or from the config "
                              "(e.g. --set falls.camera_tilt_auto=true)")
+    parser.add_argument("--synthetic-geometry", choices=("given", "unknown", "auto", "imu"), default="given",
+                        help="simulated scenarios: the camera's true tilt and roll in the config (given), 0 and "
+                             "nothing learned (unknown), 0 and learned from the person (auto), or 0 with an "
+                             "accelerometer's gravity on every frame (imu)")
     parser.add_argument("--no-cache", action="store_true",
                         help="fit again, do not use the cached fits (~/.cache/posed/falls-fits)")
     parser.add_argument("--only", default="", metavar="TEXT", help="only scenarios whose name contains TEXT")
@@ -60,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
 
     report = run_bench(splits, "truth" if args.truth else "real", cfg.falls, args.only, shared, progress,
                        fit_config=cfg.fitting, with_intrinsics=not args.no_intrinsics,
-                       cache=None if args.no_cache else cache_dir() / "falls-fits")
+                       cache=None if args.no_cache else cache_dir() / "falls-fits",
+                       geometry=args.synthetic_geometry)
     if args.markdown:
         Path(args.markdown).write_text(markdown(report))
     if real is not None:
@@ -73,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"{split:8} falls {s['falls']:3}  recall {_pct(s['recall'])}  ADL {s['adl']:3}  false alarms "
                   f"{s['false_alarms']}  median latency {s['median_latency_s']} s (max {s['max_latency_s']})")
         print(f"all      recall {_pct(report['recall'])}  false alarms {report['false_alarms']}  median latency "
-              f"{report['median_latency_s']} s  ({report['seconds']} s, fit: {report['fit']})")
+              f"{report['median_latency_s']} s  ({report['seconds']} s, fit: {report['fit']}; camera geometry: "
+              f"{report['geometry']['mode']})")
     if real is not None and not args.json:
         _print_recordings(real)
     ok = (real is None or _recordings_ok(real)) and (report["recall"] is None or report["recall"] >= TARGETS["recall"]) and report["false_alarms"] == 0 and \

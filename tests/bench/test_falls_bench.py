@@ -102,3 +102,18 @@ def test_bench_recordings_folder_errors_name_the_problem(tmp_path):
     (tmp_path / "labels.json").write_text(json.dumps({"clips": [{"clip": "a", "label": "fall"}]}))
     with pytest.raises(FileNotFoundError, match="a.landmarks.jsonl"):
         read_labels(tmp_path)
+
+
+def test_synthetic_camera_geometry_modes(capsys):
+    """--synthetic-geometry: the true tilt given, a mount nobody measured (tilt 0), and tilt 0 with an
+    accelerometer's gravity on every frame; on ground-truth fits the IMU restores what the unknown mount loses
+    (falls from a chair: no standing person to learn the floor from)."""
+    out = {}
+    for mode in ("given", "unknown", "imu"):
+        main(["bench", "falls", "--truth", "--split", "tune", "--only", "fall/sitting-forward", "--json",
+              "--synthetic-geometry", mode])
+        report = json.loads(capsys.readouterr().out)
+        assert report["geometry"]["mode"] == mode and report["geometry"]["meaning"]
+        out[mode] = report["recall"]
+    assert out["given"] == 1.0 and out["imu"] == 1.0
+    assert out["unknown"] < 1.0
