@@ -160,3 +160,46 @@ def test_journald_when_reachable_else_json_lines(tmp_path):
         line = json.loads(out_path.read_text())
         assert (line["event"], line["component"], line["tag"], line["level"]) == (
             "journal_test", "fitting", tag, "warning")
+
+
+PAUSED_READER_CHILD = r"""
+import sys, time
+from daemon import logs
+logs.configure("info", "json")
+log = logs.get("flood")
+t0 = time.monotonic()
+for i in range(20000):
+    log.info("line", i=i, pad="y" * 200)
+print(f"done {time.monotonic() - t0:.2f}", file=sys.stderr, flush=True)
+sys.stdin.readline()                      # the reader is back
+log.info("end")
+assert logs.STDOUT.wait_drained(60.0)
+"""
+
+
+def test_a_paused_reader_never_stops_the_writer():
+    """A log reader that stops reading (a paused ``less``): 20000 lines (5 MB, 80 pipe buffers) are logged
+    without waiting; what does not fit the spill queue is dropped and counted, the rest comes in order once
+    the reader is back, then a line saying how many were dropped."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    child = subprocess.Popen([sys.executable, "-c", PAUSED_READER_CHILD], cwd=root, stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        done = child.stderr.readline()        # nobody reads stdout meanwhile; before the fix: stuck at ~64 kB
+        assert done.startswith("done"), done + child.stderr.read()
+        child.stdin.write("go\n")
+        child.stdin.flush()
+        out = child.stdout.read()
+        assert child.wait(timeout=60) == 0, child.stderr.read()
+    finally:
+        if child.poll() is None:
+            child.kill()
+    lines = [json.loads(x) for x in out.splitlines()]
+    got = [x["i"] for x in lines if x.get("event") == "line"]
+    assert got == sorted(got) and got[0] == 0 and len(got) < 20000        # in order; some dropped
+    told = [x for x in lines if x.get("event") == "log_lines_dropped"]
+    assert len(told) == 1 and told[0]["count"] == 20000 - len(got)
+    assert lines[-1]["event"] == "end"
+    assert len(out.encode()) > logs.SPILL_BYTES                            # the spill queue was used
