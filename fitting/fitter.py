@@ -78,7 +78,7 @@ class Fitter:
 
     def warmup(self) -> None:
         """Compile (or load from the numba cache) every kernel by fitting a simulated frame in both modes."""
-        from fitting.warmup import warmup_landmarks
+        from fitting.warmup import warmup_depth, warmup_landmarks
 
         lm = warmup_landmarks(self.dims)
         noisy = warmup_landmarks(self.dims, noise_px=3.0, seed=1)
@@ -87,8 +87,10 @@ class Fitter:
         self.fit(lm, 0, 0.0, (640, 480), mode="image")
         self.fit(lm, 1, 1 / 30, (640, 480), mode="video")
         self.fit(noisy, 2, 2 / 30, (640, 480), mode="video")      # the prior paths (noise > 0)
-        self.fit(noisy, 3, 3 / 30, (640, 480), mode="image",
-                 intrinsics=Intrinsics(600.0, 600.0, 320.0, 240.0, 640, 480))
+        k = Intrinsics(600.0, 600.0, 320.0, 240.0, 640, 480)
+        self.fit(noisy, 3, 3 / 30, (640, 480), mode="image", intrinsics=k)
+        self.fit(noisy, 4, 4 / 30, (640, 480), mode="video", intrinsics=k,   # the depth term's kernels
+                 depth_m=warmup_depth(self.dims))
         self._prev_x, self._prev_ppm, self._prev_t, self._err_ref = saved
 
     # --- the fit ---

@@ -15,8 +15,8 @@ Residual layout (``R_*`` in fitting.layout, N_RES = 83 rows):
 
 The landmark Jacobian is built by the chain rule: the camera-axes velocity of each landmark under each
 joint angle is a x (p - o) for the joint's rotation axis a (camera axes) through its centre o
-(:func:`_point_jacobian`); the projection turns it into image units (:func:`_projection_jacobian`); the
-translation's own dependence on x is differentiated through T = N / D (:func:`_landmark_rows`).
+(:func:`_point_jacobian`); the projection turns it into image units and the translation's own dependence
+on x is differentiated through T = N / D, both in :func:`_landmark_rows`.
 """
 
 from __future__ import annotations
@@ -142,51 +142,54 @@ def _point_jacobian(x, data, pts_c, jp):
 
 
 @njit(cache=True)
-def _projection_jacobian(x, data, pts_c, jp, jq, ja):
-    """jq[i, c] = d (model projection of landmark i, axis c) / d x and ja[i, c] = d a_ic / d x (2 x 19 each,
-    normalized units; ja is zero for the orthographic camera, where a = 1)."""
+def _landmark_rows(x, data, pts_c, jp, sw, a_, b_, t_, nn, dd, jac):
+    """Rows R_LM.. of the Jacobian: d r_ic = -dq_ic - da_ic T_c - a_ic dT_c, T = N / D,
+    dT = (dN D - N dD) / D^2. dq_ic and da_ic: the rates of landmark i's model projection on image axis c
+    and of its translation coefficient a_ic, from the point Jacobian ``jp`` through the camera model
+    (normalized units; da is zero for the orthographic camera, where a = 1)."""
     h = data[L.D_DIMS + L.DM_H]
     g = x[L.X_GAMMA]
+    n = L.N_VAR
+    dq = np.empty((2, n, L.N_LM))
+    da = np.zeros((2, n, L.N_LM))
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
+        gh = g / h
         for i in range(L.N_LM):
             for c in range(2):
-                for k in range(1, L.N_VAR):
-                    jq[i, c, k] = g * jp[i, c, k] / h
-                jq[i, c, L.X_GAMMA] = pts_c[i, c] / h
-        return
-    fnx, fny = data[L.D_PROJ + L.PJ_FN_X], data[L.D_PROJ + L.PJ_FN_Y]
-    tz = fny * h / g
-    dtz = -tz / g
+                dq[c, L.X_GAMMA, i] = pts_c[i, c] / h
+                for k in range(1, n):
+                    dq[c, k, i] = gh * jp[i, c, k]
+    else:
+        tz = data[L.D_PROJ + L.PJ_FN_Y] * h / g
+        dtz = -tz / g
+        for i in range(L.N_LM):
+            z = tz + pts_c[i, 2]
+            if z < MIN_DEPTH * tz:
+                z = MIN_DEPTH * tz
+            iz = 1.0 / z
+            iz2 = iz * iz
+            for c in range(2):
+                fn = data[L.D_PROJ + L.PJ_FN_X + c]
+                pc = pts_c[i, c]
+                dq[c, L.X_GAMMA, i] = -fn * pc * dtz * iz2
+                da[c, L.X_GAMMA, i] = -fn * dtz * iz2
+                for k in range(1, n):
+                    dq[c, k, i] = fn * (jp[i, c, k] * iz - pc * jp[i, 2, k] * iz2)
+                    da[c, k, i] = -fn * jp[i, 2, k] * iz2
+    sq = np.empty(L.N_LM)
     for i in range(L.N_LM):
-        zz = tz + pts_c[i, 2]
-        if zz < MIN_DEPTH * tz:
-            zz = MIN_DEPTH * tz
-        z2 = zz * zz
-        for c in range(2):
-            fn = fnx if c == 0 else fny
-            for k in range(1, L.N_VAR):
-                jq[i, c, k] = fn * (jp[i, c, k] / zz - pts_c[i, c] * jp[i, 2, k] / z2)
-                ja[i, c, k] = -fn * jp[i, 2, k] / z2
-            jq[i, c, L.X_GAMMA] = -fn * pts_c[i, c] * dtz / z2
-            ja[i, c, L.X_GAMMA] = -fn * dtz / z2
-
-
-@njit(cache=True)
-def _landmark_rows(data, sw, a_, b_, t_, nn, dd, jq, ja, jac):
-    """Rows R_LM.. of the Jacobian: d r_ic = -dq_ic - da_ic T_c - a_ic dT_c, T = N / D,
-    dT = (dN D - N dD) / D^2."""
+        sq[i] = math.sqrt(data[L.D_W + i] / sw)
     for c in range(2):
-        for k in range(L.N_VAR):
+        for k in range(n):
             dn = 0.0
             d_d = 0.0
             for i in range(L.N_LM):
                 w = data[L.D_W + i]
-                dn += w * (ja[i, c, k] * b_[i, c] - a_[i, c] * jq[i, c, k])
-                d_d += 2.0 * w * a_[i, c] * ja[i, c, k]
+                dn += w * (da[c, k, i] * b_[i, c] - a_[i, c] * dq[c, k, i])
+                d_d += 2.0 * w * a_[i, c] * da[c, k, i]
             dt = (dn * dd[c] - nn[c] * d_d) / (dd[c] * dd[c]) if dd[c] > 0.0 else 0.0
             for i in range(L.N_LM):
-                sq = math.sqrt(data[L.D_W + i] / sw)
-                jac[L.R_LM + 2 * i + c, k] = sq * (-jq[i, c, k] - ja[i, c, k] * t_[c] - a_[i, c] * dt)
+                jac[L.R_LM + 2 * i + c, k] = sq[i] * (-dq[c, k, i] - da[c, k, i] * t_[c] - a_[i, c] * dt)
 
 
 @njit(cache=True)
@@ -234,10 +237,7 @@ def residuals_jacobian(x, data, res, jac, want_jac):
         return
     jp = np.zeros((L.N_LM, 3, L.N_VAR))
     _point_jacobian(x, data, pts_c, jp)
-    jq = np.zeros((L.N_LM, 2, L.N_VAR))
-    ja = np.zeros((L.N_LM, 2, L.N_VAR))
-    _projection_jacobian(x, data, pts_c, jp, jq, ja)
-    _landmark_rows(data, sw, a_, b_, t_, nn, dd, jq, ja, jac)
+    _landmark_rows(x, data, pts_c, jp, sw, a_, b_, t_, nn, dd, jac)
     hinge_jacobian(x, data, jac)
     for i in range(L.N_LM):
         wd = data[L.D_DEPTH_W + i]

@@ -4,7 +4,9 @@
 * :func:`levenberg_marquardt`: minimizes the sum of squared residuals of
   :func:`fitting.jacobian.residuals_jacobian` (weighted mean squared 2D error plus squared penalty hinges,
   plus the prior rows when the prior weight is set) with Marquardt's diagonal damping, clamping every
-  variable to the joint limits.
+  variable to the joint limits; its normal equations (:func:`normal_equations`: dense landmark and depth
+  rows, sparse hinge and prior rows) and damped Cholesky solve (:func:`cholesky_solve_into`) use work arrays
+  allocated once per refinement.
 * :func:`pelvis_projection`: moves along the exact null direction (theta_bd + d, theta_tr - d,
   theta_hp_l + d, theta_hp_r + d), which changes no landmark, to the minimum of the pelvis-tilt prior.
 * :func:`limb_from_observation` / :func:`limb_flip`: a limb solved from its 2D landmarks for a chosen depth
@@ -31,30 +33,92 @@ REL_TOL = 1e-4  # LM stops when an accepted step lowers the cost by less than th
 def cholesky_solve(a, b, out):
     """Solve a out = b for a symmetric positive definite ``a`` (n x n); returns False if not SPD."""
     n = a.shape[0]
-    low = np.zeros((n, n))
+    return cholesky_solve_into(a, b, out, np.empty((n, n)), np.empty(n))
+
+
+@njit(cache=True)
+def cholesky_solve_into(a, b, out, low, y):
+    """:func:`cholesky_solve` with caller work arrays ``low`` (n x n: its strict lower triangle overwritten
+    with the Cholesky factor L, its diagonal with 1 / L_ii) and ``y`` (n): no allocation, for the
+    refinement's inner loop. Only the lower triangle of ``a`` is read; divisions are multiplications by the
+    reciprocal diagonal."""
+    n = a.shape[0]
     for i in range(n):
-        for j in range(i + 1):
+        for j in range(i):
             acc = a[i, j]
             for k in range(j):
                 acc -= low[i, k] * low[j, k]
-            if i == j:
-                if acc <= 0.0:
-                    return False
-                low[i, i] = math.sqrt(acc)
-            else:
-                low[i, j] = acc / low[j, j]
-    y = np.empty(n)
+            low[i, j] = acc * y[j]
+        acc = a[i, i]
+        for k in range(i):
+            acc -= low[i, k] * low[i, k]
+        if not acc > 0.0:
+            return False
+        low[i, i] = math.sqrt(acc)
+        y[i] = 1.0 / low[i, i]  # the reciprocal diagonal until the solve below overwrites y
+    for i in range(n):
+        low[i, i] = y[i]
     for i in range(n):
         acc = b[i]
         for k in range(i):
             acc -= low[i, k] * y[k]
-        y[i] = acc / low[i, i]
+        y[i] = acc * low[i, i]
     for i in range(n - 1, -1, -1):
         acc = y[i]
         for k in range(i + 1, n):
             acc -= low[k, i] * out[k]
-        out[i] = acc / low[i, i]
+        out[i] = acc * low[i, i]
     return True
+
+
+@njit(cache=True)
+def _dense_rows(jac, res, r0, r1, a, g):
+    """Add rows r0 .. r1 - 1 of J to the lower triangle of a = J'J and to g = J'r, column by column of each
+    row's non-zero entries (a landmark row has none for the limbs it does not depend on)."""
+    n = jac.shape[1]
+    for r in range(r0, r1):
+        rr = res[r]
+        for i in range(n):
+            ji = jac[r, i]
+            if ji == 0.0:
+                continue
+            g[i] += ji * rr
+            for j in range(i + 1):
+                a[i, j] += ji * jac[r, j]
+
+
+@njit(cache=True)
+def normal_equations(jac, res, a, g, cols):
+    """a = J'J and g = J'r (half the cost's gradient) of the refinement's residual rows (layout R_*) into
+    ``a`` (n x n, both triangles) and ``g`` (n), summed over the rows in ascending order.
+
+    The landmark and depth rows are dense (the depth rows zero without depth); the penalty, joint-limit and
+    prior rows between them have one or two non-zeros, found per row. ``cols``: int64 work array (n)."""
+    n = jac.shape[1]
+    for i in range(n):
+        g[i] = 0.0
+        for j in range(n):
+            a[i, j] = 0.0
+    _dense_rows(jac, res, L.R_LM, L.R_PEN, a, g)
+    for r in range(L.R_PEN, L.R_DEPTH):
+        nz = 0
+        for i in range(n):
+            if jac[r, i] != 0.0:
+                cols[nz] = i
+                nz += 1
+        if nz == 0:
+            continue
+        rr = res[r]
+        for p in range(nz):
+            i = cols[p]
+            ji = jac[r, i]
+            g[i] += ji * rr
+            for q in range(p + 1):
+                a[i, cols[q]] += ji * jac[r, cols[q]]
+    _dense_rows(jac, res, L.R_DEPTH, L.N_RES, a, g)
+    for i in range(n):
+        for j in range(i):
+            a[j, i] = a[i, j]
 
 
 @njit(cache=True)
@@ -88,32 +152,12 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
     held = np.zeros(n, dtype=np.bool_)
     it = 0
     cols = np.empty(n, dtype=np.int64)
+    low = np.empty((n, n))
+    y_work = np.empty(n)
     while it < max_iter:
         it += 1
-        # normal equations over the non-zero entries of each row (landmark rows are dense, hinge and prior
-        # rows have one or two): a = J'J, g = J'r (half the cost's gradient)
-        for i in range(n):
-            g[i] = 0.0
-            for j in range(n):
-                a[i, j] = 0.0
-        for r in range(m):
-            nz = 0
-            for i in range(n):
-                if jac[r, i] != 0.0:
-                    cols[nz] = i
-                    nz += 1
-            if nz == 0:
-                continue
-            rr = res[r]
-            for p in range(nz):
-                i = cols[p]
-                ji = jac[r, i]
-                g[i] += ji * rr
-                for q in range(p + 1):
-                    a[i, cols[q]] += ji * jac[r, cols[q]]
-        for i in range(n):
-            for j in range(i):
-                a[j, i] = a[i, j]
+        # normal equations: a = J'J, g = J'r (half the cost's gradient)
+        normal_equations(jac, res, a, g, cols)
         for i in range(n):
             held[i] = (x[i] <= lo[i] and g[i] > 0.0) or (x[i] >= hi[i] and g[i] < 0.0)
         improved = False
@@ -121,10 +165,10 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
         for _ in range(12):
             for i in range(n):
                 rhs[i] = 0.0 if held[i] else -g[i]
-                for j in range(n):
+                for j in range(i):
                     damped[i, j] = 0.0 if (held[i] or held[j]) else a[i, j]
                 damped[i, i] = 1.0 if held[i] else a[i, i] + lam * max(a[i, i], 1e-9) + 1e-12
-            if not cholesky_solve(damped, rhs, step):
+            if not cholesky_solve_into(damped, rhs, step, low, y_work):
                 lam *= nu
                 nu *= 2.0
                 continue

@@ -25,3 +25,9 @@ def warmup_landmarks(dims: BodyDimensions, noise_px: float = 0.0, seed: int = 1)
         xy = xy + np.random.default_rng(seed).normal(0.0, noise_px, size=xy.shape)
     vis = np.full(33, 0.99)
     return np.column_stack([xy, s * pts[:, 2], vis, vis])
+
+
+def warmup_depth(dims: BodyDimensions, distance_m: float = 3.0) -> np.ndarray:
+    """(33,) metres: what an aligned depth camera would measure at the landmarks of :data:`POSE` with its
+    mid-hip ``distance_m`` away (the joint centres themselves; for the depth kernels' code paths)."""
+    return distance_m + landmarks_camera(POSE, dims)[:, 2]

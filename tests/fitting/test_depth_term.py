@@ -8,7 +8,7 @@ import pytest
 
 from bench import simulate as S
 from fitting import BODY_LANDMARKS, BodyDimensions, FitConfig, Fitter
-from fitting.depth_term import MIN_DEPTHS, SURFACE_M, depth_fit
+from fitting.depth_term import MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, depth_fit
 
 SIZE = (640, 480)
 LIMBS = ((0, 2), (2, 4), (1, 3), (3, 5), (6, 8), (8, 10), (7, 9), (9, 11))  # body-landmark index pairs
@@ -54,6 +54,49 @@ def test_too_few_depths_is_no_term():
     depth = np.full(12, np.nan)
     depth[: MIN_DEPTHS - 1] = 3.0
     assert depth_fit(np.zeros(12), depth) is None
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_kernel_matches_numpy_reference(seed):
+    """fitting.depth_rows.depth_term_kernel (numba, on a solution x) against depth_term.depth_fit (NumPy, on
+    the same landmark depths): holes, background hits, occluders, and too few depths. Bound: the votes are
+    sums of a few metres, so their median, inlier mean and costs agree to a few float64 ulps of 10 m."""
+    from fitting import forward_kinematics as FK
+    from fitting import layout as L
+    from fitting import problem as P
+    from fitting.depth_rows import depth_term_kernel
+    from fitting.result import VARIABLE_NAMES
+
+    rng = np.random.default_rng(seed)
+    dims = BodyDimensions.from_height(1.6)
+    pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair")[seed % 3], rng.uniform(-180, 180))
+    lm = S.render(pose, dims=dims, noise_px=2.0, seed=seed)
+    xy, w, _ = P.landmark_weights(lm, FitConfig())
+    data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data
+    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+    x[1:] += rng.normal(0.0, 0.2, x.size - 1)
+    pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
+    FK.model_points(x, data, pts_b, pts_c)
+    z_rel = pts_c[:L.N_LM, 2]
+    depth = rng.uniform(2.0, 5.0) + z_rel - SURFACE_M + rng.normal(0.0, 0.03, 12)
+    depth[rng.random(12) < 0.15] = np.nan
+    depth[rng.random(12) < 0.1] += rng.uniform(-1.0, 3.0)
+    if seed == 5:
+        depth[MIN_DEPTHS - 1:] = np.nan    # too few: no term
+    targets, weights = np.empty(12), np.empty(12)
+    n, cost, root, inliers, sigma = depth_term_kernel(x, data, depth, targets, weights)
+    ref = depth_fit(z_rel, depth)
+    assert n == int((np.isfinite(depth) & (depth > 0)).sum())
+    if ref is None:
+        assert n < MIN_DEPTHS
+        return
+    tol = 16 * np.finfo(float).eps * 10.0
+    assert root == pytest.approx(ref.root_z, abs=tol) and sigma == pytest.approx(ref.sigma, abs=tol)
+    assert inliers == ref.inliers
+    # costs: u = (vote - root) / sigma with sigma >= 3 cm, each term's slope in u at most ~0.65
+    assert cost == pytest.approx(ref.cost, abs=12 * tol / SURFACE_SIGMA_M)
+    np.testing.assert_allclose(targets, ref.targets, rtol=0, atol=tol)
+    np.testing.assert_allclose(weights, ref.weights, rtol=0, atol=12 * tol / SURFACE_SIGMA_M)
 
 
 def flips(result, pts):

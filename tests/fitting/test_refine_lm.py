@@ -114,3 +114,49 @@ def test_variable_at_a_bound_is_held_and_cost_falls():
     x_ref, cost_ref = reference_lm(x0, lo, hi, data, 30)
     # both stop by the same relative rule; their final costs agree to within that rule's tolerance
     assert cost == pytest.approx(cost_ref, rel=10 * refine.REL_TOL)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_normal_equations_match_numpy(seed):
+    """refine.normal_equations (dense landmark rows, sparse hinge and prior rows, depth rows) against
+    J'J and J'r. Bound: each entry is a sum of N_RES products, a few ulps of the largest product each."""
+    data, x0 = frame_and_start(seed)
+    data = data.copy()
+    rng = np.random.default_rng(seed)
+    data[L.D_DEPTH:L.D_DEPTH + L.N_LM] = rng.normal(0.0, 0.2, L.N_LM)
+    data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = rng.uniform(0.0, 3.0, L.N_LM) * (rng.random(L.N_LM) < 0.8)
+    data[L.D_PRIOR] = 0.5
+    data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
+    data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
+    x0 = x0.copy()
+    x0[L.X_TKN_L] = P.LIMIT_LO_RAD[L.X_TKN_L] - 0.2  # a joint-limit hinge row
+    m = JAC.n_residuals()
+    res, jac = np.empty(m), np.empty((m, L.N_VAR))
+    JAC.residuals_jacobian(x0, data, res, jac, True)
+    a, g = np.empty((L.N_VAR, L.N_VAR)), np.empty(L.N_VAR)
+    refine.normal_equations(jac, res, a, g, np.empty(L.N_VAR, dtype=np.int64))
+    scale = np.abs(jac).max() * max(np.abs(jac).max(), np.abs(res).max())
+    np.testing.assert_allclose(a, jac.T @ jac, rtol=0, atol=4 * m * EPS * scale)
+    np.testing.assert_allclose(g, jac.T @ res, rtol=0, atol=4 * m * EPS * scale)
+    assert np.array_equal(a, a.T)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_cholesky_solve_matches_numpy(seed):
+    """refine.cholesky_solve (reciprocal diagonal, caller work arrays) against np.linalg.solve on damped
+    normal matrices of the refinement; a matrix that is not positive definite is refused. Bound: the
+    condition number times a few ulps."""
+    data, x0 = frame_and_start(seed)
+    m = JAC.n_residuals()
+    res, jac = np.empty(m), np.empty((m, L.N_VAR))
+    JAC.residuals_jacobian(x0, data, res, jac, True)
+    a = jac.T @ jac
+    a += np.diag(1e-3 * np.maximum(np.diag(a), 1e-9) + 1e-12)
+    b = np.random.default_rng(seed).normal(size=L.N_VAR)
+    out = np.empty(L.N_VAR)
+    assert refine.cholesky_solve(a, b, out)
+    ref = np.linalg.solve(a, b)
+    np.testing.assert_allclose(out, ref, rtol=0, atol=64 * np.linalg.cond(a) * EPS * np.abs(ref).max())
+    bad = a.copy()
+    bad[5, 5] = -1.0
+    assert not refine.cholesky_solve(bad, b, out)
