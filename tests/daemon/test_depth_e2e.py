@@ -5,53 +5,21 @@ with ``depth_m`` (written by ``posed landmarks`` from the same .db3) passes it o
 
 from __future__ import annotations
 
-import json
-import threading
-import time
-
 import numpy as np
 import pytest
 
 import hal
 from daemon.cli import main
 from landmarks import read_recording, sample_depth
-from tests.daemon.test_run_e2e import posed_run
-from tests.daemon.zenoh_util import client, free_port, router
+from tests.daemon.replay_util import replay_to_end
 from tests.hal.conftest import (
     DB3_FRAMES,
 )
 
 
 def _landmark_messages(tmp_path, source, robot: str) -> list[dict]:
-    """Run the daemon on ``source`` (unpaced, lossless, stopping at the end) with a viewer on the landmarks
-    topic behind a router the daemon joins; the messages received, by seq."""
-    rep = f"tcp/127.0.0.1:{free_port()}"
-    r = router(rep)
-    got: list[dict] = []
-    lock = threading.Lock()
-
-    def on_landmarks(sample) -> None:
-        with lock:
-            got.append(json.loads(sample.payload.to_string()))
-
-    try:
-        with client(rep) as s:
-            keep = s.declare_subscriber(f"posed/{robot}/landmarks", on_landmarks)
-            proc = posed_run(tmp_path, source, f"robot_id={robot}", "source.realtime=false",
-                             "pipeline.stop_at_end=true", f"zenoh.listen=[tcp/127.0.0.1:{free_port()}]",
-                             f"zenoh.connect=[{rep}]")
-            try:
-                code = proc.wait(timeout=120)
-            finally:
-                if proc.poll() is None:
-                    proc.kill()
-            time.sleep(0.3)
-            del keep
-        assert code == 0, (tmp_path / "err.log").read_text()
-    finally:
-        r.close()
-    with lock:
-        return sorted(got, key=lambda m: m["seq"])
+    """The daemon on ``source`` to its end: the landmarks topic's messages, by seq."""
+    return sorted(replay_to_end(tmp_path, source, robot, ("landmarks",))["landmarks"], key=lambda m: m["seq"])
 
 
 def _depth(msg: dict) -> np.ndarray:

@@ -6,18 +6,14 @@ a recording, and a replay of that recording gives the detector the same geometry
 
 from __future__ import annotations
 
-import json
 import math
-import threading
-import time
 
 import numpy as np
 import pytest
 
 from daemon.cli import main
 from landmarks import read_recording
-from tests.daemon.test_run_e2e import posed_run
-from tests.daemon.zenoh_util import client, free_port, router
+from tests.daemon.replay_util import replay_to_end
 from tests.hal.conftest import IMU_FRAMES, IMU_ROLL_DEG, IMU_TILT_DEG, imu_down
 
 ANGLE_TOL_DEG = 0.5   # as tests/hal/test_imu.py: 3-sigma noise of the average is 0.12 deg
@@ -29,40 +25,10 @@ def _angle(a, b) -> float:
 
 
 def _run(tmp_path, source, robot: str) -> tuple[list[dict], list[dict]]:
-    """The daemon on ``source`` (unpaced, lossless, stopping at the end, status every 0.1 s): the landmarks
-    messages by seq and the status messages in arrival order."""
-    rep = f"tcp/127.0.0.1:{free_port()}"
-    r = router(rep)
-    lock = threading.Lock()
-    landmarks: list[dict] = []
-    statuses: list[dict] = []
-
-    def keep(into):
-        def on(sample) -> None:
-            with lock:
-                into.append(json.loads(sample.payload.to_string()))
-        return on
-
-    try:
-        with client(rep) as s:
-            subs = [s.declare_subscriber(f"posed/{robot}/landmarks", keep(landmarks)),
-                    s.declare_subscriber(f"posed/{robot}/status", keep(statuses))]
-            proc = posed_run(tmp_path, source, f"robot_id={robot}", "source.realtime=false",
-                             "pipeline.stop_at_end=true", "pipeline.status_period_s=0.1",
-                             "zenoh.publish_landmarks=true",
-                             f"zenoh.listen=[tcp/127.0.0.1:{free_port()}]", f"zenoh.connect=[{rep}]")
-            try:
-                code = proc.wait(timeout=120)
-            finally:
-                if proc.poll() is None:
-                    proc.kill()
-            time.sleep(0.3)
-            del subs
-        assert code == 0, (tmp_path / "err.log").read_text()
-    finally:
-        r.close()
-    with lock:
-        return sorted(landmarks, key=lambda m: m["seq"]), list(statuses)
+    """The landmarks messages by seq and the status messages (every 0.1 s) in arrival order."""
+    got = replay_to_end(tmp_path, source, robot, ("landmarks", "status"), "pipeline.status_period_s=0.1",
+                        "zenoh.publish_landmarks=true")
+    return sorted(got["landmarks"], key=lambda m: m["seq"]), got["status"]
 
 
 def _imu_geometry(statuses: list[dict]) -> dict:

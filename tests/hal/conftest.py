@@ -60,6 +60,13 @@ def synthetic_depth(i: int) -> np.ndarray:
     return depth
 
 
+def colour_frames(squat_frames: list[np.ndarray], first: int, n: int) -> tuple[list[np.ndarray], list[float]]:
+    """``n`` squat frames from ``first`` at the recording's colour size, and their times (ms from the first)."""
+    colour = [cv2.resize(f, (COLOUR_K.width, COLOUR_K.height), interpolation=cv2.INTER_AREA)
+              for f in squat_frames[first:first + n]]
+    return colour, [i * 1000.0 / SQUAT_FPS for i in range(n)]
+
+
 @dataclass(frozen=True)
 class Db3Recording:
     path: Path
@@ -73,9 +80,7 @@ def squat_db3(tmp_path_factory: pytest.TempPathFactory, squat_frames: list[np.nd
     from hal.db3 import Db3Writer
 
     path = tmp_path_factory.mktemp("db3") / "squat.db3"
-    colour = [cv2.resize(f, (COLOUR_K.width, COLOUR_K.height), interpolation=cv2.INTER_AREA)
-              for f in squat_frames[10:10 + DB3_FRAMES]]
-    pts = [i * 1000.0 / SQUAT_FPS for i in range(DB3_FRAMES)]
+    colour, pts = colour_frames(squat_frames, 10, DB3_FRAMES)
     rotation = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
     with Db3Writer(path, COLOUR_K, SQUAT_FPS, depth_scale=DEPTH_SCALE, depth_intrinsics=DEPTH_K,
                    depth_to_colour=(rotation, DEPTH_TO_COLOUR_T), serial="000000000042", name="squat test") as w:
@@ -107,9 +112,7 @@ def squat_imu_db3(tmp_path_factory: pytest.TempPathFactory, squat_frames: list[n
     from hal.imu import G_M_S2
 
     path = tmp_path_factory.mktemp("imu") / "squat_imu.db3"
-    colour = [cv2.resize(f, (COLOUR_K.width, COLOUR_K.height), interpolation=cv2.INTER_AREA)
-              for f in squat_frames[20:20 + IMU_FRAMES]]
-    pts = [i * 1000.0 / SQUAT_FPS for i in range(IMU_FRAMES)]
+    colour, pts = colour_frames(squat_frames, 20, IMU_FRAMES)
     rng = np.random.default_rng(7)
     reading = -G_M_S2 * imu_down()                       # an accelerometer at rest reads the support's push
     period_ms = 1000.0 / ACCEL_HZ
