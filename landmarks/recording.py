@@ -378,7 +378,7 @@ def _parse_header(raw: bytes, path: str) -> RecordingHeader:
         line = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise RecordingError(f"{path}:1: not UTF-8 text ({exc.reason})") from exc
-    if not line.strip():
+    if not line.strip(JSON_WHITESPACE):
         raise RecordingError(f"{path}:1: empty file; a recording starts with a header line "
                              f'{{"format": "{FORMAT}", "version": {VERSION}, ...}}')
     try:
@@ -388,6 +388,9 @@ def _parse_header(raw: bytes, path: str) -> RecordingHeader:
         raise RecordingError(f"{path}:1: bad header: {exc}") from exc
     except RecursionError:
         raise RecordingError(f"{path}:1: bad header: JSON nested too deeply to be a header") from None
+
+
+JSON_WHITESPACE = " \t\r\n"
 
 
 def _too_long(raw: bytes) -> bool:
@@ -422,8 +425,8 @@ def _frames(fh: BinaryIO, path: str) -> Iterator[LandmarkFrame | RecordingProble
             except UnicodeDecodeError as exc:
                 yield RecordingProblem(path, lineno, f"not UTF-8 text ({exc.reason})")
                 continue
-            if not line.strip():
-                continue
+            if not line.strip(JSON_WHITESPACE):
+                continue  # a blank line (only JSON's whitespace: a control character is a problem line)
             try:
                 yield LandmarkFrame.from_json(json.loads(line))
             except json.JSONDecodeError as exc:
