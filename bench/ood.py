@@ -85,7 +85,7 @@ def pa_mpjpe(pred: np.ndarray, truth: np.ndarray) -> float:
     return mpjpe(procrustes_align(pred, truth), truth)
 
 
-FLIP_BINS_M = (0.05, 0.08, 0.12, 0.20, math.inf)   # true |dz| bins of depth_flips_by_true_dz
+FLIP_BINS_M = (FLIP_MIN_DZ_M, 0.08, 0.12, 0.20, math.inf)   # true |dz| bins of depth_flips_by_true_dz
 
 
 def flip_table(pred: np.ndarray, truth: np.ndarray, measured: np.ndarray) -> np.ndarray:
@@ -103,18 +103,11 @@ def flip_table(pred: np.ndarray, truth: np.ndarray, measured: np.ndarray) -> np.
     return out
 
 
-def depth_flips(pred: np.ndarray, truth: np.ndarray, min_dz: float = FLIP_MIN_DZ_M) -> tuple[int, int]:
-    """(flipped, counted) over the 8 limb segments: counted = true |dz| > ``min_dz``; flipped = the fitted dz
-    has the other sign (camera frame, z away from the camera)."""
-    flipped = counted = 0
-    for a, b in SEGMENTS:
-        dz_t = truth[b, 2] - truth[a, 2]
-        if abs(dz_t) <= min_dz:
-            continue
-        counted += 1
-        if (pred[b, 2] - pred[a, 2]) * dz_t < 0:
-            flipped += 1
-    return flipped, counted
+def depth_flips(pred: np.ndarray, truth: np.ndarray) -> tuple[int, int]:
+    """(flipped, counted) over the 8 limb segments: counted = true |dz| > ``FLIP_MIN_DZ_M``; flipped = the
+    fitted dz has the other sign (camera frame, z away from the camera): :func:`flip_table` summed."""
+    counted, flipped = flip_table(pred, truth, np.full(len(truth), np.nan)).sum(axis=0)[:2]
+    return int(flipped), int(counted)
 
 
 def _angle(u: np.ndarray, v: np.ndarray) -> float:
@@ -238,7 +231,6 @@ class _Acc:
     def __init__(self) -> None:
         self.pa: list[float] = []
         self.mp: list[float] = []
-        self.flip = [0, 0]
         self.flip_bins = np.zeros((len(FLIP_BINS_M) - 1, 4), dtype=np.int64)
         self.ang: list[np.ndarray] = []
         self.root: list[float] = []
@@ -265,9 +257,6 @@ class _Acc:
         pa = pa_mpjpe(pred, truth)
         self.pa.append(pa)
         self.mp.append(mpjpe(pred, truth))
-        f, c = depth_flips(pred, truth)
-        self.flip[0] += f
-        self.flip[1] += c
         self.flip_bins += flip_table(pred, truth, seq.depth[i][M.BODY12_IDX])
         self.ang.append(np.abs(segment_angles(pred) - segment_angles(truth)))
         rc = root_cam(result)
@@ -283,13 +272,14 @@ class _Acc:
 
     def summary(self) -> dict:
         ang = np.array(self.ang) if self.ang else np.zeros((0, 8))
+        counted, flipped = (int(v) for v in self.flip_bins.sum(axis=0)[:2])
         return {
             "frames": self.frames, "failed": self.failed,
             "pa_mpjpe_mm": _r(np.mean(self.pa) * 1e3, 1) if self.pa else None,
             "pa_mpjpe_p90_mm": _r(np.percentile(self.pa, 90) * 1e3, 1) if self.pa else None,
             "mpjpe_mm": _r(np.mean(self.mp) * 1e3, 1) if self.mp else None,
-            "depth_flip_rate": _r(self.flip[0] / self.flip[1], 4) if self.flip[1] else None,
-            "depth_flip_segments": self.flip[1],
+            "depth_flip_rate": _r(flipped / counted, 4) if counted else None,
+            "depth_flip_segments": counted,
             "depth_flips_by_true_dz": [
                 {"true_dz_m": f"{lo:g}-{hi:g}", "segments": int(n),
                  "fit_flip_rate": _r(fl / n, 4) if n else None,
