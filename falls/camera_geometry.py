@@ -63,8 +63,8 @@ class CameraGeometry:
             if not (np.all(np.isfinite(g)) and n > 1e-9):
                 return False
             if self._gravity_imu is not None:   # the camera turned (or the reading moved): nothing to forget
-                self._gravity_imu = self.gravity = g / n
-                self.roll_deg = tilt_roll_deg(self.gravity)[1]
+                self._gravity_imu = g / n
+                self._use(self._gravity_imu)
                 return False
             self._gravity_imu = g / n
         return self._refresh()
@@ -88,9 +88,12 @@ class CameraGeometry:
             return False  # the learned estimate drifts by less than a step: keep the gravity in use
         self._floor_learned, self._floor_weight = None, 0.0
         self._stand, self._stand_weight = None, 0.0
+        self._use(g)
+        return True
+
+    def _use(self, g: np.ndarray) -> None:
         self.gravity = g
         self.roll_deg = tilt_roll_deg(g)[1]
-        return True
 
     # ------------------------------------------------------------------ floor and standing height
 
