@@ -5,6 +5,8 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from daemon.config import Config, load_config
@@ -35,3 +37,10 @@ def config_from_args(args: argparse.Namespace) -> Config:
     """Load the config named by the common options (raises ConfigError listing every problem)."""
     return load_config(config_path(args), overrides=getattr(args, "overrides", ()),
                        source=getattr(args, "source", None))
+
+
+def error_printer(command: str) -> Callable[[str], None]:
+    """The commands' error line: ``print(f"{command}: {msg}")`` on stderr, flushed."""
+    def err(msg: str) -> None:
+        print(f"{command}: {msg}", file=sys.stderr, flush=True)
+    return err

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import yaml
 
-from daemon.commands import add_config_args, config_from_args
+from daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,8 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _err(msg: str) -> None:
-    print(f"posed calibrate: {msg}", file=sys.stderr, flush=True)
+_err = error_printer("posed calibrate")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -19,7 +19,7 @@ import sys
 import time
 from collections.abc import Iterable, Iterator
 
-from daemon.commands import add_config_args, config_from_args
+from daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,8 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _err(msg: str) -> None:
-    print(f"posed falls: {msg}", file=sys.stderr, flush=True)
+_err = error_printer("posed falls")
 
 
 def taken_frames(pipeline_config, frames: Iterable) -> Iterator:

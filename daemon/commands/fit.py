@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args
+from daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,8 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _err(msg: str) -> None:
-    print(f"posed fit: {msg}", file=sys.stderr, flush=True)
+_err = error_printer("posed fit")
 
 
 def run(args: argparse.Namespace) -> int:

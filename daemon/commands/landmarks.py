@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from camera_model import Intrinsics
-from daemon.commands import add_config_args, config_from_args
+from daemon.commands import add_config_args, config_from_args, error_printer
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 READ_TIMEOUT_S = 5.0        # a RealSense recording's next frame (played as fast as it decodes)
@@ -77,8 +77,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _err(msg: str) -> None:
-    print(f"posed landmarks: {msg}", file=sys.stderr, flush=True)
+_err = error_printer("posed landmarks")
 
 
 def _read_image(path: Path) -> np.ndarray | None:

@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args
+from daemon.commands import add_config_args, config_from_args, error_printer
 
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
 
@@ -46,8 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _err(msg: str) -> None:
-    print(f"posed render: {msg}", file=sys.stderr, flush=True)
+_err = error_printer("posed render")
 
 
 def _intrinsics(header_camera, image_size, config, hfov):

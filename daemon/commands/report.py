@@ -9,10 +9,9 @@ day runs from local midnight to midnight in the robot's time zone (``--tz`` anot
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, config_path
+from daemon.commands import add_config_args, config_from_args, config_path, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,8 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _err(msg: str) -> None:
-    print(f"posed report: {msg}", file=sys.stderr, flush=True)
+_err = error_printer("posed report")
 
 
 def _day(text: str, tz):

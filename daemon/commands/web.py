@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import argparse
 import signal
-import sys
 import threading
 
-from daemon.commands import add_config_args, config_from_args
+from daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,8 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _err(msg: str) -> None:
-    print(f"posed web: {msg}", file=sys.stderr, flush=True)
+_err = error_printer("posed web")
 
 
 def endpoints(config, given: list[str] | None) -> list[str]:
