@@ -44,3 +44,22 @@ def error_printer(command: str) -> Callable[[str], None]:
     def err(msg: str) -> None:
         print(f"{command}: {msg}", file=sys.stderr, flush=True)
     return err
+
+
+def read_jsonl(path: str, parse: Callable[[object], object]) -> tuple[list, int]:
+    """``parse`` of every JSON line of ``path`` (blank lines skipped) and how many lines could not be parsed:
+    each is reported on stderr as ``PATH:LINE: what is wrong`` and skipped. OSError when the file cannot be
+    read: the caller says so."""
+    import json
+
+    items, problems = [], 0
+    with open(path, encoding="utf-8") as fh:
+        for lineno, line in enumerate(fh, 1):
+            if not line.strip():
+                continue
+            try:
+                items.append(parse(json.loads(line)))
+            except (ValueError, KeyError, TypeError) as exc:   # json.JSONDecodeError is a ValueError
+                print(f"{path}:{lineno}: {exc}", file=sys.stderr)
+                problems += 1
+    return items, problems

@@ -10,11 +10,10 @@ output (``--events``), on the same capture clock.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, config_path
+from daemon.commands import add_config_args, config_from_args, config_path, read_jsonl
 from daemon.commands.history import add_range_args, history_path, open_history
 from daemon.config.paths import EVENTS_FILE
 from viz.names import PANELS
@@ -209,18 +208,8 @@ def _start_time(text: str, tz) -> float:
 
 def _read_jsonl(path: str, parse, cmd: str):
     """(parsed objects, lines skipped), or (None, 0) when the file cannot be read at all."""
-    items, problems = [], 0
     try:
-        with open(path, encoding="utf-8") as fh:
-            for lineno, line in enumerate(fh, 1):
-                if not line.strip():
-                    continue
-                try:
-                    items.append(parse(json.loads(line)))
-                except (ValueError, KeyError, TypeError) as exc:
-                    print(f"{path}:{lineno}: {exc}", file=sys.stderr)
-                    problems += 1
+        return read_jsonl(path, parse)
     except OSError as exc:
         print(f"{cmd}: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
         return None, 0
-    return items, problems

@@ -12,11 +12,10 @@ Exit status: 0 written, 1 written but some frames or lines were unreadable, 2 no
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, error_printer
+from daemon.commands import add_config_args, config_from_args, error_printer, read_jsonl
 
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
 
@@ -104,21 +103,11 @@ def _frame_count(path) -> int | None:
 
 
 def _read_fit(path: str):
+    """The fit results of a ``posed fit`` output by seq, and how many lines could not be read."""
     from fitting import FitResult
 
-    out, problems = {}, 0
-    with open(path, encoding="utf-8") as fh:
-        for lineno, line in enumerate(fh, 1):
-            if not line.strip():
-                continue
-            try:
-                r = FitResult.from_json(json.loads(line))
-            except ValueError as exc:   # json.JSONDecodeError is a ValueError
-                print(f"{path}:{lineno}: {exc}", file=sys.stderr)
-                problems += 1
-                continue
-            out[r.seq] = r
-    return out, problems
+    results, problems = read_jsonl(path, FitResult.from_json)
+    return {r.seq: r for r in results}, problems
 
 
 def _from_recording(args, config):
