@@ -385,6 +385,7 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                 for f, s in steps.items():
                                     acc = accs.setdefault(("video", f, noise, body, use_depth), _Acc())
                                     fitter.reset()
+                                    fitter.forget_body()   # each sequence is a new video of a new person
                                     for i in range(0, len(lms), s):
                                         acc.add(seq, i, *_fit(fitter, lms[i], i, float(seq.times[i]), "video",
                                                               cam.intrinsics, seq.depth[i] if fit_depth else None))

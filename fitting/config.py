@@ -100,6 +100,15 @@ class FitConfig:
         default=0.03, metadata={"doc": "video mode: if the 2D error exceeds this fraction of body height the "
                                        "frame is fitted again in image mode", "range": (0.0, 1.0)}
     )
+    learn_proportions: bool = field(
+        default=True, metadata={"doc": "video mode without a calibration file: learn the person's proportions "
+                                       "(upper arm, forearm, thigh, shank, trunk, hip width; the configured "
+                                       "height kept) from the frames (fitting.proportions; docs/body-model.md)"}
+    )
+    proportions_forget_s: float = field(
+        default=30.0, metadata={"doc": "forget the learned proportions after this long without a fitted video "
+                                       "frame (someone else may come)", "unit": "s", "range": (0.0, 86400.0)}
+    )
     projection: str = field(
         default="auto", metadata={"doc": "camera model: orthographic (the paper), perspective (needs "
                                          "intrinsics), or auto (perspective when intrinsics are known)",

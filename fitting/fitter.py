@@ -37,6 +37,8 @@ from fitting.config import FitConfig
 from fitting.depth_rows import depth_fit_at, refinement_cost, set_depth_rows
 from fitting.depth_term import DepthFit, usable
 from fitting.kinematics import BODY_LANDMARKS
+from fitting.projection import image_scale
+from fitting.proportions import ProportionLearner
 from fitting.result import FitResult
 
 MODES = ("video", "image")
@@ -56,11 +58,19 @@ MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames cl
 class Fitter:
     """Fits frames of one person; keeps the previous frame's solution for video mode."""
 
-    def __init__(self, config: FitConfig | None = None) -> None:
+    def __init__(self, config: FitConfig | None = None, dims: BodyDimensions | None = None) -> None:
+        """``dims``: the body to fit instead of the configured one (body height or calibration file); like a
+        calibration, nothing is learned over it."""
         jitcache.ensure_fresh()  # before any kernel is loaded from numba's cache (once per process)
         self.config = config or FitConfig()
         # a bad calibration file raises CalibrationError here (a configuration error, not a frame error)
-        self.dims: BodyDimensions = dimensions_for(self.config.body_height_m, self.config.calibration)
+        self.base_dims: BodyDimensions = (dims if dims is not None else
+                                          dimensions_for(self.config.body_height_m, self.config.calibration))
+        self.dims: BodyDimensions = self.base_dims  # the lengths of the current fit (learned ones in video mode)
+        # video mode without a calibration file: the person's own proportions, learned from the frames
+        self._learner = (ProportionLearner(self.base_dims) if self.config.learn_proportions
+                         and not self.config.calibration and dims is None else None)
+        self._learn_t: float | None = None  # time of the last frame the learner saw
         self._work = FK.empty_work()
         self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.assemble.FIXED_NAMES), degrees
         self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
@@ -76,6 +86,13 @@ class Fitter:
         self._err_ref: float = 0.0  # recent 2D error level in video mode (body heights)
         self._udeas_s: float = 0.0  # CPU time of the uDEAS kernel in the current fit
 
+    def forget_body(self) -> None:
+        """Forget the learned proportions (another person). A lost track (``reset``) keeps them; they are
+        also forgotten after ``proportions_forget_s`` without a fitted video frame, or when time goes back."""
+        if self._learner is not None:
+            self._learner.forget()
+        self._learn_t = None
+
     def warmup(self) -> None:
         """Compile (or load from the numba cache) every kernel by fitting a simulated frame in both modes."""
         from fitting.warmup import warmup_depth, warmup_landmarks
@@ -83,6 +100,7 @@ class Fitter:
         lm = warmup_landmarks(self.dims)
         noisy = warmup_landmarks(self.dims, noise_px=3.0, seed=1)
         saved = (self._prev_x, self._prev_ppm, self._prev_t, self._err_ref)
+        learner, self._learner = self._learner, None   # the simulated frames teach nothing about the person
         self.reset()
         self.fit(lm, 0, 0.0, (640, 480), mode="image")
         self.fit(lm, 1, 1 / 30, (640, 480), mode="video")
@@ -92,6 +110,7 @@ class Fitter:
         self.fit(noisy, 4, 4 / 30, (640, 480), mode="video", intrinsics=k,   # the depth term's kernels
                  depth_m=warmup_depth(self.dims))
         self._prev_x, self._prev_ppm, self._prev_t, self._err_ref = saved
+        self._learner = learner
 
     # --- the fit ---
 
@@ -138,6 +157,7 @@ class Fitter:
             return FitResult.failure(seq, t, f"image_size must be (width, height), got {image_size!r}")
         if width <= 0 or height <= 0:
             return FitResult.failure(seq, t, f"image_size must be positive, got {image_size!r}")
+        self.dims = self._dims_for(mode, t)
         xy, w, missing = P.landmark_weights(lm, cfg)
         usable = 12 - len(missing)
         torso_missing = [n for n in _TORSO if n in missing]
@@ -194,9 +214,23 @@ class Fitter:
             return FitResult.failure(seq, t, f"fit rejected: {what}; the landmarks do not fit a person",
                                      loss=float(loss), fit_ms=fit_ms)
         self._prev_x, self._prev_ppm, self._prev_t = x.copy(), ppm0, t
-        return assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
-                        evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma,
-                        depth=self._depth_fit(frame, x))
+        result = assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
+                          evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma,
+                          depth=self._depth_fit(frame, x))
+        if mode == "video" and self._learner is not None:
+            result.extra["limb_scale"] = self._learner.scale.to_json()  # the lengths this fit used
+            obs = frame.data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
+            self._learner.observe(obs, frame.weights, image_scale(x, frame.data), self.dims)
+            self._learn_t = t
+        return result
+
+    def _dims_for(self, mode: str, t: float) -> BodyDimensions:
+        """The lengths to fit this frame with: the learned ones in video mode, else the configured ones."""
+        if mode != "video" or self._learner is None:
+            return self.base_dims
+        if self._learn_t is not None and not 0.0 <= t - self._learn_t <= self.config.proportions_forget_s:
+            self.forget_body()
+        return self._learner.dims()
 
     def _lm(self, data: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, float]:
         out = np.empty(L.N_VAR)

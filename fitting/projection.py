@@ -11,8 +11,10 @@ fitting.jacobian), exactly, because the residual is linear in it. Tested through
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
+from fitting import forward_kinematics as FK
 from fitting import layout as L
 
 MIN_DEPTH = 1e-3  # a point is kept at least this fraction of Tz in front of the camera
@@ -68,3 +70,18 @@ def project_w(x, data, work):
             work[p0 + i, 0] = fnx * work[c0 + i, 0] * inv
             work[p0 + i, 1] = fny * work[c0 + i, 1] * inv
             work[p0 + i, 2] = inv
+
+
+def image_scale(x, data):
+    """The image scale at each of the 12 body landmarks of solution ``x``: normalized image units per metre of
+    a small displacement parallel to the image plane at the landmark's fitted depth, (12,) NumPy array.
+    Orthographic: ``g / H`` everywhere; perspective: ``fn_y / Z'`` (Z' the landmark's depth, metres)."""
+    h = data[L.D_DIMS + L.DM_H]
+    g = x[L.X_GAMMA]
+    if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
+        return np.full(L.N_LM, g / h)
+    pts_b = np.empty((L.N_POINTS, 3))
+    pts_c = np.empty((L.N_POINTS, 3))
+    FK.model_points(x, data, pts_b, pts_c)
+    tz = data[L.D_PROJ + L.PJ_FN_Y] * h / g
+    return data[L.D_PROJ + L.PJ_FN_Y] / np.maximum(tz + pts_c[:L.N_LM, 2], MIN_DEPTH * tz)

@@ -22,13 +22,17 @@ def squat(shared_data):
     return [np.column_stack([np.asarray(p, float), np.ones(33), np.ones(33)]) for p in frames]
 
 
-def fit_all(frames, mode: str, fps: float) -> tuple[np.ndarray, np.ndarray]:
-    """Mean knee flexion (degrees) and 2D error (pixels) of each video frame, replayed at ``fps``."""
-    fitter = Fitter(FitConfig(body_height_m=1.65))
+def fit_all(frames, mode: str, fps: float, dims=None) -> tuple[np.ndarray, np.ndarray, list]:
+    """Mean knee flexion (degrees), 2D error (pixels) and the body's lengths of each video frame, replayed at
+    ``fps``. ``dims``: one body per frame (image mode with those lengths) or None (the configured body)."""
+    cfg = FitConfig(body_height_m=1.65)
+    fitter = Fitter(cfg)
     repeat = round(fps / 5.0)
-    knees, errors = [], []
+    knees, errors, bodies = [], [], []
     seq = 0
     for i, lm in enumerate(frames):
+        if dims is not None:
+            fitter = Fitter(cfg, dims=dims[i])
         for k in range(repeat):
             r = fitter.fit(lm, seq, i / 5.0 + k / fps, (720, 1280), mode=mode)
             seq += 1
@@ -36,7 +40,8 @@ def fit_all(frames, mode: str, fps: float) -> tuple[np.ndarray, np.ndarray]:
             if k == 0:
                 knees.append(0.5 * (r.variables["theta_kn_l"] + r.variables["theta_kn_r"]))
                 errors.append(r.extra["err2d_px"])
-    return np.array(knees), np.array(errors)
+                bodies.append(fitter.dims)
+    return np.array(knees), np.array(errors), bodies
 
 
 @pytest.fixture(scope="module")
@@ -46,16 +51,21 @@ def image_mode(squat):
 
 @pytest.mark.parametrize("fps", [5.0, 10.0, 30.0])
 def test_video_mode_follows_the_landmarks_at_any_frame_rate(squat, image_mode, fps):
-    knee_i, err_i = image_mode
-    knee_v, err_v = fit_all(squat, "video", fps)
+    knee_c, err_c, _ = image_mode
+    knee_v, err_v, bodies = fit_all(squat, "video", fps)
+    # video mode learns the woman's proportions (fitting.proportions): image mode with the very lengths video
+    # mode used at each frame is the reference for the pose, so that a different body is not taken for a lag
+    knee_i, err_i, _ = fit_all(squat, "image", 5.0, dims=bodies)
+    assert bodies[-1] != bodies[0]
     # no lag: between the squats the knees come back to a standing person's flexion
     for window in (STANDING[:8], STANDING[8:]):
         assert knee_v[window].min() < 25.0, f"{fps} fps: knees held at {knee_v[window].round(1)}"
     # the bottoms are reached: as deep as image mode within the 8 degrees of the issue's target
     assert knee_v.max() > knee_i.max() - 8.0
-    # no worse in 2D: the median error is image mode's or lower; 2 % allows one frame whose two depth
-    # hypotheses tie in 2D to be decided differently (a single frame moves the median of 65 by < 0.2 px)
-    assert np.median(err_v) <= 1.02 * np.median(err_i), (np.median(err_v), np.median(err_i))
+    # no worse in 2D than image mode with either body: the median error is image mode's or lower; 2 % allows
+    # one frame whose two depth hypotheses tie in 2D to be decided differently (a single frame moves the median
+    # of 65 by < 0.2 px)
+    assert np.median(err_v) <= 1.02 * min(np.median(err_i), np.median(err_c)), (np.median(err_v), np.median(err_i))
     # the same pose wherever image mode fits better: knees within 8 degrees (the issue's target). Frames whose
     # 2D errors tie within 5 % are left out: there the landmarks cannot tell two depth hypotheses apart
     # (measured at 30 fps: 4.3 against 4.3 px and 11.3 against 11.6 px, where the knees differ by 11-14)

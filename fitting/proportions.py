@@ -1,0 +1,190 @@
+"""The person's own proportions (limb lengths, trunk, hip width), learned in video mode from the frames
+themselves (no calibration file).
+
+Why: link lengths from the body height alone (fitting.body, Drillis-Contini ratios) are off by 10-20 % for
+many people and for the joint centres a landmark extractor reports (a subject of the CMU motion capture: upper
+arm and forearm 14-16 % shorter than the ratios give, thigh 8 % longer). A limb modelled too long cannot lie in
+the image plane: the fit tilts it towards or away from the camera to shorten it, with a random depth sign. On
+the out-of-domain benchmark that mismatch is the largest error source (docs/bench/fit.md, "Reading").
+
+How: projection only shortens. For a segment of model length ``L`` whose two landmarks are ``l`` apart in the
+image, ``r = l / (L k)`` is the fraction of its model length the image shows, with ``k`` the image scale at
+the segment's fitted depth (normalized image units per metre: ``g / H`` orthographic, ``fn_y / Z`` pinhole).
+A segment in the image plane shows ``r = L_true / L``; one tilted out of it, less. Evidence is taken only from
+frames where a limb hangs or stands (both of its segments within ``MAX_IMAGE_TILT_DEG`` of the image's
+vertical, pointing down, the trunk upright): for an arm hanging and a leg standing under gravity that is near
+the image plane of a roughly level camera. The two segments of a limb must show similar fractions (within
+``MAX_PAIR_MISMATCH``): a thigh pointing at the camera (sitting, facing it) projects short and vertical but its
+shank does not, and that frame says nothing about the thigh's length. The trunk is sampled likewise, the hip
+width as a ratio to the shoulder width (see ``samples``). The estimate is a percentile (GROUPS) of
+``r`` over the last ``HISTORY`` such samples (left and right pooled, one person), shrunk towards the model by
+``PRIOR_SAMPLES`` pseudo-samples, within ``BOUNDS``, and not applied within ``DEAD_ZONE`` of 1 (people differ
+by a few per cent from the ratios; a change that small is within the estimate's own scatter and would only
+unsettle the fit). The image shows proportions, not size: the whole body is then scaled so that thigh, shank
+and trunk add up to the configured ones (the height the user configured keeps the person's distance right).
+
+Units: lengths in metres; ratios unitless; image coordinates in the fit's normalized units (fitting.problem).
+Pure NumPy; the caller (fitting.fitter) decides when to observe, apply and forget.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
+
+from fitting.body import BodyDimensions
+
+# limbs: (upper segment, lower segment), their length fields and the body-12 indices (fitting.kinematics
+# BODY_LANDMARKS order: shoulders 0/1, elbows 2/3, wrists 4/5, hips 6/7, knees 8/9, ankles 10/11) per side
+LIMBS = (
+    ("upper_arm_m", "forearm_m", ((0, 2, 4), (1, 3, 5))),
+    ("thigh_m", "shank_m", ((6, 8, 10), (7, 9, 11))),
+)
+# what is learned: (name, length fields, percentile of the samples); the samples of each: see samples()
+GROUPS = (
+    ("arm", ("upper_arm_m", "forearm_m"), 75.0),
+    ("leg", ("thigh_m", "shank_m"), 75.0),
+    ("trunk", ("trunk_m",), 75.0),
+    ("hip", ("hip_half_m",), 50.0),
+)
+LENGTH_FIELDS = tuple(f for _, fs, _ in GROUPS for f in fs)
+HEIGHT_FIELDS = ("thigh_m", "shank_m", "trunk_m")   # stacked when standing: their sum is kept
+MAX_IMAGE_TILT_DEG = 25.0   # a segment within this of the image's vertical (pointing down) counts
+MAX_TRUNK_TILT_DEG = 30.0   # the trunk (mid-hip -> mid-shoulder) within this of the image's vertical (up)
+MAX_PAIR_MISMATCH = 0.3     # |r_upper / r_lower - 1| above this: one of the two is foreshortened
+MIN_FACING = 0.5            # hip width: the shoulders show at least this fraction of their width (not edge-on)
+HISTORY = 600               # samples kept per group (newest win): 30 s of both sides at 10 fps
+PRIOR_SAMPLES = 20          # the model's own lengths count as this many samples
+MIN_SAMPLES = 10            # no estimate from fewer samples
+BOUNDS = (0.7, 1.3)         # learned length / configured length
+DEAD_ZONE = 0.03            # |ratio - 1| below this: keep the configured length
+
+
+@dataclass(frozen=True)
+class LimbScale:
+    """What was learned: each learned length field's ratio to the configured proportions (absent = 1.0), the
+    size factor of the whole body (every length, the height included) and the samples per group."""
+
+    ratio: dict[str, float] = field(default_factory=dict)
+    size: float = 1.0
+    samples: dict[str, int] = field(default_factory=dict)
+
+    def of(self, name: str) -> float:
+        """The factor on the configured length ``name`` (any BodyDimensions field)."""
+        return self.size * self.ratio.get(name, 1.0)
+
+    def to_json(self) -> dict:
+        return {**{f.removesuffix("_m"): round(self.of(f), 3) for f in LENGTH_FIELDS},
+                "size": round(self.size, 3), "samples": dict(self.samples)}
+
+
+def _down_tilt_deg(top: np.ndarray, bottom: np.ndarray) -> float:
+    """Angle of ``top -> bottom`` from the image's downward vertical (image y down), degrees; 180 = up."""
+    dx, dy = float(bottom[0] - top[0]), float(bottom[1] - top[1])
+    return math.degrees(math.atan2(abs(dx), dy)) if (dx or dy) else 180.0
+
+
+def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions) -> list[tuple[str, tuple]]:
+    """The usable samples of one frame: ``(group, ratios)`` with one ratio per length field of the group, each
+    the shown fraction ``r`` of the length ``dims`` gives (see the module docstring).
+
+    ``obs``: the 12 body landmarks, (12, 2), normalized image units; ``w``: their weights (0 = not used);
+    ``k``: the image scale at each landmark's fitted depth, normalized units per metre (12,).
+
+    Only frames with an upright trunk give samples. ``arm`` / ``leg``: a hanging arm or a standing leg (both
+    segments pointing down within MAX_IMAGE_TILT_DEG of the image's vertical, showing similar fractions).
+    ``trunk``: mid-hip to mid-shoulder. ``hip``: the ratio of the hip width to the shoulder width shown,
+    relative to the model's: both are horizontal lines across the same body, so turning the body shortens them
+    alike and the ratio does not depend on which way the person faces (unless edge-on, left out)."""
+    out: list[tuple[str, tuple]] = []
+    if not (w[[0, 1, 6, 7]] > 0).all():
+        return out
+    mid_sh, mid_hp = 0.5 * (obs[0] + obs[1]), 0.5 * (obs[6] + obs[7])
+    if 180.0 - _down_tilt_deg(mid_hp, mid_sh) > MAX_TRUNK_TILT_DEG:   # the trunk does not point up
+        return out
+    k_sh, k_hp = 0.5 * (k[0] + k[1]), 0.5 * (k[6] + k[7])
+    out.append(("trunk", (_dist(mid_sh, mid_hp) / (dims.trunk_m * 0.5 * (k_sh + k_hp)),)))
+    sh_shown = _dist(obs[0], obs[1]) / (2 * dims.shoulder_half_m * k_sh)
+    if sh_shown > MIN_FACING:
+        out.append(("hip", (_dist(obs[6], obs[7]) / (2 * dims.hip_half_m * k_hp) / sh_shown,)))
+    for name, (f_up, f_lo, sides) in zip(("arm", "leg"), LIMBS, strict=True):
+        l_up, l_lo = getattr(dims, f_up), getattr(dims, f_lo)
+        for a, b, c in sides:
+            if not (w[a] > 0 and w[b] > 0 and w[c] > 0):
+                continue
+            if _down_tilt_deg(obs[a], obs[b]) > MAX_IMAGE_TILT_DEG or \
+                    _down_tilt_deg(obs[b], obs[c]) > MAX_IMAGE_TILT_DEG:
+                continue
+            r_up = _dist(obs[a], obs[b]) / (l_up * 0.5 * (k[a] + k[b]))
+            r_lo = _dist(obs[b], obs[c]) / (l_lo * 0.5 * (k[b] + k[c]))
+            if not (r_up > 0 and r_lo > 0) or abs(r_up / r_lo - 1.0) > MAX_PAIR_MISMATCH:
+                continue
+            out.append((name, (r_up, r_lo)))
+    return out
+
+
+def _dist(a: np.ndarray, b: np.ndarray) -> float:
+    return float(math.hypot(a[0] - b[0], a[1] - b[1]))
+
+
+class ProportionLearner:
+    """Learns the person's proportions from video frames; ``dims()`` gives the lengths to fit with."""
+
+    def __init__(self, base: BodyDimensions) -> None:
+        self.base = base
+        self.forget()
+
+    def forget(self) -> None:
+        """Start over (another person, or a long time without one)."""
+        # per group: a ring of samples as multiples of the *configured* lengths, and how many were added
+        self._ring = {name: np.empty((HISTORY, len(fs))) for name, fs, _ in GROUPS}
+        self._n = dict.fromkeys(self._ring, 0)
+        self._scale = LimbScale()
+
+    @property
+    def scale(self) -> LimbScale:
+        return self._scale
+
+    def observe(self, obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions) -> None:
+        """Add one fitted frame (see ``samples``; ``dims`` the lengths its fit used) and update the estimate."""
+        got = samples(obs, w, k, dims)
+        if not got:
+            return
+        fields_of = {name: fs for name, fs, _ in GROUPS}
+        size = dims.body_height_m / self.base.body_height_m   # the image shows no size: store proportions
+
+        def rel(f: str) -> float:   # the proportion the fit used for length f, relative to the configured one
+            return getattr(dims, f) / getattr(self.base, f) / size
+
+        for name, ratios in got:
+            # a ratio is relative to the lengths used; store it relative to the configured proportions (the hip
+            # sample is a ratio to the shoulders' shown width: relative to their proportion too)
+            unit = rel("shoulder_half_m") if name == "hip" else 1.0
+            row = [r * rel(f) / unit for r, f in zip(ratios, fields_of[name], strict=True)]
+            if all(math.isfinite(v) and v > 0 for v in row):
+                self._ring[name][self._n[name] % HISTORY] = row
+                self._n[name] += 1
+        self._scale = self._estimate()
+
+    def _estimate(self) -> LimbScale:
+        raw = dict.fromkeys(LENGTH_FIELDS, 1.0)
+        for name, fs, pct in GROUPS:
+            n = min(self._n[name], HISTORY)
+            if n < MIN_SAMPLES:
+                continue
+            q = np.partition(self._ring[name][:n], int(pct / 100.0 * (n - 1)), axis=0)[int(pct / 100.0 * (n - 1))]
+            for f, v in zip(fs, q, strict=True):
+                raw[f] = min(max(1.0 + (float(v) - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1])
+        raw = {f: v for f, v in raw.items() if abs(v - 1.0) >= DEAD_ZONE}
+        # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
+        # when standing) add up to the configured ones, the person's height being what the user configured
+        height = sum(getattr(self.base, f) for f in HEIGHT_FIELDS)
+        size = height / sum(getattr(self.base, f) * raw.get(f, 1.0) for f in HEIGHT_FIELDS)
+        return LimbScale(raw, size, dict(self._n))
+
+    def dims(self) -> BodyDimensions:
+        """The configured dimensions with the learned proportions."""
+        return replace(self.base, **{f.name: getattr(self.base, f.name) * self._scale.of(f.name)
+                                     for f in fields(BodyDimensions)})

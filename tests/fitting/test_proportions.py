@@ -1,0 +1,173 @@
+"""Learned proportions (fitting.proportions): video mode learns the person's limb lengths, trunk and hip width
+from the frames, and leaves a body that already fits alone.
+
+Real motion with another skeleton: the CMU mocap clip (its arms 14-16 % shorter than the height ratios give,
+its anatomical hip centres 22 % narrower than the model's landmark hips, its thighs 8 % longer) seen by a
+pinhole camera; the model's own rendering: nothing changes; a seated person facing the camera: the thighs
+point at it and are not taken for short thighs."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from bench import mocap_landmarks as M
+from bench import ood
+from bench import simulate as S
+from fitting import BodyDimensions, FitConfig, Fitter, write_calibration
+from fitting import proportions as PR
+from fitting.kinematics import BODY_LANDMARKS
+
+
+@pytest.fixture(scope="module")
+def walk(shared_data):
+    """131_01 (walk, stop, crouch) at 10 fps from 45 degrees, noise-free: (sequence, clip, true dims)."""
+    clip = M.load_clip(shared_data / "mocap" / "cmu" / "131_01.bvh")
+    seq = ood.build_sequence(clip, 45.0, 10, (0.0,), seed=7)
+    return seq, clip, ood.mocap_dimensions(clip)
+
+
+def _video(fitter: Fitter, seq, n: int | None = None) -> list:
+    k = seq.camera.intrinsics
+    lms = seq.landmarks[0]
+    return [fitter.fit(lms[i], i, float(seq.times[i]), k.size, mode="video", intrinsics=k)
+            for i in range(len(lms) if n is None else n)]
+
+
+def test_learns_the_mocap_subjects_proportions_and_fits_it_better(walk):
+    seq, clip, true = walk
+    cfg = FitConfig(body_height_m=round(clip.height_m, 3))
+    learned = Fitter(cfg)
+    fixed = Fitter(replace(cfg, learn_proportions=False))
+    res_l, res_f = _video(learned, seq), _video(fixed, seq)
+    assert all(r.ok for r in res_l + res_f)
+    scale = learned._learner.scale
+    base = learned.base_dims
+    # the direction and most of the size of every mismatch larger than 10 %, from the frames alone
+    for f in ("upper_arm_m", "forearm_m", "hip_half_m"):
+        truth = getattr(true, f) / getattr(base, f)
+        assert truth < 0.9
+        assert scale.of(f) < 0.95 and abs(scale.of(f) - truth) < 0.1, (f, scale.of(f), truth)
+    assert scale.of("thigh_m") > 1.03
+    # the configured height is kept: legs and trunk add up to it
+    d = learned.dims
+    assert d.thigh_m + d.shank_m + d.trunk_m == pytest.approx(base.thigh_m + base.shank_m + base.trunk_m)
+    assert "limb_scale" in res_l[-1].extra and "limb_scale" not in res_f[-1].extra
+    pa_l = np.mean([ood.pa_mpjpe(ood.fitted_joints(r), seq.truth[i]) for i, r in enumerate(res_l)][40:])
+    pa_f = np.mean([ood.pa_mpjpe(ood.fitted_joints(r), seq.truth[i]) for i, r in enumerate(res_f)][40:])
+    assert pa_l < 0.92 * pa_f, (pa_l, pa_f)   # after the first 4 s (learning)
+
+
+def test_the_models_own_rendering_learns_nothing():
+    """A rendering of the model itself fits exactly: the estimate stays inside the dead zone, the lengths are
+    the configured ones to the last bit and the fit stays exact."""
+    seq = S.sequence("squat", psi_bd=30.0)
+    fitter = Fitter(FitConfig(body_height_m=1.6))
+    results = [fitter.fit(lm, i, t, (640, 480), mode="video")
+               for i, (t, lm, _) in enumerate(S.render_sequence(seq, fps=10.0))]
+    assert all(r.ok for r in results)
+    assert fitter._learner.scale.ratio == {} and fitter._learner.scale.size == 1.0
+    assert fitter._learner.scale.samples["trunk"] >= PR.MIN_SAMPLES
+    assert fitter.dims == fitter.base_dims
+    assert max(r.extra["err2d_px"] for r in results) < 1e-3
+
+
+def test_a_seated_person_facing_the_camera_keeps_the_thigh_length():
+    """Thighs pointing at the camera project short and vertical; their shanks do not: no sample."""
+    dims = S.body_dimensions(1.6)
+    sit = S.pose("sit_chair", psi_bd=0.0)
+    lm = S.render(sit, dims=dims)
+    k = np.full(12, 0.6 * 480 / 1.6 / (480 * 0.6))  # orthographic, normalized units: g / H with g = 1
+    obs = (lm[list(BODY_LANDMARKS), :2] - lm[list(BODY_LANDMARKS), :2].mean(axis=0)) / (480 * 0.6)
+    got = [name for name, _ in PR.samples(obs, np.ones(12), k, dims)]
+    assert "leg" not in got and "trunk" in got
+    stand = S.render(S.STANDING, dims=dims)
+    obs = (stand[list(BODY_LANDMARKS), :2] - stand[list(BODY_LANDMARKS), :2].mean(axis=0)) / (480 * 0.6)
+    got = dict(PR.samples(obs, np.ones(12), k, dims))
+    assert got["leg"] == pytest.approx((1.0, 1.0), abs=0.02)
+    assert got["trunk"][0] == pytest.approx(1.0, abs=0.02)
+    assert got["hip"][0] == pytest.approx(1.0, abs=0.02)
+
+
+def test_samples_measure_shorter_limbs_in_the_image_plane():
+    """A standing body with arms 20 % shorter and hips 30 % narrower than the model's, facing the camera."""
+    model = S.body_dimensions(1.6)
+    person = replace(model, upper_arm_m=0.8 * model.upper_arm_m, forearm_m=0.8 * model.forearm_m,
+                     hip_half_m=0.7 * model.hip_half_m)
+    lm = S.render(S.STANDING, dims=person)
+    scale = 480 * 0.6 / 1.6   # px per metre of the default orthographic camera
+    obs = lm[list(BODY_LANDMARKS), :2] / (scale * 1.6)
+    k = np.full(12, 1.0 / 1.6)
+    got = {}
+    for name, r in PR.samples(obs, np.ones(12), k, model):
+        got.setdefault(name, []).append(r)
+    assert np.array(got["arm"]) == pytest.approx(0.8, abs=0.03)
+    assert got["hip"][0][0] == pytest.approx(0.7, abs=0.02)
+    # a missing wrist: that arm gives no sample; a torso landmark missing: no sample at all
+    w = np.ones(12)
+    w[4] = 0.0
+    assert sum(name == "arm" for name, _ in PR.samples(obs, w, k, model)) == 1
+    w[6] = 0.0
+    assert PR.samples(obs, w, k, model) == []
+
+
+def test_learner_bounds_shrinkage_and_height():
+    base = BodyDimensions.from_height(1.7)
+    learner = PR.ProportionLearner(base)
+    k = np.ones(12)
+    obs = np.zeros((12, 2))
+    for _ in range(PR.MIN_SAMPLES - 1):
+        learner._ring["arm"][learner._n["arm"]] = (0.5, 0.5)
+        learner._n["arm"] += 1
+    assert learner.dims() == base                     # too few samples
+    learner.observe(obs, np.zeros(12), k, base)        # no usable landmark: nothing added
+    assert learner.scale.samples == {}
+    for _ in range(200):
+        learner._ring["arm"][learner._n["arm"]] = (0.5, 0.5)
+        learner._n["arm"] += 1
+    learner._scale = learner._estimate()
+    assert learner.scale.of("upper_arm_m") == PR.BOUNDS[0]   # never below the bound
+    d = learner.dims()
+    assert d.body_height_m == base.body_height_m and d.thigh_m == base.thigh_m   # the arms are not the height
+    learner.forget()
+    assert learner.dims() == base
+
+
+def test_image_mode_calibration_forgetting_and_reset(walk, tmp_path):
+    seq, clip, true = walk
+    cfg = FitConfig(body_height_m=round(clip.height_m, 3))
+    f = Fitter(cfg)
+    _video(f, seq, 60)
+    learned = f._learner.dims()       # what the next video frame fits with
+    assert learned != f.base_dims
+    k = seq.camera.intrinsics
+    lm = seq.landmarks[0][60]
+    r = f.fit(lm, 60, float(seq.times[60]), k.size, mode="image", intrinsics=k)
+    assert f.dims == f.base_dims and "limb_scale" not in r.extra    # image mode: the configured body
+    assert f._learner.dims() == learned                               # ... and it teaches nothing
+    f.reset()                                                         # a lost track keeps what was learned
+    f.fit(lm, 61, float(seq.times[60]) + 0.1, k.size, mode="video", intrinsics=k)
+    assert f.dims == learned
+    # a long gap (longer than proportions_forget_s): someone else may have come
+    f.fit(lm, 62, float(seq.times[60]) + 0.2 + cfg.proportions_forget_s + 1, k.size, mode="video", intrinsics=k)
+    assert f.dims == f.base_dims
+    _video(f, seq, 60)
+    assert f.dims != f.base_dims
+    f.fit(lm, 0, 0.0, k.size, mode="video", intrinsics=k)              # time went back: another recording
+    assert f.dims == f.base_dims
+    # warm-up teaches nothing
+    _video(f, seq, 60)
+    before = f._learner.dims()
+    f.warmup()
+    assert f._learner.dims() == before
+    f.forget_body()
+    assert f._learner.dims() == f.base_dims
+    # a calibration file is a measurement: nothing is learned over it
+    path = tmp_path / "user.yaml"
+    write_calibration(path, true, frames=1)
+    fc = Fitter(replace(cfg, calibration=str(path)))
+    res = _video(fc, seq, 30)
+    assert fc.dims == fc.base_dims and "limb_scale" not in res[-1].extra
+    assert fc.dims.as_array() == pytest.approx(true.as_array(), abs=1e-4)   # the file's 4 decimals
