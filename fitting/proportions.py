@@ -29,7 +29,9 @@ Pure NumPy; the caller (fitting.fitter) decides when to observe, apply and forge
 
 from __future__ import annotations
 
+import bisect
 import math
+from collections import deque
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -50,6 +52,7 @@ GROUPS = (
     ("hip", ("hip_half_m",), 50.0),
 )
 LENGTH_FIELDS = tuple(f for _, fs, _ in GROUPS for f in fs)
+_FIELDS_OF = {name: fs for name, fs, _ in GROUPS}
 HEIGHT_FIELDS = ("thigh_m", "shank_m", "trunk_m")   # stacked when standing: their sum is kept
 MAX_IMAGE_TILT_DEG = 25.0   # a segment within this of the image's vertical (pointing down) counts
 MAX_TRUNK_TILT_DEG = 30.0   # the trunk (mid-hip -> mid-shoulder) within this of the image's vertical (up)
@@ -80,7 +83,7 @@ class LimbScale:
                 "size": round(self.size, 3), "samples": dict(self.samples)}
 
 
-def _down_tilt_deg(top: np.ndarray, bottom: np.ndarray) -> float:
+def _down_tilt_deg(top, bottom) -> float:
     """Angle of ``top -> bottom`` from the image's downward vertical (image y down), degrees; 180 = up."""
     dx, dy = float(bottom[0] - top[0]), float(bottom[1] - top[1])
     return math.degrees(math.atan2(abs(dx), dy)) if (dx or dy) else 180.0
@@ -99,34 +102,59 @@ def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions)
     relative to the model's: both are horizontal lines across the same body, so turning the body shortens them
     alike and the ratio does not depend on which way the person faces (unless edge-on, left out)."""
     out: list[tuple[str, tuple]] = []
-    if not (w[[0, 1, 6, 7]] > 0).all():
+    p, ok, k = obs.tolist(), (np.asarray(w) > 0).tolist(), np.asarray(k).tolist()   # plain floats: per-frame cost
+    if not (ok[0] and ok[1] and ok[6] and ok[7]):
         return out
-    mid_sh, mid_hp = 0.5 * (obs[0] + obs[1]), 0.5 * (obs[6] + obs[7])
+    mid_sh = (0.5 * (p[0][0] + p[1][0]), 0.5 * (p[0][1] + p[1][1]))
+    mid_hp = (0.5 * (p[6][0] + p[7][0]), 0.5 * (p[6][1] + p[7][1]))
     if 180.0 - _down_tilt_deg(mid_hp, mid_sh) > MAX_TRUNK_TILT_DEG:   # the trunk does not point up
         return out
     k_sh, k_hp = 0.5 * (k[0] + k[1]), 0.5 * (k[6] + k[7])
     out.append(("trunk", (_dist(mid_sh, mid_hp) / (dims.trunk_m * 0.5 * (k_sh + k_hp)),)))
-    sh_shown = _dist(obs[0], obs[1]) / (2 * dims.shoulder_half_m * k_sh)
+    sh_shown = _dist(p[0], p[1]) / (2 * dims.shoulder_half_m * k_sh)
     if sh_shown > MIN_FACING:
-        out.append(("hip", (_dist(obs[6], obs[7]) / (2 * dims.hip_half_m * k_hp) / sh_shown,)))
+        out.append(("hip", (_dist(p[6], p[7]) / (2 * dims.hip_half_m * k_hp) / sh_shown,)))
     for name, (f_up, f_lo, sides) in zip(("arm", "leg"), LIMBS, strict=True):
         l_up, l_lo = getattr(dims, f_up), getattr(dims, f_lo)
         for a, b, c in sides:
-            if not (w[a] > 0 and w[b] > 0 and w[c] > 0):
+            if not (ok[a] and ok[b] and ok[c]):
                 continue
-            if _down_tilt_deg(obs[a], obs[b]) > MAX_IMAGE_TILT_DEG or \
-                    _down_tilt_deg(obs[b], obs[c]) > MAX_IMAGE_TILT_DEG:
+            if _down_tilt_deg(p[a], p[b]) > MAX_IMAGE_TILT_DEG or _down_tilt_deg(p[b], p[c]) > MAX_IMAGE_TILT_DEG:
                 continue
-            r_up = _dist(obs[a], obs[b]) / (l_up * 0.5 * (k[a] + k[b]))
-            r_lo = _dist(obs[b], obs[c]) / (l_lo * 0.5 * (k[b] + k[c]))
+            r_up = _dist(p[a], p[b]) / (l_up * 0.5 * (k[a] + k[b]))
+            r_lo = _dist(p[b], p[c]) / (l_lo * 0.5 * (k[b] + k[c]))
             if not (r_up > 0 and r_lo > 0) or abs(r_up / r_lo - 1.0) > MAX_PAIR_MISMATCH:
                 continue
             out.append((name, (r_up, r_lo)))
     return out
 
 
-def _dist(a: np.ndarray, b: np.ndarray) -> float:
-    return float(math.hypot(a[0] - b[0], a[1] - b[1]))
+def _dist(a, b) -> float:
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+class _Window:
+    """The last HISTORY samples of one group, each column also kept sorted (its percentile in O(1))."""
+
+    def __init__(self, columns: int) -> None:
+        self.ring: deque[list[float]] = deque()   # in arrival order, newest last (at most HISTORY)
+        self.sorted: list[list[float]] = [[] for _ in range(columns)]
+        self.added = 0                        # samples ever added
+
+    def add(self, row: list[float]) -> None:
+        if len(self.ring) == HISTORY:         # the oldest sample leaves
+            old = self.ring.popleft()
+            for col, v in zip(self.sorted, old, strict=True):
+                del col[bisect.bisect_left(col, v)]
+        self.ring.append(row)
+        for col, v in zip(self.sorted, row, strict=True):
+            bisect.insort(col, v)
+        self.added += 1
+
+    def rank(self, pct: float) -> list[float]:
+        """Each column's value of rank ``int(pct / 100 (n - 1))`` (0 = the smallest)."""
+        i = int(pct / 100.0 * (len(self.ring) - 1))
+        return [col[i] for col in self.sorted]
 
 
 class ProportionLearner:
@@ -138,9 +166,8 @@ class ProportionLearner:
 
     def forget(self) -> None:
         """Start over (another person, or a long time without one)."""
-        # per group: a ring of samples as multiples of the *configured* lengths, and how many were added
-        self._ring = {name: np.empty((HISTORY, len(fs))) for name, fs, _ in GROUPS}
-        self._n = dict.fromkeys(self._ring, 0)
+        # per group: the recent samples as multiples of the *configured* proportions
+        self._win = {name: _Window(len(fs)) for name, fs, _ in GROUPS}
         self._scale = LimbScale()
 
     @property
@@ -152,37 +179,37 @@ class ProportionLearner:
         got = samples(obs, w, k, dims)
         if not got:
             return
-        fields_of = {name: fs for name, fs, _ in GROUPS}
         size = dims.body_height_m / self.base.body_height_m   # the image shows no size: store proportions
-
-        def rel(f: str) -> float:   # the proportion the fit used for length f, relative to the configured one
-            return getattr(dims, f) / getattr(self.base, f) / size
-
+        # the proportion the fit used for each length, relative to the configured one
+        rel = {f: getattr(dims, f) / getattr(self.base, f) / size for f in (*LENGTH_FIELDS, "shoulder_half_m")}
         for name, ratios in got:
             # a ratio is relative to the lengths used; store it relative to the configured proportions (the hip
             # sample is a ratio to the shoulders' shown width: relative to their proportion too)
-            unit = rel("shoulder_half_m") if name == "hip" else 1.0
-            row = [r * rel(f) / unit for r, f in zip(ratios, fields_of[name], strict=True)]
-            if all(math.isfinite(v) and v > 0 for v in row):
-                self._ring[name][self._n[name] % HISTORY] = row
-                self._n[name] += 1
+            self.add(name, [r * rel[f] / (rel["shoulder_half_m"] if name == "hip" else 1.0)
+                            for r, f in zip(ratios, _FIELDS_OF[name], strict=True)])
         self._scale = self._estimate()
+
+    def add(self, group: str, row: list[float]) -> None:
+        """Add one sample of ``group`` (GROUPS), as multiples of the configured proportions; non-finite or
+        non-positive rows are left out. ``observe`` calls it; the estimate is updated by the next observe."""
+        if all(math.isfinite(v) and v > 0 for v in row):
+            self._win[group].add(row)
 
     def _estimate(self) -> LimbScale:
         raw = dict.fromkeys(LENGTH_FIELDS, 1.0)
         for name, fs, pct in GROUPS:
-            n = min(self._n[name], HISTORY)
+            win = self._win[name]
+            n = len(win.ring)
             if n < MIN_SAMPLES:
                 continue
-            q = np.partition(self._ring[name][:n], int(pct / 100.0 * (n - 1)), axis=0)[int(pct / 100.0 * (n - 1))]
-            for f, v in zip(fs, q, strict=True):
-                raw[f] = min(max(1.0 + (float(v) - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1])
+            for f, v in zip(fs, win.rank(pct), strict=True):
+                raw[f] = min(max(1.0 + (v - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1])
         raw = {f: v for f, v in raw.items() if abs(v - 1.0) >= DEAD_ZONE}
         # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
         # when standing) add up to the configured ones, the person's height being what the user configured
         height = sum(getattr(self.base, f) for f in HEIGHT_FIELDS)
         size = height / sum(getattr(self.base, f) * raw.get(f, 1.0) for f in HEIGHT_FIELDS)
-        return LimbScale(raw, size, dict(self._n))
+        return LimbScale(raw, size, {name: win.added for name, win in self._win.items()})
 
     def dims(self) -> BodyDimensions:
         """The configured dimensions with the learned proportions."""

@@ -8,6 +8,7 @@ point at it and are not taken for short thighs."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -119,20 +120,37 @@ def test_learner_bounds_shrinkage_and_height():
     k = np.ones(12)
     obs = np.zeros((12, 2))
     for _ in range(PR.MIN_SAMPLES - 1):
-        learner._ring["arm"][learner._n["arm"]] = (0.5, 0.5)
-        learner._n["arm"] += 1
-    assert learner.dims() == base                     # too few samples
-    learner.observe(obs, np.zeros(12), k, base)        # no usable landmark: nothing added
-    assert learner.scale.samples == {}
+        learner.add("arm", [0.5, 0.5])
+    assert learner._estimate().ratio == {}             # too few samples
+    learner.observe(obs, np.zeros(12), k, base)        # no usable landmark: nothing added, nothing learned
+    assert learner.scale.samples == {} and learner.dims() == base
+    learner.add("arm", [math.nan, 0.5])                # a non-finite sample is left out
+    assert learner._win["arm"].added == PR.MIN_SAMPLES - 1
     for _ in range(200):
-        learner._ring["arm"][learner._n["arm"]] = (0.5, 0.5)
-        learner._n["arm"] += 1
+        learner.add("arm", [0.5, 0.5])
     learner._scale = learner._estimate()
     assert learner.scale.of("upper_arm_m") == PR.BOUNDS[0]   # never below the bound
     d = learner.dims()
     assert d.body_height_m == base.body_height_m and d.thigh_m == base.thigh_m   # the arms are not the height
+    # the window keeps the newest HISTORY samples: the old ones leave it and its percentile with them
+    for _ in range(PR.HISTORY):
+        learner.add("arm", [1.2, 1.2])
+    assert len(learner._win["arm"].ring) == PR.HISTORY and learner._win["arm"].rank(75.0) == [1.2, 1.2]
     learner.forget()
     assert learner.dims() == base
+
+
+def test_window_percentile_against_numpy():
+    """The sorted window against NumPy's partition of the same last HISTORY samples."""
+    rng = np.random.default_rng(3)
+    win = PR._Window(2)
+    rows = rng.normal(1.0, 0.1, size=(PR.HISTORY + 257, 2))
+    for i, row in enumerate(rows):
+        win.add(row.tolist())
+        last = rows[max(0, i + 1 - PR.HISTORY):i + 1]
+        for pct in (50.0, 75.0):
+            kth = int(pct / 100.0 * (len(last) - 1))
+            assert win.rank(pct) == np.partition(last, kth, axis=0)[kth].tolist()
 
 
 def test_image_mode_calibration_forgetting_and_reset(walk, tmp_path):
