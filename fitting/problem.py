@@ -10,6 +10,7 @@ the reported gamma is the apparent standing-body height over the image height,
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -74,18 +75,19 @@ def landmark_weights(landmarks: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray,
     A landmark is unusable when x, y or visibility is not finite or visibility < visibility_drop; weights
     rise linearly from 0.05 at visibility_drop to 1 at visibility_full.
     """
-    rows = landmarks[_BODY_IDX]
-    xy = rows[:, :2].copy()
-    vis = rows[:, 3]
-    bad = ~(np.isfinite(xy).all(axis=1) & np.isfinite(vis))
-    vis = np.where(bad, -1.0, vis)
-    bad |= vis < cfg.visibility_drop
-    span = max(cfg.visibility_full - cfg.visibility_drop, 1e-6)
-    w = np.clip((vis - cfg.visibility_drop) / span, 0.05, 1.0)
-    w[bad] = 0.0
-    xy[bad] = 0.0
-    missing = [BODY_LANDMARK_NAMES[i] for i in np.flatnonzero(bad)]
-    return xy, w, missing
+    rows = landmarks[_BODY_IDX].tolist()   # plain floats: this runs on every frame
+    drop = cfg.visibility_drop
+    span = max(cfg.visibility_full - drop, 1e-6)
+    xy, w, missing = [], [], []
+    for name, (x, y, _, vis, *_) in zip(BODY_LANDMARK_NAMES, rows, strict=True):
+        if math.isfinite(x) and math.isfinite(y) and math.isfinite(vis) and not vis < drop:
+            xy.append((x, y))
+            w.append(min(max((vis - drop) / span, 0.05), 1.0))
+        else:
+            xy.append((0.0, 0.0))
+            w.append(0.0)
+            missing.append(name)
+    return np.array(xy), np.array(w), missing
 
 
 _BODY_IDX = np.array(BODY_LANDMARKS)
@@ -98,14 +100,16 @@ def reference_scale(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions) -> floa
     """
     lengths = {"shoulder": 2 * dims.shoulder_half_m, "hip": 2 * dims.hip_half_m, "upper_arm_m": dims.upper_arm_m,
                "thigh_m": dims.thigh_m, "shank_m": dims.shank_m}
+    p, ok = xy.tolist(), (np.asarray(w) > 0).tolist()   # plain floats (NumPy's hypot): this runs on every frame
     best = 0.0
     for (a, b), key in _SCALE_SEGMENTS:
-        if w[a] > 0 and w[b] > 0:
-            best = max(best, float(np.hypot(*(xy[a] - xy[b]))) / lengths[key])
+        if ok[a] and ok[b]:
+            best = max(best, float(np.hypot(p[a][0] - p[b][0], p[a][1] - p[b][1])) / lengths[key])
     # the trunk: mid-hip to mid-shoulder
-    if w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0:
-        d = 0.5 * (xy[0] + xy[1]) - 0.5 * (xy[6] + xy[7])
-        best = max(best, float(np.hypot(*d)) / dims.trunk_m)
+    if ok[0] and ok[1] and ok[6] and ok[7]:
+        dx = 0.5 * (p[0][0] + p[1][0]) - 0.5 * (p[6][0] + p[7][0])
+        dy = 0.5 * (p[0][1] + p[1][1]) - 0.5 * (p[6][1] + p[7][1])
+        best = max(best, float(np.hypot(dx, dy)) / dims.trunk_m)
     return best
 
 
@@ -121,26 +125,11 @@ class Frame:
     perspective: bool
 
 
-def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, ppm0: float,
-         intrinsics: Intrinsics | None = None,
-         fixed_deg: np.ndarray | None = None) -> Frame:
-    """Build the kernels' data array of one frame (see the D_* layout in fitting.layout)."""
+@functools.lru_cache(maxsize=16)
+def _constants(cfg: FitConfig) -> np.ndarray:
+    """The part of the data array that depends on the configuration only (loss weights, thresholds, joint
+    limits); zero elsewhere. Cached per configuration: ``pack`` copies it (read-only here)."""
     data = np.zeros(L.D_SIZE)
-    h = dims.body_height_m
-    scale_px = ppm0 * h
-    sw = w.sum()
-    centroid = (w[:, None] * xy).sum(axis=0) / sw
-    data[L.D_OBS:L.D_OBS + 24] = ((xy - centroid) / scale_px).ravel()
-    data[L.D_W:L.D_W + 12] = w
-    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = dims.as_array()
-    if fixed_deg is not None:
-        data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.asarray(fixed_deg) * DEG
-    perspective = intrinsics is not None
-    if perspective:
-        fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-        # camera-centred normalized coordinates = data obs + offset
-        data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (centroid[0] - cx) / scale_px,
-                                       (centroid[1] - cy) / scale_px)
     lw = L.D_LW
     data[lw + L.LW_COM] = cfg.w_com
     data[lw + L.LW_SYM] = cfg.w_sym
@@ -164,6 +153,30 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
                                              cfg.hp_adduction_max_deg]) * DEG
     data[L.D_LIM_LO:L.D_LIM_LO + L.N_VAR] = LIMIT_LO_RAD
     data[L.D_LIM_HI:L.D_LIM_HI + L.N_VAR] = LIMIT_HI_RAD
+    data.flags.writeable = False
+    return data
+
+
+def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, ppm0: float,
+         intrinsics: Intrinsics | None = None,
+         fixed_deg: np.ndarray | None = None) -> Frame:
+    """Build the kernels' data array of one frame (see the D_* layout in fitting.layout)."""
+    data = _constants(cfg).copy()
+    h = dims.body_height_m
+    scale_px = ppm0 * h
+    sw = w.sum()
+    centroid = (w[:, None] * xy).sum(axis=0) / sw
+    data[L.D_OBS:L.D_OBS + 24] = ((xy - centroid) / scale_px).ravel()
+    data[L.D_W:L.D_W + 12] = w
+    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = dims.as_array()
+    if fixed_deg is not None:
+        data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.asarray(fixed_deg) * DEG
+    perspective = intrinsics is not None
+    if perspective:
+        fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+        # camera-centred normalized coordinates = data obs + offset
+        data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (centroid[0] - cx) / scale_px,
+                                       (centroid[1] - cy) / scale_px)
     return Frame(data, ppm0, scale_px, centroid, w, perspective)
 
 
@@ -193,20 +206,21 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
     w = frame.weights
     if not (w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0):
         return np.zeros((0, L.N_VAR))
-    obs = d[L.D_OBS:L.D_OBS + 24].reshape(12, 2)
+    o = d[L.D_OBS:L.D_OBS + 24].tolist()   # plain floats: the x, y of the 12 landmarks in turn
     h = dims.body_height_m
-    a = (obs[6] - obs[7]) * h / (2 * dims.hip_half_m)      # left axis, projected (unit length if parallel)
-    a2 = (obs[0] - obs[1]) * h / (2 * dims.shoulder_half_m)
-    a = 0.5 * (a + a2)
-    b = (0.5 * (obs[0] + obs[1]) - 0.5 * (obs[6] + obs[7])) * h / dims.trunk_m
-    na, nb = np.hypot(*a), np.hypot(*b)
+    # left axis, projected (unit length if parallel): the hips' and the shoulders' averaged
+    a = [0.5 * ((o[12 + i] - o[14 + i]) * h / (2 * dims.hip_half_m) + (o[i] - o[2 + i]) * h / (2 * dims.shoulder_half_m))
+         for i in (0, 1)]
+    b = [(0.5 * (o[i] + o[2 + i]) - 0.5 * (o[12 + i] + o[14 + i])) * h / dims.trunk_m for i in (0, 1)]
+    na, nb = float(np.hypot(a[0], a[1])), float(np.hypot(b[0], b[1]))
+    ab = a[0] * b[0] + a[1] * b[1]
     ya_mag = math.sqrt(max(0.0, 1.0 - min(na, 1.0) ** 2))
     zb_mag = math.sqrt(max(0.0, 1.0 - min(nb, 1.0) ** 2))
     candidates = []
     for ya in (ya_mag, -ya_mag):
         if ya_mag > 0.2:
             # orthogonality a.b + ya zb = 0 fixes the sign of zb
-            zb = math.copysign(zb_mag, -float(a @ b) / ya)
+            zb = math.copysign(zb_mag, -ab / ya)
             candidates.append((ya, zb))
         else:
             candidates.extend([(ya, zb_mag), (ya, -zb_mag)])
@@ -230,7 +244,7 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
         x = np.zeros(L.N_VAR)
         x[0] = 1.0
         x[L.X_TBD], x[L.X_PBD], x[L.X_SBD] = t * DEG, p * DEG, s * DEG
-        seeds.append(np.clip(x, lo, hi))
+        seeds.append(np.minimum(np.maximum(x, lo), hi))
     return np.array(seeds) if seeds else np.zeros((0, L.N_VAR))
 
 
