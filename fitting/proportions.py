@@ -24,7 +24,7 @@ unsettle the fit). The image shows proportions, not size: the whole body is then
 and trunk add up to the configured ones (the height the user configured keeps the person's distance right).
 
 Units: lengths in metres; ratios unitless; image coordinates in the fit's normalized units (fitting.problem).
-Pure NumPy; the caller (fitting.fitter) decides when to observe, apply and forget.
+Plain Python and NumPy (no kernels); the caller (fitting.fitter) decides when to observe, apply and forget.
 """
 
 from __future__ import annotations
