@@ -7,6 +7,7 @@ units): the mid-hip sits at depth Tz = fn_y H / g in front of the camera and a p
 projects to (fn_x X / Z', fn_y Y / Z'). In both the translation of the body in the image is not part of the
 projection: it is solved by weighted least squares where the 2D error is formed (fitting.loss.mpjpe,
 fitting.jacobian), exactly, because the residual is linear in it. Tested through the loss against NumPy.
+``image_scale`` (NumPy, not a kernel): the local image scale at each landmark, for fitting.proportions.
 """
 
 from __future__ import annotations

@@ -189,3 +189,36 @@ def test_image_mode_calibration_forgetting_and_reset(walk, tmp_path):
     res = _video(fc, seq, 30)
     assert fc.dims == fc.base_dims and "limb_scale" not in res[-1].extra
     assert fc.dims.as_array() == pytest.approx(true.as_array(), abs=1e-4)   # the file's 4 decimals
+
+
+@pytest.mark.parametrize("intrinsics", [False, True])
+def test_image_scale_is_the_projections_derivative(intrinsics):
+    """image_scale against a finite difference of the projection itself: a landmark moved by 1 mm parallel
+    to the image plane moves by image_scale x 1 mm in the image (normalized units)."""
+    from camera_model import Intrinsics
+    from fitting import forward_kinematics as FK
+    from fitting import layout as L
+    from fitting import problem as P
+    from fitting.projection import image_scale, project
+
+    dims = S.body_dimensions(1.6)
+    cfg = FitConfig(body_height_m=1.6)
+    lm = S.render(S.pose("walk_left_forward", 40.0), dims=dims)
+    xy, w, _ = P.landmark_weights(lm, cfg)
+    k = Intrinsics(600.0, 600.0, 320.0, 240.0, 640, 480) if intrinsics else None
+    frame = P.pack(xy, w, dims, cfg, P.reference_scale(xy, w, dims), k)
+    x = np.zeros(L.N_VAR)
+    x[0] = 0.9
+    x[L.X_PBD] = np.radians(35.0)
+    x[L.X_TKN_L] = np.radians(40.0)
+    pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
+    FK.model_points(x, frame.data, pts_b, pts_c)
+    base, moved = np.empty((L.N_LM, 3)), np.empty((L.N_LM, 3))
+    project(x, pts_c, frame.data, base)
+    shifted = pts_c.copy()
+    shifted[:, 0] += 1e-3
+    project(x, shifted, frame.data, moved)
+    want = (moved[:, 0] - base[:, 0]) / 1e-3
+    got = image_scale(x, frame.data)
+    np.testing.assert_allclose(got, want, rtol=1e-9 if not intrinsics else 1e-6)
+    assert intrinsics == (np.ptp(got) > 0)   # a pinhole's scale differs with each landmark's depth
