@@ -9,7 +9,6 @@ down are left out, and the reason for each is counted.
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -17,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fitting.body import BodyDimensions
+from fitting.image2d import distance, down_tilt_deg
 
 MIN_FRAMES = 10
 EYE_HEIGHT = 0.936          # eye height / body height (Drillis & Contini)
@@ -42,15 +42,6 @@ class CalibrationReport:
     spread: dict[str, float]   # relative median absolute deviation per measured length
 
 
-def _d(a: np.ndarray, b: np.ndarray) -> float:
-    return float(math.hypot(a[0] - b[0], a[1] - b[1]))
-
-
-def _tilt_deg(top: np.ndarray, bottom: np.ndarray) -> float:
-    dx, dy = bottom[0] - top[0], bottom[1] - top[1]
-    return math.degrees(math.atan2(abs(dx), dy)) if dy > 0 else 180.0
-
-
 def frame_lengths(lm: np.ndarray, height_m: float) -> tuple[dict[str, float] | None, str]:
     """The measured lengths (metres) of one frame, or None and the reason it is not usable."""
     lm = np.asarray(lm, dtype=np.float64)
@@ -61,7 +52,7 @@ def frame_lengths(lm: np.ndarray, height_m: float) -> tuple[dict[str, float] | N
         return None, "landmarks missing or not visible"
     p = lm[:, :2]
     for top, mid, end in ((11, 13, 15), (12, 14, 16), (23, 25, 27), (24, 26, 28)):
-        if _tilt_deg(p[top], p[mid]) > MAX_LIMB_TILT_DEG or _tilt_deg(p[mid], p[end]) > MAX_LIMB_TILT_DEG:
+        if down_tilt_deg(p[top], p[mid]) > MAX_LIMB_TILT_DEG or down_tilt_deg(p[mid], p[end]) > MAX_LIMB_TILT_DEG:
             return None, "not standing with arms and legs straight down"
     eye = 0.5 * (p[2] + p[5])
     heel = 0.5 * (p[29] + p[30])
@@ -70,13 +61,13 @@ def frame_lengths(lm: np.ndarray, height_m: float) -> tuple[dict[str, float] | N
     ppm = (heel[1] - eye[1]) / (EYE_HEIGHT * height_m)
     mid_sh, mid_hp = 0.5 * (p[11] + p[12]), 0.5 * (p[23] + p[24])
     out = {
-        "trunk_m": _d(mid_sh, mid_hp) / ppm,
-        "shoulder_half_m": _d(p[11], p[12]) / 2 / ppm,
-        "hip_half_m": _d(p[23], p[24]) / 2 / ppm,
-        "upper_arm_m": 0.5 * (_d(p[11], p[13]) + _d(p[12], p[14])) / ppm,
-        "forearm_m": 0.5 * (_d(p[13], p[15]) + _d(p[14], p[16])) / ppm,
-        "thigh_m": 0.5 * (_d(p[23], p[25]) + _d(p[24], p[26])) / ppm,
-        "shank_m": 0.5 * (_d(p[25], p[27]) + _d(p[26], p[28])) / ppm,
+        "trunk_m": distance(mid_sh, mid_hp) / ppm,
+        "shoulder_half_m": distance(p[11], p[12]) / 2 / ppm,
+        "hip_half_m": distance(p[23], p[24]) / 2 / ppm,
+        "upper_arm_m": 0.5 * (distance(p[11], p[13]) + distance(p[12], p[14])) / ppm,
+        "forearm_m": 0.5 * (distance(p[13], p[15]) + distance(p[14], p[16])) / ppm,
+        "thigh_m": 0.5 * (distance(p[23], p[25]) + distance(p[24], p[26])) / ppm,
+        "shank_m": 0.5 * (distance(p[25], p[27]) + distance(p[26], p[28])) / ppm,
     }
     nominal = BodyDimensions.from_height(height_m)
     if out["shoulder_half_m"] / out["trunk_m"] < MIN_WIDTH_RATIO * nominal.shoulder_half_m / nominal.trunk_m:

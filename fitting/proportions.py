@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from fitting.body import BodyDimensions
+from fitting.image2d import distance, down_tilt_deg
 
 # limbs: (upper segment, lower segment), their length fields and the body-12 indices (fitting.kinematics
 # BODY_LANDMARKS order: shoulders 0/1, elbows 2/3, wrists 4/5, hips 6/7, knees 8/9, ankles 10/11) per side
@@ -83,12 +84,6 @@ class LimbScale:
                 "size": round(self.size, 3), "samples": dict(self.samples)}
 
 
-def _down_tilt_deg(top, bottom) -> float:
-    """Angle of ``top -> bottom`` from the image's downward vertical (image y down), degrees; 180 = up."""
-    dx, dy = float(bottom[0] - top[0]), float(bottom[1] - top[1])
-    return math.degrees(math.atan2(abs(dx), dy)) if (dx or dy) else 180.0
-
-
 def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions) -> list[tuple[str, tuple]]:
     """The usable samples of one frame: ``(group, ratios)`` with one ratio per length field of the group, each
     the shown fraction ``r`` of the length ``dims`` gives (see the module docstring).
@@ -107,30 +102,26 @@ def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions)
         return out
     mid_sh = (0.5 * (p[0][0] + p[1][0]), 0.5 * (p[0][1] + p[1][1]))
     mid_hp = (0.5 * (p[6][0] + p[7][0]), 0.5 * (p[6][1] + p[7][1]))
-    if 180.0 - _down_tilt_deg(mid_hp, mid_sh) > MAX_TRUNK_TILT_DEG:   # the trunk does not point up
+    if 180.0 - down_tilt_deg(mid_hp, mid_sh) > MAX_TRUNK_TILT_DEG:   # the trunk does not point up
         return out
     k_sh, k_hp = 0.5 * (k[0] + k[1]), 0.5 * (k[6] + k[7])
-    out.append(("trunk", (_dist(mid_sh, mid_hp) / (dims.trunk_m * 0.5 * (k_sh + k_hp)),)))
-    sh_shown = _dist(p[0], p[1]) / (2 * dims.shoulder_half_m * k_sh)
+    out.append(("trunk", (distance(mid_sh, mid_hp) / (dims.trunk_m * 0.5 * (k_sh + k_hp)),)))
+    sh_shown = distance(p[0], p[1]) / (2 * dims.shoulder_half_m * k_sh)
     if sh_shown > MIN_FACING:
-        out.append(("hip", (_dist(p[6], p[7]) / (2 * dims.hip_half_m * k_hp) / sh_shown,)))
+        out.append(("hip", (distance(p[6], p[7]) / (2 * dims.hip_half_m * k_hp) / sh_shown,)))
     for name, (f_up, f_lo, sides) in zip(("arm", "leg"), LIMBS, strict=True):
         l_up, l_lo = getattr(dims, f_up), getattr(dims, f_lo)
         for a, b, c in sides:
             if not (ok[a] and ok[b] and ok[c]):
                 continue
-            if _down_tilt_deg(p[a], p[b]) > MAX_IMAGE_TILT_DEG or _down_tilt_deg(p[b], p[c]) > MAX_IMAGE_TILT_DEG:
+            if down_tilt_deg(p[a], p[b]) > MAX_IMAGE_TILT_DEG or down_tilt_deg(p[b], p[c]) > MAX_IMAGE_TILT_DEG:
                 continue
-            r_up = _dist(p[a], p[b]) / (l_up * 0.5 * (k[a] + k[b]))
-            r_lo = _dist(p[b], p[c]) / (l_lo * 0.5 * (k[b] + k[c]))
+            r_up = distance(p[a], p[b]) / (l_up * 0.5 * (k[a] + k[b]))
+            r_lo = distance(p[b], p[c]) / (l_lo * 0.5 * (k[b] + k[c]))
             if not (r_up > 0 and r_lo > 0) or abs(r_up / r_lo - 1.0) > MAX_PAIR_MISMATCH:
                 continue
             out.append((name, (r_up, r_lo)))
     return out
-
-
-def _dist(a, b) -> float:
-    return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
 class _Window:
