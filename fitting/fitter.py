@@ -31,6 +31,7 @@ from fitting import jitcache, refine, udeas
 from fitting import layout as L
 from fitting import loss as LOSS
 from fitting import problem as P
+from fitting.analytic import analytic_start
 from fitting.assemble import assemble
 from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
@@ -52,6 +53,8 @@ PRIOR_CANDIDATES = 4  # noisy landmarks: refine this many of the best candidates
 RECOVER_FACTOR, RECOVER_FLOOR, ERR_REF_RATE = 1.25, 0.002, 0.1  # video mode: when to look again in image mode
 DEPTH_WEIGHT = 10.0  # a landmark's depth contradicting a hypothesis costs this many landmark-noise units
 DEPTH_PASSES = 2  # refinements with depth: the robust weights re-solved from the first one's result
+TRIAL_ITERATIONS = 5  # video mode: LM iterations that rank the hypotheses under the temporal prior ...
+FINALISTS = 2  # ... and how many of the best are then refined to convergence
 MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames closer than this (a repeated stamp)
 
 
@@ -232,9 +235,12 @@ class Fitter:
             self.forget_body()
         return self._learner.dims()
 
-    def _lm(self, data: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, float]:
+    def _lm(self, data: np.ndarray, x: np.ndarray, iterations: int | None = None) -> tuple[np.ndarray, float]:
+        """Levenberg-Marquardt from ``x`` on ``data``: (solution, its cost); ``iterations`` at most (default
+        ``refine_iterations``)."""
         out = np.empty(L.N_VAR)
-        cost = refine.levenberg_marquardt(x, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self.config.refine_iterations, out)[0]
+        n = self.config.refine_iterations if iterations is None else iterations
+        cost = refine.levenberg_marquardt(x, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, n, out)[0]
         return out, float(cost)
 
     def _score(self, frame: P.Frame, x: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -244,18 +250,16 @@ class Fitter:
         loss, mp = LOSS.pose_loss_terms(out, frame.data, self._work)[:2]
         return out, float(loss), float(mp)
 
-    def _select(self, frame: P.Frame, pool: list[np.ndarray], prev: np.ndarray | None = None,
-                scored: list[tuple[np.ndarray, float, float]] | None = None, mse: list[float] | None = None,
-                dt: float = 0.0) -> tuple[np.ndarray, float, float]:
+    def _select(self, frame: P.Frame, pool: list[np.ndarray],
+                scored: list[tuple[np.ndarray, float, float]] | None = None,
+                mse: list[float] | None = None) -> tuple[np.ndarray, float, float]:
         """The best of refined candidates.
 
         Noise-free (an exact fit): the smallest loss. With landmark noise the depth of limbs near the image
-        plane is weakly determined, so the best candidates are refined again with a prior weighted by the
-        noise estimated from the best residual (MAP; zero for an exact fit): the previous frame's solution
-        in video mode (``video_smoothing``; in time units: each angle may move
-        ``video_joint_speed_deg_s`` x ``dt`` at one standard deviation, so the prior does not depend on the
-        frame rate), in image mode left/right symmetry and a straight spine (``pose_prior``). It decides
-        between depth hypotheses that fit the landmarks alike. The smallest prior-weighted cost wins.
+        plane is weakly determined, so the best candidates are refined again with a pose prior weighted by
+        the noise estimated from the best residual (MAP; zero for an exact fit): left/right symmetry and a
+        straight spine (``pose_prior``). It decides between depth hypotheses that fit the landmarks alike.
+        The smallest prior-weighted cost wins. (Video mode's temporal prior: :meth:`_track`.)
 
         ``scored`` (``_score`` of each pool entry) and ``mse`` (``refine.data_mse`` of each), when the caller
         already has them, save evaluating them again.
@@ -285,20 +289,10 @@ class Fitter:
         if sigma2 < PRIOR_MIN_NOISE ** 2:
             return best  # (nearly) exact: no noise to regularize
         data = frame.data.copy()
-        if prev is not None:
-            # video: the previous frame's solution is the prior, in time units (an angle may move
-            # video_joint_speed_deg_s x dt at one standard deviation), weighted by the landmark noise
-            data[L.D_PRIOR] = cfg.video_smoothing * sigma2 / 12.0
-            sig = np.full(L.N_VAR, math.radians(cfg.video_joint_speed_deg_s * max(dt, MIN_DT_S)))
-            sig[0] = 0.0
-            data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = prev
-            data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = sig
-            data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = -1.0
-        else:
-            data[L.D_PRIOR] = cfg.pose_prior * sigma2 / 12.0
-            data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
-            data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
-            data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
+        data[L.D_PRIOR] = cfg.pose_prior * sigma2 / 12.0
+        data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
+        data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
+        data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
         best_cost = math.inf
         order = np.argsort([sc[1] + dl for sc, dl in zip(scored, d_loss, strict=True)])
         for i in order[:PRIOR_CANDIDATES]:
@@ -307,10 +301,56 @@ class Fitter:
                 set_depth_rows(data, self._depth_fit(frame, start), DEPTH_WEIGHT * noise2)
                 out, cost = self._lm(data, start)
                 start = out
-            set_depth_rows(data, None, 0.0)  # compare the candidates on one cost
-            cost = refinement_cost(out, data) + DEPTH_WEIGHT * noise2 * self._depth_cost(frame, out)
+            cost = self._compared_cost(frame, data, out, DEPTH_WEIGHT * noise2)
             if cost < best_cost:
                 best_cost, best_x = cost, out
+        return self._score(frame, best_x)
+
+    def _compared_cost(self, frame: P.Frame, data: np.ndarray, x: np.ndarray, w_depth: float) -> float:
+        """What candidates refined with ``data``'s prior are compared on: the refinement's cost without the
+        depth rows (they hold each candidate's own robust weights) plus the depth term at ``x`` weighted by
+        ``w_depth`` (the refinement's cost units per unit of the term)."""
+        set_depth_rows(data, None, 0.0)
+        return refinement_cost(x, data) + w_depth * self._depth_cost(frame, x)
+
+    def _track(self, frame: P.Frame, prev: np.ndarray, dt: float, hypotheses: list[np.ndarray],
+               sigma2: float) -> tuple[np.ndarray, float, float]:
+        """Video mode with landmark noise: the hypotheses refined under the temporal prior, the smallest
+        prior-weighted cost wins (MAP over the hypotheses).
+
+        The prior is the previous frame's solution ``prev`` in time units: each angle may move
+        ``video_joint_speed_deg_s`` x ``dt`` at one standard deviation, so it does not depend on the frame
+        rate; weighted by the landmark noise variance ``sigma2`` (estimated from the residual of the previous
+        solution refined on this frame; ``video_smoothing``), it decides only between hypotheses the
+        landmarks cannot tell apart. Every hypothesis gets TRIAL_ITERATIONS Levenberg-Marquardt iterations,
+        enough to rank them; the FINALISTS best are refined to convergence. With measured depth each
+        refinement also carries the depth rows (robust weights from its start, re-solved from the trial's
+        result for the finalists), unless no hypothesis agrees with the depth (garbage: the frame is fitted
+        without it)."""
+        cfg = self.config
+        data = frame.data.copy()
+        data[L.D_PRIOR] = cfg.video_smoothing * sigma2 / 12.0
+        sig = np.full(L.N_VAR, math.radians(cfg.video_joint_speed_deg_s * max(dt, MIN_DT_S)))
+        sig[0] = 0.0
+        data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = prev
+        data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = sig
+        data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = -1.0
+        w_depth = DEPTH_WEIGHT * sigma2
+        fits = [self._depth_fit(frame, x) for x in hypotheses]
+        if self._depth is not None and not any(usable(d, self._depth) for d in fits):
+            self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
+
+        def refined(x0: np.ndarray, fit: DepthFit | None, iterations: int) -> tuple[np.ndarray, float]:
+            if self._depth is None:
+                return self._lm(data, x0, iterations)   # no depth rows: the refinement's cost is the compared one
+            set_depth_rows(data, fit, w_depth)
+            out = self._lm(data, x0, iterations)[0]
+            return out, self._compared_cost(frame, data, out, w_depth)
+
+        trials = sorted((refined(x0, fit, min(TRIAL_ITERATIONS, cfg.refine_iterations))
+                         for x0, fit in zip(hypotheses, fits, strict=True)), key=lambda r: r[1])
+        best_x = min((refined(x, self._depth_fit(frame, x), cfg.refine_iterations) for x, _ in trials[:FINALISTS]),
+                     key=lambda r: r[1])[0]
         return self._score(frame, best_x)
 
     def _depth_fit(self, frame: P.Frame, x: np.ndarray) -> DepthFit | None:
@@ -323,19 +363,11 @@ class Fitter:
 
     def _analytic(self, frame: P.Frame, seeds: np.ndarray) -> list[np.ndarray]:
         """Starting points from the orientation seeds with every limb solved from its 2D landmarks (each
-        limb's depth sign chosen by the loss), for the refinement."""
+        limb's depth sign chosen by the loss; fitting.analytic), for the refinement."""
         out = []
-        trial = np.empty(L.N_VAR)
         for seed in seeds:
-            x = seed.copy()
-            for limb in range(4):
-                best = (LOSS.pose_loss(x, frame.data, self._work), x)
-                for sign in (1.0, -1.0):
-                    refine.limb_from_observation(x, frame.data, limb, sign, trial)
-                    c = LOSS.pose_loss(trial, frame.data, self._work)
-                    if c < best[0]:
-                        best = (c, trial.copy())
-                x = best[1]
+            x = np.empty(L.N_VAR)
+            analytic_start(seed, frame.data, self._work, x)
             out.append(x)
         return out
 
@@ -433,13 +465,16 @@ class Fitter:
                                               data=frame.data, work=self._work, x_init=prev)[:3]
             self._udeas_s += time.thread_time() - c0
             starts.append(best_x)
+        sigma2 = min(4.0 * mse_start, cfg.pose_prior_max_noise ** 2)  # as _select estimates it
+        if cfg.pose_prior > 0 and sigma2 >= PRIOR_MIN_NOISE ** 2:
+            return (*self._track(frame, prev, dt, [start, *starts], sigma2), int(evals))
         pool = [start]
         mse = [mse_start]
         for x0 in starts:
             x = self._lm(frame.data, x0)[0]
             pool.append(x)
             mse.append(refine.data_mse(x, frame.data))
-        return (*self._select(frame, pool, prev, mse=mse, dt=dt), int(evals))
+        return (*self._select(frame, pool, mse=mse), int(evals))
 
 def _finite(v) -> bool:
     try:

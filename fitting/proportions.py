@@ -160,6 +160,8 @@ class ProportionLearner:
         # per group: the recent samples as multiples of the *configured* proportions
         self._win = {name: _Window(len(fs)) for name, fs, _ in GROUPS}
         self._scale = LimbScale()
+        self._dims_key: tuple | None = None   # the (size, ratios) self._dims was built for
+        self._dims = self.base
 
     @property
     def scale(self) -> LimbScale:
@@ -203,6 +205,10 @@ class ProportionLearner:
         return LimbScale(raw, size, {name: win.added for name, win in self._win.items()})
 
     def dims(self) -> BodyDimensions:
-        """The configured dimensions with the learned proportions."""
-        return replace(self.base, **{f.name: getattr(self.base, f.name) * self._scale.of(f.name)
-                                     for f in fields(BodyDimensions)})
+        """The configured dimensions with the learned proportions (built again only when they change)."""
+        key = (self._scale.size, tuple(sorted(self._scale.ratio.items())))
+        if key != self._dims_key:
+            self._dims_key = key
+            self._dims = replace(self.base, **{f.name: getattr(self.base, f.name) * self._scale.of(f.name)
+                                               for f in fields(BodyDimensions)})
+        return self._dims

@@ -28,15 +28,20 @@ def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray,
     is used."""
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
         return None
-    w = data[L.D_W:L.D_W + L.N_LM]
-    if not np.any(w > 0):
+    w = data[L.D_W:L.D_W + L.N_LM].tolist()   # plain floats: this runs on every frame
+    if not any(v > 0 for v in w):
         return None
-    fn = np.array([data[L.D_PROJ + L.PJ_FN_X], data[L.D_PROJ + L.PJ_FN_Y]])
-    off = np.array([data[L.D_PROJ + L.PJ_OFF_X], data[L.D_PROJ + L.PJ_OFF_Y]])
-    tz = fn[1] * data[L.D_DIMS + L.DM_H] / x[L.X_GAMMA] if root_z is None else float(root_z)
-    z = np.maximum(tz + pts_c[:L.N_LM, 2], MIN_DEPTH * tz)
-    obs = data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
-    a = fn[None, :] / z[:, None]                                   # d(image)/d(T), per landmark and axis
-    b = obs + off[None, :] - fn[None, :] * pts_c[:L.N_LM, :2] / z[:, None]
-    t = (w[:, None] * a * b).sum(axis=0) / (w[:, None] * a * a).sum(axis=0)
-    return float(t[0]), float(t[1]), float(tz)
+    fn = (float(data[L.D_PROJ + L.PJ_FN_X]), float(data[L.D_PROJ + L.PJ_FN_Y]))
+    off = (float(data[L.D_PROJ + L.PJ_OFF_X]), float(data[L.D_PROJ + L.PJ_OFF_Y]))
+    tz = fn[1] * float(data[L.D_DIMS + L.DM_H]) / float(x[L.X_GAMMA]) if root_z is None else float(root_z)
+    obs = data[L.D_OBS:L.D_OBS + 2 * L.N_LM].tolist()
+    pts = pts_c[:L.N_LM].tolist()
+    num, den = [0.0, 0.0], [0.0, 0.0]
+    for i, (wi, p) in enumerate(zip(w, pts, strict=True)):
+        z = max(tz + p[2], MIN_DEPTH * tz)
+        for c in (0, 1):
+            a = fn[c] / z                                        # d(image)/d(T) of landmark i on axis c
+            b = obs[2 * i + c] + off[c] - fn[c] * p[c] / z
+            num[c] += wi * a * b
+            den[c] += wi * a * a
+    return num[0] / den[0], num[1] / den[1], float(tz)
