@@ -4,7 +4,8 @@ reference :mod:`fitting.kinematics` (tested against it point by point). ``cache=
 Two entry points:
 
 * :func:`model_points`: the 19 model points (layout ``P_*``) of ``x`` in the pelvis frame and in camera
-  axes, metres, origin at the mid-hip, into caller arrays. Used by the refinement and the Jacobian.
+  axes, metres, origin at the mid-hip, into caller arrays (:func:`model_points_into`: with a reusable work
+  array). Used by the refinement and the Jacobian.
 * :func:`update_trig` + :func:`fk_update`: the same on the loss work array (layout ``W_*``,
   :func:`empty_work`), incrementally: the trig table keeps each angle with its cosine and sine, and only the
   point groups whose angles changed since the last call are recomputed (uDEAS moves one variable at a time).
@@ -280,7 +281,13 @@ def fk_work(data, work):
 @njit(cache=True)
 def model_points(x, data, pts_b, pts_c):
     """Model points of ``x`` in the pelvis frame and in camera axes (19 x 3 each, metres)."""
-    work = np.zeros((L.W_ROWS, 3))
+    model_points_into(x, data, pts_b, pts_c, empty_work())
+
+
+@njit(cache=True)
+def model_points_into(x, data, pts_b, pts_c, work):
+    """:func:`model_points` on a caller work array (:func:`empty_work`; reusable, its trig table is
+    recomputed in full)."""
     for r in range(L.W_TRIG, L.W_ROWS):
         work[r, 0] = np.nan
     update_trig(x, data, work)
@@ -302,8 +309,11 @@ def torso_uprightness(x):
     return c if c > 0.0 else 0.0
 
 
-def empty_work() -> np.ndarray:
-    """A fresh (W_ROWS, 3) work array for :func:`fitting.loss.pose_loss` (the trig table starts empty)."""
+@njit(cache=True)
+def empty_work():
+    """A fresh (W_ROWS, 3) work array for :func:`fitting.loss.pose_loss` and :func:`model_points_into` (the
+    trig table starts empty)."""
     work = np.zeros((L.W_ROWS, 3))
-    work[L.W_TRIG:, 0] = np.nan
+    for r in range(L.W_TRIG, L.W_ROWS):
+        work[r, 0] = np.nan
     return work

@@ -17,6 +17,10 @@ The landmark Jacobian is built by the chain rule: the camera-axes velocity of ea
 joint angle is a x (p - o) for the joint's rotation axis a (camera axes) through its centre o
 (:func:`_point_jacobian`); the projection turns it into image units and the translation's own dependence
 on x is differentiated through T = N / D, both in :func:`_landmark_rows`.
+
+:func:`residuals_jacobian` allocates its work arrays; the refinement's inner loop uses the allocation-free
+pair :func:`residuals_into` and :func:`jacobian_into` on reused ones (:func:`empty_work`), the Jacobian from
+what the residuals left in them at the same x.
 """
 
 from __future__ import annotations
@@ -27,7 +31,8 @@ import numpy as np
 from numba import njit
 
 from fitting import layout as L
-from fitting.forward_kinematics import model_points
+from fitting.forward_kinematics import empty_work as empty_fk_work
+from fitting.forward_kinematics import model_points_into
 from fitting.penalties import hinge_jacobian, hinge_residuals
 from fitting.projection import MIN_DEPTH, project
 from fitting.rotations import body_rot, column, mm, r0, rx, ry, rz
@@ -142,17 +147,17 @@ def _point_jacobian(x, data, pts_c, jp):
 
 
 @njit(cache=True)
-def _landmark_rows(x, data, pts_c, jp, sw, a_, b_, t_, nn, dd, jac):
+def _landmark_rows(x, data, pts_c, jp, sw, a_, b_, t_, nn, dd, dq, da, sq, jac):
     """Rows R_LM.. of the Jacobian: d r_ic = -dq_ic - da_ic T_c - a_ic dT_c, T = N / D,
     dT = (dN D - N dD) / D^2. dq_ic and da_ic: the rates of landmark i's model projection on image axis c
     and of its translation coefficient a_ic, from the point Jacobian ``jp`` through the camera model
-    (normalized units; da is zero for the orthographic camera, where a = 1)."""
+    (normalized units; da is zero for the orthographic camera, where a = 1), into the work arrays ``dq``,
+    ``da`` (2 x 19 x 12); ``sq`` (12): work array for the rows' weights."""
     h = data[L.D_DIMS + L.DM_H]
     g = x[L.X_GAMMA]
     n = L.N_VAR
-    dq = np.empty((2, n, L.N_LM))
-    da = np.zeros((2, n, L.N_LM))
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
+        da[:] = 0.0
         gh = g / h
         for i in range(L.N_LM):
             for c in range(2):
@@ -176,7 +181,6 @@ def _landmark_rows(x, data, pts_c, jp, sw, a_, b_, t_, nn, dd, jac):
                 for k in range(1, n):
                     dq[c, k, i] = fn * (jp[i, c, k] * iz - pc * jp[i, 2, k] * iz2)
                     da[c, k, i] = -fn * jp[i, 2, k] * iz2
-    sq = np.empty(L.N_LM)
     for i in range(L.N_LM):
         sq[i] = math.sqrt(data[L.D_W + i] / sw)
     for c in range(2):
@@ -193,26 +197,49 @@ def _landmark_rows(x, data, pts_c, jp, sw, a_, b_, t_, nn, dd, jac):
 
 
 @njit(cache=True)
-def residuals_jacobian(x, data, res, jac, want_jac):
-    """Least-squares residuals (layout R_*, see the module docstring) into ``res`` (N_RES) and, when
-    ``want_jac``, their Jacobian d res / d x into ``jac`` (N_RES x 19)."""
-    pts_b = np.empty((L.N_POINTS, 3))
-    pts_c = np.empty((L.N_POINTS, 3))
-    model_points(x, data, pts_b, pts_c)
-    proj = np.empty((L.N_LM, 3))
-    project(x, pts_c, data, proj)
-    persp = data[L.D_PROJ + L.PJ_MODE] != L.PROJ_ORTHOGRAPHIC
+def empty_work():
+    """Work arrays of :func:`residuals_into` and :func:`jacobian_into`, reusable from call to call: the tuple
+    (pts_b, pts_c (19 x 3), forward-kinematics work (fitting.forward_kinematics.empty_work), proj (12 x 3),
+    a_, b_ (12 x 2), tnd (3 x 2: the translation T, N and D per image axis), jp (12 x 3 x 19, zero where no
+    joint moves the landmark), dq, da (2 x 19 x 12), sq (12))."""
+    return (np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3)), empty_fk_work(), np.empty((L.N_LM, 3)),
+            np.empty((L.N_LM, 2)), np.empty((L.N_LM, 2)), np.empty((3, 2)), np.zeros((L.N_LM, 3, L.N_VAR)),
+            np.empty((2, L.N_VAR, L.N_LM)), np.empty((2, L.N_VAR, L.N_LM)), np.empty(L.N_LM))
+
+
+@njit(cache=True)
+def _weight_sum(data):
+    """sum_i w_i of the landmark weights (1 when there is none)."""
     sw = 0.0
     for i in range(L.N_LM):
         sw += data[L.D_W + i]
-    if sw <= 0.0:
-        sw = 1.0
+    return 1.0 if sw <= 0.0 else sw
+
+
+@njit(cache=True)
+def residuals_jacobian(x, data, res, jac, want_jac):
+    """Least-squares residuals (layout R_*, see the module docstring) into ``res`` (N_RES) and, when
+    ``want_jac``, their Jacobian d res / d x into ``jac`` (N_RES x 19)."""
+    work = empty_work()
+    residuals_into(x, data, res, work)
+    if want_jac:
+        jacobian_into(x, data, jac, work)
+
+
+@njit(cache=True)
+def residuals_into(x, data, res, work):
+    """The residuals of :func:`residuals_jacobian` into ``res`` with the work arrays of :func:`empty_work`,
+    which keep what :func:`jacobian_into` needs at the same ``x``."""
+    pts_b, pts_c, fk, proj, a_, b_, tnd, _, _, _, _ = work
+    t_, nn, dd = tnd[0], tnd[1], tnd[2]  # N_c = sum_i w_i a_ic b_ic, D_c = sum_i w_i a_ic^2
+    model_points_into(x, data, pts_b, pts_c, fk)
+    project(x, pts_c, data, proj)
+    persp = data[L.D_PROJ + L.PJ_MODE] != L.PROJ_ORTHOGRAPHIC
+    sw = _weight_sum(data)
     # r_ic = b_ic - a_ic T_c, b = observed - model (no translation), a = d(model) / dT
-    a_ = np.empty((L.N_LM, 2))
-    b_ = np.empty((L.N_LM, 2))
-    t_ = np.zeros(2)
-    nn = np.zeros(2)   # N_c = sum_i w_i a_ic b_ic
-    dd = np.zeros(2)   # D_c = sum_i w_i a_ic^2
+    for c in range(2):
+        nn[c] = 0.0
+        dd[c] = 0.0
     for i in range(L.N_LM):
         w = data[L.D_W + i]
         for c in range(2):
@@ -233,11 +260,15 @@ def residuals_jacobian(x, data, res, jac, want_jac):
     hinge_residuals(x, data, res)
     for i in range(L.N_LM):
         res[L.R_DEPTH + i] = data[L.D_DEPTH_W + i] * (pts_c[i, 2] - data[L.D_DEPTH + i])
-    if not want_jac:
-        return
-    jp = np.zeros((L.N_LM, 3, L.N_VAR))
+
+
+@njit(cache=True)
+def jacobian_into(x, data, jac, work):
+    """The Jacobian of :func:`residuals_jacobian` into ``jac``, from the work arrays that
+    :func:`residuals_into` filled at the same ``x`` (no allocation)."""
+    _, pts_c, _, _, a_, b_, tnd, jp, dq, da, sq = work
     _point_jacobian(x, data, pts_c, jp)
-    _landmark_rows(x, data, pts_c, jp, sw, a_, b_, t_, nn, dd, jac)
+    _landmark_rows(x, data, pts_c, jp, _weight_sum(data), a_, b_, tnd[0], tnd[1], tnd[2], dq, da, sq, jac)
     hinge_jacobian(x, data, jac)
     for i in range(L.N_LM):
         wd = data[L.D_DEPTH_W + i]

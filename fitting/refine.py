@@ -6,7 +6,9 @@
   plus the prior rows when the prior weight is set) with Marquardt's diagonal damping, clamping every
   variable to the joint limits; its normal equations (:func:`normal_equations`: dense landmark and depth
   rows, sparse hinge and prior rows) and damped Cholesky solve (:func:`cholesky_solve_into`) use work arrays
-  allocated once per refinement.
+  allocated once per refinement, and so do the residuals and the Jacobian
+  (:func:`fitting.jacobian.residuals_into`, :func:`fitting.jacobian.jacobian_into`): an accepted trial's
+  residuals are kept and only its Jacobian computed.
 * :func:`pelvis_projection`: moves along the exact null direction (theta_bd + d, theta_tr - d,
   theta_hp_l + d, theta_hp_r + d), which changes no landmark, to the minimum of the pelvis-tilt prior.
 * :func:`limb_from_observation` / :func:`limb_flip`: a limb solved from its 2D landmarks for a chosen depth
@@ -92,15 +94,24 @@ def normal_equations(jac, res, a, g, cols):
     """a = J'J and g = J'r (half the cost's gradient) of the refinement's residual rows (layout R_*) into
     ``a`` (n x n, both triangles) and ``g`` (n), summed over the rows in ascending order.
 
-    The landmark and depth rows are dense (the depth rows zero without depth); the penalty, joint-limit and
-    prior rows between them have one or two non-zeros, found per row. ``cols``: int64 work array (n)."""
+    The landmark and depth rows are dense (the depth rows zero without depth); the penalty and joint-limit
+    rows between them have at most one non-zero, in the column of their variable
+    (:func:`fitting.penalties.hinge_jacobian`), and the prior rows one or two, found per row. ``cols``:
+    int64 work array (n)."""
     n = jac.shape[1]
     for i in range(n):
         g[i] = 0.0
         for j in range(n):
             a[i, j] = 0.0
     _dense_rows(jac, res, L.R_LM, L.R_PEN, a, g)
-    for r in range(L.R_PEN, L.R_DEPTH):
+    # a penalty or joint-limit hinge row has its one possible non-zero in its variable's column
+    for q in range(L.N_PEN + L.N_VAR):
+        i = PEN.PENALTY_HINGES[q][0] if q < L.N_PEN else q - L.N_PEN
+        ji = jac[L.R_PEN + q, i]
+        if ji != 0.0:
+            g[i] += ji * res[L.R_PEN + q]
+            a[i, i] += ji * ji
+    for r in range(L.R_PRIOR, L.R_DEPTH):
         nz = 0
         for i in range(n):
             if jac[r, i] != 0.0:
@@ -123,7 +134,8 @@ def normal_equations(jac, res, a, g, cols):
 
 @njit(cache=True)
 def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
-    """Refine ``x0`` inside [lo, hi]; returns (final sum of squares, iterations, evaluations).
+    """Refine ``x0`` inside [lo, hi]; returns (final sum of squares, iterations, evaluations: the start, each
+    trial and each accepted point's Jacobian).
 
     Marquardt's diagonal damping with the gain-ratio update of Nielsen (the damping shrinks after a step the
     linear model predicted well and grows 2, 4, 8 ... times after rejected ones); a variable at a bound whose
@@ -134,11 +146,12 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
     res = np.empty(m)
     jac = np.empty((m, n))
     res_new = np.empty(m)
-    dummy = np.empty((1, 1))
+    work = JAC.empty_work()
     x = x0.copy()
     for k in range(n):
         x[k] = min(max(x[k], lo[k]), hi[k])
-    JAC.residuals_jacobian(x, data, res, jac, True)
+    JAC.residuals_into(x, data, res, work)
+    JAC.jacobian_into(x, data, jac, work)
     cost = JAC.sum_sq(res)
     evals = 1
     lam = 1e-3
@@ -160,13 +173,15 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
         normal_equations(jac, res, a, g, cols)
         for i in range(n):
             held[i] = (x[i] <= lo[i] and g[i] > 0.0) or (x[i] >= hi[i] and g[i] < 0.0)
+        # the damped matrix's off-diagonal lower triangle and the right-hand side are the same for every trial
+        for i in range(n):
+            rhs[i] = 0.0 if held[i] else -g[i]
+            for j in range(i):
+                damped[i, j] = 0.0 if (held[i] or held[j]) else a[i, j]
         improved = False
         c_new = cost
         for _ in range(12):
             for i in range(n):
-                rhs[i] = 0.0 if held[i] else -g[i]
-                for j in range(i):
-                    damped[i, j] = 0.0 if (held[i] or held[j]) else a[i, j]
                 damped[i, i] = 1.0 if held[i] else a[i, i] + lam * max(a[i, i], 1e-9) + 1e-12
             if not cholesky_solve_into(damped, rhs, step, low, y_work):
                 lam *= nu
@@ -174,7 +189,7 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
                 continue
             for k in range(n):
                 x_new[k] = min(max(x[k] + step[k], lo[k]), hi[k])
-            JAC.residuals_jacobian(x_new, data, res_new, dummy, False)
+            JAC.residuals_into(x_new, data, res_new, work)
             evals += 1
             c_new = JAC.sum_sq(res_new)
             if c_new < cost:
@@ -199,7 +214,9 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
         for k in range(n):
             x[k] = x_new[k]
         cost = c_new
-        JAC.residuals_jacobian(x, data, res, jac, True)
+        # the accepted trial was the last evaluation: its residuals and work arrays are those of x
+        res, res_new = res_new, res
+        JAC.jacobian_into(x, data, jac, work)
         evals += 1
         if gain <= 1e-13 + REL_TOL * cost:
             break

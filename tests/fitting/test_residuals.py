@@ -141,3 +141,35 @@ def test_depth_rows_match_reference_and_finite_differences():
         JAC.residuals_jacobian(xp, d, rp, np.empty((1, 1)), False)
         JAC.residuals_jacobian(xm, d, rm, np.empty((1, 1)), False)
         np.testing.assert_allclose(jac[L.R_DEPTH:, k], (rp - rm)[L.R_DEPTH:] / (2 * h), atol=1e-5)
+
+
+def test_residuals_into_and_jacobian_into_reuse_their_work():
+    """JAC.residuals_into + JAC.jacobian_into (the refinement's allocation-free pair) on one work tuple,
+    alternating pinhole and orthographic frames, with and without depth rows and the prior: bit for bit
+    JAC.residuals_jacobian (checked against the NumPy references here and finite differences in
+    test_kinematics.py), whose work arrays are fresh."""
+    from bench import simulate as S
+
+    cfg = FitConfig()
+    cam = S.Camera(model="pinhole", distance_m=3.0)
+    truth = S.pose("bend_grab", 40.0)
+    lm = S.render(truth, dims=DIMS, noise_px=3.0, seed=4, camera=cam)
+    xy, w, _ = P.landmark_weights(lm, cfg)
+    rng = np.random.default_rng(6)
+    work = JAC.empty_work()
+    for k in range(8):
+        intrinsics = cam.intrinsics((640, 480)) if k % 2 == 0 else None
+        d = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS), intrinsics).data.copy()
+        if k % 4 < 2:
+            d[L.D_DEPTH:L.D_DEPTH + L.N_LM] = rng.normal(0.0, 0.2, L.N_LM)
+            d[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = rng.uniform(0.0, 3.0, L.N_LM)
+            d[L.D_PRIOR] = 0.5
+            d[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
+            d[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
+        x = x_of(truth, 1.0) + rng.normal(0.0, 0.3, L.N_VAR) * (np.arange(L.N_VAR) > 0)
+        res, jac = np.empty(L.N_RES), np.empty((L.N_RES, L.N_VAR))
+        JAC.residuals_into(x, d, res, work)
+        JAC.jacobian_into(x, d, jac, work)
+        ref_res, ref_jac = np.empty(L.N_RES), np.empty((L.N_RES, L.N_VAR))
+        JAC.residuals_jacobian(x, d, ref_res, ref_jac, True)
+        assert np.array_equal(res, ref_res) and np.array_equal(jac, ref_jac)
