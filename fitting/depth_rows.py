@@ -6,6 +6,8 @@ from each start (iteratively reweighted least squares with Geman-McClure's weigh
 (the forward kinematics, the median vote, the inlier mean and the robust costs in one call, ``cache=True``;
 tested against the NumPy function in ``tests/fitting/test_depth_term.py``): the fitter evaluates the term
 on every hypothesis, and the NumPy version's per-call overhead was most of the cost of depth.
+:func:`set_depth_rows_at` writes the rows from it, :func:`cost_with_depth` is what candidates refined with
+different robust weights are compared on; both are single calls for the same reason.
 """
 
 from __future__ import annotations
@@ -81,20 +83,37 @@ def depth_fit_at(x: np.ndarray, data: np.ndarray, depth: np.ndarray) -> DepthFit
     return DepthFit(float(cost), float(root), int(inliers), float(sigma), targets, weights)
 
 
-def set_depth_rows(data: np.ndarray, fit: DepthFit | None, weight: float) -> None:
-    """Write the depth rows into ``data``: targets from ``fit`` and weights sqrt(weight x robust weight) /
-    sigma, so a depth residual of one sigma costs ``weight`` (the refinement's cost units); ``fit`` None (or
-    weight 0) turns the rows off."""
-    if fit is None or weight <= 0:
-        data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 0.0
-        return
-    t = fit.targets
-    data[L.D_DEPTH:L.D_DEPTH + L.N_LM] = np.where(np.isnan(t), 0.0, t)
-    data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = np.sqrt(weight * fit.weights) / fit.sigma
+@njit(cache=True)
+def set_depth_rows_at(x, data, depth, weight):
+    """Write the refinement's depth rows into ``data`` from the depth term of solution ``x``
+    (:func:`depth_term_kernel` against the measured ``depth``, 12, metres, NaN unknown): each landmark's target
+    depth relative to the mid-hip and the weight sqrt(weight x robust weight) / sigma, so a depth residual of
+    one sigma costs ``weight`` (the refinement's cost units). Rows off (weights 0) with fewer than
+    MIN_DEPTHS depths or ``weight`` <= 0."""
+    targets = np.empty(L.N_LM)
+    weights = np.empty(L.N_LM)
+    n, _, _, _, sigma = depth_term_kernel(x, data, depth, targets, weights)
+    for i in range(L.N_LM):
+        if n < MIN_DEPTHS or not weight > 0.0:
+            data[L.D_DEPTH_W + i] = 0.0
+        else:
+            data[L.D_DEPTH + i] = 0.0 if np.isnan(targets[i]) else targets[i]
+            data[L.D_DEPTH_W + i] = math.sqrt(weight * weights[i]) / sigma
 
 
-def refinement_cost(x: np.ndarray, data: np.ndarray) -> float:
-    """The refinement's sum of squares at ``x`` (every residual row of fitting.jacobian)."""
+@njit(cache=True)
+def cost_with_depth(x, data, depth, weight):
+    """The refinement's sum of squares at ``x`` without its depth rows (they hold one start's robust weights)
+    plus ``weight`` times the depth term's cost at ``x`` against ``depth`` (none with fewer than MIN_DEPTHS
+    depths): what candidates refined with different robust weights are compared on."""
     res = np.empty(L.N_RES)
-    JAC.residuals_jacobian(x, data, res, np.empty((1, 1)), False)
-    return float(np.dot(res, res))
+    JAC.residuals_into(x, data, res, JAC.empty_work())
+    acc = 0.0
+    for r in range(L.R_DEPTH):
+        acc += res[r] * res[r]
+    targets = np.empty(L.N_LM)
+    weights = np.empty(L.N_LM)
+    n, cost, _, _, _ = depth_term_kernel(x, data, depth, targets, weights)
+    if n >= MIN_DEPTHS:
+        acc += weight * cost
+    return acc

@@ -35,7 +35,7 @@ from fitting.analytic import analytic_start
 from fitting.assemble import assemble
 from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
-from fitting.depth_rows import depth_fit_at, refinement_cost, set_depth_rows
+from fitting.depth_rows import cost_with_depth, depth_fit_at, set_depth_rows_at
 from fitting.depth_term import DepthFit, usable
 from fitting.kinematics import BODY_LANDMARKS
 from fitting.projection import image_scale
@@ -55,6 +55,7 @@ DEPTH_WEIGHT = 10.0  # a landmark's depth contradicting a hypothesis costs this 
 DEPTH_PASSES = 2  # refinements with depth: the robust weights re-solved from the first one's result
 TRIAL_ITERATIONS = 5  # video mode: LM iterations that rank the hypotheses under the temporal prior ...
 FINALISTS = 2  # ... and how many of the best are then refined to convergence
+_NO_DEPTH = np.full(L.N_LM, np.nan)  # the depth kernels' "no measured depth"
 MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames closer than this (a repeated stamp)
 
 
@@ -298,20 +299,27 @@ class Fitter:
         for i in order[:PRIOR_CANDIDATES]:
             start = pool[i]
             for _ in range(DEPTH_PASSES if self._depth is not None else 1):
-                set_depth_rows(data, self._depth_fit(frame, start), DEPTH_WEIGHT * noise2)
+                self._set_depth_rows(data, start, DEPTH_WEIGHT * noise2)
                 out, cost = self._lm(data, start)
                 start = out
-            cost = self._compared_cost(frame, data, out, DEPTH_WEIGHT * noise2)
+            cost = self._compared_cost(data, out, DEPTH_WEIGHT * noise2)
             if cost < best_cost:
                 best_cost, best_x = cost, out
         return self._score(frame, best_x)
 
-    def _compared_cost(self, frame: P.Frame, data: np.ndarray, x: np.ndarray, w_depth: float) -> float:
+    def _compared_cost(self, data: np.ndarray, x: np.ndarray, w_depth: float) -> float:
         """What candidates refined with ``data``'s prior are compared on: the refinement's cost without the
         depth rows (they hold each candidate's own robust weights) plus the depth term at ``x`` weighted by
         ``w_depth`` (the refinement's cost units per unit of the term)."""
-        set_depth_rows(data, None, 0.0)
-        return refinement_cost(x, data) + w_depth * self._depth_cost(frame, x)
+        return cost_with_depth(x, data, _NO_DEPTH if self._depth is None else self._depth, w_depth)
+
+    def _set_depth_rows(self, data: np.ndarray, x: np.ndarray, w_depth: float) -> None:
+        """The refinement's depth rows in ``data``: robust weights of the depth term at ``x``, weighted by
+        ``w_depth``; off without depth."""
+        if self._depth is None:
+            data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 0.0
+        else:
+            set_depth_rows_at(x, data, self._depth, w_depth)
 
     def _track(self, frame: P.Frame, prev: np.ndarray, dt: float, hypotheses: list[np.ndarray],
                sigma2: float) -> tuple[np.ndarray, float, float]:
@@ -340,26 +348,21 @@ class Fitter:
         if self._depth is not None and not any(usable(d, self._depth) for d in fits):
             self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
 
-        def refined(x0: np.ndarray, fit: DepthFit | None, iterations: int) -> tuple[np.ndarray, float]:
+        def refined(x0: np.ndarray, iterations: int) -> tuple[np.ndarray, float]:
             if self._depth is None:
                 return self._lm(data, x0, iterations)   # no depth rows: the refinement's cost is the compared one
-            set_depth_rows(data, fit, w_depth)
+            self._set_depth_rows(data, x0, w_depth)
             out = self._lm(data, x0, iterations)[0]
-            return out, self._compared_cost(frame, data, out, w_depth)
+            return out, self._compared_cost(data, out, w_depth)
 
-        trials = sorted((refined(x0, fit, min(TRIAL_ITERATIONS, cfg.refine_iterations))
-                         for x0, fit in zip(hypotheses, fits, strict=True)), key=lambda r: r[1])
-        best_x = min((refined(x, self._depth_fit(frame, x), cfg.refine_iterations) for x, _ in trials[:FINALISTS]),
-                     key=lambda r: r[1])[0]
+        trials = sorted((refined(x0, min(TRIAL_ITERATIONS, cfg.refine_iterations)) for x0 in hypotheses),
+                        key=lambda r: r[1])
+        best_x = min((refined(x, cfg.refine_iterations) for x, _ in trials[:FINALISTS]), key=lambda r: r[1])[0]
         return self._score(frame, best_x)
 
     def _depth_fit(self, frame: P.Frame, x: np.ndarray) -> DepthFit | None:
         """The depth term of solution ``x`` against this frame's measured depth (None without depth)."""
         return None if self._depth is None else depth_fit_at(x, frame.data, self._depth)
-
-    def _depth_cost(self, frame: P.Frame, x: np.ndarray) -> float:
-        d = self._depth_fit(frame, x)
-        return 0.0 if d is None else d.cost
 
     def _analytic(self, frame: P.Frame, seeds: np.ndarray) -> list[np.ndarray]:
         """Starting points from the orientation seeds with every limb solved from its 2D landmarks (each

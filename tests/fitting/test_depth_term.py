@@ -176,3 +176,57 @@ def test_garbage_depth_is_judged_unusable_and_real_depth_usable():
     assert usable(depth_fit(z_rel, good), good)
     garbage = np.random.default_rng(0).uniform(0.5, 8.0, 12)
     assert not usable(depth_fit(z_rel, garbage), garbage)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_depth_rows_and_compared_cost_kernels_match_numpy(seed):
+    """fitting.depth_rows.set_depth_rows_at and cost_with_depth against the same quantities from the NumPy
+    depth term: rows w = sqrt(weight x robust weight) / sigma at the targets (NaN -> 0), off with too few
+    depths or no weight; the compared cost is the sum of squares of every residual row but the depth rows,
+    plus weight x the depth term's cost."""
+    from fitting import forward_kinematics as FK
+    from fitting import jacobian as JAC
+    from fitting import layout as L
+    from fitting import problem as P
+    from fitting.depth_rows import cost_with_depth, set_depth_rows_at
+    from fitting.result import VARIABLE_NAMES
+
+    rng = np.random.default_rng(100 + seed)
+    dims = BodyDimensions.from_height(1.7)
+    pose = S.pose(("stand_arms_up", "bend_grab", "sit_chair", "fallen_sideways")[seed], rng.uniform(-180, 180))
+    lm = S.render(pose, dims=dims, noise_px=2.0, seed=seed)
+    xy, w, _ = P.landmark_weights(lm, FitConfig())
+    data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data.copy()
+    data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = rng.uniform(0.5, 2.0, L.N_LM)   # stale rows of another start
+    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+    x[1:] += rng.normal(0.0, 0.1, x.size - 1)
+    pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
+    FK.model_points(x, data, pts_b, pts_c)
+    z_rel = pts_c[:L.N_LM, 2]
+    depth = 3.0 + z_rel - SURFACE_M + rng.normal(0.0, 0.03, 12)
+    depth[rng.random(12) < 0.2] = np.nan
+    depth[seed] += 2.5                                           # a background hit
+    ref = depth_fit(z_rel, depth)
+    weight = 0.7
+
+    res = np.empty(L.N_RES)
+    JAC.residuals_jacobian(x, data, res, np.empty((1, 1)), False)
+    expected = float(np.sum(res[:L.R_DEPTH] ** 2)) + weight * ref.cost
+    assert cost_with_depth(x, data, depth, weight) == pytest.approx(expected, rel=1e-12)
+    assert cost_with_depth(x, data, np.full(12, np.nan), weight) == pytest.approx(expected - weight * ref.cost,
+                                                                                 rel=1e-12)
+
+    set_depth_rows_at(x, data, depth, weight)
+    tol = 1e-12
+    np.testing.assert_allclose(data[L.D_DEPTH:L.D_DEPTH + L.N_LM], np.where(np.isnan(ref.targets), 0.0, ref.targets),
+                               rtol=0, atol=tol)
+    np.testing.assert_allclose(data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM], np.sqrt(weight * ref.weights) / ref.sigma,
+                               rtol=1e-9, atol=tol)
+    assert data[L.D_DEPTH_W + seed] < 0.1 * np.sqrt(weight) / ref.sigma       # the background hit barely counts
+    set_depth_rows_at(x, data, depth, 0.0)
+    assert not data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM].any()
+    data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 1.0
+    few = np.full(12, np.nan)
+    few[:MIN_DEPTHS - 1] = 3.0
+    set_depth_rows_at(x, data, few, weight)
+    assert not data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM].any()
