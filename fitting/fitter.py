@@ -447,10 +447,15 @@ class Fitter:
         cfg = self.config
         if not cfg.refine:
             return (*self._score(frame, prev), 0)
-        start = self._lm(frame.data, prev)[0]
+        # the previous solution moved to this frame's landmarks: a trial's iterations tell the noise level ...
+        start = self._lm(frame.data, prev, min(TRIAL_ITERATIONS, cfg.refine_iterations))[0]
         mse_start = refine.data_mse(start, frame.data)
-        if mse_start < EXACT_MSE:
-            return (*self._score(frame, start), 0)
+        if 4.0 * mse_start < PRIOR_MIN_NOISE ** 2:
+            # ... and a (nearly) exact fit is converged, so that an exact one is kept as it is
+            start = self._lm(frame.data, start)[0]
+            mse_start = refine.data_mse(start, frame.data)
+            if mse_start < EXACT_MSE:
+                return (*self._score(frame, start), 0)
         starts = []
         trial = np.empty(L.N_VAR)
         for limb in range(4 if cfg.video_hypotheses else 0):
@@ -471,6 +476,9 @@ class Fitter:
         sigma2 = min(4.0 * mse_start, cfg.pose_prior_max_noise ** 2)  # as _select estimates it
         if cfg.pose_prior > 0 and sigma2 >= PRIOR_MIN_NOISE ** 2:
             return (*self._track(frame, prev, dt, [start, *starts], sigma2), int(evals))
+        if 4.0 * mse_start >= PRIOR_MIN_NOISE ** 2:   # no prior (pose_prior 0): the trial start converged too
+            start = self._lm(frame.data, start)[0]
+            mse_start = refine.data_mse(start, frame.data)
         pool = [start]
         mse = [mse_start]
         for x0 in starts:
