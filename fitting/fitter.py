@@ -9,9 +9,10 @@ each limb's depth mirror in turn; the unobservable pelvis tilt is set by its pri
 the best candidates are refined again under a noise-weighted pose prior; the smallest loss wins.
 
 Video mode: several hypotheses refined from this frame's landmarks — the previous frame's solution, each
-limb's depth mirror of it, this frame's own analytic starts (and optionally the paper's uDEAS window) — and
-chosen by the anatomical prior plus a temporal prior in time units (degrees per second times the time since
-the previous frame), so time decides only between what the landmarks cannot tell apart and no pose is held.
+limb's depth mirror of it, this frame's own analytic starts (and optionally the paper's uDEAS window) — under
+a temporal prior in time units (degrees per second times the time since the previous frame) weighted by the
+landmark noise, a few iterations each to rank them and the best refined to convergence, so time decides only
+between what the landmarks cannot tell apart and no pose is held.
 A frame whose 2D error jumps (fast motion, a lost track) is fitted again in image mode and the better result
 kept. docs/body-model.md describes every step.
 
@@ -440,10 +441,11 @@ class Fitter:
         Starts: the previous frame's solution; each limb's depth mirror of it (a limb pointing at the camera
         and one pointing away project alike, so a wrong depth choice is never carried forward); and this
         frame's own analytic starts (both depth mirrors of the body orientation from the hips and shoulders,
-        every limb solved from its 2D landmarks), so a pose the landmarks have left is not held. Each is
-        refined; the previous solution then acts only as a prior in time units (``video_joint_speed_deg_s``
-        times ``dt``, weighted by the landmark noise) that decides between hypotheses the landmarks cannot
-        tell apart. ``dt``: seconds since the previous frame."""
+        every limb solved from its 2D landmarks), so a pose the landmarks have left is not held. With
+        landmark noise (:meth:`_track`) each is refined under the previous solution as a prior in time units
+        (``video_joint_speed_deg_s`` times ``dt``, weighted by the landmark noise), which decides between
+        hypotheses the landmarks cannot tell apart; without (an exact fit) the smallest loss wins
+        (:meth:`_select`). ``dt``: seconds since the previous frame."""
         cfg = self.config
         if not cfg.refine:
             return (*self._score(frame, prev), 0)
@@ -486,6 +488,7 @@ class Fitter:
             pool.append(x)
             mse.append(refine.data_mse(x, frame.data))
         return (*self._select(frame, pool, mse=mse), int(evals))
+
 
 def _finite(v) -> bool:
     try:
