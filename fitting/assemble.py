@@ -24,6 +24,25 @@ _DEPENDS = {  # variables that only these landmarks observe
 }
 
 
+_NO_ANGLES = dict.fromkeys(JOINT_ANGLE_NAMES, 0.0)   # every joint angle, in order
+
+# Per entry of [x, fixed angles, 12 joints x 3] (rounded_output): the divisor to the reported unit (degrees;
+# gamma, the fixed angles and the joints' metres as they are) and 10^decimals of the rounding.
+_UNIT = np.concatenate(([1.0], np.full(L.N_VAR - 1, P.DEG), np.ones(L.N_FIXED + 3 * L.N_LM)))
+_DECIMALS = np.concatenate((np.full(L.N_VAR + L.N_FIXED, 1e4), np.full(3 * L.N_LM, 1e5)))
+
+
+def rounded_output(x: np.ndarray, fixed_deg: np.ndarray, joints_m: np.ndarray) -> list[float]:
+    """[``x`` in degrees (gamma unitless), ``fixed_deg``, ``joints_m`` (12 x 3, metres) row by row], rounded
+    to 4, 4 and 5 decimals: ``np.round`` of each, in one pass with np.round's own steps (times 10^decimals,
+    rint, divided by 10^decimals)."""
+    v = np.concatenate((x, fixed_deg, joints_m.ravel())) / _UNIT
+    v *= _DECIMALS
+    np.rint(v, out=v)
+    v /= _DECIMALS
+    return v.tolist()
+
+
 def unobserved(missing: list[str]) -> list[str]:
     """The variables no used landmark observes when ``missing`` landmarks are left out."""
     out: list[str] = []
@@ -37,20 +56,18 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
              depth: DepthFit | None) -> FitResult:
     """The result of solution ``x`` (kernel units) of ``frame``; ``gamma`` the reported size factor, ``depth``
     the depth term at ``x`` (None without depth)."""
-    deg = np.round(P.to_degrees(x), 4).tolist()
-    variables = dict(zip(VARIABLE_NAMES, deg, strict=True))
-    variables["gamma"] = round(gamma, 5)
-    angles = dict.fromkeys(JOINT_ANGLE_NAMES, 0.0)
-    for name, v in zip(FIXED_NAMES, np.round(fixed_deg, 4).tolist(), strict=True):
-        angles[name] = v
-    for name in VARIABLE_NAMES[4:]:
-        angles[name] = variables[name]
     pts_b = np.empty((L.N_POINTS, 3))
     pts_c = np.empty((L.N_POINTS, 3))
     FK.model_points(x, frame.data, pts_b, pts_c)
+    out = rounded_output(x, fixed_deg, pts_c[:L.N_LM])
+    deg, fixed, xyz = out[:L.N_VAR], out[L.N_VAR:L.N_VAR + L.N_FIXED], out[L.N_VAR + L.N_FIXED:]
+    variables = dict(zip(VARIABLE_NAMES, deg, strict=True))
+    variables["gamma"] = round(gamma, 5)
+    angles = _NO_ANGLES.copy()
+    angles.update(zip(FIXED_NAMES, fixed, strict=True))
+    angles.update(zip(VARIABLE_NAMES[4:], deg[4:], strict=True))
     j3 = {"mid_hip": (0.0, 0.0, 0.0)}
-    for name, row in zip(BODY_LANDMARK_NAMES, np.round(pts_c[:12], 5).tolist(), strict=True):
-        j3[name] = tuple(row)
+    j3.update(zip(BODY_LANDMARK_NAMES, zip(xyz[0::3], xyz[1::3], xyz[2::3], strict=True), strict=True))
     extra = {"mode": mode, "projection": "perspective" if frame.perspective else "orthographic",
              "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}

@@ -20,7 +20,7 @@ from camera_model import Intrinsics
 from fitting import layout as L
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
-from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS, body_angles_from_rotation
+from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS, body_angles_from_axes
 
 DEG = math.pi / 180.0
 
@@ -73,24 +73,34 @@ def landmark_weights(landmarks: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray,
     """(12 x 2 pixel positions, 12 weights, names of the unusable landmarks) of the body landmarks.
 
     A landmark is unusable when x, y or visibility is not finite or visibility < visibility_drop; weights
-    rise linearly from 0.05 at visibility_drop to 1 at visibility_full.
+    rise linearly from 0.05 at visibility_drop to 1 at visibility_full. An unusable landmark's position is 0.
     """
-    rows = landmarks[_BODY_IDX].tolist()   # plain floats: this runs on every frame
+    body = landmarks[_BODY_IDX]
+    xy = body[:, :2].astype(np.float64)
     drop = cfg.visibility_drop
     span = max(cfg.visibility_full - drop, 1e-6)
-    xy, w, missing = [], [], []
-    for name, (x, y, _, vis, *_) in zip(BODY_LANDMARK_NAMES, rows, strict=True):
-        if math.isfinite(x) and math.isfinite(y) and math.isfinite(vis) and not vis < drop:
-            xy.append((x, y))
+    isfinite = math.isfinite
+    w, missing = [], []
+    for i, row in enumerate(body.tolist()):   # plain floats: this runs on every frame
+        x, y, vis = row[0], row[1], row[3]
+        if isfinite(x) and isfinite(y) and isfinite(vis) and not vis < drop:
             w.append(min(max((vis - drop) / span, 0.05), 1.0))
         else:
-            xy.append((0.0, 0.0))
             w.append(0.0)
-            missing.append(name)
-    return np.array(xy), np.array(w), missing
+            xy[i] = 0.0
+            missing.append(BODY_LANDMARK_NAMES[i])
+    return xy, np.array(w), missing
 
 
 _BODY_IDX = np.array(BODY_LANDMARKS)
+
+
+@functools.lru_cache(maxsize=16)
+def _scale_lengths(dims: BodyDimensions) -> tuple[float, ...]:
+    """The model length of each _SCALE_SEGMENTS segment, metres (cached per body)."""
+    lengths = {"shoulder": 2 * dims.shoulder_half_m, "hip": 2 * dims.hip_half_m, "upper_arm_m": dims.upper_arm_m,
+               "thigh_m": dims.thigh_m, "shank_m": dims.shank_m}
+    return tuple(lengths[key] for _, key in _SCALE_SEGMENTS)
 
 
 def reference_scale(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions) -> float:
@@ -98,18 +108,21 @@ def reference_scale(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions) -> floa
 
     Returns 0 when no segment is usable.
     """
-    lengths = {"shoulder": 2 * dims.shoulder_half_m, "hip": 2 * dims.hip_half_m, "upper_arm_m": dims.upper_arm_m,
-               "thigh_m": dims.thigh_m, "shank_m": dims.shank_m}
-    p, ok = xy.tolist(), (np.asarray(w) > 0).tolist()   # plain floats (NumPy's hypot): this runs on every frame
-    best = 0.0
-    for (a, b), key in _SCALE_SEGMENTS:
+    p, ok = xy.tolist(), (np.asarray(w) > 0).tolist()   # plain floats: this runs on every frame
+    dx, dy, length = [], [], []   # the usable segments' image vectors (pixels) and model lengths (metres)
+    for ((a, b), _), seg_m in zip(_SCALE_SEGMENTS, _scale_lengths(dims), strict=True):
         if ok[a] and ok[b]:
-            best = max(best, float(np.hypot(p[a][0] - p[b][0], p[a][1] - p[b][1])) / lengths[key])
+            dx.append(p[a][0] - p[b][0])
+            dy.append(p[a][1] - p[b][1])
+            length.append(seg_m)
     # the trunk: mid-hip to mid-shoulder
     if ok[0] and ok[1] and ok[6] and ok[7]:
-        dx = 0.5 * (p[0][0] + p[1][0]) - 0.5 * (p[6][0] + p[7][0])
-        dy = 0.5 * (p[0][1] + p[1][1]) - 0.5 * (p[6][1] + p[7][1])
-        best = max(best, float(np.hypot(dx, dy)) / dims.trunk_m)
+        dx.append(0.5 * (p[0][0] + p[1][0]) - 0.5 * (p[6][0] + p[7][0]))
+        dy.append(0.5 * (p[0][1] + p[1][1]) - 0.5 * (p[6][1] + p[7][1]))
+        length.append(dims.trunk_m)
+    best = 0.0
+    for shown, seg_m in zip(np.hypot(dx, dy).tolist(), length, strict=True):   # NumPy's hypot, one call
+        best = max(best, shown / seg_m)
     return best
 
 
@@ -123,6 +136,26 @@ class Frame:
     centroid_px: np.ndarray
     weights: np.ndarray
     perspective: bool
+
+
+_last_constants: tuple = (None, None)   # (cfg, _constants(cfg)) of the last pack: hashing a FitConfig is slow
+
+
+def _constants_of(cfg: FitConfig) -> np.ndarray:
+    """``_constants(cfg)``, the last configuration's without hashing it (a fitter packs every frame with one)."""
+    global _last_constants
+    last = _last_constants
+    if last[0] is not cfg:
+        last = _last_constants = (cfg, _constants(cfg))
+    return last[1]
+
+
+@functools.lru_cache(maxsize=16)
+def _dims_array(dims: BodyDimensions) -> np.ndarray:
+    """``dims.as_array()``, cached per body (read-only)."""
+    a = dims.as_array()
+    a.flags.writeable = False
+    return a
 
 
 @functools.lru_cache(maxsize=16)
@@ -161,29 +194,33 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
          intrinsics: Intrinsics | None = None,
          fixed_deg: np.ndarray | None = None) -> Frame:
     """Build the kernels' data array of one frame (see the D_* layout in fitting.layout)."""
-    data = _constants(cfg).copy()
+    data = _constants_of(cfg).copy()
     h = dims.body_height_m
     scale_px = ppm0 * h
     sw = w.sum()
     centroid = (w[:, None] * xy).sum(axis=0) / sw
     data[L.D_OBS:L.D_OBS + 24] = ((xy - centroid) / scale_px).ravel()
     data[L.D_W:L.D_W + 12] = w
-    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = dims.as_array()
+    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = _dims_array(dims)
     if fixed_deg is not None:
         data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.asarray(fixed_deg) * DEG
     perspective = intrinsics is not None
     if perspective:
         fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+        c_x, c_y = centroid.tolist()
         # camera-centred normalized coordinates = data obs + offset
-        data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (centroid[0] - cx) / scale_px,
-                                       (centroid[1] - cy) / scale_px)
+        data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (c_x - cx) / scale_px, (c_y - cy) / scale_px)
     return Frame(data, ppm0, scale_px, centroid, w, perspective)
 
 
 def image_box(cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]:
     """uDEAS search box of image mode (kernel units)."""
-    lo, hi = (PAPER_LO, PAPER_HI) if cfg.bounds == "paper" else (WIDE_LO, WIDE_HI)
-    return to_radians(lo), to_radians(hi)
+    lo, hi = _PAPER_BOX if cfg.bounds == "paper" else _WIDE_BOX
+    return lo.copy(), hi.copy()
+
+
+_PAPER_BOX = (to_radians(PAPER_LO), to_radians(PAPER_HI))
+_WIDE_BOX = (to_radians(WIDE_LO), to_radians(WIDE_HI))
 
 
 def video_box(prev: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -202,17 +239,16 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
     The hip line gives the pelvis's left axis and mid-hip -> mid-shoulder the torso's up axis up to the sign
     of their depth (orthographic mirror): two seeds, limbs straight down, gamma 1.
     """
-    d = frame.data
-    w = frame.weights
+    w = frame.weights.tolist()
     if not (w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0):
         return np.zeros((0, L.N_VAR))
-    o = d[L.D_OBS:L.D_OBS + 24].tolist()   # plain floats: the x, y of the 12 landmarks in turn
+    o = frame.data[L.D_OBS:L.D_OBS + 24].tolist()   # plain floats: the x, y of the 12 landmarks in turn
     h = dims.body_height_m
     # left axis, projected (unit length if parallel): the hips' and the shoulders' averaged
     a = [0.5 * ((o[12 + i] - o[14 + i]) * h / (2 * dims.hip_half_m) + (o[i] - o[2 + i]) * h / (2 * dims.shoulder_half_m))
          for i in (0, 1)]
     b = [(0.5 * (o[i] + o[2 + i]) - 0.5 * (o[12 + i] + o[14 + i])) * h / dims.trunk_m for i in (0, 1)]
-    na, nb = float(np.hypot(a[0], a[1])), float(np.hypot(b[0], b[1]))
+    na, nb = np.hypot((a[0], b[0]), (a[1], b[1])).tolist()
     ab = a[0] * b[0] + a[1] * b[1]
     ya_mag = math.sqrt(max(0.0, 1.0 - min(na, 1.0) ** 2))
     zb_mag = math.sqrt(max(0.0, 1.0 - min(nb, 1.0) ** 2))
@@ -226,12 +262,12 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
             candidates.extend([(ya, zb_mag), (ya, -zb_mag)])
     seeds = []
     for ya, zb in candidates:
-        ey = (float(a[0]), float(a[1]), ya)
+        ey = (a[0], a[1], ya)
         ny = math.sqrt(ey[0] ** 2 + ey[1] ** 2 + ey[2] ** 2)
         if ny < 1e-6:
             continue
         ey = (ey[0] / ny, ey[1] / ny, ey[2] / ny)
-        ez = (float(b[0]), float(b[1]), zb)
+        ez = (b[0], b[1], zb)
         dot = ez[0] * ey[0] + ez[1] * ey[1] + ez[2] * ey[2]
         ez = (ez[0] - dot * ey[0], ez[1] - dot * ey[1], ez[2] - dot * ey[2])
         nz = math.sqrt(ez[0] ** 2 + ez[1] ** 2 + ez[2] ** 2)
@@ -239,8 +275,7 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
             continue
         ez = (ez[0] / nz, ez[1] / nz, ez[2] / nz)
         ex = (ey[1] * ez[2] - ey[2] * ez[1], ey[2] * ez[0] - ey[0] * ez[2], ey[0] * ez[1] - ey[1] * ez[0])
-        r = np.array([[ex[0], ey[0], ez[0]], [ex[1], ey[1], ez[1]], [ex[2], ey[2], ez[2]]])
-        t, p, s = body_angles_from_rotation(r)
+        t, p, s = body_angles_from_axes(ex, ey, ez)
         x = np.zeros(L.N_VAR)
         x[0] = 1.0
         x[L.X_TBD], x[L.X_PBD], x[L.X_SBD] = t * DEG, p * DEG, s * DEG

@@ -53,7 +53,6 @@ GROUPS = (
     ("hip", ("hip_half_m",), 50.0),
 )
 LENGTH_FIELDS = tuple(f for _, fs, _ in GROUPS for f in fs)
-_FIELDS_OF = {name: fs for name, fs, _ in GROUPS}
 HEIGHT_FIELDS = ("thigh_m", "shank_m", "trunk_m")   # stacked when standing: their sum is kept
 MAX_IMAGE_TILT_DEG = 25.0   # a segment within this of the image's vertical (pointing down) counts
 MAX_TRUNK_TILT_DEG = 30.0   # the trunk (mid-hip -> mid-shoulder) within this of the image's vertical (up)
@@ -152,7 +151,11 @@ class ProportionLearner:
     """Learns the person's proportions from video frames; ``dims()`` gives the lengths to fit with."""
 
     def __init__(self, base: BodyDimensions) -> None:
-        self.base = base
+        self.base = base   # fixed for the learner's life: the caches below depend on it
+        self._height_lengths = tuple(getattr(base, f) for f in HEIGHT_FIELDS)
+        self._height = sum(self._height_lengths)   # the configured stack of HEIGHT_FIELDS, metres
+        self._rel_dims: BodyDimensions | None = None   # the dims self._rel was computed for
+        self._rel: dict[str, tuple[tuple[float, ...], float]] = {}
         self.forget()
 
     def forget(self) -> None:
@@ -172,15 +175,24 @@ class ProportionLearner:
         got = samples(obs, w, k, dims)
         if not got:
             return
-        size = dims.body_height_m / self.base.body_height_m   # the image shows no size: store proportions
-        # the proportion the fit used for each length, relative to the configured one
-        rel = {f: getattr(dims, f) / getattr(self.base, f) / size for f in (*LENGTH_FIELDS, "shoulder_half_m")}
+        rel = self._relative(dims)
         for name, ratios in got:
-            # a ratio is relative to the lengths used; store it relative to the configured proportions (the hip
-            # sample is a ratio to the shoulders' shown width: relative to their proportion too)
-            self.add(name, [r * rel[f] / (rel["shoulder_half_m"] if name == "hip" else 1.0)
-                            for r, f in zip(ratios, _FIELDS_OF[name], strict=True)])
+            factors, divisor = rel[name]
+            self.add(name, [r * f / divisor for r, f in zip(ratios, factors, strict=True)])
         self._scale = self._estimate()
+
+    def _relative(self, dims: BodyDimensions) -> dict[str, tuple[tuple[float, ...], float]]:
+        """Per group: (the proportion ``dims`` gives each of its lengths relative to the configured one, the
+        divisor of its ratios); a sample's ratio times the one, divided by the other, is relative to the
+        configured proportions. Cached for the last ``dims`` (the learner's dims change rarely)."""
+        if dims is not self._rel_dims:
+            size = dims.body_height_m / self.base.body_height_m   # the image shows no size: store proportions
+            rel = {f: getattr(dims, f) / getattr(self.base, f) / size for f in (*LENGTH_FIELDS, "shoulder_half_m")}
+            # the hip sample is a ratio to the shoulders' shown width: relative to their proportion too
+            self._rel = {name: (tuple(rel[f] for f in fs), rel["shoulder_half_m"] if name == "hip" else 1.0)
+                         for name, fs, _ in GROUPS}
+            self._rel_dims = dims
+        return self._rel
 
     def add(self, group: str, row: list[float]) -> None:
         """Add one sample of ``group`` (GROUPS), as multiples of the configured proportions; non-finite or
@@ -200,8 +212,7 @@ class ProportionLearner:
         raw = {f: v for f, v in raw.items() if abs(v - 1.0) >= DEAD_ZONE}
         # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
         # when standing) add up to the configured ones, the person's height being what the user configured
-        height = sum(getattr(self.base, f) for f in HEIGHT_FIELDS)
-        size = height / sum(getattr(self.base, f) * raw.get(f, 1.0) for f in HEIGHT_FIELDS)
+        size = self._height / sum(m * raw.get(f, 1.0) for f, m in zip(HEIGHT_FIELDS, self._height_lengths, strict=True))
         return LimbScale(raw, size, {name: win.added for name, win in self._win.items()})
 
     def dims(self) -> BodyDimensions:

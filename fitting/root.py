@@ -8,12 +8,14 @@ stands at ``Tz = fn_y H / g`` (fitting.projection), and the lateral position is 
 is minimised over: the weighted least-squares ``T`` in ``obs_i + off = fn (X_i + T) / (Tz + Z_i)``
 (fitting.loss.mpjpe), solved here again in float64 for the final solution. With a depth camera the
 measured depth replaces the size's (a wrong body height then no longer misplaces the person). An orthographic
-fit (no intrinsics) has no scale to metres: None.
+fit (no intrinsics) has no scale to metres: None. The sums run in a numba kernel (``cache=True``; tested
+against the plain-Python sums in tests/fitting/test_root.py).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from fitting import layout as L
 from fitting.projection import MIN_DEPTH
@@ -26,22 +28,33 @@ def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray,
     model_points gives them; ``root_z``: the mid-hip's depth measured by a depth camera (fitting.depth_term),
     which then replaces the one from the person's size. None for the orthographic model or when no landmark
     is used."""
+    known, tx, ty, tz = _root(x, data, pts_c, 0.0 if root_z is None else float(root_z), root_z is not None)
+    return (tx, ty, tz) if known else None
+
+
+@njit(cache=True)
+def _root(x, data, pts_c, root_z, measured):
+    """root_in_camera as a kernel: (known, X, Y, Z), ``root_z`` used when ``measured``."""
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
-        return None
-    w = data[L.D_W:L.D_W + L.N_LM].tolist()   # plain floats: this runs on every frame
-    if not any(v > 0 for v in w):
-        return None
-    fn = (float(data[L.D_PROJ + L.PJ_FN_X]), float(data[L.D_PROJ + L.PJ_FN_Y]))
-    off = (float(data[L.D_PROJ + L.PJ_OFF_X]), float(data[L.D_PROJ + L.PJ_OFF_Y]))
-    tz = fn[1] * float(data[L.D_DIMS + L.DM_H]) / float(x[L.X_GAMMA]) if root_z is None else float(root_z)
-    obs = data[L.D_OBS:L.D_OBS + 2 * L.N_LM].tolist()
-    pts = pts_c[:L.N_LM].tolist()
-    num, den = [0.0, 0.0], [0.0, 0.0]
-    for i, (wi, p) in enumerate(zip(w, pts, strict=True)):
-        z = max(tz + p[2], MIN_DEPTH * tz)
-        for c in (0, 1):
+        return False, 0.0, 0.0, 0.0
+    used = False
+    for i in range(L.N_LM):
+        used = used or data[L.D_W + i] > 0
+    if not used:
+        return False, 0.0, 0.0, 0.0
+    fn = (data[L.D_PROJ + L.PJ_FN_X], data[L.D_PROJ + L.PJ_FN_Y])
+    off = (data[L.D_PROJ + L.PJ_OFF_X], data[L.D_PROJ + L.PJ_OFF_Y])
+    tz = root_z if measured else fn[1] * data[L.D_DIMS + L.DM_H] / x[L.X_GAMMA]
+    num = [0.0, 0.0]
+    den = [0.0, 0.0]
+    for i in range(L.N_LM):
+        wi = data[L.D_W + i]
+        z = tz + pts_c[i, 2]
+        if MIN_DEPTH * tz > z:   # z = max(Tz + Z_i, MIN_DEPTH Tz)
+            z = MIN_DEPTH * tz
+        for c in range(2):
             a = fn[c] / z                                        # d(image)/d(T) of landmark i on axis c
-            b = obs[2 * i + c] + off[c] - fn[c] * p[c] / z
+            b = data[L.D_OBS + 2 * i + c] + off[c] - fn[c] * pts_c[i, c] / z
             num[c] += wi * a * b
             den[c] += wi * a * a
-    return num[0] / den[0], num[1] / den[1], float(tz)
+    return True, num[0] / den[0], num[1] / den[1], tz
