@@ -345,8 +345,7 @@ class Fitter:
         data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = sig
         data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = -1.0
         w_depth = DEPTH_WEIGHT * sigma2
-        fits = [self._depth_fit(frame, x) for x in hypotheses]
-        if self._depth is not None and not any(usable(d, self._depth) for d in fits):
+        if self._depth is not None and not any(usable(self._depth_fit(frame, x), self._depth) for x in hypotheses):
             self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
 
         def refined(x0: np.ndarray, iterations: int) -> tuple[np.ndarray, float]:
