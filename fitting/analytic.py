@@ -27,16 +27,14 @@ def analytic_start(seed, data, work, out):
         out[k] = seed[k]
     for limb in range(4):
         best = pose_loss(out, data, work)
-        pick = 0.0
-        best_sign = 0.0
+        best_sign = 0.0   # 0: the limb as it is
         for sign in (1.0, -1.0):
             limb_from_observation(out, data, limb, sign, trial)
             c = pose_loss(trial, data, work)
             if c < best:
                 best = c
                 best_sign = sign
-                pick = 1.0
-        if pick > 0.0:
+        if best_sign != 0.0:
             limb_from_observation(out, data, limb, best_sign, trial)
             for k in range(L.N_VAR):
                 out[k] = trial[k]

@@ -50,10 +50,10 @@ STRAIGHT_RAD = math.radians(5.0)  # a limb bent less than this has an exact dept
 _LIMB_JOINT = (L.X_TEL_L, L.X_TEL_R, L.X_TKN_L, L.X_TKN_R)  # refine.LIMB_* order
 PRIOR_MIN_NOISE = 0.001  # below this estimated landmark noise (fraction of body height) no prior is used
 MIRROR_PASSES = 2  # image mode: passes over the four limb mirrors (a second one only after an improvement)
-PRIOR_CANDIDATES = 4  # noisy landmarks: refine this many of the best candidates again with the prior
+PRIOR_CANDIDATES = 4  # image mode, noisy landmarks: refine this many of the best candidates again with the prior
 RECOVER_FACTOR, RECOVER_FLOOR, ERR_REF_RATE = 1.25, 0.002, 0.1  # video mode: when to look again in image mode
 DEPTH_WEIGHT = 10.0  # a landmark's depth contradicting a hypothesis costs this many landmark-noise units
-DEPTH_PASSES = 2  # refinements with depth: the robust weights re-solved from the first one's result
+DEPTH_PASSES = 2  # image mode, refinements with depth: the robust weights re-solved from the first one's result
 TRIAL_ITERATIONS = 5  # video mode: LM iterations that rank the hypotheses under the temporal prior ...
 FINALISTS = 2  # ... and how many of the best are then refined to convergence
 _NO_DEPTH = np.full(L.N_LM, np.nan)  # the depth kernels' "no measured depth"
@@ -290,11 +290,7 @@ class Fitter:
             return best
         if sigma2 < PRIOR_MIN_NOISE ** 2:
             return best  # (nearly) exact: no noise to regularize
-        data = frame.data.copy()
-        data[L.D_PRIOR] = cfg.pose_prior * sigma2 / 12.0
-        data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
-        data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = P.PRIOR_SIG_RAD
-        data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
+        data = P.with_prior(frame, cfg.pose_prior * sigma2 / 12.0, P.PRIOR_MU_RAD, P.PRIOR_SIG_RAD, P.PRIOR_PARTNER)
         best_cost = math.inf
         order = np.argsort([sc[1] + dl for sc, dl in zip(scored, d_loss, strict=True)])
         for i in order[:PRIOR_CANDIDATES]:
@@ -337,13 +333,9 @@ class Fitter:
         result for the finalists), unless no hypothesis agrees with the depth (garbage: the frame is fitted
         without it)."""
         cfg = self.config
-        data = frame.data.copy()
-        data[L.D_PRIOR] = cfg.video_smoothing * sigma2 / 12.0
         sig = np.full(L.N_VAR, math.radians(cfg.video_joint_speed_deg_s * max(dt, MIN_DT_S)))
         sig[0] = 0.0
-        data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = prev
-        data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = sig
-        data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = -1.0
+        data = P.with_prior(frame, cfg.video_smoothing * sigma2 / 12.0, prev, sig, -1.0)
         w_depth = DEPTH_WEIGHT * sigma2
         if self._depth is not None and not any(usable(self._depth_fit(frame, x), self._depth) for x in hypotheses):
             self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
@@ -448,11 +440,14 @@ class Fitter:
         cfg = self.config
         if not cfg.refine:
             return (*self._score(frame, prev), 0)
-        # the previous solution moved to this frame's landmarks: a trial's iterations tell the noise level ...
+        # the previous solution moved to this frame's landmarks: a trial's iterations tell the noise level
         start = self._lm(frame.data, prev, min(TRIAL_ITERATIONS, cfg.refine_iterations))[0]
         mse_start = refine.data_mse(start, frame.data)
-        if 4.0 * mse_start < PRIOR_MIN_NOISE ** 2:
-            # ... and a (nearly) exact fit is converged, so that an exact one is kept as it is
+        sigma2 = min(4.0 * mse_start, cfg.pose_prior_max_noise ** 2)  # as _select estimates it
+        tracked = cfg.pose_prior > 0 and sigma2 >= PRIOR_MIN_NOISE ** 2   # noise: _track, under the prior
+        if not tracked:
+            # (nearly) exact, or no prior: converged, so that an exact fit is kept as it is and the pool below
+            # compares converged candidates
             start = self._lm(frame.data, start)[0]
             mse_start = refine.data_mse(start, frame.data)
             if mse_start < EXACT_MSE:
@@ -474,12 +469,8 @@ class Fitter:
                                               data=frame.data, work=self._work, x_init=prev)[:3]
             self._udeas_s += time.thread_time() - c0
             starts.append(best_x)
-        sigma2 = min(4.0 * mse_start, cfg.pose_prior_max_noise ** 2)  # as _select estimates it
-        if cfg.pose_prior > 0 and sigma2 >= PRIOR_MIN_NOISE ** 2:
+        if tracked:
             return (*self._track(frame, prev, dt, [start, *starts], sigma2), int(evals))
-        if 4.0 * mse_start >= PRIOR_MIN_NOISE ** 2:   # no prior (pose_prior 0): the trial start converged too
-            start = self._lm(frame.data, start)[0]
-            mse_start = refine.data_mse(start, frame.data)
         pool = [start]
         mse = [mse_start]
         for x0 in starts:

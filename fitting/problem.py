@@ -213,6 +213,18 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
     return Frame(data, ppm0, scale_px, centroid, w, perspective)
 
 
+def with_prior(frame: Frame, weight: float, mu, sig, partner) -> np.ndarray:
+    """A copy of ``frame``'s data with the refinement's prior rows set: weight lambda, means ``mu``, standard
+    deviations ``sig`` (<= 0: no row) and partners ``partner`` (-1: none), each 19 values or one for all
+    (kernel units; layout D_PRIOR*)."""
+    data = frame.data.copy()
+    data[L.D_PRIOR] = weight
+    data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = mu
+    data[L.D_PRIOR_SIG:L.D_PRIOR_SIG + L.N_VAR] = sig
+    data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = partner
+    return data
+
+
 def image_box(cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]:
     """uDEAS search box of image mode (kernel units)."""
     lo, hi = _PAPER_BOX if cfg.bounds == "paper" else _WIDE_BOX
