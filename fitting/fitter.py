@@ -38,6 +38,7 @@ from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
 from fitting.depth_rows import cost_with_depth, depth_fit_at, set_depth_rows_at
 from fitting.depth_term import DepthFit, usable
+from fitting.hypotheses import best_hypothesis
 from fitting.kinematics import BODY_LANDMARKS
 from fitting.projection import image_scale
 from fitting.proportions import ProportionLearner
@@ -57,6 +58,7 @@ DEPTH_PASSES = 2  # image mode, refinements with depth: the robust weights re-so
 TRIAL_ITERATIONS = 5  # video mode: LM iterations that rank the hypotheses under the temporal prior ...
 FINALISTS = 2  # ... and how many of the best are then refined to convergence
 _NO_DEPTH = np.full(L.N_LM, np.nan)  # the depth kernels' "no measured depth"
+_NO_SEEDS = np.zeros((0, L.N_VAR))
 MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames closer than this (a repeated stamp)
 
 
@@ -111,9 +113,9 @@ class Fitter:
         self.fit(lm, 1, 1 / 30, (640, 480), mode="video")
         self.fit(noisy, 2, 2 / 30, (640, 480), mode="video")      # the prior paths (noise > 0)
         k = Intrinsics(600.0, 600.0, 320.0, 240.0, 640, 480)
-        self.fit(noisy, 3, 3 / 30, (640, 480), mode="image", intrinsics=k)
-        self.fit(noisy, 4, 4 / 30, (640, 480), mode="video", intrinsics=k,   # the depth term's kernels
-                 depth_m=warmup_depth(self.dims))
+        depth = warmup_depth(self.dims)   # the depth term's kernels, called from Python and from kernels
+        self.fit(noisy, 3, 3 / 30, (640, 480), mode="image", intrinsics=k, depth_m=depth)
+        self.fit(noisy, 4, 4 / 30, (640, 480), mode="video", intrinsics=k, depth_m=depth)
         self._prev_x, self._prev_ppm, self._prev_t, self._err_ref = saved
         self._learner = learner
 
@@ -318,7 +320,7 @@ class Fitter:
         else:
             set_depth_rows_at(x, data, self._depth, w_depth)
 
-    def _track(self, frame: P.Frame, prev: np.ndarray, dt: float, hypotheses: list[np.ndarray],
+    def _track(self, frame: P.Frame, prev: np.ndarray, dt: float, hypotheses: np.ndarray,
                sigma2: float) -> tuple[np.ndarray, float, float]:
         """Video mode with landmark noise: the hypotheses refined under the temporal prior, the smallest
         prior-weighted cost wins (MAP over the hypotheses).
@@ -340,16 +342,11 @@ class Fitter:
         if self._depth is not None and not any(usable(self._depth_fit(frame, x), self._depth) for x in hypotheses):
             self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
 
-        def refined(x0: np.ndarray, iterations: int) -> tuple[np.ndarray, float]:
-            if self._depth is None:
-                return self._lm(data, x0, iterations)   # no depth rows: the refinement's cost is the compared one
-            self._set_depth_rows(data, x0, w_depth)
-            out = self._lm(data, x0, iterations)[0]
-            return out, self._compared_cost(data, out, w_depth)
-
-        trials = sorted((refined(x0, min(TRIAL_ITERATIONS, cfg.refine_iterations)) for x0 in hypotheses),
-                        key=lambda r: r[1])
-        best_x = min((refined(x, cfg.refine_iterations) for x, _ in trials[:FINALISTS]), key=lambda r: r[1])[0]
+        best_x = np.empty(L.N_VAR)
+        use_depth = self._depth is not None
+        best_hypothesis(hypotheses, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self._depth if use_depth else _NO_DEPTH,
+                        use_depth, w_depth, min(TRIAL_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations,
+                        FINALISTS, best_x)
         return self._score(frame, best_x)
 
     def _depth_fit(self, frame: P.Frame, x: np.ndarray) -> DepthFit | None:
@@ -452,14 +449,16 @@ class Fitter:
             mse_start = refine.data_mse(start, frame.data)
             if mse_start < EXACT_MSE:
                 return (*self._score(frame, start), 0)
-        starts = []
-        trial = np.empty(L.N_VAR)
-        for limb in range(4 if cfg.video_hypotheses else 0):
-            refine.limb_flip(start, frame.data, limb, trial)
-            starts.append(trial.copy())
-        if cfg.video_hypotheses and cfg.seed_orientation and cfg.analytic_seeds:
-            lo, hi = P.image_box(cfg)
-            starts += self._analytic(frame, P.orientation_seeds(frame, self.dims, lo, hi))
+        # the hypotheses: the start, each limb's depth mirror of it, this frame's analytic starts (and uDEAS's)
+        seeds = (P.orientation_seeds(frame, self.dims, *P.image_box(cfg))
+                 if cfg.video_hypotheses and cfg.seed_orientation and cfg.analytic_seeds else _NO_SEEDS)
+        mirrors = 4 if cfg.video_hypotheses else 0
+        hyps = np.empty((1 + mirrors + len(seeds) + (cfg.video_restarts > 0), L.N_VAR))
+        hyps[0] = start
+        for limb in range(mirrors):
+            refine.limb_flip(start, frame.data, limb, hyps[1 + limb])
+        for i, seed in enumerate(seeds):
+            analytic_start(seed, frame.data, self._work, hyps[1 + mirrors + i])
         evals = 0
         if cfg.video_restarts > 0:  # the paper's search: uDEAS within +-video_window_deg of the previous solution
             lo, hi = P.video_box(prev, cfg)
@@ -468,12 +467,12 @@ class Fitter:
                                               m0=cfg.video_row_init, mf=cfg.video_row_max, seed=cfg.seed,
                                               data=frame.data, work=self._work, x_init=prev)[:3]
             self._udeas_s += time.thread_time() - c0
-            starts.append(best_x)
+            hyps[-1] = best_x
         if tracked:
-            return (*self._track(frame, prev, dt, [start, *starts], sigma2), int(evals))
+            return (*self._track(frame, prev, dt, hyps, sigma2), int(evals))
         pool = [start]
         mse = [mse_start]
-        for x0 in starts:
+        for x0 in hyps[1:]:
             x = self._lm(frame.data, x0)[0]
             pool.append(x)
             mse.append(refine.data_mse(x, frame.data))

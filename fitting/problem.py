@@ -20,7 +20,8 @@ from camera_model import Intrinsics
 from fitting import layout as L
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
-from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS, body_angles_from_axes
+from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
+from fitting.orientation import MAX_SEEDS, orientation_seeds_into
 
 DEG = math.pi / 180.0
 
@@ -246,53 +247,14 @@ def video_box(prev: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]
 
 
 def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Starting vectors (kernel units) from the hips and shoulders, assuming a straight lumbar spine.
-
-    The hip line gives the pelvis's left axis and mid-hip -> mid-shoulder the torso's up axis up to the sign
-    of their depth (orthographic mirror): two seeds, limbs straight down, gamma 1.
-    """
-    w = frame.weights.tolist()
-    if not (w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0):
-        return np.zeros((0, L.N_VAR))
-    o = frame.data[L.D_OBS:L.D_OBS + 24].tolist()   # plain floats: the x, y of the 12 landmarks in turn
-    h = dims.body_height_m
-    # left axis, projected (unit length if parallel): the hips' and the shoulders' averaged
-    a = [0.5 * ((o[12 + i] - o[14 + i]) * h / (2 * dims.hip_half_m) + (o[i] - o[2 + i]) * h / (2 * dims.shoulder_half_m))
-         for i in (0, 1)]
-    b = [(0.5 * (o[i] + o[2 + i]) - 0.5 * (o[12 + i] + o[14 + i])) * h / dims.trunk_m for i in (0, 1)]
-    na, nb = np.hypot((a[0], b[0]), (a[1], b[1])).tolist()
-    ab = a[0] * b[0] + a[1] * b[1]
-    ya_mag = math.sqrt(max(0.0, 1.0 - min(na, 1.0) ** 2))
-    zb_mag = math.sqrt(max(0.0, 1.0 - min(nb, 1.0) ** 2))
-    candidates = []
-    for ya in (ya_mag, -ya_mag):
-        if ya_mag > 0.2:
-            # orthogonality a.b + ya zb = 0 fixes the sign of zb
-            zb = math.copysign(zb_mag, -ab / ya)
-            candidates.append((ya, zb))
-        else:
-            candidates.extend([(ya, zb_mag), (ya, -zb_mag)])
-    seeds = []
-    for ya, zb in candidates:
-        ey = (a[0], a[1], ya)
-        ny = math.sqrt(ey[0] ** 2 + ey[1] ** 2 + ey[2] ** 2)
-        if ny < 1e-6:
-            continue
-        ey = (ey[0] / ny, ey[1] / ny, ey[2] / ny)
-        ez = (b[0], b[1], zb)
-        dot = ez[0] * ey[0] + ez[1] * ey[1] + ez[2] * ey[2]
-        ez = (ez[0] - dot * ey[0], ez[1] - dot * ey[1], ez[2] - dot * ey[2])
-        nz = math.sqrt(ez[0] ** 2 + ez[1] ** 2 + ez[2] ** 2)
-        if nz < 1e-6:
-            continue
-        ez = (ez[0] / nz, ez[1] / nz, ez[2] / nz)
-        ex = (ey[1] * ez[2] - ey[2] * ez[1], ey[2] * ez[0] - ey[0] * ez[2], ey[0] * ez[1] - ey[1] * ez[0])
-        t, p, s = body_angles_from_axes(ex, ey, ez)
-        x = np.zeros(L.N_VAR)
-        x[0] = 1.0
-        x[L.X_TBD], x[L.X_PBD], x[L.X_SBD] = t * DEG, p * DEG, s * DEG
-        seeds.append(np.minimum(np.maximum(x, lo), hi))
-    return np.array(seeds) if seeds else np.zeros((0, L.N_VAR))
+    """Starting vectors (kernel units) from the hips and shoulders, assuming a straight lumbar spine
+    (fitting.orientation): the hip line gives the pelvis's left axis and mid-hip -> mid-shoulder the torso's
+    up axis up to the sign of their depth (orthographic mirror): two seeds (four when the left axis lies in
+    the image plane), limbs straight down, gamma 1; none without both hips and both shoulders."""
+    out = np.empty((MAX_SEEDS, L.N_VAR))
+    n = orientation_seeds_into(frame.data[L.D_OBS:L.D_OBS + 24], frame.weights, dims.body_height_m,
+                               dims.hip_half_m, dims.shoulder_half_m, dims.trunk_m, lo, hi, out)
+    return out[:n]
 
 
 SEED_WINDOW_DEG = 30.0

@@ -1,0 +1,57 @@
+"""The choice between hypotheses of one frame (video mode's MAP over the previous solution, its limb mirrors and
+the frame's analytic starts): each refined a few Levenberg-Marquardt iterations to rank them, the best few to
+convergence, the smallest cost wins. numba, ``cache=True``.
+
+With measured depth each refinement carries the depth rows (fitting.depth_rows) with robust weights solved
+from its own start (again from the trial's result for the finalists), and the candidates are compared on
+:func:`fitting.depth_rows.cost_with_depth`; without, on the refinement's own cost. One call per frame: the
+Python loop it replaces cost about as much as a refinement (tested against it in
+``tests/fitting/test_hypotheses.py``). Kernel units (radians; gamma unitless).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from fitting import layout as L
+from fitting.depth_rows import cost_with_depth, set_depth_rows_at
+from fitting.refine import levenberg_marquardt
+
+
+@njit(cache=True)
+def _refined(x0, lo, hi, data, depth, use_depth, w_depth, iterations, out):
+    """``out`` = ``x0`` refined on ``data`` (its depth rows set from ``x0`` when ``use_depth``); returns the
+    cost the candidates are compared on."""
+    if use_depth:
+        set_depth_rows_at(x0, data, depth, w_depth)
+    cost = levenberg_marquardt(x0, lo, hi, data, iterations, out)[0]
+    if use_depth:
+        cost = cost_with_depth(out, data, depth, w_depth)
+    return cost
+
+
+@njit(cache=True)
+def best_hypothesis(starts, lo, hi, data, depth, use_depth, w_depth, trial_iterations, iterations, finalists,
+                    out):
+    """``out`` (19) = the best of the hypotheses ``starts`` (k x 19) on ``data`` (the frame's packed array with
+    its prior rows set; its depth rows are overwritten when ``use_depth``): every start refined
+    ``trial_iterations``, the ``finalists`` smallest (ties: the earlier start) refined again up to
+    ``iterations``, the smallest compared cost (ties: the better-ranked) wins. ``depth``: the measured depth at
+    the 12 body landmarks (metres, NaN unknown), used only when ``use_depth``; ``w_depth``: the depth term's
+    weight in the refinement's cost units. Returns the winner's compared cost."""
+    k = starts.shape[0]
+    trials = np.empty((k, L.N_VAR))
+    costs = np.empty(k)
+    for i in range(k):
+        costs[i] = _refined(starts[i], lo, hi, data, depth, use_depth, w_depth, trial_iterations, trials[i])
+    order = np.argsort(costs, kind="mergesort")   # stable: ties keep the starts' order
+    best = np.inf
+    cand = np.empty(L.N_VAR)
+    for r in range(min(finalists, k)):
+        c = _refined(trials[order[r]], lo, hi, data, depth, use_depth, w_depth, iterations, cand)
+        if r == 0 or c < best:
+            best = c
+            for j in range(L.N_VAR):
+                out[j] = cand[j]
+    return best
