@@ -22,6 +22,7 @@ from fitting.body import BodyDimensions
 from fitting.config import FitConfig
 from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
 from fitting.orientation import MAX_SEEDS, orientation_seeds_into
+from fitting.packing import reference_scale_of, weights_into
 
 DEG = math.pi / 180.0
 
@@ -43,11 +44,8 @@ PRIOR_MU = np.array([0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0.0])
 PRIOR_SIG = np.array([0, 0, 0, 0, 0, 15, 15, 20, 20, 0, 0, 30, 30, 0, 0, 15, 0, 20, 0.0])
 PRIOR_PARTNER = np.array([-1, -1, -1, -1, -1, -1, -1, 9, 10, -1, -1, 13, 14, -1, -1, 16, -1, 18, -1.0])
 
-# Segments for the reference scale: pairs of BODY_LANDMARKS rows and their length field.
-_SCALE_SEGMENTS = (
-    ((0, 1), "shoulder"), ((6, 7), "hip"), ((0, 2), "upper_arm_m"), ((1, 3), "upper_arm_m"),
-    ((6, 8), "thigh_m"), ((7, 9), "thigh_m"), ((8, 10), "shank_m"), ((9, 11), "shank_m"),
-)
+# The model length of each segment of the reference scale (fitting.packing.SCALE_PAIRS, that order)
+_SCALE_LENGTHS = ("shoulder", "hip", "upper_arm_m", "upper_arm_m", "thigh_m", "thigh_m", "shank_m", "shank_m")
 
 
 def to_radians(x_deg: np.ndarray) -> np.ndarray:
@@ -71,60 +69,39 @@ def to_degrees(x_rad: np.ndarray) -> np.ndarray:
 
 
 def landmark_weights(landmarks: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(12 x 2 pixel positions, 12 weights, names of the unusable landmarks) of the body landmarks.
+    """(12 x 2 pixel positions, 12 weights, names of the unusable landmarks) of the body landmarks
+    (fitting.packing.weights_into).
 
     A landmark is unusable when x, y or visibility is not finite or visibility < visibility_drop; weights
     rise linearly from 0.05 at visibility_drop to 1 at visibility_full. An unusable landmark's position is 0.
     """
-    body = landmarks[_BODY_IDX]
-    xy = body[:, :2].astype(np.float64)
-    drop = cfg.visibility_drop
-    span = max(cfg.visibility_full - drop, 1e-6)
-    isfinite = math.isfinite
-    w, missing = [], []
-    for i, row in enumerate(body.tolist()):   # plain floats: this runs on every frame
-        x, y, vis = row[0], row[1], row[3]
-        if isfinite(x) and isfinite(y) and isfinite(vis) and not vis < drop:
-            w.append(min(max((vis - drop) / span, 0.05), 1.0))
-        else:
-            w.append(0.0)
-            xy[i] = 0.0
-            missing.append(BODY_LANDMARK_NAMES[i])
-    return xy, np.array(w), missing
+    xy = np.empty((L.N_LM, 2))
+    w = np.empty(L.N_LM)
+    lm = np.ascontiguousarray(landmarks, dtype=np.float64)   # one kernel specialization, whatever the caller's
+    missing = weights_into(lm, _BODY_IDX, cfg.visibility_drop, max(cfg.visibility_full - cfg.visibility_drop, 1e-6),
+                           xy, w)
+    return xy, w, ([BODY_LANDMARK_NAMES[i] for i in np.flatnonzero(w == 0.0)] if missing else [])
 
 
-_BODY_IDX = np.array(BODY_LANDMARKS)
+_BODY_IDX = np.array(BODY_LANDMARKS, dtype=np.int64)
 
 
 @functools.lru_cache(maxsize=16)
-def _scale_lengths(dims: BodyDimensions) -> tuple[float, ...]:
-    """The model length of each _SCALE_SEGMENTS segment, metres (cached per body)."""
+def _scale_lengths(dims: BodyDimensions) -> np.ndarray:
+    """The model length of each SCALE_PAIRS segment (_SCALE_LENGTHS), metres (cached per body, read-only)."""
     lengths = {"shoulder": 2 * dims.shoulder_half_m, "hip": 2 * dims.hip_half_m, "upper_arm_m": dims.upper_arm_m,
                "thigh_m": dims.thigh_m, "shank_m": dims.shank_m}
-    return tuple(lengths[key] for _, key in _SCALE_SEGMENTS)
+    out = np.array([lengths[key] for key in _SCALE_LENGTHS])
+    out.flags.writeable = False
+    return out
 
 
 def reference_scale(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions) -> float:
-    """Pixels per metre: the largest ratio of a projected segment to its length (projection only shortens).
-
-    Returns 0 when no segment is usable.
+    """Pixels per metre: the largest ratio of a projected segment to its length (projection only shortens;
+    fitting.packing.reference_scale_of). Returns 0 when no segment is usable.
     """
-    p, ok = xy.tolist(), (np.asarray(w) > 0).tolist()   # plain floats: this runs on every frame
-    dx, dy, length = [], [], []   # the usable segments' image vectors (pixels) and model lengths (metres)
-    for ((a, b), _), seg_m in zip(_SCALE_SEGMENTS, _scale_lengths(dims), strict=True):
-        if ok[a] and ok[b]:
-            dx.append(p[a][0] - p[b][0])
-            dy.append(p[a][1] - p[b][1])
-            length.append(seg_m)
-    # the trunk: mid-hip to mid-shoulder
-    if ok[0] and ok[1] and ok[6] and ok[7]:
-        dx.append(0.5 * (p[0][0] + p[1][0]) - 0.5 * (p[6][0] + p[7][0]))
-        dy.append(0.5 * (p[0][1] + p[1][1]) - 0.5 * (p[6][1] + p[7][1]))
-        length.append(dims.trunk_m)
-    best = 0.0
-    for shown, seg_m in zip(np.hypot(dx, dy).tolist(), length, strict=True):   # NumPy's hypot, one call
-        best = max(best, shown / seg_m)
-    return best
+    return float(reference_scale_of(np.ascontiguousarray(xy, dtype=np.float64),
+                                    np.ascontiguousarray(w, dtype=np.float64), _scale_lengths(dims), dims.trunk_m))
 
 
 @dataclass(frozen=True)
