@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 # body-12 index pairs of the segments that set the reference scale (their lengths: fitting.problem._SCALE_LENGTHS):
@@ -54,3 +55,34 @@ def reference_scale_of(xy, w, lengths, trunk):
         dy = 0.5 * (xy[0, 1] + xy[1, 1]) - 0.5 * (xy[6, 1] + xy[7, 1])
         best = max(best, math.hypot(dx, dy) / trunk)
     return best
+
+
+@njit(cache=True)
+def weight_sum(w):
+    """``w.sum()`` of 12 weights as NumPy 2 sums them (eight running sums combined pairwise, then the rest in
+    turn): the same float as before this kernel."""
+    acc = ((w[0] + w[1]) + (w[2] + w[3])) + ((w[4] + w[5]) + (w[6] + w[7]))
+    for i in range(8, w.size):
+        acc += w[i]
+    return acc
+
+
+@njit(cache=True)
+def normalized_into(xy, w, scale_px, data, d_obs, d_w):
+    """The landmarks in normalized units into ``data``: relative to their weighted centroid and divided by
+    ``scale_px`` (pixels per normalized unit), x and y in turn from ``data[d_obs]``, and the weights from
+    ``data[d_w]``; returns the centroid (pixels; NaN when every weight is 0, as NumPy's 0 / 0). ``w``: the 12
+    body landmarks' weights (:func:`weight_sum`)."""
+    sw = weight_sum(w)
+    sx = 0.0
+    sy = 0.0
+    for i in range(w.size):
+        sx += w[i] * xy[i, 0]
+        sy += w[i] * xy[i, 1]
+    cx = sx / sw if sw != 0.0 else np.nan
+    cy = sy / sw if sw != 0.0 else np.nan
+    for i in range(w.size):
+        data[d_obs + 2 * i] = (xy[i, 0] - cx) / scale_px
+        data[d_obs + 2 * i + 1] = (xy[i, 1] - cy) / scale_px
+        data[d_w + i] = w[i]
+    return cx, cy

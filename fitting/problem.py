@@ -22,7 +22,7 @@ from fitting.body import BodyDimensions
 from fitting.config import FitConfig
 from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
 from fitting.orientation import MAX_SEEDS, orientation_seeds_into
-from fitting.packing import reference_scale_of, weights_into
+from fitting.packing import normalized_into, reference_scale_of, weights_into
 
 DEG = math.pi / 180.0
 
@@ -173,22 +173,18 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
          fixed_deg: np.ndarray | None = None) -> Frame:
     """Build the kernels' data array of one frame (see the D_* layout in fitting.layout)."""
     data = _constants_of(cfg).copy()
-    h = dims.body_height_m
-    scale_px = ppm0 * h
-    sw = w.sum()
-    centroid = (w[:, None] * xy).sum(axis=0) / sw
-    data[L.D_OBS:L.D_OBS + 24] = ((xy - centroid) / scale_px).ravel()
-    data[L.D_W:L.D_W + 12] = w
+    scale_px = ppm0 * dims.body_height_m
+    c_x, c_y = normalized_into(np.ascontiguousarray(xy, dtype=np.float64), np.ascontiguousarray(w, dtype=np.float64),
+                               scale_px, data, L.D_OBS, L.D_W)
     data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = _dims_array(dims)
     if fixed_deg is not None:
         data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.asarray(fixed_deg) * DEG
     perspective = intrinsics is not None
     if perspective:
         fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-        c_x, c_y = centroid.tolist()
         # camera-centred normalized coordinates = data obs + offset
         data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (c_x - cx) / scale_px, (c_y - cy) / scale_px)
-    return Frame(data, ppm0, scale_px, centroid, w, perspective)
+    return Frame(data, ppm0, scale_px, np.array([c_x, c_y]), w, perspective)
 
 
 def with_prior(frame: Frame, weight: float, mu, sig, partner) -> np.ndarray:

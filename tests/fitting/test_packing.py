@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from fitting import layout as L
 from fitting import problem as P
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
@@ -89,3 +90,37 @@ def test_weights_and_scale_of_a_standing_person():
     lm[list(BODY_LANDMARKS)[4], 3] = 0.1   # the left wrist barely visible
     xy, w, missing = P.landmark_weights(lm, FitConfig())
     assert missing == ["left_wrist"] and w[4] == 0.0 and np.all(xy[4] == 0.0)
+
+
+def reference_pack(xy, w, scale_px):
+    """NumPy 2's sums written out: the 12 weights by eight running sums combined pairwise, then the rest; the
+    weighted coordinates in turn."""
+    sw = ((w[0] + w[1]) + (w[2] + w[3])) + ((w[4] + w[5]) + (w[6] + w[7])) + 0.0
+    for v in w[8:]:
+        sw += v
+    c = [0.0, 0.0]
+    for i in range(12):
+        for a in (0, 1):
+            c[a] += w[i] * xy[i][a]
+    c = [c[0] / sw, c[1] / sw]
+    return c, [(xy[i][a] - c[a]) / scale_px for i in range(12) for a in (0, 1)]
+
+
+def test_normalized_landmarks_match_the_reference_to_the_last_bit():
+    rng = np.random.default_rng(11)
+    cfg = FitConfig()
+    for _ in range(2000):
+        xy = rng.uniform(-100, 900, (12, 2))
+        w = rng.uniform(0.05, 1.0, 12) * (rng.uniform(size=12) > 0.25)
+        if not w.any():
+            continue
+        frame = P.pack(xy, w, DIMS, cfg, 300.0)
+        c, obs = reference_pack(xy.tolist(), w.tolist(), 300.0 * DIMS.body_height_m)
+        assert frame.centroid_px.tolist() == c
+        assert frame.data[L.D_OBS:L.D_OBS + 24].tolist() == obs
+        assert frame.data[L.D_W:L.D_W + 12].tolist() == w.tolist()
+
+
+def test_no_weight_gives_no_centroid():
+    frame = P.pack(np.ones((12, 2)), np.zeros(12), DIMS, FitConfig(), 300.0)
+    assert np.all(np.isnan(frame.centroid_px))
