@@ -86,14 +86,25 @@ def landmark_weights(landmarks: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray,
 _BODY_IDX = np.array(BODY_LANDMARKS, dtype=np.int64)
 
 
-@functools.lru_cache(maxsize=16)
-def _scale_lengths(dims: BodyDimensions) -> np.ndarray:
-    """The model length of each SCALE_PAIRS segment (_SCALE_LENGTHS), metres (cached per body, read-only)."""
-    lengths = {"shoulder": 2 * dims.shoulder_half_m, "hip": 2 * dims.hip_half_m, "upper_arm_m": dims.upper_arm_m,
-               "thigh_m": dims.thigh_m, "shank_m": dims.shank_m}
-    out = np.array([lengths[key] for key in _SCALE_LENGTHS])
-    out.flags.writeable = False
-    return out
+_BODY_CACHE_SIZE = 16
+_body_arrays: dict[int, tuple[BodyDimensions, np.ndarray, np.ndarray]] = {}   # id -> (body, as_array, lengths)
+
+
+def _arrays_of(dims: BodyDimensions) -> tuple[BodyDimensions, np.ndarray, np.ndarray]:
+    """(``dims``, ``dims.as_array()``, the model length of each SCALE_PAIRS segment (_SCALE_LENGTHS, metres)),
+    read-only, cached by identity for the last few bodies: video mode's learned body is a new object on most
+    frames, and hashing one costs more than these arrays. The cache holds the body, so its id is not reused."""
+    hit = _body_arrays.get(id(dims))
+    if hit is None or hit[0] is not dims:
+        if len(_body_arrays) >= _BODY_CACHE_SIZE:
+            _body_arrays.clear()
+        lengths = {"shoulder": 2 * dims.shoulder_half_m, "hip": 2 * dims.hip_half_m, "upper_arm_m": dims.upper_arm_m,
+                   "thigh_m": dims.thigh_m, "shank_m": dims.shank_m}
+        seg = np.array([lengths[key] for key in _SCALE_LENGTHS])
+        arr = dims.as_array()
+        seg.flags.writeable = arr.flags.writeable = False
+        hit = _body_arrays[id(dims)] = (dims, arr, seg)
+    return hit
 
 
 def reference_scale(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions) -> float:
@@ -101,7 +112,7 @@ def reference_scale(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions) -> floa
     fitting.packing.reference_scale_of). Returns 0 when no segment is usable.
     """
     return float(reference_scale_of(np.ascontiguousarray(xy, dtype=np.float64),
-                                    np.ascontiguousarray(w, dtype=np.float64), _scale_lengths(dims), dims.trunk_m))
+                                    np.ascontiguousarray(w, dtype=np.float64), _arrays_of(dims)[2], dims.trunk_m))
 
 
 @dataclass(frozen=True)
@@ -126,14 +137,6 @@ def _constants_of(cfg: FitConfig) -> np.ndarray:
     if last[0] is not cfg:
         last = _last_constants = (cfg, _constants(cfg))
     return last[1]
-
-
-@functools.lru_cache(maxsize=16)
-def _dims_array(dims: BodyDimensions) -> np.ndarray:
-    """``dims.as_array()``, cached per body (read-only)."""
-    a = dims.as_array()
-    a.flags.writeable = False
-    return a
 
 
 @functools.lru_cache(maxsize=16)
@@ -176,7 +179,7 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
     scale_px = ppm0 * dims.body_height_m
     c_x, c_y = normalized_into(np.ascontiguousarray(xy, dtype=np.float64), np.ascontiguousarray(w, dtype=np.float64),
                                scale_px, data, L.D_OBS, L.D_W)
-    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = _dims_array(dims)
+    data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = _arrays_of(dims)[1]
     if fixed_deg is not None:
         data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.asarray(fixed_deg) * DEG
     perspective = intrinsics is not None

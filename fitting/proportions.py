@@ -32,7 +32,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -63,6 +63,7 @@ PRIOR_SAMPLES = 20          # the model's own lengths count as this many samples
 MIN_SAMPLES = 10            # no estimate from fewer samples
 BOUNDS = (0.7, 1.3)         # learned length / configured length
 DEAD_ZONE = 0.03            # |ratio - 1| below this: keep the configured length
+_FIELDS = tuple(f.name for f in fields(BodyDimensions))   # BodyDimensions' fields, in order
 
 
 @dataclass(frozen=True)
@@ -154,6 +155,7 @@ class ProportionLearner:
         self.base = base   # fixed for the learner's life: the caches below depend on it
         self._height_lengths = tuple(getattr(base, f) for f in HEIGHT_FIELDS)
         self._height = sum(self._height_lengths)   # the configured stack of HEIGHT_FIELDS, metres
+        self._base_values = tuple(getattr(base, name) for name in _FIELDS)
         self._rel_dims: BodyDimensions | None = None   # the dims self._rel was computed for
         self._rel: dict[str, tuple[tuple[float, ...], float]] = {}
         self.forget()
@@ -220,6 +222,6 @@ class ProportionLearner:
         key = (self._scale.size, tuple(sorted(self._scale.ratio.items())))
         if key != self._dims_key:
             self._dims_key = key
-            self._dims = replace(self.base, **{f.name: getattr(self.base, f.name) * self._scale.of(f.name)
-                                               for f in fields(BodyDimensions)})
+            of = self._scale.of
+            self._dims = BodyDimensions(*[v * of(name) for name, v in zip(_FIELDS, self._base_values, strict=True)])
         return self._dims
