@@ -38,7 +38,7 @@ from fitting.body import BodyDimensions, dimensions_for
 from fitting.config import FitConfig
 from fitting.depth_rows import cost_with_depth, depth_fit_at, set_depth_rows_at
 from fitting.depth_term import DepthFit, usable
-from fitting.hypotheses import best_hypothesis
+from fitting.hypotheses import best_hypothesis, video_starts
 from fitting.kinematics import BODY_LANDMARKS
 from fitting.projection import image_scale
 from fitting.proportions import ProportionLearner
@@ -454,11 +454,7 @@ class Fitter:
                  if cfg.video_hypotheses and cfg.seed_orientation and cfg.analytic_seeds else _NO_SEEDS)
         mirrors = 4 if cfg.video_hypotheses else 0
         hyps = np.empty((1 + mirrors + len(seeds) + (cfg.video_restarts > 0), L.N_VAR))
-        hyps[0] = start
-        for limb in range(mirrors):
-            refine.limb_flip(start, frame.data, limb, hyps[1 + limb])
-        for i, seed in enumerate(seeds):
-            analytic_start(seed, frame.data, self._work, hyps[1 + mirrors + i])
+        video_starts(start, seeds, mirrors, frame.data, self._work, hyps)
         evals = 0
         if cfg.video_restarts > 0:  # the paper's search: uDEAS within +-video_window_deg of the previous solution
             lo, hi = P.video_box(prev, cfg)

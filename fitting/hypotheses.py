@@ -1,6 +1,8 @@
-"""The choice between hypotheses of one frame (video mode's MAP over the previous solution, its limb mirrors and
-the frame's analytic starts): each refined a few Levenberg-Marquardt iterations to rank them, the best few to
-convergence, the smallest cost wins. numba, ``cache=True``.
+"""Video mode's hypotheses of one frame and the choice between them. numba, ``cache=True``.
+
+:func:`video_starts`: the previous solution moved to the frame, each limb's depth mirror of it and the frame's
+analytic starts. :func:`best_hypothesis`: each refined a few Levenberg-Marquardt iterations to rank them, the
+best few to convergence, the smallest cost wins (MAP over the hypotheses).
 
 With measured depth each refinement carries the depth rows (fitting.depth_rows) with robust weights solved
 from its own start (again from the trial's result for the finalists), and the candidates are compared on
@@ -15,8 +17,9 @@ import numpy as np
 from numba import njit
 
 from fitting import layout as L
+from fitting.analytic import analytic_start
 from fitting.depth_rows import cost_with_depth, set_depth_rows_at
-from fitting.refine import levenberg_marquardt
+from fitting.refine import levenberg_marquardt, limb_flip
 
 
 @njit(cache=True)
@@ -55,3 +58,16 @@ def best_hypothesis(starts, lo, hi, data, depth, use_depth, w_depth, trial_itera
             for j in range(L.N_VAR):
                 out[j] = cand[j]
     return best
+
+
+@njit(cache=True)
+def video_starts(start, seeds, mirrors, data, work, out):
+    """``out`` rows 0 .. 1 + ``mirrors`` + len(``seeds``) - 1: ``start``; the depth mirror of each of its first
+    ``mirrors`` limbs (fitting.refine.limb_flip, LIMB_* order); the analytic start of each orientation seed
+    (fitting.analytic). ``work``: the loss's work array."""
+    for k in range(L.N_VAR):
+        out[0, k] = start[k]
+    for limb in range(mirrors):
+        limb_flip(start, data, limb, out[1 + limb])
+    for i in range(seeds.shape[0]):
+        analytic_start(seeds[i], data, work, out[1 + mirrors + i])

@@ -15,7 +15,7 @@ from fitting.analytic import analytic_start
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
 from fitting.depth_rows import cost_with_depth, set_depth_rows_at
-from fitting.hypotheses import best_hypothesis
+from fitting.hypotheses import best_hypothesis, video_starts
 from fitting.kinematics import BODY_LANDMARKS
 from fitting.warmup import warmup_depth, warmup_landmarks
 
@@ -92,3 +92,23 @@ def test_the_hypothesis_the_landmarks_support_wins():
     for x in wins:
         assert refine.data_mse(x, frame.data) < 1e-10 < worst
     np.testing.assert_allclose(wins[0], wins[1], atol=1e-4)
+
+
+@pytest.mark.parametrize("mirrors", [0, 2, 4])
+def test_video_starts_match_the_python_loop(mirrors):
+    frame, starts = _problem(3.0, 2)
+    seeds = P.orientation_seeds(frame, DIMS, *P.image_box(FitConfig()))
+    for start in starts[:4]:
+        want = [start.copy()]
+        for limb in range(mirrors):
+            m = np.empty(L.N_VAR)
+            refine.limb_flip(start, frame.data, limb, m)
+            want.append(m)
+        for seed in seeds:
+            a = np.empty(L.N_VAR)
+            analytic_start(seed, frame.data, FK.empty_work(), a)
+            want.append(a)
+        out = np.full((len(want) + 1, L.N_VAR), 7.0)   # one row more: left as it was
+        video_starts(start, seeds, mirrors, frame.data, FK.empty_work(), out)
+        np.testing.assert_array_equal(out[:-1], np.array(want))
+        assert np.all(out[-1] == 7.0)
