@@ -116,6 +116,9 @@ class Fitter:
         depth = warmup_depth(self.dims)   # the depth term's kernels, called from Python and from kernels
         self.fit(noisy, 3, 3 / 30, (640, 480), mode="image", intrinsics=k, depth_m=depth)
         self.fit(noisy, 4, 4 / 30, (640, 480), mode="video", intrinsics=k, depth_m=depth)
+        # the proportion learner's kernel (the learner is off above): any frame, one signature
+        xy, w, _ = P.landmark_weights(lm, self.config)
+        image_scale(np.ones(L.N_VAR), P.pack(xy, w, self.dims, self.config, P.reference_scale(xy, w, self.dims)).data)
         self._prev_x, self._prev_ppm, self._prev_t, self._err_ref = saved
         self._learner = learner
 

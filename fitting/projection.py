@@ -7,7 +7,7 @@ units): the mid-hip sits at depth Tz = fn_y H / g in front of the camera and a p
 projects to (fn_x X / Z', fn_y Y / Z'). In both the translation of the body in the image is not part of the
 projection: it is solved by weighted least squares where the 2D error is formed (fitting.loss.mpjpe,
 fitting.jacobian), exactly, because the residual is linear in it. Tested through the loss against NumPy.
-``image_scale`` (NumPy, not a kernel): the local image scale at each landmark, for fitting.proportions.
+``image_scale``: the local image scale at each landmark, for fitting.proportions.
 """
 
 from __future__ import annotations
@@ -73,16 +73,26 @@ def project_w(x, data, work):
             work[p0 + i, 2] = inv
 
 
+@njit(cache=True)
 def image_scale(x, data):
     """The image scale at each of the 12 body landmarks of solution ``x``: normalized image units per metre of
-    a small displacement parallel to the image plane at the landmark's fitted depth, (12,) NumPy array.
-    Orthographic: ``g / H`` everywhere; perspective: ``fn_y / Z'`` (Z' the landmark's depth, metres)."""
+    a small displacement parallel to the image plane at the landmark's fitted depth, (12,) array.
+    Orthographic: ``g / H`` everywhere; perspective: ``fn_y / Z'`` (Z' the landmark's depth, metres, not
+    nearer than MIN_DEPTH x the root's, as :func:`project` clamps it)."""
     h = data[L.D_DIMS + L.DM_H]
     g = x[L.X_GAMMA]
+    out = np.empty(L.N_LM)
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
-        return np.full(L.N_LM, g / h)
+        for i in range(L.N_LM):
+            out[i] = g / h
+        return out
     pts_b = np.empty((L.N_POINTS, 3))
     pts_c = np.empty((L.N_POINTS, 3))
     FK.model_points(x, data, pts_b, pts_c)
-    tz = data[L.D_PROJ + L.PJ_FN_Y] * h / g
-    return data[L.D_PROJ + L.PJ_FN_Y] / np.maximum(tz + pts_c[:L.N_LM, 2], MIN_DEPTH * tz)
+    fn_y = data[L.D_PROJ + L.PJ_FN_Y]
+    tz = fn_y * h / g
+    lim = MIN_DEPTH * tz
+    for i in range(L.N_LM):
+        z = tz + pts_c[i, 2]
+        out[i] = fn_y / (z if (z >= lim or z != z) else lim)   # NumPy's maximum: a NaN depth stays NaN
+    return out
