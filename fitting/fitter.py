@@ -58,7 +58,7 @@ DEPTH_PASSES = 2  # image mode, refinements with depth: the robust weights re-so
 TRIAL_ITERATIONS = 5  # video mode: LM iterations that rank the hypotheses under the temporal prior ...
 FINALISTS = 2  # ... and how many of the best are then refined to convergence
 _NO_DEPTH = np.full(L.N_LM, np.nan)  # the depth kernels' "no measured depth"
-_NO_SEEDS = np.zeros((0, L.N_VAR))
+_NO_SEEDS = np.zeros((0, L.N_VAR))  # video mode without analytic starts: no orientation seeds
 MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames closer than this (a repeated stamp)
 
 
