@@ -90,28 +90,12 @@ def _dense_rows(jac, res, r0, r1, a, g):
 
 
 @njit(cache=True)
-def normal_equations(jac, res, a, g, cols):
-    """a = J'J and g = J'r (half the cost's gradient) of the refinement's residual rows (layout R_*) into
-    ``a`` (n x n, both triangles) and ``g`` (n), summed over the rows in ascending order.
-
-    The landmark and depth rows are dense (the depth rows zero without depth); the penalty and joint-limit
-    rows between them have at most one non-zero, in the column of their variable
-    (:func:`fitting.penalties.hinge_jacobian`), and the prior rows one or two, found per row. ``cols``:
-    int64 work array (n)."""
+def _sparse_rows(jac, res, r0, r1, a, g, cols):
+    """:func:`_dense_rows` for rows with few non-zeros: each row's non-zero columns are found first
+    (``cols``, int64 work array) and only their products added, in the same order (the same sums: the
+    products left out are zeros)."""
     n = jac.shape[1]
-    for i in range(n):
-        g[i] = 0.0
-        for j in range(n):
-            a[i, j] = 0.0
-    _dense_rows(jac, res, L.R_LM, L.R_PEN, a, g)
-    # a penalty or joint-limit hinge row has its one possible non-zero in its variable's column
-    for q in range(L.N_PEN + L.N_VAR):
-        i = PEN.PENALTY_HINGES[q][0] if q < L.N_PEN else q - L.N_PEN
-        ji = jac[L.R_PEN + q, i]
-        if ji != 0.0:
-            g[i] += ji * res[L.R_PEN + q]
-            a[i, i] += ji * ji
-    for r in range(L.R_PRIOR, L.R_DEPTH):
+    for r in range(r0, r1):
         nz = 0
         for i in range(n):
             if jac[r, i] != 0.0:
@@ -126,7 +110,32 @@ def normal_equations(jac, res, a, g, cols):
             g[i] += ji * rr
             for q in range(p + 1):
                 a[i, cols[q]] += ji * jac[r, cols[q]]
-    _dense_rows(jac, res, L.R_DEPTH, L.N_RES, a, g)
+
+
+@njit(cache=True)
+def normal_equations(jac, res, a, g, cols):
+    """a = J'J and g = J'r (half the cost's gradient) of the refinement's residual rows (layout R_*) into
+    ``a`` (n x n, both triangles) and ``g`` (n), summed over the rows in ascending order.
+
+    The landmark rows are dense (with a pinhole camera every landmark depends on every variable through the
+    solved translation); the penalty and joint-limit rows after them have at most one non-zero, in the
+    column of their variable (:func:`fitting.penalties.hinge_jacobian`); the prior rows have one or two and a
+    depth row those of its landmark's chain (none without depth), found per row (:func:`_sparse_rows`).
+    ``cols``: int64 work array (n)."""
+    n = jac.shape[1]
+    for i in range(n):
+        g[i] = 0.0
+        for j in range(n):
+            a[i, j] = 0.0
+    _dense_rows(jac, res, L.R_LM, L.R_PEN, a, g)
+    # a penalty or joint-limit hinge row has its one possible non-zero in its variable's column
+    for q in range(L.N_PEN + L.N_VAR):
+        i = PEN.PENALTY_HINGES[q][0] if q < L.N_PEN else q - L.N_PEN
+        ji = jac[L.R_PEN + q, i]
+        if ji != 0.0:
+            g[i] += ji * res[L.R_PEN + q]
+            a[i, i] += ji * ji
+    _sparse_rows(jac, res, L.R_PRIOR, L.N_RES, a, g, cols)
     for i in range(n):
         for j in range(i):
             a[j, i] = a[i, j]
