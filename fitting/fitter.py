@@ -398,13 +398,15 @@ class Fitter:
         self._udeas_s += time.thread_time() - c0
         if not cfg.refine:
             return (*self._score(frame, best_x), int(evals))
-        order = np.argsort(rc)
-        picked: list[np.ndarray] = []
-        for i in order:
-            if len(picked) >= cfg.refine_candidates:
+        # the best restart results that differ from each better one by more than 0.05 in some angle
+        apart = (np.abs(rx[:, None, 1:] - rx[None, :, 1:]).max(axis=2) > 0.05).tolist()
+        keep: list[int] = []
+        for i in np.argsort(rc).tolist():
+            if len(keep) >= cfg.refine_candidates:
                 break
-            if all(np.max(np.abs(rx[i, 1:] - p[1:])) > 0.05 for p in picked):
-                picked.append(rx[i].copy())
+            if all(apart[i][j] for j in keep):
+                keep.append(i)
+        picked = [rx[i].copy() for i in keep]
         if cfg.analytic_seeds:
             picked = self._analytic(frame, seeds) + picked
         # every candidate ranked by a few iterations, the best refined to convergence (stop at an exact fit)
@@ -443,7 +445,7 @@ class Fitter:
                     if exact and abs(lead[_LIMB_JOINT[limb]]) > STRAIGHT_RAD:
                         continue  # the mirror of a bent limb cannot fit exactly: it cannot tie with an exact fit
                     refine.limb_flip(lead, frame.data, limb, trial)
-                    key = tuple(np.round(trial, 3))
+                    key = (np.round(trial, 3) + 0.0).tobytes()  # (+ 0.0: -0.0 and 0.0 are the same start)
                     if key in tried:
                         continue
                     tried.add(key)
