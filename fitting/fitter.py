@@ -306,9 +306,10 @@ class Fitter:
         best_cost = math.inf
         order = np.argsort([sc[1] + dl for sc, dl in zip(scored, d_loss, strict=True)])
         if self._depth is None:  # no depth rows: the refinement's cost is the compared one
-            trial_n = min(TRIAL_ITERATIONS, cfg.refine_iterations)
-            trials = sorted((self._lm(data, pool[i], trial_n) for i in order[:PRIOR_CANDIDATES]), key=lambda r: r[1])
-            best_x = min((self._lm(data, x) for x, _ in trials[:FINALISTS]), key=lambda r: r[1])[0]
+            best_x = np.empty(L.N_VAR)
+            best_hypothesis(np.array([pool[i] for i in order[:PRIOR_CANDIDATES]]), P.LIMIT_LO_RAD, P.LIMIT_HI_RAD,
+                            data, _NO_DEPTH, False, 0.0, min(TRIAL_ITERATIONS, cfg.refine_iterations),
+                            cfg.refine_iterations, FINALISTS, best_x)
             return self._score(frame, best_x)
         for i in order[:PRIOR_CANDIDATES]:
             start = pool[i]

@@ -2,7 +2,8 @@
 
 :func:`video_starts`: the previous solution moved to the frame, each limb's depth mirror of it and the frame's
 analytic starts. :func:`best_hypothesis`: each refined a few Levenberg-Marquardt iterations to rank them, the
-best few to convergence, the smallest cost wins (MAP over the hypotheses).
+best few to convergence, the smallest cost wins (MAP over the hypotheses; image mode's best candidates under
+the pose prior are chosen the same way when there is no depth).
 
 With measured depth each refinement carries the depth rows (fitting.depth_rows) with robust weights solved
 from its own start (again from the trial's result for the finalists), and the candidates are compared on
