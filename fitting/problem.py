@@ -78,6 +78,9 @@ def landmark_weights(landmarks: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray,
     xy = np.empty((L.N_LM, 2))
     w = np.empty(L.N_LM)
     lm = np.ascontiguousarray(landmarks, dtype=np.float64)   # one kernel specialization, whatever the caller's
+    if lm.shape != (33, 5):
+        raise ValueError(f"landmarks must be a (33, 5) array [x_px, y_px, z, visibility, presence], got shape "
+                         f"{lm.shape}")
     missing = weights_into(lm, _BODY_IDX, cfg.visibility_drop, max(cfg.visibility_full - cfg.visibility_drop, 1e-6),
                            xy, w)
     return xy, w, ([BODY_LANDMARK_NAMES[i] for i in np.flatnonzero(w == 0.0)] if missing else [])

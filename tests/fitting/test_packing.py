@@ -124,3 +124,9 @@ def test_normalized_landmarks_match_the_reference_to_the_last_bit():
 def test_no_weight_gives_no_centroid():
     frame = P.pack(np.ones((12, 2)), np.zeros(12), DIMS, FitConfig(), 300.0)
     assert np.all(np.isnan(frame.centroid_px))
+
+
+@pytest.mark.parametrize("shape", [(33, 4), (12, 5), (33,), (0, 5)])
+def test_landmarks_of_the_wrong_shape_are_refused(shape):
+    with pytest.raises(ValueError, match=r"\(33, 5\)"):
+        P.landmark_weights(np.zeros(shape), FitConfig())
