@@ -43,8 +43,13 @@ def best_hypothesis(starts, lo, hi, data, depth, use_depth, w_depth, trial_itera
     ``trial_iterations``, the ``finalists`` smallest (ties: the earlier start) refined again up to
     ``iterations``, the smallest compared cost (ties: the better-ranked) wins. ``depth``: the measured depth at
     the 12 body landmarks (metres, NaN unknown), used only when ``use_depth``; ``w_depth``: the depth term's
-    weight in the refinement's cost units. Returns the winner's compared cost."""
+    weight in the refinement's cost units. Returns the winner's compared cost (without starts: inf, ``out``
+    NaN)."""
     k = starts.shape[0]
+    if k == 0:
+        for j in range(L.N_VAR):
+            out[j] = np.nan
+        return np.inf
     trials = np.empty((k, L.N_VAR))
     costs = np.empty(k)
     for i in range(k):

@@ -112,3 +112,11 @@ def test_video_starts_match_the_python_loop(mirrors):
         video_starts(start, seeds, mirrors, frame.data, FK.empty_work(), out)
         np.testing.assert_array_equal(out[:-1], np.array(want))
         assert np.all(out[-1] == 7.0)
+
+
+def test_no_hypotheses_is_no_solution():
+    frame, _ = _problem(0.0, 1)
+    out = np.zeros(L.N_VAR)
+    assert best_hypothesis(np.zeros((0, L.N_VAR)), LO, HI, frame.data.copy(), NO_DEPTH, False, 0.0, 5, 30, 2,
+                           out) == np.inf
+    assert np.all(np.isnan(out))
