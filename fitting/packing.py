@@ -1,9 +1,10 @@
-"""A frame's 12 body landmarks as the fit reads them: their weights and the reference scale. numba,
-``cache=True``; one call each per frame (fitting.problem.landmark_weights and reference_scale are their
-Python interface; the plain-Python functions they replaced are the references in
-``tests/fitting/test_packing.py``, equal to the last bit).
+"""A frame's 12 body landmarks as the fit reads them: their weights, the reference scale and their normalized
+coordinates in the kernels' data array. numba, ``cache=True``; one call each per frame
+(fitting.problem.landmark_weights, reference_scale and pack are their Python interface; the plain-Python
+functions they replaced are the references in ``tests/fitting/test_packing.py``, equal to the last bit).
 
-Pixels in, pixels per metre out; segment lengths in metres.
+Pixels in; pixels per metre for the scale; normalized units (fitting.problem) in the data array; segment
+lengths in metres.
 """
 
 from __future__ import annotations
