@@ -82,43 +82,18 @@ def body_rotation(theta_bd: float, phi_bd: float, psi_bd: float) -> np.ndarray:
 
 def body_angles_from_rotation(r_cb: np.ndarray) -> tuple[float, float, float]:
     """Inverse of :func:`body_rotation` (degrees; phi in [-90, 90]; at phi = +-90 theta is set to 0)."""
-    return _body_angles((R0.T @ np.asarray(r_cb, dtype=np.float64)).tolist())
-
-
-def _signed_rows(r: np.ndarray) -> tuple[tuple[int, float], ...]:
-    """(k, s) per row of the signed permutation matrix ``r``: its row i is s times the unit row k."""
-    out = []
-    for row in r.tolist():
-        k = next(k for k, v in enumerate(row) if v != 0.0)
-        out.append((k, row[k]))
-    return tuple(out)
-
-
-# R0 is a signed permutation: row i of R0^T R_CB is s times row k of R_CB, (k, s) = _R0T_ROWS[i]
-_R0T_ROWS = _signed_rows(R0.T)
-
-
-def body_angles_from_axes(ex: tuple, ey: tuple, ez: tuple) -> tuple[float, float, float]:
-    """:func:`body_angles_from_rotation` of R_CB = [ex ey ez] (the pelvis axes in camera axes, columns; plain
-    floats), without NumPy and to the last bit the same: each entry of R0^T R_CB has one nonzero term, so
-    NumPy's product is that term exactly, and ``0.0 +`` turns a -0 into the +0 NumPy's sum of zeros gives."""
-    r = tuple(zip(ex, ey, ez, strict=True))   # rows of R_CB
-    return _body_angles([[0.0 + s * v for v in r[k]] for k, s in _R0T_ROWS])
-
-
-def _body_angles(m: list[list[float]]) -> tuple[float, float, float]:
-    """Body angles (degrees) of m = R0^T R_CB (rows, plain floats)."""
-    # m = Rz(s) Rx(q) Ry(t), q = -phi: m[2,1] = sin q; m[0,1] = -sin s cos q; m[1,1] = cos s cos q;
+    m = R0.T @ np.asarray(r_cb, dtype=np.float64)  # = Rz(psi) Rx(-phi) Ry(theta)
+    # Rz(s) Rx(q) Ry(t), q = -phi: m[2,1] = sin q; m[0,1] = -sin s cos q; m[1,1] = cos s cos q;
     # m[2,0] = -cos q sin t; m[2,2] = cos q cos t.
-    sq = max(-1.0, min(1.0, m[2][1]))
+    sq = max(-1.0, min(1.0, m[2, 1]))
     q = math.asin(sq)
     if abs(math.cos(q)) < 1e-9:
         t = 0.0
         # Rz(s) Rx(+-90): m[0,0] = cos s, m[1,0] = sin s
-        s = math.atan2(m[1][0], m[0][0])
+        s = math.atan2(m[1, 0], m[0, 0])
     else:
-        s = math.atan2(-m[0][1], m[1][1])
-        t = math.atan2(-m[2][0], m[2][2])
+        s = math.atan2(-m[0, 1], m[1, 1])
+        t = math.atan2(-m[2, 0], m[2, 2])
     return math.degrees(t), -math.degrees(q), math.degrees(s)
 
 

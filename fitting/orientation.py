@@ -3,7 +3,7 @@
 The hip line (averaged with the shoulder line) gives the pelvis's left axis and mid-hip -> mid-shoulder the
 torso's up axis, each up to the sign of its depth (the orthographic mirror); their orthogonality fixes one
 sign from the other when the left axis leaves the image plane enough. Each pair of signs is one seed: the
-body angles of those axes (fitting.kinematics.body_angles_from_axes, the same arithmetic), the limbs straight
+body angles of those axes (fitting.kinematics.body_angles_from_rotation, the same arithmetic), the limbs straight
 down, gamma 1, clipped to the search box. Normalized image units (fitting.problem); angles in radians.
 
 One call per frame (image mode and video mode's analytic starts); the plain-Python function it replaces is
@@ -20,7 +20,7 @@ from fitting import layout as L
 
 MAX_SEEDS = 4
 # R0 is a signed permutation: row i of R0^T R_CB is s times row k of R_CB, (k, s) = R0T_ROWS[i]
-# (fitting.kinematics._R0T_ROWS, tested equal)
+# (tested against fitting.kinematics.R0)
 R0T_ROWS = ((2, -1.0), (0, 1.0), (1, -1.0))
 
 
@@ -35,7 +35,7 @@ def _entry(ex, ey, ez, i, j):
 @njit(cache=True)
 def _seed(ex, ey, ez, lo, hi, out):
     """``out`` (19) = the seed of pelvis axes ``ex, ey, ez`` (camera axes, unit): fitting.kinematics's
-    ``_body_angles`` (degrees) in radians, every other angle 0, gamma 1, clipped to [lo, hi]."""
+    ``body_angles_from_rotation`` (degrees) in radians, every other angle 0, gamma 1, clipped to [lo, hi]."""
     sq = max(-1.0, min(1.0, _entry(ex, ey, ez, 2, 1)))
     q = math.asin(sq)
     if abs(math.cos(q)) < 1e-9:

@@ -16,7 +16,6 @@ from fitting.config import FitConfig
 from fitting.kinematics import (
     BODY_LANDMARKS,
     Pose,
-    body_angles_from_axes,
     body_angles_from_rotation,
     body_rotation,
     landmarks_camera,
@@ -92,21 +91,6 @@ def test_body_angles_round_trip():
     for _ in range(50):
         t, p, s = rng.uniform(-170, 170), rng.uniform(-85, 85), rng.uniform(-175, 175)
         np.testing.assert_allclose(body_angles_from_rotation(body_rotation(t, p, s)), (t, p, s), atol=1e-9)
-
-
-def test_body_angles_from_axes_is_the_numpy_inverse_to_the_last_bit():
-    """The plain-float inverse (fitting.problem.orientation_seeds) against the NumPy one, zeros of both signs
-    and the gimbal case included."""
-    rng = np.random.default_rng(6)
-    for i in range(3000):
-        r = body_rotation(*rng.uniform(-180, 180, 3)) if i % 2 else rng.normal(size=(3, 3))
-        r[rng.random((3, 3)) < 0.2] = 0.0
-        r[rng.random((3, 3)) < 0.2] *= -1.0
-        if i % 7 == 0:
-            r[1, 1] = rng.choice([1.0, -1.0, 0.0, -0.0])
-        want = body_angles_from_rotation(r)
-        got = body_angles_from_axes(*(tuple(r[:, j].tolist()) for j in range(3)))
-        assert np.array(got).tobytes() == np.array(want).tobytes()
 
 
 def test_vicon_signs_and_camera_axes():

@@ -1,5 +1,6 @@
-"""The orientation seeds kernel (fitting.orientation) against the plain-Python function it replaced, to the
-last bit, and what the seeds are for: the body's facing from the hips and shoulders, both depth mirrors."""
+"""The orientation seeds kernel (fitting.orientation) against the plain-Python function it replaced (with the
+NumPy body-angle inverse), to the last bit, and what the seeds are for: the body's facing from the hips and
+shoulders, both depth mirrors."""
 
 import math
 
@@ -11,7 +12,7 @@ from fitting import orientation as O
 from fitting import problem as P
 from fitting.body import BodyDimensions
 from fitting.config import FitConfig
-from fitting.kinematics import _R0T_ROWS, body_angles_from_axes
+from fitting.kinematics import R0, body_angles_from_rotation, body_rotation
 from fitting.warmup import POSE, warmup_landmarks
 
 DIMS = BodyDimensions.from_height(1.7)
@@ -50,7 +51,7 @@ def reference_seeds(obs: list[float], w: list[float], dims: BodyDimensions, lo: 
             continue
         ez = (ez[0] / nz, ez[1] / nz, ez[2] / nz)
         ex = (ey[1] * ez[2] - ey[2] * ez[1], ey[2] * ez[0] - ey[0] * ez[2], ey[0] * ez[1] - ey[1] * ez[0])
-        t, p, s = body_angles_from_axes(ex, ey, ez)
+        t, p, s = body_angles_from_rotation(np.array([ex, ey, ez]).T)
         x = np.zeros(L.N_VAR)
         x[0] = 1.0
         x[L.X_TBD], x[L.X_PBD], x[L.X_SBD] = t * DEG, p * DEG, s * DEG
@@ -64,8 +65,29 @@ def _frame(noise_px: float, seed: int) -> P.Frame:
     return P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS))
 
 
-def test_signed_rows_are_the_kinematics_ones():
-    assert O.R0T_ROWS == _R0T_ROWS
+def test_signed_rows_are_those_of_r0():
+    """Row i of R0^T is s times the unit row k, (k, s) = R0T_ROWS[i]."""
+    for i, (k, s) in enumerate(O.R0T_ROWS):
+        want = np.zeros(3)
+        want[k] = s
+        np.testing.assert_array_equal(R0.T[i], want)
+
+
+def test_seed_angles_are_the_numpy_inverse_to_the_last_bit():
+    """The kernel's body angles of the pelvis axes against fitting.kinematics.body_angles_from_rotation:
+    rotations and arbitrary matrices, zeros of both signs and the gimbal case included."""
+    rng = np.random.default_rng(6)
+    lo, hi = np.full(L.N_VAR, -np.inf), np.full(L.N_VAR, np.inf)
+    out = np.empty(L.N_VAR)
+    for i in range(3000):
+        r = body_rotation(*rng.uniform(-180, 180, 3)) if i % 2 else rng.normal(size=(3, 3))
+        r[rng.random((3, 3)) < 0.2] = 0.0
+        r[rng.random((3, 3)) < 0.2] *= -1.0
+        if i % 7 == 0:
+            r[1, 1] = rng.choice([1.0, -1.0, 0.0, -0.0])
+        O._seed(tuple(r[:, 0].tolist()), tuple(r[:, 1].tolist()), tuple(r[:, 2].tolist()), lo, hi, out)
+        want = np.array(body_angles_from_rotation(r)) * DEG
+        assert out[[L.X_TBD, L.X_PBD, L.X_SBD]].tobytes() == want.tobytes()
 
 
 @pytest.mark.parametrize("bounds", ["paper", "wide"])
