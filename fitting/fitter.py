@@ -60,7 +60,7 @@ TRIAL_ITERATIONS = 5  # LM iterations that rank video mode's hypotheses under th
                       # candidates and (without depth) image mode's refinements under the pose prior ...
 FINALISTS = 2  # ... and how many of the best are then refined to convergence
 _NO_DEPTH = np.full(L.N_LM, np.nan)  # the depth kernels' "no measured depth"
-_NO_SEEDS = np.zeros((0, L.N_VAR))  # video mode without analytic starts: no orientation seeds
+_NO_SEEDS = np.zeros((0, L.N_VAR))  # no orientation seeds (read-only use: uDEAS starts, analytic starts)
 MIN_DT_S = 1.0 / 120.0  # video mode: the temporal prior never assumes frames closer than this (a repeated stamp)
 
 
@@ -389,7 +389,7 @@ class Fitter:
         refined further included (under the pose prior they are starts like the others)."""
         cfg = self.config
         lo, hi = P.image_box(cfg)
-        seeds = P.orientation_seeds(frame, self.dims, lo, hi) if cfg.seed_orientation else np.zeros((0, L.N_VAR))
+        seeds = P.orientation_seeds(frame, self.dims, lo, hi) if cfg.seed_orientation else _NO_SEEDS
         seeds = seeds[: cfg.restarts]
         los, his = P.restart_boxes(lo, hi, seeds, cfg.restarts)
         c0 = time.thread_time()
