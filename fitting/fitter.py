@@ -303,7 +303,6 @@ class Fitter:
         if sigma2 < PRIOR_MIN_NOISE ** 2:
             return best  # (nearly) exact: no noise to regularize
         data = P.with_prior(frame, cfg.pose_prior * sigma2 / 12.0, P.PRIOR_MU_RAD, P.PRIOR_SIG_RAD, P.PRIOR_PARTNER)
-        best_cost = math.inf
         order = np.argsort([sc[1] + dl for sc, dl in zip(scored, d_loss, strict=True)])
         if self._depth is None:  # no depth rows: the refinement's cost is the compared one
             best_x = np.empty(L.N_VAR)
@@ -311,30 +310,19 @@ class Fitter:
                             data, _NO_DEPTH, False, 0.0, min(TRIAL_ITERATIONS, cfg.refine_iterations),
                             cfg.refine_iterations, FINALISTS, best_x)
             return self._score(frame, best_x)
+        # with depth: each converged in DEPTH_PASSES passes, the depth rows' robust weights solved from the start
+        # and again from each pass's result; compared on the cost without those rows plus the depth term
+        w_depth = DEPTH_WEIGHT * noise2
+        best_cost = math.inf
         for i in order[:PRIOR_CANDIDATES]:
-            start = pool[i]
-            for _ in range(DEPTH_PASSES if self._depth is not None else 1):
-                self._set_depth_rows(data, start, DEPTH_WEIGHT * noise2)
-                out, cost = self._lm(data, start)
-                start = out
-            cost = self._compared_cost(data, out, DEPTH_WEIGHT * noise2)
+            out = pool[i]
+            for _ in range(DEPTH_PASSES):
+                set_depth_rows_at(out, data, self._depth, w_depth)
+                out = self._lm(data, out)[0]
+            cost = cost_with_depth(out, data, self._depth, w_depth)
             if cost < best_cost:
                 best_cost, best_x = cost, out
         return self._score(frame, best_x)
-
-    def _compared_cost(self, data: np.ndarray, x: np.ndarray, w_depth: float) -> float:
-        """What candidates refined with ``data``'s prior are compared on: the refinement's cost without the
-        depth rows (they hold each candidate's own robust weights) plus the depth term at ``x`` weighted by
-        ``w_depth`` (the refinement's cost units per unit of the term)."""
-        return cost_with_depth(x, data, _NO_DEPTH if self._depth is None else self._depth, w_depth)
-
-    def _set_depth_rows(self, data: np.ndarray, x: np.ndarray, w_depth: float) -> None:
-        """The refinement's depth rows in ``data``: robust weights of the depth term at ``x``, weighted by
-        ``w_depth``; off without depth."""
-        if self._depth is None:
-            data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 0.0
-        else:
-            set_depth_rows_at(x, data, self._depth, w_depth)
 
     def _track(self, frame: P.Frame, prev: np.ndarray, dt: float, hypotheses: np.ndarray,
                sigma2: float) -> tuple[np.ndarray, float, float]:
