@@ -20,16 +20,16 @@ from numba import njit
 from fitting import layout as L
 from fitting.analytic import analytic_start
 from fitting.depth_rows import cost_with_depth, set_depth_rows_at
-from fitting.refine import levenberg_marquardt, limb_flip
+from fitting.refine import levenberg_marquardt_into, limb_flip, lm_work
 
 
 @njit(cache=True)
-def _refined(x0, lo, hi, data, depth, use_depth, w_depth, iterations, out):
-    """``out`` = ``x0`` refined on ``data`` (its depth rows set from ``x0`` when ``use_depth``); returns the
-    cost the candidates are compared on."""
+def _refined(x0, lo, hi, data, depth, use_depth, w_depth, iterations, out, lw):
+    """``out`` = ``x0`` refined on ``data`` (its depth rows set from ``x0`` when ``use_depth``; ``lw`` the
+    refinement's work arrays, fitting.refine.lm_work); returns the cost the candidates are compared on."""
     if use_depth:
         set_depth_rows_at(x0, data, depth, w_depth)
-    cost = levenberg_marquardt(x0, lo, hi, data, iterations, out)[0]
+    cost = levenberg_marquardt_into(x0, lo, hi, data, iterations, out, lw)[0]
     if use_depth:
         cost = cost_with_depth(out, data, depth, w_depth)
     return cost
@@ -52,13 +52,14 @@ def best_hypothesis(starts, lo, hi, data, depth, use_depth, w_depth, trial_itera
         return np.inf
     trials = np.empty((k, L.N_VAR))
     costs = np.empty(k)
+    lw = lm_work()
     for i in range(k):
-        costs[i] = _refined(starts[i], lo, hi, data, depth, use_depth, w_depth, trial_iterations, trials[i])
+        costs[i] = _refined(starts[i], lo, hi, data, depth, use_depth, w_depth, trial_iterations, trials[i], lw)
     order = np.argsort(costs, kind="mergesort")   # stable: ties keep the starts' order
     best = np.inf
     cand = np.empty(L.N_VAR)
     for r in range(min(finalists, k)):
-        c = _refined(trials[order[r]], lo, hi, data, depth, use_depth, w_depth, iterations, cand)
+        c = _refined(trials[order[r]], lo, hi, data, depth, use_depth, w_depth, iterations, cand, lw)
         if r == 0 or c < best:
             best = c
             for j in range(L.N_VAR):

@@ -142,6 +142,19 @@ def normal_equations(jac, res, a, g, cols):
 
 
 @njit(cache=True)
+def lm_work():
+    """Work arrays of :func:`levenberg_marquardt_into`, reusable from refinement to refinement (a caller that
+    refines many starts allocates them once): residuals and Jacobian (two residual vectors, swapped between
+    the current point and a trial), their work arrays (fitting.jacobian.empty_work), the point and its trial,
+    the normal equations, their damped copy and Cholesky factor, the step and the active set."""
+    n = L.N_VAR
+    m = JAC.n_residuals()
+    return (np.empty(m), np.empty((m, n)), np.empty(m), JAC.empty_work(), np.empty(n), np.empty(n),
+            np.empty((n, n)), np.empty((n, n)), np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n),
+            np.empty(n), np.empty(n, dtype=np.bool_), np.empty(n, dtype=np.int64))
+
+
+@njit(cache=True)
 def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
     """Refine ``x0`` inside [lo, hi]; returns (final sum of squares, iterations, evaluations: the start, each
     trial and each accepted point's Jacobian).
@@ -150,32 +163,23 @@ def levenberg_marquardt(x0, lo, hi, data, max_iter, out_x):
     linear model predicted well and grows 2, 4, 8 ... times after rejected ones); a variable at a bound whose
     descent direction leaves the box is held there for the iteration (an active set), so clamped steps are
     not rejected over and over; stops when an accepted step lowers the cost by less than REL_TOL of it."""
+    return levenberg_marquardt_into(x0, lo, hi, data, max_iter, out_x, lm_work())
+
+
+@njit(cache=True)
+def levenberg_marquardt_into(x0, lo, hi, data, max_iter, out_x, lw):
+    """:func:`levenberg_marquardt` on the work arrays ``lw`` (:func:`lm_work`): no allocation."""
+    res, jac, res_new, work, x, x_new, a, damped, low, g, rhs, step, y_work, held, cols = lw
     n = x0.size
-    m = JAC.n_residuals()
-    res = np.empty(m)
-    jac = np.empty((m, n))
-    res_new = np.empty(m)
-    work = JAC.empty_work()
-    x = x0.copy()
     for k in range(n):
-        x[k] = min(max(x[k], lo[k]), hi[k])
+        x[k] = min(max(x0[k], lo[k]), hi[k])
     JAC.residuals_into(x, data, res, work)
     JAC.jacobian_into(x, data, jac, work)
     cost = JAC.sum_sq(res)
     evals = 1
     lam = 1e-3
     nu = 2.0
-    a = np.empty((n, n))
-    damped = np.empty((n, n))
-    g = np.empty(n)
-    rhs = np.empty(n)
-    step = np.empty(n)
-    x_new = np.empty(n)
-    held = np.zeros(n, dtype=np.bool_)
     it = 0
-    cols = np.empty(n, dtype=np.int64)
-    low = np.empty((n, n))
-    y_work = np.empty(n)
     while it < max_iter:
         it += 1
         # normal equations: a = J'J, g = J'r (half the cost's gradient)

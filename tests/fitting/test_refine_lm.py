@@ -97,6 +97,22 @@ def test_kernel_matches_numpy_reference(seed, max_iter):
     assert cost == pytest.approx(cost_ref, rel=1e-6)
 
 
+def test_reused_work_arrays_give_the_fresh_result():
+    """levenberg_marquardt_into on one set of work arrays (fitting.refine.lm_work), reused across starts,
+    frames and iteration limits, gives every result to the last bit that a fresh allocation gives: nothing
+    of one refinement leaks into the next (as best_hypothesis reuses them for all of a frame's hypotheses)."""
+    lo, hi = P.LIMIT_LO_RAD, P.LIMIT_HI_RAD
+    lw = refine.lm_work()
+    for seed in (1, 2, 3, 4):
+        data, x0 = frame_and_start(seed)
+        for max_iter in (0, 1, 5, 100):
+            fresh, reused = np.empty(L.N_VAR), np.empty(L.N_VAR)
+            got_fresh = refine.levenberg_marquardt(x0, lo, hi, data, max_iter, fresh)
+            got_reused = refine.levenberg_marquardt_into(x0, lo, hi, data, max_iter, reused, lw)
+            assert got_reused == got_fresh
+            assert reused.tobytes() == fresh.tobytes()
+
+
 def test_variable_at_a_bound_is_held_and_cost_falls():
     """A start with the left knee pushed past its limit: the result stays inside the box and lowers the
     cost; a variable pinned at its bound by the data does not stall the others (the reference agrees)."""
