@@ -30,6 +30,7 @@ the standard library only (the fitting package must not import a YAML parser)::
 from __future__ import annotations
 
 import math
+import operator
 import os
 from dataclasses import dataclass, fields
 
@@ -90,7 +91,12 @@ class BodyDimensions:
         """The lengths in field order, for the numba kernels (see ``fitting.layout.DM_*``)."""
         import numpy as np
 
-        return np.array([getattr(self, f.name) for f in fields(self)], dtype=np.float64)
+        return np.array(_LENGTHS_OF(self), dtype=np.float64)
+
+
+# the fields of a BodyDimensions in order, as a tuple (video mode learns a new body on most frames:
+# dataclasses.fields on each cost more than the array it fills)
+_LENGTHS_OF = operator.attrgetter(*(f.name for f in fields(BodyDimensions)))
 
 
 # Dempster's segment mass fractions and centre-of-mass positions (fraction of the segment length from its

@@ -130,3 +130,17 @@ def test_no_weight_gives_no_centroid():
 def test_landmarks_of_the_wrong_shape_are_refused(shape):
     with pytest.raises(ValueError, match=r"\(33, 5\)"):
         P.landmark_weights(np.zeros(shape), FitConfig())
+
+
+def test_body_array_holds_the_lengths_in_the_kernels_order():
+    """BodyDimensions.as_array (the frame's D_DIMS block) lists every field in declaration order, which is the
+    kernels' DM_* order; a learned body (scaled fields) gives its own lengths, not a cached array."""
+    from dataclasses import fields
+
+    arr = DIMS.as_array()
+    assert arr.dtype == np.float64 and arr.shape == (L.N_DIMS,)
+    assert arr.tolist() == [getattr(DIMS, f.name) for f in fields(BodyDimensions)]
+    assert (arr[L.DM_H], arr[L.DM_TRUNK], arr[L.DM_TH], arr[L.DM_FOOT]) == (
+        DIMS.body_height_m, DIMS.trunk_m, DIMS.thigh_m, DIMS.foot_length_m)
+    learned = BodyDimensions(*(v * 1.1 for v in arr.tolist()))
+    assert learned.as_array().tolist() == [v * 1.1 for v in arr.tolist()]
