@@ -28,13 +28,14 @@ def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray,
     model_points gives them; ``root_z``: the mid-hip's depth measured by a depth camera (fitting.depth_term),
     which then replaces the one from the person's size. None for the orthographic model or when no landmark
     is used."""
-    known, tx, ty, tz = _root(x, data, pts_c, 0.0 if root_z is None else float(root_z), root_z is not None)
+    known, tx, ty, tz = root_position(x, data, pts_c, 0.0 if root_z is None else float(root_z), root_z is not None)
     return (tx, ty, tz) if known else None
 
 
 @njit(cache=True)
-def _root(x, data, pts_c, root_z, measured):
-    """root_in_camera as a kernel: (known, X, Y, Z), ``root_z`` used when ``measured``."""
+def root_position(x, data, pts_c, root_z, measured):
+    """root_in_camera as a kernel (also called from fitting.assemble's): (known, X, Y, Z), ``root_z`` used
+    when ``measured``."""
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
         return False, 0.0, 0.0, 0.0
     used = False
