@@ -64,6 +64,8 @@ MIN_SAMPLES = 10            # no estimate from fewer samples
 BOUNDS = (0.7, 1.3)         # learned length / configured length
 DEAD_ZONE = 0.03            # |ratio - 1| below this: keep the configured length
 _FIELDS = tuple(f.name for f in fields(BodyDimensions))   # BodyDimensions' fields, in order
+_JSON_KEYS = tuple((f, f.removesuffix("_m")) for f in LENGTH_FIELDS)   # (field, its LimbScale.to_json key)
+_REL_FIELDS = (*LENGTH_FIELDS, "shoulder_half_m")   # the lengths the samples are relative to
 
 
 @dataclass(frozen=True)
@@ -80,8 +82,13 @@ class LimbScale:
         return self.size * self.ratio.get(name, 1.0)
 
     def to_json(self) -> dict:
-        return {**{f.removesuffix("_m"): round(self.of(f), 3) for f in LENGTH_FIELDS},
-                "size": round(self.size, 3), "samples": dict(self.samples)}
+        """A new dict on every call (callers may change it): each length field's factor (``of``) under its
+        name without ``_m``, the size and the samples per group."""
+        size, ratio = self.size, self.ratio
+        out = {key: round(size * ratio.get(f, 1.0), 3) for f, key in _JSON_KEYS}
+        out["size"] = round(size, 3)
+        out["samples"] = dict(self.samples)
+        return out
 
 
 def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions) -> list[tuple[str, tuple]]:
@@ -125,27 +132,45 @@ def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions)
 
 
 class _Window:
-    """The last HISTORY samples of one group, each column also kept sorted (its percentile in O(1))."""
+    """The last HISTORY samples of one group (GROUPS), each column also kept sorted (its percentile in O(1)),
+    and what they teach (``learned``, computed again only after a sample was added)."""
 
-    def __init__(self, columns: int) -> None:
+    def __init__(self, fields: tuple[str, ...], pct: float) -> None:
+        self.fields, self.pct = fields, pct
         self.ring: deque[list[float]] = deque()   # in arrival order, newest last (at most HISTORY)
-        self.sorted: list[list[float]] = [[] for _ in range(columns)]
+        self.sorted: list[list[float]] = [[] for _ in fields]
         self.added = 0                        # samples ever added
+        self._learned: dict[str, float] | None = {}   # None: to be computed again
 
     def add(self, row: list[float]) -> None:
+        """Add ``row`` (one value per field)."""
+        cols = self.sorted
         if len(self.ring) == HISTORY:         # the oldest sample leaves
-            old = self.ring.popleft()
-            for col, v in zip(self.sorted, old, strict=True):
-                del col[bisect.bisect_left(col, v)]
+            for i, v in enumerate(self.ring.popleft()):
+                del cols[i][bisect.bisect_left(cols[i], v)]
         self.ring.append(row)
-        for col, v in zip(self.sorted, row, strict=True):
-            bisect.insort(col, v)
+        for i, v in enumerate(row):
+            bisect.insort(cols[i], v)
         self.added += 1
+        self._learned = None
 
     def rank(self, pct: float) -> list[float]:
         """Each column's value of rank ``int(pct / 100 (n - 1))`` (0 = the smallest)."""
         i = int(pct / 100.0 * (len(self.ring) - 1))
         return [col[i] for col in self.sorted]
+
+    def learned(self) -> dict[str, float]:
+        """Each field's learned ratio to the configured proportions, outside DEAD_ZONE only (none below
+        MIN_SAMPLES): the group's percentile shrunk towards 1 by PRIOR_SAMPLES, within BOUNDS."""
+        if self._learned is None:
+            self._learned = {}
+            n = len(self.ring)
+            if n >= MIN_SAMPLES:
+                for f, v in zip(self.fields, self.rank(self.pct), strict=True):
+                    r = min(max(1.0 + (v - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1])
+                    if abs(r - 1.0) >= DEAD_ZONE:
+                        self._learned[f] = r
+        return self._learned
 
 
 class ProportionLearner:
@@ -155,15 +180,17 @@ class ProportionLearner:
         self.base = base   # fixed for the learner's life: the caches below depend on it
         self._height_lengths = tuple(getattr(base, f) for f in HEIGHT_FIELDS)
         self._height = sum(self._height_lengths)   # the configured stack of HEIGHT_FIELDS, metres
-        self._base_values = tuple(getattr(base, name) for name in _FIELDS)
+        self._height_pairs = tuple(zip(HEIGHT_FIELDS, self._height_lengths, strict=True))   # (field, metres)
+        self._base_pairs = tuple((name, getattr(base, name)) for name in _FIELDS)   # (field, metres)
+        self._rel_pairs = tuple((f, getattr(base, f)) for f in _REL_FIELDS)   # (field, metres)
         self._rel_dims: BodyDimensions | None = None   # the dims self._rel was computed for
-        self._rel: dict[str, tuple[tuple[float, ...], float]] = {}
+        self._rel: dict[str, tuple[list[float], float]] = {}
         self.forget()
 
     def forget(self) -> None:
         """Start over (another person, or a long time without one)."""
         # per group: the recent samples as multiples of the *configured* proportions
-        self._win = {name: _Window(len(fs)) for name, fs, _ in GROUPS}
+        self._win = {name: _Window(fs, pct) for name, fs, pct in GROUPS}   # GROUPS order
         self._scale = LimbScale()
         self._dims_key: tuple | None = None   # the (size, ratios) self._dims was built for
         self._dims = self.base
@@ -183,15 +210,16 @@ class ProportionLearner:
             self.add(name, [r * f / divisor for r, f in zip(ratios, factors, strict=True)])
         self._scale = self._estimate()
 
-    def _relative(self, dims: BodyDimensions) -> dict[str, tuple[tuple[float, ...], float]]:
+    def _relative(self, dims: BodyDimensions) -> dict[str, tuple[list[float], float]]:
         """Per group: (the proportion ``dims`` gives each of its lengths relative to the configured one, the
         divisor of its ratios); a sample's ratio times the one, divided by the other, is relative to the
-        configured proportions. Cached for the last ``dims`` (the learner's dims change rarely)."""
+        configured proportions. Cached for the last ``dims`` (a learned body is a new object whenever the
+        estimate moved, most frames while learning)."""
         if dims is not self._rel_dims:
             size = dims.body_height_m / self.base.body_height_m   # the image shows no size: store proportions
-            rel = {f: getattr(dims, f) / getattr(self.base, f) / size for f in (*LENGTH_FIELDS, "shoulder_half_m")}
+            rel = {f: getattr(dims, f) / m / size for f, m in self._rel_pairs}
             # the hip sample is a ratio to the shoulders' shown width: relative to their proportion too
-            self._rel = {name: (tuple(rel[f] for f in fs), rel["shoulder_half_m"] if name == "hip" else 1.0)
+            self._rel = {name: ([rel[f] for f in fs], rel["shoulder_half_m"] if name == "hip" else 1.0)
                          for name, fs, _ in GROUPS}
             self._rel_dims = dims
         return self._rel
@@ -203,25 +231,20 @@ class ProportionLearner:
             self._win[group].add(row)
 
     def _estimate(self) -> LimbScale:
-        raw = dict.fromkeys(LENGTH_FIELDS, 1.0)
-        for name, fs, pct in GROUPS:
-            win = self._win[name]
-            n = len(win.ring)
-            if n < MIN_SAMPLES:
-                continue
-            for f, v in zip(fs, win.rank(pct), strict=True):
-                raw[f] = min(max(1.0 + (v - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1])
-        raw = {f: v for f, v in raw.items() if abs(v - 1.0) >= DEAD_ZONE}
+        ratio: dict[str, float] = {}   # LENGTH_FIELDS order (GROUPS order, each group's fields in order)
+        for win in self._win.values():
+            ratio.update(win.learned())
         # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
         # when standing) add up to the configured ones, the person's height being what the user configured
-        size = self._height / sum(m * raw.get(f, 1.0) for f, m in zip(HEIGHT_FIELDS, self._height_lengths, strict=True))
-        return LimbScale(raw, size, {name: win.added for name, win in self._win.items()})
+        size = self._height / sum([m * ratio.get(f, 1.0) for f, m in self._height_pairs])
+        return LimbScale(ratio, size, {name: win.added for name, win in self._win.items()})
 
     def dims(self) -> BodyDimensions:
         """The configured dimensions with the learned proportions (built again only when they change)."""
-        key = (self._scale.size, tuple(sorted(self._scale.ratio.items())))
+        size, ratio = self._scale.size, self._scale.ratio
+        key = (size, tuple(ratio.items()))
         if key != self._dims_key:
             self._dims_key = key
-            of = self._scale.of
-            self._dims = BodyDimensions(*[v * of(name) for name, v in zip(_FIELDS, self._base_values, strict=True)])
+            # each length times LimbScale.of(name)
+            self._dims = BodyDimensions(*[v * (size * ratio.get(name, 1.0)) for name, v in self._base_pairs])
         return self._dims

@@ -143,7 +143,7 @@ def test_learner_bounds_shrinkage_and_height():
 def test_window_percentile_against_numpy():
     """The sorted window against NumPy's partition of the same last HISTORY samples."""
     rng = np.random.default_rng(3)
-    win = PR._Window(2)
+    win = PR._Window(("upper_arm_m", "forearm_m"), 75.0)
     rows = rng.normal(1.0, 0.1, size=(PR.HISTORY + 257, 2))
     for i, row in enumerate(rows):
         win.add(row.tolist())
