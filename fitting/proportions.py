@@ -82,11 +82,16 @@ class LimbScale:
         return self.size * self.ratio.get(name, 1.0)
 
     def to_json(self) -> dict:
-        """A new dict on every call (callers may change it): each length field's factor (``of``) under its
-        name without ``_m``, the size and the samples per group."""
-        size, ratio = self.size, self.ratio
-        out = {key: round(size * ratio.get(f, 1.0), 3) for f, key in _JSON_KEYS}
-        out["size"] = round(size, 3)
+        """Each length field's factor (``of``) under its name without ``_m``, the size and the samples per
+        group; a new dict on every call (callers may change it), the rounding done once per LimbScale (the
+        fitter reports the scale on every video frame, and a frame without samples keeps it)."""
+        rounded = self.__dict__.get("_rounded")
+        if rounded is None:
+            size, ratio = self.size, self.ratio
+            rounded = {key: round(size * ratio.get(f, 1.0), 3) for f, key in _JSON_KEYS}
+            rounded["size"] = round(size, 3)
+            object.__setattr__(self, "_rounded", rounded)   # a cache, not a field (the scale is frozen)
+        out = dict(rounded)
         out["samples"] = dict(self.samples)
         return out
 

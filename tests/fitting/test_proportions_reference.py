@@ -100,7 +100,7 @@ def test_observe_matches_the_reference_learner(seed):
             learner.forget()
             ref = _ReferenceLearner(base)
         obs = _standing(rng)
-        w = (rng.random(12) > 0.05).astype(float)
+        w = (rng.random(12) > 0.05).astype(float) if i % 13 else np.zeros(12)   # no samples: the scale is kept
         k = (rng.uniform(0.9, 1.2, size=12) * (1.0 + 0.25 * seed) / base.body_height_m  # ratios around 1 (seed 1)
              * (rng.uniform(0.6, 1.4) if i % 7 == 0 else 1.0))
         dims = learner.dims() if i % 11 else BodyDimensions.from_height(float(rng.uniform(1.5, 1.9)))
@@ -133,10 +133,17 @@ def test_added_samples_match_the_reference_learner():
 
 
 def test_limb_scale_json_is_a_new_dict_each_call():
+    """The rounding is kept per LimbScale: what a caller does to a returned dict does not reach the next."""
     scale = PR.LimbScale({"thigh_m": 1.08, "upper_arm_m": 0.85}, 0.97, {"arm": 12, "leg": 30})
     a = scale.to_json()
     want = json.dumps(a)
+    assert want == json.dumps({"upper_arm": round(0.97 * 0.85, 3), "forearm": 0.97, "thigh": round(0.97 * 1.08, 3),
+                               "shank": 0.97, "trunk": 0.97, "hip_half": 0.97, "size": 0.97,
+                               "samples": {"arm": 12, "leg": 30}})
     a["size"] = 5.0
+    a["thigh"] = 2.0
     a["samples"]["arm"] = 0
-    assert json.dumps(scale.to_json()) == want and scale.samples == {"arm": 12, "leg": 30}
-    assert list(a) == ["upper_arm", "forearm", "thigh", "shank", "trunk", "hip_half", "size", "samples"]
+    b = scale.to_json()
+    assert b is not a and json.dumps(b) == want and scale.samples == {"arm": 12, "leg": 30}
+    other = PR.LimbScale({"thigh_m": 1.2}, 0.9, {"leg": 31})   # another scale: its own values
+    assert other.to_json()["thigh"] == round(0.9 * 1.2, 3) and scale.to_json()["thigh"] == round(0.97 * 1.08, 3)
