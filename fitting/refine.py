@@ -6,9 +6,10 @@
   plus the prior rows when the prior weight is set) with Marquardt's diagonal damping, clamping every
   variable to the joint limits; its normal equations (:func:`normal_equations`: dense landmark and depth
   rows, sparse hinge and prior rows) and damped Cholesky solve (:func:`cholesky_solve_into`) use work arrays
-  allocated once per refinement, and so do the residuals and the Jacobian
-  (:func:`fitting.jacobian.residuals_into`, :func:`fitting.jacobian.jacobian_into`): an accepted trial's
-  residuals are kept and only its Jacobian computed.
+  (:func:`lm_work`), and so do the residuals and the Jacobian (:func:`fitting.jacobian.residuals_into`,
+  :func:`fitting.jacobian.jacobian_into`): an accepted trial's residuals are kept and only its Jacobian
+  computed. :func:`levenberg_marquardt` allocates them per refinement; a caller that refines many starts
+  allocates them once and calls :func:`levenberg_marquardt_into`.
 * :func:`pelvis_projection`: moves along the exact null direction (theta_bd + d, theta_tr - d,
   theta_hp_l + d, theta_hp_r + d), which changes no landmark, to the minimum of the pelvis-tilt prior.
 * :func:`limb_from_observation` / :func:`limb_flip`: a limb solved from its 2D landmarks for a chosen depth
