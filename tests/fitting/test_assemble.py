@@ -6,8 +6,6 @@ import json
 import numpy as np
 import pytest
 
-from bench import simulate as S
-from fitting import BodyDimensions, FitConfig
 from fitting import forward_kinematics as FK
 from fitting import layout as L
 from fitting import problem as P
@@ -17,6 +15,7 @@ from fitting.kinematics import BODY_LANDMARK_NAMES
 from fitting.reported import rounded
 from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 from fitting.root import root_in_camera
+from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 
 
 def _reference_assemble(seq, t, x, frame, fixed_deg, *, loss, mp, fit_ms, mode, evals, udeas_s, missing, gamma,
@@ -81,12 +80,9 @@ def test_rounded_is_np_round_to_the_last_bit():
 def test_assemble_matches_the_plain_numpy_assembly(intrinsics):
     """Random solutions (signed zeros, halfway angles), with and without a measured depth and missing
     landmarks: every field of the result identical in value, type, bits and order."""
-    from camera_model import Intrinsics
-
-    dims = BodyDimensions.from_height(1.7)
-    cfg = FitConfig(body_height_m=1.7)
-    xy, w, _ = P.landmark_weights(S.render(S.pose("walk_left_forward", 30.0), dims=dims), cfg)
-    k = Intrinsics(900.0, 900.0, 640.0, 360.0, 1280, 720) if intrinsics else None
+    dims, cfg = DIMS, CONFIG
+    xy, w = walking_weights()
+    k = CAMERA if intrinsics else None
     rng = np.random.default_rng(5)
     for i in range(60):
         fixed_deg = np.round(rng.normal(size=L.N_FIXED) * 20, 5) if i % 2 else np.zeros(L.N_FIXED)

@@ -7,6 +7,7 @@ import pytest
 
 from bench import simulate as S
 from fitting import BodyDimensions, FitConfig, Fitter
+from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 
 
 def truth_mid_hip(pose, dims, camera, placement, image_size):
@@ -80,16 +81,14 @@ def _reference_root(x, data, pts_c, root_z=None):
 def test_root_kernel_matches_the_python_sums(intrinsics):
     """The kernel against the same sums in plain Python, to the last bit (with and without a measured depth,
     landmarks left out, points clamped to MIN_DEPTH)."""
-    from camera_model import Intrinsics
     from fitting import forward_kinematics as FK
     from fitting import layout as L
     from fitting import problem as P
     from fitting.root import root_in_camera
 
-    dims = BodyDimensions.from_height(1.7)
-    cfg = FitConfig(body_height_m=1.7)
-    xy, w, _ = P.landmark_weights(S.render(S.pose("walk_left_forward", 30.0), dims=dims), cfg)
-    k = Intrinsics(900.0, 900.0, 640.0, 360.0, 1280, 720) if intrinsics else None
+    dims, cfg = DIMS, CONFIG
+    xy, w = walking_weights()
+    k = CAMERA if intrinsics else None
     rng = np.random.default_rng(4)
     for i in range(40):
         wi = w * (rng.random(12) > 0.2)
