@@ -8,34 +8,26 @@ stands at ``Tz = fn_y H / g`` (fitting.projection), and the lateral position is 
 is minimised over: the weighted least-squares ``T`` in ``obs_i + off = fn (X_i + T) / (Tz + Z_i)``
 (fitting.loss.mpjpe), solved here again in float64 for the final solution. With a depth camera the
 measured depth replaces the size's (a wrong body height then no longer misplaces the person). An orthographic
-fit (no intrinsics) has no scale to metres: None. The sums run in a numba kernel (``cache=True``; tested
-against the plain-Python sums in tests/fitting/test_root.py).
+fit (no intrinsics) has no scale to metres: not known. The sums run in a numba kernel (``cache=True``; tested
+against the plain-Python sums of tests/fitting/root_reference.py).
 """
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from fitting import layout as L
 from fitting.projection import MIN_DEPTH
 
 
-def root_in_camera(x: np.ndarray, data: np.ndarray, pts_c: np.ndarray,
-                   root_z: float | None = None) -> tuple[float, float, float] | None:
-    """The mid-hip's camera-frame position in metres for solution ``x`` (kernel units) of the problem ``data``;
-    ``pts_c``: the 12 body landmarks in camera axes (metres, mid-hip origin), as fitting.forward_kinematics
-    model_points gives them; ``root_z``: the mid-hip's depth measured by a depth camera (fitting.depth_term),
-    which then replaces the one from the person's size. None for the orthographic model or when no landmark
-    is used."""
-    known, tx, ty, tz = root_position(x, data, pts_c, 0.0 if root_z is None else float(root_z), root_z is not None)
-    return (tx, ty, tz) if known else None
-
-
 @njit(cache=True)
 def root_position(x, data, pts_c, root_z, measured):
-    """root_in_camera as a kernel (also called from fitting.assemble's): (known, X, Y, Z), ``root_z`` used
-    when ``measured``."""
+    """The mid-hip's camera-frame position for solution ``x`` (kernel units) of the problem ``data``: (known,
+    X, Y, Z) in metres, known False (and zeros) for the orthographic model or when no landmark is used.
+    ``pts_c``: the 12 body landmarks in camera axes (metres, mid-hip origin), as fitting.forward_kinematics
+    model_points gives them; ``root_z``: the mid-hip's depth measured by a depth camera
+    (fitting.depth_term), used instead of the one from the person's size when ``measured``. Called by
+    fitting.reported for every result."""
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
         return False, 0.0, 0.0, 0.0
     used = False

@@ -14,7 +14,7 @@ from fitting.depth_term import DepthFit
 from fitting.kinematics import BODY_LANDMARK_NAMES
 from fitting.reported import rounded
 from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
-from fitting.root import root_in_camera
+from tests.fitting.root_reference import reference_root
 from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 
 
@@ -36,7 +36,7 @@ def _reference_assemble(seq, t, x, frame, fixed_deg, *, loss, mp, fit_ms, mode, 
     extra = {"mode": mode, "projection": "perspective" if frame.perspective else "orthographic",
              "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
-    root = root_in_camera(x, frame.data, pts_c, None if depth is None else depth.root_z)
+    root = reference_root(x, frame.data, pts_c, None if depth is None else depth.root_z)
     if depth is not None:
         extra["depth_inliers"] = depth.inliers
     if root is not None:

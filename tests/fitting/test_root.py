@@ -7,6 +7,7 @@ import pytest
 
 from bench import simulate as S
 from fitting import BodyDimensions, FitConfig, Fitter
+from tests.fitting.root_reference import reference_root
 from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 
 
@@ -52,31 +53,6 @@ def test_no_intrinsics_no_root():
     assert r.ok and r.root_cam_m is None and "root_cam_m" not in r.to_json()
 
 
-def _reference_root(x, data, pts_c, root_z=None):
-    """root_in_camera's sums in plain Python floats."""
-    from fitting import layout as L
-    from fitting.projection import MIN_DEPTH
-
-    if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
-        return None
-    w = data[L.D_W:L.D_W + L.N_LM].tolist()
-    if not any(v > 0 for v in w):
-        return None
-    fn = (float(data[L.D_PROJ + L.PJ_FN_X]), float(data[L.D_PROJ + L.PJ_FN_Y]))
-    off = (float(data[L.D_PROJ + L.PJ_OFF_X]), float(data[L.D_PROJ + L.PJ_OFF_Y]))
-    tz = fn[1] * float(data[L.D_DIMS + L.DM_H]) / float(x[L.X_GAMMA]) if root_z is None else float(root_z)
-    obs = data[L.D_OBS:L.D_OBS + 2 * L.N_LM].tolist()
-    num, den = [0.0, 0.0], [0.0, 0.0]
-    for i, (wi, p) in enumerate(zip(w, pts_c[:L.N_LM].tolist(), strict=True)):
-        z = max(tz + p[2], MIN_DEPTH * tz)
-        for c in (0, 1):
-            a = fn[c] / z
-            b = obs[2 * i + c] + off[c] - fn[c] * p[c] / z
-            num[c] += wi * a * b
-            den[c] += wi * a * a
-    return num[0] / den[0], num[1] / den[1], float(tz)
-
-
 @pytest.mark.parametrize("intrinsics", [False, True])
 def test_root_kernel_matches_the_python_sums(intrinsics):
     """The kernel against the same sums in plain Python, to the last bit (with and without a measured depth,
@@ -84,7 +60,7 @@ def test_root_kernel_matches_the_python_sums(intrinsics):
     from fitting import forward_kinematics as FK
     from fitting import layout as L
     from fitting import problem as P
-    from fitting.root import root_in_camera
+    from fitting.root import root_position
 
     dims, cfg = DIMS, CONFIG
     xy, w = walking_weights()
@@ -101,9 +77,10 @@ def test_root_kernel_matches_the_python_sums(intrinsics):
         if i % 5 == 0:
             pts_c[3, 2] = -1e3   # behind the camera: clamped
         root_z = None if i % 2 else float(rng.uniform(1.0, 6.0))
-        want = _reference_root(x, data, pts_c, root_z)
-        got = root_in_camera(x, data, pts_c, root_z)
+        want = reference_root(x, data, pts_c, root_z)
+        known, *got = root_position(x, data, pts_c, 0.0 if root_z is None else root_z, root_z is not None)
+        got = tuple(got) if known else None
         assert (got is None) == (not intrinsics)
         assert got == want and np.array(got, dtype=float).tobytes() == np.array(want, dtype=float).tobytes()
     data[L.D_W:L.D_W + L.N_LM] = 0.0
-    assert root_in_camera(x, data, pts_c) is None
+    assert root_position(x, data, pts_c, 0.0, False) == (False, 0.0, 0.0, 0.0)
