@@ -31,11 +31,11 @@ from camera_model import Intrinsics
 from fitting import forward_kinematics as FK
 from fitting import jitcache, refine, udeas
 from fitting import layout as L
-from fitting import loss as LOSS
 from fitting import problem as P
 from fitting.analytic import analytic_start
 from fitting.assemble import assemble
 from fitting.body import BodyDimensions, dimensions_for
+from fitting.candidates import image_candidates, score_all, score_into
 from fitting.config import FitConfig
 from fitting.depth_rows import cost_with_depth, depth_fit_at, set_depth_rows_at
 from fitting.depth_term import DepthFit, usable
@@ -49,7 +49,6 @@ MODES = ("video", "image")
 _TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
 EXACT_MSE = 1e-14          # mean squared 2D error (body heights^2) of an exact fit (1e-7 H rms)
 STRAIGHT_RAD = math.radians(5.0)  # a limb bent less than this has an exact depth mirror
-_LIMB_JOINT = (L.X_TEL_L, L.X_TEL_R, L.X_TKN_L, L.X_TKN_R)  # refine.LIMB_* order
 PRIOR_MIN_NOISE = 0.001  # below this estimated landmark noise (fraction of body height) no prior is used
 MIRROR_PASSES = 2  # image mode: passes over the four limb mirrors (a second one only after an improvement)
 PRIOR_CANDIDATES = 4  # image mode, noisy landmarks: refine this many of the best candidates again with the prior
@@ -256,14 +255,18 @@ class Fitter:
 
     def _score(self, frame: P.Frame, x: np.ndarray) -> tuple[np.ndarray, float, float]:
         """Set the pelvis tilt by its prior and evaluate the loss: (x, loss, mpjpe)."""
-        out = x.copy()
-        refine.pelvis_projection(out, frame.data, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD)
-        loss, mp = LOSS.pose_loss_terms(out, frame.data, self._work)[:2]
+        out = np.empty(L.N_VAR)
+        loss, mp = score_into(x, frame.data, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, self._work, out)
         return out, float(loss), float(mp)
 
-    def _select(self, frame: P.Frame, pool: list[np.ndarray],
-                scored: list[tuple[np.ndarray, float, float]] | None = None,
-                mse: list[float] | None = None) -> tuple[np.ndarray, float, float]:
+    def _score_all(self, frame: P.Frame, pool: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_score` of each row of ``pool``: (xs, losses, mpjpes)."""
+        scored, loss, mp = np.empty_like(pool), np.empty(len(pool)), np.empty(len(pool))
+        score_all(pool, len(pool), frame.data, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, self._work, scored, loss, mp)
+        return scored, loss, mp
+
+    def _select(self, frame: P.Frame, pool: np.ndarray, mse: np.ndarray,
+                scored: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, float, float]:
         """The best of refined candidates.
 
         Noise-free (an exact fit): the smallest loss. With landmark noise the depth of limbs near the image
@@ -274,8 +277,8 @@ class Fitter:
         PRIOR_CANDIDATES best gets TRIAL_ITERATIONS Levenberg-Marquardt iterations under the prior, enough to
         rank them, and the FINALISTS best are refined to convergence.
 
-        ``scored`` (``_score`` of each pool entry) and ``mse`` (``refine.data_mse`` of each), when the caller
-        already has them, save evaluating them again.
+        ``pool``: the candidates (n x 19); ``mse``: ``refine.data_mse`` of each; ``scored``: :meth:`_score_all`
+        of the pool when the caller already has it.
 
         With measured depth at the landmarks (``self._depth``) every comparison also counts the robust depth
         term (fitting.depth_term), weighted so that a landmark whose depth contradicts a hypothesis costs as
@@ -286,29 +289,31 @@ class Fitter:
         there: 0.7-0.9 mm PA-MPJPE on the out-of-domain protocol).
         """
         cfg = self.config
-        if scored is None:
-            scored = [self._score(frame, x) for x in pool]
-        f_min = min(mse if mse is not None else (refine.data_mse(x, frame.data) for x in pool))
+        xs, loss, mp = self._score_all(frame, pool) if scored is None else scored
+        f_min = float(mse.min())
         # landmark noise variance per coordinate from the residual (3 degrees of freedom: 24 coordinates,
         # 19 variables, 2 translations), capped: a poor fit is a model mismatch rather than noise
         sigma2 = min(4.0 * f_min, cfg.pose_prior_max_noise ** 2)
         noise2 = max(sigma2, PRIOR_MIN_NOISE ** 2)
-        fits = [self._depth_fit(frame, sc[0]) for sc in scored]
-        if self._depth is not None and not any(usable(d, self._depth) for d in fits):
-            self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
-            fits = [None] * len(scored)
-        # the 2D loss is a mean distance (normalized units), the refinement's cost a sum of squares
-        d_loss = [0.0 if d is None else DEPTH_WEIGHT * math.sqrt(noise2) * d.cost for d in fits]
-        best = scored[min(range(len(scored)), key=lambda i: scored[i][1] + d_loss[i])]
+        total = loss
+        if self._depth is not None:
+            fits = [self._depth_fit(frame, x) for x in xs]
+            if any(usable(d, self._depth) for d in fits):
+                # the 2D loss is a mean distance (normalized units), the refinement's cost a sum of squares
+                total = loss + DEPTH_WEIGHT * math.sqrt(noise2) * np.array([0.0 if d is None else d.cost for d in fits])
+            else:
+                self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
+        b = int(np.argmin(total))   # the first of equal ones
+        best = xs[b], float(loss[b]), float(mp[b])
         if not (cfg.refine and cfg.pose_prior > 0):
             return best
         if sigma2 < PRIOR_MIN_NOISE ** 2:
             return best  # (nearly) exact: no noise to regularize
         data = P.with_prior(frame, cfg.pose_prior * sigma2 / 12.0, P.PRIOR_MU_RAD, P.PRIOR_SIG_RAD, P.PRIOR_PARTNER)
-        order = np.argsort([sc[1] + dl for sc, dl in zip(scored, d_loss, strict=True)])
+        order = np.argsort(total)
         if self._depth is None:  # no depth rows: the refinement's cost is the compared one
             best_x = np.empty(L.N_VAR)
-            best_hypothesis(np.array([pool[i] for i in order[:PRIOR_CANDIDATES]]), P.LIMIT_LO_RAD, P.LIMIT_HI_RAD,
+            best_hypothesis(pool[order[:PRIOR_CANDIDATES]], P.LIMIT_LO_RAD, P.LIMIT_HI_RAD,
                             data, _NO_DEPTH, False, 0.0, min(TRIAL_ITERATIONS, cfg.refine_iterations),
                             cfg.refine_iterations, FINALISTS, best_x)
             return self._score(frame, best_x)
@@ -400,56 +405,17 @@ class Fitter:
         picked = [rx[i].copy() for i in keep]
         if cfg.analytic_seeds:
             picked = self._analytic(frame, seeds) + picked
-        # every candidate ranked by a few iterations, the best refined to convergence (stop at an exact fit)
-        trial_n = min(TRIAL_ITERATIONS, cfg.refine_iterations)
-        pool: list[np.ndarray] = []
-        mse: list[float] = []  # refine.data_mse of each pool entry
-        costs: list[float] = []  # the trials' costs
-        exact = False
-        for cand in picked:
-            x, cost = self._lm(frame.data, cand, trial_n)
-            pool.append(x)
-            costs.append(cost)
-            mse.append(refine.data_mse(x, frame.data))
-            if mse[-1] < EXACT_MSE:
-                exact = True  # an exact fit: the other candidates cannot fit better
-                pool[-1] = self._lm(frame.data, x)[0]
-                mse[-1] = refine.data_mse(pool[-1], frame.data)
-                break
-        if not exact:
-            for i in sorted(range(len(pool)), key=costs.__getitem__)[:FINALISTS]:
-                pool[i] = self._lm(frame.data, pool[i])[0]
-                mse[i] = refine.data_mse(pool[i], frame.data)
-                if mse[i] < EXACT_MSE:
-                    exact = True
-                    break
-        scored = None  # _score of each pool entry, once the mirrors need them
-        if cfg.limb_mirrors:
-            # each limb's depth mirror in turn, from the best so far (two wrong limbs get fixed one by one)
-            scored = [self._score(frame, x) for x in pool]
-            lead, lead_loss = min(scored, key=lambda s: s[1])[:2]
-            trial = np.empty(L.N_VAR)
-            tried = set()
-            for _ in range(MIRROR_PASSES):
-                improved = False
-                for limb in range(4):
-                    if exact and abs(lead[_LIMB_JOINT[limb]]) > STRAIGHT_RAD:
-                        continue  # the mirror of a bent limb cannot fit exactly: it cannot tie with an exact fit
-                    refine.limb_flip(lead, frame.data, limb, trial)
-                    key = (np.round(trial, 3) + 0.0).tobytes()  # (+ 0.0: -0.0 and 0.0 are the same start)
-                    if key in tried:
-                        continue
-                    tried.add(key)
-                    x = self._lm(frame.data, trial)[0]
-                    pool.append(x)
-                    mse.append(refine.data_mse(x, frame.data))
-                    scored.append(self._score(frame, x))
-                    if scored[-1][1] < lead_loss:
-                        lead, lead_loss = scored[-1][:2]
-                        improved = True
-                if not improved:
-                    break
-        return (*self._select(frame, pool, scored=scored, mse=mse), int(evals))
+        # every candidate ranked by a few iterations, the best refined to convergence (stop at an exact fit),
+        # then each limb's depth mirror of the best so far in turn (two wrong limbs get fixed one by one)
+        passes = MIRROR_PASSES if cfg.limb_mirrors else 0
+        k = len(picked)
+        pool = np.empty((k + 4 * passes, L.N_VAR))
+        scored = np.empty_like(pool)
+        loss, mp, mse = np.empty(len(pool)), np.empty(len(pool)), np.empty(len(pool))
+        n = image_candidates(np.array(picked).reshape(k, L.N_VAR), P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, frame.data,
+                             self._work, min(TRIAL_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations,
+                             FINALISTS, passes, EXACT_MSE, STRAIGHT_RAD, pool, scored, loss, mp, mse)
+        return (*self._select(frame, pool[:n], mse[:n], scored=(scored[:n], loss[:n], mp[:n])), int(evals))
 
     def _video(self, frame: P.Frame, prev: np.ndarray, dt: float) -> tuple[np.ndarray, float, float, int]:
         """Video mode: several hypotheses refined from this frame's landmarks, chosen by temporal consistency.
@@ -494,13 +460,13 @@ class Fitter:
             hyps[-1] = best_x
         if tracked:
             return (*self._track(frame, prev, dt, hyps, sigma2), int(evals))
-        pool = [start]
-        mse = [mse_start]
-        for x0 in hyps[1:]:
-            x = self._lm(frame.data, x0)[0]
-            pool.append(x)
-            mse.append(refine.data_mse(x, frame.data))
-        return (*self._select(frame, pool, mse=mse), int(evals))
+        pool = np.empty_like(hyps)
+        mse = np.empty(len(hyps))
+        pool[0], mse[0] = start, mse_start
+        for i in range(1, len(hyps)):
+            pool[i] = self._lm(frame.data, hyps[i])[0]
+            mse[i] = refine.data_mse(pool[i], frame.data)
+        return (*self._select(frame, pool, mse), int(evals))
 
 
 def _finite(v) -> bool:
