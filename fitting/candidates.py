@@ -3,10 +3,10 @@
 :func:`image_candidates` is the part of ``Fitter._image`` between uDEAS and the choice under the pose prior
 (``Fitter._select``): every start ranked by a few Levenberg-Marquardt iterations, the best refined to
 convergence (an exact fit ends the search), then each limb's depth mirror of the best so far refined and kept
-when its loss is lower. One call per frame: the Python loop it replaces cost about a third of image mode's
-time in interpreter overhead (about 0.3 ms a frame on the out-of-domain protocol); tested against that loop
-(kept as the reference in ``tests/fitting/candidates_reference.py``). Kernel units (radians; gamma
-unitless; 2D in the packed data's normalized units).
+when its loss is lower. One call per frame: the Python loop it replaces cost about 0.1 ms a frame in
+interpreter overhead on the out-of-domain protocol (5-8 % of image mode); tested against that loop (the
+reference in ``tests/fitting/test_candidates.py``). Kernel units (radians; gamma unitless; 2D in the packed
+data's normalized units).
 """
 
 from __future__ import annotations
