@@ -37,7 +37,7 @@ from fitting.assemble import assemble
 from fitting.body import BodyDimensions, dimensions_for
 from fitting.candidates import image_candidates, score_all, score_into
 from fitting.config import FitConfig
-from fitting.depth_rows import cost_with_depth, depth_fit_at, set_depth_rows_at
+from fitting.depth_rows import depth_fit_at
 from fitting.depth_term import DepthFit, usable
 from fitting.hypotheses import best_hypothesis, video_starts
 from fitting.kinematics import BODY_LANDMARKS
@@ -54,7 +54,6 @@ MIRROR_PASSES = 2  # image mode: passes over the four limb mirrors (a second one
 PRIOR_CANDIDATES = 4  # image mode, noisy landmarks: refine this many of the best candidates again with the prior
 RECOVER_FACTOR, RECOVER_FLOOR, ERR_REF_RATE = 1.25, 0.002, 0.1  # video mode: when to look again in image mode
 DEPTH_WEIGHT = 10.0  # a landmark's depth contradicting a hypothesis costs this many landmark-noise units
-DEPTH_PASSES = 2  # image mode, refinements with depth: the robust weights re-solved from the first one's result
 TRIAL_ITERATIONS = 5  # LM iterations that rank image mode's candidates and (without depth) its refinements
                       # under the pose prior, and that move the previous solution to a video frame ...
 HYPOTHESIS_ITERATIONS = 3  # ... that rank video mode's hypotheses under the temporal prior (5 gave the same
@@ -284,7 +283,7 @@ class Fitter:
         term (fitting.depth_term), weighted so that a landmark whose depth contradicts a hypothesis costs as
         much as DEPTH_WEIGHT times the landmark noise: it decides between hypotheses the 2D landmarks cannot
         tell apart (a limb towards or away from the camera) and never outweighs a clearly better 2D fit; each
-        of the PRIOR_CANDIDATES best is then refined to convergence in DEPTH_PASSES passes, the depth rows'
+        of the PRIOR_CANDIDATES best is then refined to convergence in two passes, the depth rows'
         robust weights re-solved from the previous pass's result (ranking by a few iterations lost accuracy
         there: 0.7-0.9 mm PA-MPJPE on the out-of-domain protocol).
         """
@@ -311,24 +310,17 @@ class Fitter:
             return best  # (nearly) exact: no noise to regularize
         data = P.with_prior(frame, cfg.pose_prior * sigma2 / 12.0, P.PRIOR_MU_RAD, P.PRIOR_SIG_RAD, P.PRIOR_PARTNER)
         order = np.argsort(total)
+        best_x = np.empty(L.N_VAR)
+        starts = pool[order[:PRIOR_CANDIDATES]]
         if self._depth is None:  # no depth rows: the refinement's cost is the compared one
-            best_x = np.empty(L.N_VAR)
-            best_hypothesis(pool[order[:PRIOR_CANDIDATES]], P.LIMIT_LO_RAD, P.LIMIT_HI_RAD,
-                            data, _NO_DEPTH, False, 0.0, min(TRIAL_ITERATIONS, cfg.refine_iterations),
-                            cfg.refine_iterations, FINALISTS, best_x)
-            return self._score(frame, best_x)
-        # with depth: each converged in DEPTH_PASSES passes, the depth rows' robust weights solved from the start
-        # and again from each pass's result; compared on the cost without those rows plus the depth term
-        w_depth = DEPTH_WEIGHT * noise2
-        best_cost = math.inf
-        for i in order[:PRIOR_CANDIDATES]:
-            out = pool[i]
-            for _ in range(DEPTH_PASSES):
-                set_depth_rows_at(out, data, self._depth, w_depth)
-                out = self._lm(data, out)[0]
-            cost = cost_with_depth(out, data, self._depth, w_depth)
-            if cost < best_cost:
-                best_cost, best_x = cost, out
+            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, _NO_DEPTH, False, 0.0,
+                            min(TRIAL_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations, FINALISTS, best_x)
+        else:
+            # with depth: each converged in two passes, the depth rows' robust weights solved from its start and
+            # again from the first pass's result (the kernel's trial and its finalist refinement, every start a
+            # finalist); compared on the cost without those rows plus the depth term
+            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self._depth, True, DEPTH_WEIGHT * noise2,
+                            cfg.refine_iterations, cfg.refine_iterations, len(starts), best_x)
         return self._score(frame, best_x)
 
     def _track(self, frame: P.Frame, prev: np.ndarray, dt: float, hypotheses: np.ndarray,
