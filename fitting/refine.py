@@ -29,7 +29,7 @@ from fitting import layout as L
 from fitting import penalties as PEN
 from fitting import rotations as ROT
 
-REL_TOL = 1e-4  # LM stops when an accepted step lowers the cost by less than this fraction of it
+REL_TOL = 1e-3  # LM stops when an accepted step lowers the cost by less than this fraction of it
 
 
 @njit(cache=True)
