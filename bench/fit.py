@@ -30,6 +30,7 @@ import numpy as np
 
 from bench import ood as OOD
 from bench import simulate as S
+from bench.speed_reference import reference_ms
 from fitting import BODY_LANDMARK_NAMES, VARIABLE_NAMES, FitConfig, Fitter, Pose
 
 ANGLES = VARIABLE_NAMES[1:]  # the 18 estimated joint and body angles
@@ -97,7 +98,9 @@ def mpjpe3d_mm(joints: dict, truth: dict) -> float:
     return float(np.mean(d) * 1000.0)
 
 
-def machine() -> dict:
+def machine(speed_ref_before_ms: float | None = None) -> dict:
+    """The machine a run was made on, and how fast it ran (bench.speed_reference: before the run when given,
+    and now)."""
     cpu = platform.processor() or ""
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as fh:
@@ -112,8 +115,10 @@ def machine() -> dict:
 
     return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__,
             "numba": numba.__version__, "platform": platform.platform(), "load_avg_1m": round(load[0], 2),
+            "speed_ref_ms": {"before": speed_ref_before_ms, "after": reference_ms()},
             "note": "2 cores shared with other engineers' jobs: wall times are pessimistic; ms_per_frame is the "
-                    "fitting thread's CPU time"}
+                    "fitting thread's CPU time; speed_ref_ms: a fixed workload's CPU time before and after the run "
+                    "(bench.speed_reference: the VM's speed drifts, divide by it to compare runs)"}
 
 
 class _Acc:
@@ -285,6 +290,7 @@ def run(plan: Plan = FULL, base: FitConfig | None = None, progress: Callable[[st
     unknown = wanted - set(PROTOCOLS)
     if unknown:
         raise ValueError(f"unknown protocol(s) {', '.join(sorted(unknown))}; known: {', '.join(PROTOCOLS)}")
+    speed_ref_before = reference_ms()
     results = []
     description = protocol_description(plan)
     for noise in plan.noises:
@@ -322,4 +328,4 @@ def run(plan: Plan = FULL, base: FitConfig | None = None, progress: Callable[[st
         say("squat_video")
         description["squat_video"] = squat_video.__doc__.split("\n\n")[1].replace("\n", " ")
         results.extend(squat_video.run(shared_data(), replace(base, body_height_m=1.65)))
-    return {"protocol": description, "machine": machine(), "results": results}
+    return {"protocol": description, "machine": machine(speed_ref_before), "results": results}

@@ -44,7 +44,9 @@ def run(args: argparse.Namespace) -> int:
 def markdown(report: dict) -> str:
     """The report as Markdown tables (the shape of docs/bench/fit.md)."""
     m = report["machine"]
-    lines = [f"machine: {m['cpu']}, {m['cores']} cores, load {m['load_avg_1m']} ({m['note']})", ""]
+    ref = m.get("speed_ref_ms") or {}
+    lines = [f"machine: {m['cpu']}, {m['cores']} cores, load {m['load_avg_1m']}, speed reference "
+             f"{ref.get('before')} ms before / {ref.get('after')} ms after ({m['note']})", ""]
     ind = [r for r in report["results"] if r.get("domain", "in-domain") == "in-domain" and r["protocol"] != "table3"]
     if ind:
         lines += ["In-domain (simulated people rendered from the fitted humanoid itself):", ""]

@@ -89,6 +89,8 @@ def test_bench_fit_report_structure():
                       settings=((6, 6),), noises=(0.0,), table3=False, sequences=("stand_to_sit",))
     report = bench.run(plan, FitConfig())
     assert set(report) == {"protocol", "machine", "results"}
+    ref = report["machine"]["speed_ref_ms"]    # how fast the machine ran, before and after
+    assert ref["before"] > 0 and ref["after"] > 0
     keys = {"optimizer", "restarts", "max_row", "mode", "noise_px", "angle_err_deg", "mpjpe3d_mm", "err2d", "loss",
             "evals", "ms_per_frame"}
     for r in report["results"]:
@@ -98,4 +100,5 @@ def test_bench_fit_report_structure():
     video = [r for r in report["results"] if r["mode"] == "video"][0]
     assert video["frames"] == 120 and video["angle_err_deg"] < 1.0
     assert "| paper_poses | udeas+lm | (6, 6) |" in markdown(report)
+    assert f"speed reference {ref['before']} ms before / {ref['after']} ms after" in markdown(report)
     json.dumps(report)
