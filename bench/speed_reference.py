@@ -3,7 +3,7 @@
 The shared VM's speed drifts by up to 1.5x between hours (docs/bench/fit.md, runs I-K): a per-frame time from
 one run cannot be compared with another run's unless both say how fast the machine was. :func:`reference_ms`
 times a workload that never changes with the fitter's code: a numba loop of the same kind of work as the
-refinement (small dense matrix-vector products, a square root and a division per element, no memory traffic
+refinement (small dense matrix-vector products, a square root per product and a division per element, no memory traffic
 beyond a few kilobytes), on one core, CPU time of the calling thread, the median of several repeats. Divide
 a benchmark's ``ms_per_frame`` by ``speed_ref_ms`` (``posed bench fit --json``, ``machine``) to compare runs
 made at different speeds.
