@@ -8,10 +8,8 @@ import numpy as np
 
 from fitting import problem as P
 from fitting.depth_term import DepthFit
-from fitting.reported import ANGLES, FIXED_NAMES, JOINTS, N_REPORTED, reported_values
+from fitting.reported import ANGLES, JOINTS, N_REPORTED, reported_values
 from fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
-
-__all__ = ["FIXED_NAMES", "assemble", "unobserved"]
 
 _DEPENDS = {  # variables that only these landmarks observe
     "left_elbow": ("theta_sh_l", "phi_sh_l"), "right_elbow": ("theta_sh_r", "phi_sh_r"),

@@ -81,7 +81,7 @@ class Fitter:
                          and not self.config.calibration and dims is None else None)
         self._learn_t: float | None = None  # time of the last frame the learner saw
         self._work = FK.empty_work()
-        self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.assemble.FIXED_NAMES), degrees
+        self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.reported.FIXED_NAMES), degrees
         self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
         self.reset()
 

@@ -87,9 +87,8 @@ class LimbScale:
         fitter reports the scale on every video frame, and a frame without samples keeps it)."""
         rounded = self.__dict__.get("_rounded")
         if rounded is None:
-            size, ratio = self.size, self.ratio
-            rounded = {key: round(size * ratio.get(f, 1.0), 3) for f, key in _JSON_KEYS}
-            rounded["size"] = round(size, 3)
+            rounded = {key: round(self.of(f), 3) for f, key in _JSON_KEYS}
+            rounded["size"] = round(self.size, 3)
             object.__setattr__(self, "_rounded", rounded)   # a cache, not a field (the scale is frozen)
         out = dict(rounded)
         out["samples"] = dict(self.samples)
@@ -246,10 +245,9 @@ class ProportionLearner:
 
     def dims(self) -> BodyDimensions:
         """The configured dimensions with the learned proportions (built again only when they change)."""
-        size, ratio = self._scale.size, self._scale.ratio
-        key = (size, tuple(ratio.items()))
+        scale = self._scale
+        key = (scale.size, tuple(scale.ratio.items()))
         if key != self._dims_key:
             self._dims_key = key
-            # each length times LimbScale.of(name)
-            self._dims = BodyDimensions(*[v * (size * ratio.get(name, 1.0)) for name, v in self._base_pairs])
+            self._dims = BodyDimensions(*[v * scale.of(name) for name, v in self._base_pairs])
         return self._dims

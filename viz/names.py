@@ -37,7 +37,7 @@ ANGLE_LABELS: dict[str, str] = {
     "phi_an_r": "right ankle inversion (not measured)",
 }
 
-# the angles the fit holds fixed (fitting/assemble.py FIXED_NAMES): no landmark observes them
+# the angles the fit holds fixed (fitting/reported.py FIXED_NAMES): no landmark observes them
 FIXED_ANGLES = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
 MEASURED_ANGLES = tuple(n for n in ANGLE_LABELS if n not in FIXED_ANGLES)
 

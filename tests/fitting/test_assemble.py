@@ -9,10 +9,10 @@ import pytest
 from fitting import forward_kinematics as FK
 from fitting import layout as L
 from fitting import problem as P
-from fitting.assemble import FIXED_NAMES, assemble, unobserved
+from fitting.assemble import assemble, unobserved
 from fitting.depth_term import DepthFit
 from fitting.kinematics import BODY_LANDMARK_NAMES
-from fitting.reported import rounded
+from fitting.reported import FIXED_NAMES, rounded
 from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 from tests.fitting.root_reference import reference_root
 from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
