@@ -436,7 +436,10 @@ def description(plan: OodPlan, takes_depth: bool) -> dict:
         "depth_sim": {"sigma_m": f"{sim.sigma_k:.4f} * z^2", "hole_rate": sim.hole_rate,
                       "background_rate": sim.background_rate,
                       "background_behind_m": list(sim.background_behind_m),
-                      "surface_offset_m": "torso 0.10, limbs 0.04, hands/feet 0.02, face 0"},
+                      "surface_offset_m": "torso 0.10, limbs 0.04, hands/feet 0.02, face 0",
+                      "self_occlusion": sim.self_occlusion and "a landmark's pixel ray that first enters another "
+                                        "part of the body (capsules: torso 0.10 m, head 0.08, limb segments 0.04 "
+                                        "radius) measures that part's surface (bench.depth_sim.CAPSULES)"},
         "mpjpe_mm": "mean over the 12 body joints, both mid-hips at the origin, camera frame",
         "pa_mpjpe_mm": "the same after a per-frame similarity (Procrustes with scale)",
         "depth_flip_rate": f"fraction of limb segments (true |dz| > {FLIP_MIN_DZ_M} m) whose fitted dz has the "

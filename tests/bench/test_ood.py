@@ -100,7 +100,7 @@ def test_depth_simulator_statistics():
     for z0 in (2.0, 4.0):
         pts = np.zeros((33, 3))
         pts[:, 2] = z0                                   # all on the optical axis: inside the image
-        quiet = D.DepthSim(hole_rate=0.0, background_rate=0.0)
+        quiet = D.DepthSim(hole_rate=0.0, background_rate=0.0, self_occlusion=False)   # all points coincide
         d = np.array([D.simulate_depth(pts, k, rng, quiet) for _ in range(n_frames)])
         surface = z0 - D.SURFACE_OFFSET_M                # on the axis the ray is z itself
         resid = d - surface
@@ -110,7 +110,7 @@ def test_depth_simulator_statistics():
         assert abs(sd / want - 1.0) < 4.0 / math.sqrt(2 * n), (z0, sd, want)
         assert abs(float(resid.mean())) < 4.0 * want / math.sqrt(n)
     assert D.SIGMA_K * 9.0 == pytest.approx(0.030, abs=0.001)    # about 3 cm at 3 m, as stated
-    sim = D.DepthSim()
+    sim = D.DepthSim(self_occlusion=False)
     pts = np.zeros((33, 3))
     pts[:, 2] = 3.0
     d = np.array([D.simulate_depth(pts, k, rng, sim) for _ in range(n_frames)])
@@ -126,6 +126,65 @@ def test_depth_simulator_statistics():
     out = pts.copy()
     out[0] = [10.0, 0.0, 3.0]
     assert np.isnan(D.simulate_depth(out, k, rng, sim)[0])
+
+
+def _person_33(z0: float) -> np.ndarray:
+    """33 points of a person standing 3 m in front of the camera, facing it, arms hanging a little away from the
+    body (camera frame: x right, y down, z forward; the person's left on the image's right)."""
+    from landmarks import LANDMARK_NAMES
+    at = {"nose": (0.0, -0.68, -0.10), "left_ear": (0.07, -0.70, 0.0), "right_ear": (-0.07, -0.70, 0.0),
+          "shoulder": (0.18, -0.50, 0.0), "elbow": (0.26, -0.22, 0.0), "wrist": (0.28, 0.03, 0.0),
+          "hip": (0.08, 0.0, 0.0), "knee": (0.09, 0.45, 0.0), "ankle": (0.09, 0.88, 0.0)}
+    pts = np.zeros((33, 3))
+    for i, name in enumerate(LANDMARK_NAMES):
+        side, _, part = name.partition("_")
+        if name in at:
+            pts[i] = at[name]
+        elif part in at and side in ("left", "right"):
+            x, y, z = at[part]
+            pts[i] = (x if side == "left" else -x, y, z)
+        else:                                   # other face, hand and foot points: near the nose, wrist, ankle
+            near = "wrist" if part in ("pinky", "index", "thumb") else "ankle" if part in ("heel", "foot_index") \
+                else "nose"
+            x, y, z = at[near] if near == "nose" else at[near]
+            pts[i] = (x if side != "right" else -x, y, z - 0.02)
+    pts[:, 2] += z0
+    return pts
+
+
+def test_self_occlusion_hides_the_far_side_seen_from_the_side_and_nothing_from_the_front():
+    """Facing the camera every body landmark shows its own surface; turned 90 degrees (the left side towards the
+    camera) the far (right) shoulder and hip are behind the torso: the camera measures the torso's near
+    surface, more than 20 cm in front of their own; the near side's shoulder, elbow, knee and ankle still show
+    their own."""
+    k = M.intrinsics()
+    rng = np.random.default_rng(1)
+    exact = D.DepthSim(sigma_k=0.0, hole_rate=0.0, background_rate=0.0)
+    idx = {n: i for i, n in enumerate(__import__("landmarks").LANDMARK_NAMES)}
+    body = [idx[f"{s}_{p}"] for s in ("left", "right")
+            for p in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")]
+
+    def own(p):
+        return p[:, 2] * (1.0 - D.SURFACE_OFFSET_M / np.linalg.norm(p, axis=1))
+
+    front = _person_33(3.0)
+    d = D.simulate_depth(front, k, rng, exact)
+    assert np.allclose(d[body], own(front)[body], atol=1e-9)
+    centre = np.array([0.0, 0.0, 3.0])
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])   # the person's left to the camera
+    side = (front - centre) @ turn.T + centre
+    assert side[idx["left_shoulder"], 2] < side[idx["right_shoulder"], 2]
+    d = D.simulate_depth(side, k, rng, exact)
+    for far in ("right_shoulder", "right_hip"):
+        i = idx[far]
+        assert own(side)[i] - d[i] > 0.20, far
+        assert d[i] == pytest.approx(D.first_body_hit(side)[i])
+    for near in ("left_shoulder", "left_elbow", "left_knee", "left_ankle"):   # (the hanging hand hides the hip)
+        assert d[idx[near]] == pytest.approx(own(side)[idx[near]], abs=1e-9), near
+    # without self-occlusion the far side shows its own surface
+    d = D.simulate_depth(side, k, rng, D.DepthSim(sigma_k=0.0, hole_rate=0.0, background_rate=0.0,
+                                                   self_occlusion=False))
+    assert np.allclose(d[body], own(side)[body], atol=1e-9)
 
 
 def test_mocap_landmarks_33x5_with_the_body_finite_and_in_view(shared_data):
