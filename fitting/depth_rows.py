@@ -20,9 +20,50 @@ from numba import njit
 from fitting import forward_kinematics as FK
 from fitting import jacobian as JAC
 from fitting import layout as L
-from fitting.depth_term import DEPTH_RMS_K, MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, DepthFit
+from fitting.depth_term import (
+    CAPSULE_RADII,
+    CAPSULES,
+    DEPTH_RMS_K,
+    HIDDEN_MARGIN_M,
+    MIN_DEPTHS,
+    SURFACE_M,
+    SURFACE_SIGMA_M,
+    DepthFit,
+)
 
 _SURFACE = tuple(float(v) for v in SURFACE_M)  # frozen into the kernel (fitting.jitcache hashes depth_term)
+_CAPSULES = np.array(CAPSULES, dtype=np.int64)
+_RADII = np.array(CAPSULE_RADII)
+
+
+@njit(cache=True)
+def occluder_front_into(pts_c, front):
+    """:func:`fitting.depth_term.occluder_front` of the first 12 rows of ``pts_c`` into ``front`` (12)."""
+    for i in range(L.N_LM):
+        front[i] = np.inf
+    for c in range(_CAPSULES.shape[0]):
+        a0, a1, b0, b1 = _CAPSULES[c, 0], _CAPSULES[c, 1], _CAPSULES[c, 2], _CAPSULES[c, 3]
+        r2 = _RADII[c] * _RADII[c]
+        ax = 0.5 * (pts_c[a0, 0] + pts_c[a1, 0])
+        ay = 0.5 * (pts_c[a0, 1] + pts_c[a1, 1])
+        az = 0.5 * (pts_c[a0, 2] + pts_c[a1, 2])
+        ux = 0.5 * (pts_c[b0, 0] + pts_c[b1, 0]) - ax
+        uy = 0.5 * (pts_c[b0, 1] + pts_c[b1, 1]) - ay
+        uz = 0.5 * (pts_c[b0, 2] + pts_c[b1, 2]) - az
+        uu = ux * ux + uy * uy
+        for i in range(L.N_LM):
+            if i == a0 or i == a1 or i == b0 or i == b1:
+                continue
+            s = 0.0
+            if uu > 1e-12:
+                s = min(max(((pts_c[i, 0] - ax) * ux + (pts_c[i, 1] - ay) * uy) / uu, 0.0), 1.0)
+            dx = pts_c[i, 0] - (ax + s * ux)
+            dy = pts_c[i, 1] - (ay + s * uy)
+            miss2 = dx * dx + dy * dy
+            if miss2 < r2:
+                z = az + s * uz - math.sqrt(r2 - miss2)
+                if z < pts_c[i, 2] - _SURFACE[i] - HIDDEN_MARGIN_M and z < front[i]:
+                    front[i] = z
 
 
 @njit(cache=True)
@@ -36,6 +77,8 @@ def depth_term_kernel(x, data, depth, targets, weights):
     pts_b = np.empty((L.N_POINTS, 3))
     pts_c = np.empty((L.N_POINTS, 3))
     FK.model_points(x, data, pts_b, pts_c)
+    front = np.empty(L.N_LM)
+    occluder_front_into(pts_c, front)
     votes = np.empty(L.N_LM)
     n = 0
     for i in range(L.N_LM):
@@ -43,7 +86,7 @@ def depth_term_kernel(x, data, depth, targets, weights):
         targets[i] = np.nan
         weights[i] = 0.0
         if np.isfinite(d) and d > 0.0:
-            votes[n] = d + _SURFACE[i] - pts_c[i, 2]
+            votes[n] = d - front[i] if front[i] < np.inf else d + _SURFACE[i] - pts_c[i, 2]
             n += 1
     if n < MIN_DEPTHS:
         return n, 0.0, np.nan, 0, np.nan
@@ -66,8 +109,9 @@ def depth_term_kernel(x, data, depth, targets, weights):
             u = (votes[j] - root) / sigma
             u2 = u * u
             cost += u2 / (1.0 + u2)
-            targets[i] = d + _SURFACE[i] - root
-            weights[i] = 1.0 / (1.0 + u2) ** 2
+            if front[i] == np.inf:   # a hidden joint's depth is the occluder's: no row for the joint
+                targets[i] = d + _SURFACE[i] - root
+                weights[i] = 1.0 / (1.0 + u2) ** 2
             j += 1
     return n, cost, root, near, sigma
 

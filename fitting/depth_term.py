@@ -13,6 +13,14 @@ a silhouette edge, the **background** metres behind; and it has **holes** (NaN).
   surface offset's own spread :data:`SURFACE_SIGMA_M` — costs ``u^2 / (1 + u^2)`` (Geman-McClure): at most 1
   per landmark, so an occluder or a background hit can never outweigh the landmarks.
 
+A joint the hypothesis puts **behind another part of its own body** (the far shoulder and hip behind the
+torso seen from the side, the far knee behind the near leg: :func:`occluder_front`) cannot be seen: the camera
+measures that part's near surface there, so that landmark's vote uses the occluder's front instead of the
+joint's own surface, and it gets no refinement row (its measured depth says where the occluder is, not where
+the joint is). Without this a hypothesis that brings the hidden limb forward onto the occluder's surface
+explains the measurement better than the true one. The body is a few capsules (:data:`CAPSULES`), seen along
+the optical axis (the body's width is small against its distance).
+
 Fewer than :data:`MIN_DEPTHS` depths: no term (a recording without depth is fitted exactly as before).
 And depth that no hypothesis of the frame agrees with on at least half of the measured landmarks
 (:func:`usable`) is not depth of this person — a misaligned or wrongly scaled depth image, garbage — and the
@@ -34,6 +42,41 @@ SURFACE_M = np.array([0.05, 0.05, 0.04, 0.04, 0.03, 0.03, 0.08, 0.08, 0.05, 0.05
 SURFACE_SIGMA_M = 0.03   # the surface offset varies with the view and clothing
 DEPTH_RMS_K = 0.0033     # m / m^2: depth RMS error k z^2 (about 3 cm at 3 m), a D435-like camera
 MIN_DEPTHS = 3           # at least this many landmarks with a depth for the term to apply
+# the body as capsules (a, a', b, b'): from mean(a, a') to mean(b, b'), body-12 indices. The torso: three
+# upright capsules, each shoulder to the same side's hip and the mid-shoulder to the mid-hip; the limbs: each
+# segment (upper arm, forearm, thigh, shank, left then right)
+CAPSULES = ((0, 0, 6, 6), (1, 1, 7, 7), (0, 1, 6, 7),
+            (0, 0, 2, 2), (1, 1, 3, 3), (2, 2, 4, 4), (3, 3, 5, 5),
+            (6, 6, 8, 8), (7, 7, 9, 9), (8, 8, 10, 10), (9, 9, 11, 11))
+TORSO_HALF_DEPTH_M = 0.10   # the torso's radius: half an adult's chest and waist depth (20-25 cm)
+# radii, metres: the torso; the limbs about their surface offsets (SURFACE_M at the segment's lower joint)
+CAPSULE_RADII = (TORSO_HALF_DEPTH_M,) * 3 + (0.04, 0.04, 0.03, 0.03, 0.05, 0.05, 0.04, 0.04)
+HIDDEN_MARGIN_M = 0.03   # hidden: the occluder's front at least this much nearer than the joint's own surface
+
+
+def occluder_front(pts: np.ndarray) -> np.ndarray:
+    """For each of the 12 body landmarks at ``pts`` (12 x 3, metres, camera axes: z away from the camera), the
+    depth of the nearest other body part's front surface on its line of sight (along z: :data:`CAPSULES`)
+    where that is at least HIDDEN_MARGIN_M nearer than the landmark's own surface (``z - SURFACE_M``): the
+    landmark is hidden; +inf where it is not. A capsule never hides its own end points."""
+    front = np.full(12, np.inf)
+    own = pts[:, 2] - SURFACE_M
+    for (a0, a1, b0, b1), r in zip(CAPSULES, CAPSULE_RADII, strict=True):
+        a = 0.5 * (pts[a0] + pts[a1])
+        u = 0.5 * (pts[b0] + pts[b1]) - a
+        uu = u[0] * u[0] + u[1] * u[1]
+        for i in range(12):
+            if i in (a0, a1, b0, b1):
+                continue
+            s = 0.0 if uu <= 1e-12 else min(max(((pts[i, 0] - a[0]) * u[0] + (pts[i, 1] - a[1]) * u[1]) / uu,
+                                                0.0), 1.0)
+            q = a + s * u
+            miss2 = (pts[i, 0] - q[0]) ** 2 + (pts[i, 1] - q[1]) ** 2
+            if miss2 < r * r:
+                z = q[2] - math.sqrt(r * r - miss2)
+                if z < own[i] - HIDDEN_MARGIN_M and z < front[i]:
+                    front[i] = z
+    return front
 
 
 @dataclass(frozen=True)
@@ -52,13 +95,16 @@ class DepthFit:
     weights: np.ndarray
 
 
-def depth_fit(z_rel: np.ndarray, depth: np.ndarray) -> DepthFit | None:
+def depth_fit(z_rel: np.ndarray, depth: np.ndarray, front: np.ndarray | None = None) -> DepthFit | None:
     """The depth term for landmark depths ``z_rel`` (12, metres relative to the mid-hip, camera z) against
-    the measured ``depth`` (12, metres, NaN unknown). None with fewer than MIN_DEPTHS measurements."""
+    the measured ``depth`` (12, metres, NaN unknown); ``front``: :func:`occluder_front` of the hypothesis (None:
+    nothing hidden). None with fewer than MIN_DEPTHS measurements."""
     ok = np.isfinite(depth) & (depth > 0)
     if ok.sum() < MIN_DEPTHS:
         return None
-    votes = depth[ok] + SURFACE_M[ok] - z_rel[ok]
+    hidden = np.isfinite(front) if front is not None else np.zeros(12, dtype=bool)
+    seen = np.where(hidden, front, z_rel - SURFACE_M)   # the surface the camera should see, relative
+    votes = depth[ok] - seen[ok]
     root = float(np.median(votes))
     sigma = math.hypot(DEPTH_RMS_K * root * root, SURFACE_SIGMA_M)
     near = np.abs(votes - root) < 3.0 * sigma
@@ -69,6 +115,8 @@ def depth_fit(z_rel: np.ndarray, depth: np.ndarray) -> DepthFit | None:
     targets[ok] = depth[ok] + SURFACE_M[ok] - root
     weights = np.zeros(12)
     weights[ok] = 1.0 / (1.0 + u2) ** 2
+    targets[hidden] = np.nan      # a hidden joint's depth is the occluder's: no row for the joint
+    weights[hidden] = 0.0
     return DepthFit(float(np.sum(u2 / (1.0 + u2))), root, int(near.sum()), sigma, targets, weights)
 
 

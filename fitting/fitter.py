@@ -38,11 +38,11 @@ from fitting.body import BodyDimensions, dimensions_for
 from fitting.candidates import image_candidates, score_all, score_into
 from fitting.config import FitConfig
 from fitting.depth_rows import depth_fit_at
-from fitting.depth_term import DepthFit, usable
+from fitting.depth_term import DEPTH_RMS_K, SURFACE_M, DepthFit, usable
 from fitting.hypotheses import best_hypothesis, video_starts
 from fitting.kinematics import BODY_LANDMARKS
 from fitting.projection import image_scale
-from fitting.proportions import ProportionLearner
+from fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
 from fitting.result import FitResult
 
 MODES = ("video", "image")
@@ -226,13 +226,19 @@ class Fitter:
             return FitResult.failure(seq, t, f"fit rejected: {what}; the landmarks do not fit a person",
                                      loss=float(loss), fit_ms=fit_ms)
         self._prev_x, self._prev_ppm, self._prev_t = x.copy(), ppm0, t
+        depth = self._depth_fit(frame, x)
         result = assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
-                          evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma,
-                          depth=self._depth_fit(frame, x))
+                          evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma, depth=depth)
         if mode == "video" and self._learner is not None:
             result.extra["limb_scale"] = self._learner.scale.to_json()  # the lengths this fit used
             obs = frame.data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
-            self._learner.observe(obs, frame.weights, image_scale(x, frame.data), self.dims)
+            pts, sd = None, 0.0
+            if depth is not None and use_persp:   # the lengths in 3D: the depth-consistent, seen landmarks
+                use = (depth.weights >= DEPTH_MIN_WEIGHT) & (frame.weights > 0)
+                pts = joint_points(xy, self._depth, use, SURFACE_M, intrinsics.fx, intrinsics.fy, intrinsics.cx,
+                                   intrinsics.cy)
+                sd = DEPTH_RMS_K * depth.root_z ** 2   # the camera's noise at the person's distance
+            self._learner.observe(obs, frame.weights, image_scale(x, frame.data), self.dims, pts, sd)
             self._learn_t = t
         return result
 

@@ -23,6 +23,13 @@ by a few per cent from the ratios; a change that small is within the estimate's 
 unsettle the fit). The image shows proportions, not size: the whole body is then scaled so that thigh, shank
 and trunk add up to the configured ones (the height the user configured keeps the person's distance right).
 
+With a depth camera the lengths are measured directly (``pts`` of :meth:`ProportionLearner.observe`): each landmark
+the fit sees with a consistent depth is placed in 3D (its pixel's ray at the measured depth plus the surface
+offset), and every frame gives each segment whose two ends are placed a sample of its 3D length, whatever the
+pose. Depth noise only lengthens a segment on average (by about ``sigma^2 / L``: 4 mm, 2 %, for a forearm at
+3 m), and that is taken off each sample's square; no percentile is needed: the median is taken. A group with at least MIN_SAMPLES such samples is learned from
+them instead of from the image.
+
 Units: lengths in metres; ratios unitless; image coordinates in the fit's normalized units (fitting.problem).
 Plain Python and NumPy (no kernels); the caller (fitting.fitter) decides when to observe, apply and forget.
 """
@@ -59,10 +66,16 @@ MAX_TRUNK_TILT_DEG = 30.0   # the trunk (mid-hip -> mid-shoulder) within this of
 MAX_PAIR_MISMATCH = 0.3     # |r_upper / r_lower - 1| above this: one of the two is foreshortened
 MIN_FACING = 0.5            # hip width: the shoulders show at least this fraction of their width (not edge-on)
 HISTORY = 600               # samples kept per group (newest win): 30 s of both sides at 10 fps
+DEPTH_SAMPLE_RANGE = (0.5, 2.0)   # a 3D sample outside this ratio to the configured length is garbage (left out)
+DEPTH_MIN_WEIGHT = 0.25     # a landmark's depth is used for lengths when its robust weight is at least this
+                            # (fitting.depth_term: within one sigma of the fitted pose's depth; hidden: 0)
 PRIOR_SAMPLES = 20          # the model's own lengths count as this many samples
 MIN_SAMPLES = 10            # no estimate from fewer samples
 BOUNDS = (0.7, 1.3)         # learned length / configured length
 DEAD_ZONE = 0.03            # |ratio - 1| below this: keep the configured length
+RESOLUTION = 0.005          # learned ratios that all move less than this keep their previous values: a new
+                            # body costs a rebuild of the fit's problem, and so small a change is below the
+                            # estimate's own scatter (3D samples move the median on most frames)
 _FIELDS = tuple(f.name for f in fields(BodyDimensions))   # BodyDimensions' fields, in order
 _JSON_KEYS = tuple((f, f.removesuffix("_m")) for f in LENGTH_FIELDS)   # (field, its LimbScale.to_json key)
 _REL_FIELDS = (*LENGTH_FIELDS, "shoulder_half_m")   # the lengths the samples are relative to
@@ -71,11 +84,13 @@ _REL_FIELDS = (*LENGTH_FIELDS, "shoulder_half_m")   # the lengths the samples ar
 @dataclass(frozen=True)
 class LimbScale:
     """What was learned: each learned length field's ratio to the configured proportions (absent = 1.0), the
-    size factor of the whole body (every length, the height included) and the samples per group."""
+    size factor of the whole body (every length, the height included), the image samples per group and the 3D
+    samples per group (depth; groups without any left out)."""
 
     ratio: dict[str, float] = field(default_factory=dict)
     size: float = 1.0
     samples: dict[str, int] = field(default_factory=dict)
+    depth_samples: dict[str, int] = field(default_factory=dict)   # 3D samples per group (from depth)
 
     def of(self, name: str) -> float:
         """The factor on the configured length ``name`` (any BodyDimensions field)."""
@@ -92,7 +107,18 @@ class LimbScale:
             object.__setattr__(self, "_rounded", rounded)   # a cache, not a field (the scale is frozen)
         out = dict(rounded)
         out["samples"] = dict(self.samples)
+        if self.depth_samples:
+            out["depth_samples"] = dict(self.depth_samples)
         return out
+
+
+def joint_points(xy_px: np.ndarray, depth_m: np.ndarray, use: np.ndarray, surface_m: np.ndarray,
+                 fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
+    """The 12 body joint centres in the camera frame (12 x 3, metres) from their pixels ``xy_px`` (12 x 2) and
+    measured surface depths ``depth_m`` (12, metres along the optical axis): the joint lies ``surface_m`` (12)
+    behind the surface; NaN rows where ``use`` (12, bool) is False. Pinhole intrinsics in pixels."""
+    z = np.where(use, depth_m + surface_m, np.nan)
+    return np.stack([(xy_px[:, 0] - cx) / fx * z, (xy_px[:, 1] - cy) / fy * z, z], axis=1)
 
 
 def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions) -> list[tuple[str, tuple]]:
@@ -186,6 +212,7 @@ class ProportionLearner:
         self._height = sum(self._height_lengths)   # the configured stack of HEIGHT_FIELDS, metres
         self._height_pairs = tuple(zip(HEIGHT_FIELDS, self._height_lengths, strict=True))   # (field, metres)
         self._base_pairs = tuple((name, getattr(base, name)) for name in _FIELDS)   # (field, metres)
+        self._base_lengths = dict(self._base_pairs)
         self._rel_pairs = tuple((f, getattr(base, f)) for f in _REL_FIELDS)   # (field, metres)
         self._rel_dims: BodyDimensions | None = None   # the dims self._rel was computed for
         self._rel: dict[str, tuple[list[float], float]] = {}
@@ -195,6 +222,7 @@ class ProportionLearner:
         """Start over (another person, or a long time without one)."""
         # per group: the recent samples as multiples of the *configured* proportions
         self._win = {name: _Window(fs, pct) for name, fs, pct in GROUPS}   # GROUPS order
+        self._win3 = {name: _Window(fs, 50.0) for name, fs, _ in GROUPS}   # 3D samples (_add_depth)
         self._scale = LimbScale()
         self._dims_key: tuple | None = None   # the (size, ratios) self._dims was built for
         self._dims = self.base
@@ -203,16 +231,49 @@ class ProportionLearner:
     def scale(self) -> LimbScale:
         return self._scale
 
-    def observe(self, obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions) -> None:
-        """Add one fitted frame (see ``samples``; ``dims`` the lengths its fit used) and update the estimate."""
+    def observe(self, obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions,
+                pts: np.ndarray | None = None, depth_sd_m: float = 0.0) -> None:
+        """Add one fitted frame (see ``samples``; ``dims`` the lengths its fit used; ``pts`` its joint centres
+        placed in 3D from depth with noise ``depth_sd_m`` along the optical axis, see :meth:`_add_depth`) and
+        update the estimate."""
         got = samples(obs, w, k, dims)
-        if not got:
-            return
-        rel = self._relative(dims)
-        for name, ratios in got:
-            factors, divisor = rel[name]
-            self.add(name, [r * f / divisor for r, f in zip(ratios, factors, strict=True)])
-        self._scale = self._estimate()
+        if got:
+            rel = self._relative(dims)
+            for name, ratios in got:
+                factors, divisor = rel[name]
+                self.add(name, [r * f / divisor for r, f in zip(ratios, factors, strict=True)])
+        if (pts is not None and self._add_depth(pts, depth_sd_m)) or got:
+            self._scale = self._estimate()
+
+    def _add_depth(self, pts: np.ndarray, sd: float) -> bool:
+        """Add one frame's 3D samples (whether any was added): ``pts`` the 12 body joint centres (12 x 3,
+        metres, camera frame; NaN rows for landmarks without a usable depth, see :func:`joint_points`). Each
+        sample is a segment's 3D length over the configured length (``arm``, ``leg``: both segments of a side;
+        ``trunk``: mid-shoulder to mid-hip; ``hip``: the hip width). Depth noise of ``sd`` metres at each end
+        adds ``2 sd^2`` to a segment's expected squared length (``sd^2`` between two midpoints): taken off."""
+        p = np.asarray(pts, dtype=np.float64).tolist()   # plain floats: per-frame cost
+        mid_sh = [0.5 * (a + b) for a, b in zip(p[0], p[1], strict=True)]
+        mid_hp = [0.5 * (a + b) for a, b in zip(p[6], p[7], strict=True)]
+        base = self._base_lengths
+        v2 = sd * sd
+
+        def length(a: list[float], b: list[float], noise2: float) -> float:
+            d2 = math.dist(a, b) ** 2   # NaN stays NaN
+            return math.sqrt(max(d2 - noise2, 0.25 * d2))
+
+        rows = [("trunk", [length(mid_sh, mid_hp, v2) / base["trunk_m"]]),
+                ("hip", [length(p[6], p[7], 2 * v2) / (2.0 * base["hip_half_m"])])]
+        for name, (f_up, f_lo, sides) in zip(("arm", "leg"), LIMBS, strict=True):
+            for a, m, c in sides:
+                rows.append((name, [length(p[a], p[m], 2 * v2) / base[f_up],
+                                    length(p[m], p[c], 2 * v2) / base[f_lo]]))
+        lo, hi = DEPTH_SAMPLE_RANGE
+        added = False
+        for name, row in rows:
+            if all(lo <= v <= hi for v in row):   # (False for NaN)
+                self._win3[name].add(row)
+                added = True
+        return added
 
     def _relative(self, dims: BodyDimensions) -> dict[str, tuple[list[float], float]]:
         """Per group: (the proportion ``dims`` gives each of its lengths relative to the configured one, the
@@ -236,12 +297,18 @@ class ProportionLearner:
 
     def _estimate(self) -> LimbScale:
         ratio: dict[str, float] = {}   # LENGTH_FIELDS order (GROUPS order, each group's fields in order)
-        for win in self._win.values():
-            ratio.update(win.learned())
+        for name, win in self._win.items():
+            measured = self._win3[name]   # 3D lengths from depth, where there are enough
+            ratio.update(measured.learned() if len(measured.ring) >= MIN_SAMPLES else win.learned())
         # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
         # when standing) add up to the configured ones, the person's height being what the user configured
-        size = self._height / sum([m * ratio.get(f, 1.0) for f, m in self._height_pairs])
-        return LimbScale(ratio, size, {name: win.added for name, win in self._win.items()})
+        old = self._scale
+        if ratio.keys() == old.ratio.keys() and all(abs(ratio[f] - v) < RESOLUTION for f, v in old.ratio.items()):
+            ratio, size = old.ratio, old.size   # the same body: nothing to rebuild
+        else:
+            size = self._height / sum([m * ratio.get(f, 1.0) for f, m in self._height_pairs])
+        return LimbScale(ratio, size, {name: win.added for name, win in self._win.items()},
+                         {name: win.added for name, win in self._win3.items() if win.added})
 
     def dims(self) -> BodyDimensions:
         """The configured dimensions with the learned proportions (built again only when they change)."""

@@ -8,7 +8,7 @@ import pytest
 
 from bench import simulate as S
 from fitting import BODY_LANDMARKS, BodyDimensions, FitConfig, Fitter
-from fitting.depth_term import MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, depth_fit
+from fitting.depth_term import MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, depth_fit, occluder_front
 
 SIZE = (640, 480)
 LIMBS = ((0, 2), (2, 4), (1, 3), (3, 5), (6, 8), (8, 10), (7, 9), (9, 11))  # body-landmark index pairs
@@ -85,7 +85,7 @@ def test_kernel_matches_numpy_reference(seed):
         depth[MIN_DEPTHS - 1:] = np.nan    # too few: no term
     targets, weights = np.empty(12), np.empty(12)
     n, cost, root, inliers, sigma = depth_term_kernel(x, data, depth, targets, weights)
-    ref = depth_fit(z_rel, depth)
+    ref = depth_fit(z_rel, depth, occluder_front(pts_c[:L.N_LM]))
     assert n == int((np.isfinite(depth) & (depth > 0)).sum())
     if ref is None:
         assert n < MIN_DEPTHS
@@ -206,7 +206,7 @@ def test_depth_rows_and_compared_cost_kernels_match_numpy(seed):
     depth = 3.0 + z_rel - SURFACE_M + rng.normal(0.0, 0.03, 12)
     depth[rng.random(12) < 0.2] = np.nan
     depth[seed] += 2.5                                           # a background hit
-    ref = depth_fit(z_rel, depth)
+    ref = depth_fit(z_rel, depth, occluder_front(pts_c[:L.N_LM]))
     weight = 0.7
 
     res = np.empty(L.N_RES)
@@ -264,3 +264,67 @@ def test_video_mode_with_depth_on_real_motion(shared_data, azimuth):
     assert scores["depth"][1] < 0.7 * scores["none"][1], scores
     assert scores["garbage"][0] < scores["none"][0] + 0.003, scores     # metres: within 3 mm or better
     assert scores["garbage"][1] < scores["none"][1] + 0.02, scores
+
+
+def _sim_depth(pts):
+    """The benchmark's simulated depth camera without noise, holes or background: each landmark's own
+    surface, or the body part in front of it (bench.depth_sim's capsules, not the fit's torso)."""
+    from bench import depth_sim as D
+    from bench import mocap_landmarks as M
+
+    return D.simulate_depth(pts, M.intrinsics(), np.random.default_rng(0),
+                            D.DepthSim(sigma_k=0.0, hole_rate=0.0, background_rate=0.0))
+
+
+def test_the_torso_hides_the_far_side_seen_from_the_side_and_the_term_expects_it():
+    """Seen from the side the far shoulder and hip are behind the torso and the camera measures the torso's
+    near surface there (the benchmark's independent body model). The true pose flags them hidden
+    (occluder_front) and its votes agree; counted as if seen, they would cost nearly 1 each and pull the root.
+    Facing the camera nothing is hidden."""
+    dims, camera, pose, pts = scene("stand_arms_front", 0.0)
+    body = pts[list(BODY_LANDMARKS)]
+    rel = body - 0.5 * (pts[23] + pts[24])
+    assert np.isinf(occluder_front(rel)).all()
+    for yaw in (90.0, -90.0):
+        dims, camera, pose, pts = scene("stand_arms_front", yaw)
+        rel = pts[list(BODY_LANDMARKS)] - 0.5 * (pts[23] + pts[24])
+        far = [i for i in (0, 1, 6, 7) if rel[i, 2] > 0.05]          # the shoulder and hip away from the camera
+        assert len(far) == 2
+        depth = _sim_depth(pts)[list(BODY_LANDMARKS)]
+        front = occluder_front(rel)
+        assert np.isfinite(front[far]).all()
+        aware, naive = depth_fit(rel[:, 2], depth, front), depth_fit(rel[:, 2], depth)
+        true_root = 0.5 * (pts[23, 2] + pts[24, 2])
+        assert abs(aware.root_z - true_root) < 0.02 and aware.inliers == 12
+        assert naive.cost - aware.cost > 1.5, (naive.cost, aware.cost)
+        assert np.isnan(aware.targets[far]).all() and (aware.weights[far] == 0).all()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_occluder_front_kernel_matches_numpy(seed):
+    """fitting.depth_rows.occluder_front_into (numba) against depth_term.occluder_front on model poses from every
+    side (some landmarks hidden, most not)."""
+    from fitting import forward_kinematics as FK
+    from fitting import layout as L
+    from fitting import problem as P
+    from fitting.depth_rows import occluder_front_into
+    from fitting.result import VARIABLE_NAMES
+
+    rng = np.random.default_rng(50 + seed)
+    dims = BodyDimensions.from_height(1.7)
+    hidden = 0
+    for k in range(24):
+        pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair", "stand_arms_front")[k % 4], 15.0 * k)
+        lm = S.render(pose, dims=dims, noise_px=1.0, seed=k)
+        xy, w, _ = P.landmark_weights(lm, FitConfig())
+        data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data
+        x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+        x[1:] += rng.normal(0.0, 0.1, x.size - 1)
+        pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
+        FK.model_points(x, data, pts_b, pts_c)
+        got = np.empty(L.N_LM)
+        occluder_front_into(pts_c, got)
+        ref = occluder_front(pts_c[:L.N_LM])
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
+        hidden += int(np.isfinite(ref).sum())
+    assert 0 < hidden < 24 * 12 // 4

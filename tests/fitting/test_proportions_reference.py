@@ -53,6 +53,9 @@ class _ReferenceLearner:
                 v = sorted(row[c] for row in self.rows[name])[int(pct / 100.0 * (n - 1))]
                 raw[f] = min(max(1.0 + (v - 1.0) * n / (n + PR.PRIOR_SAMPLES), PR.BOUNDS[0]), PR.BOUNDS[1])
         raw = {f: v for f, v in raw.items() if abs(v - 1.0) >= PR.DEAD_ZONE}
+        old = self.scale
+        if set(raw) == set(old.ratio) and all(abs(raw[f] - old.ratio[f]) < PR.RESOLUTION for f in raw):
+            return PR.LimbScale(old.ratio, old.size, dict(self.added))   # moved less than the resolution: kept
         height = sum(getattr(self.base, f) for f in PR.HEIGHT_FIELDS)
         size = height / sum(getattr(self.base, f) * raw.get(f, 1.0) for f in PR.HEIGHT_FIELDS)
         return PR.LimbScale(raw, size, dict(self.added))
