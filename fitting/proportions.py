@@ -23,12 +23,12 @@ by a few per cent from the ratios; a change that small is within the estimate's 
 unsettle the fit). The image shows proportions, not size: the whole body is then scaled so that thigh, shank
 and trunk add up to the configured ones (the height the user configured keeps the person's distance right).
 
-With a depth camera the lengths are measured directly (``pts`` of :meth:`ProportionLearner.observe`): each landmark
-the fit sees with a consistent depth is placed in 3D (its pixel's ray at the measured depth plus the surface
-offset), and every frame gives each segment whose two ends are placed a sample of its 3D length, whatever the
-pose. Depth noise only lengthens a segment on average (by about ``sigma^2 / L``: 4 mm, 2 %, for a forearm at
-3 m), and that is taken off each sample's square; no percentile is needed: the median is taken. A group with at least MIN_SAMPLES such samples is learned from
-them instead of from the image.
+With a depth camera the lengths are measured directly (``pts`` of :meth:`ProportionLearner.observe`): each
+landmark the fit sees with a consistent depth is placed in 3D (its pixel's ray at the measured depth plus the
+surface offset), and every frame gives each segment whose two ends are placed a sample of its 3D length,
+whatever the pose. Depth noise only lengthens a segment on average (by about ``sigma^2 / L``: 4 mm, 2 %, for a
+forearm at 3 m), and that is taken off each sample's square; no percentile is needed: the median is taken. A
+group with at least MIN_SAMPLES such samples is learned from them instead of from the image.
 
 Units: lengths in metres; ratios unitless; image coordinates in the fit's normalized units (fitting.problem).
 Plain Python and NumPy (no kernels); the caller (fitting.fitter) decides when to observe, apply and forget.
