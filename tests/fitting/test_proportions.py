@@ -61,6 +61,31 @@ def test_learns_the_mocap_subjects_proportions_and_fits_it_better(walk):
     assert pa_l < 0.92 * pa_f, (pa_l, pa_f)   # after the first 4 s (learning)
 
 
+def test_with_depth_the_lengths_are_measured_closer_to_the_subjects(walk):
+    """The same walk with the simulated depth camera (its noise, holes, background hits and the body's own
+    occlusions): the fit learns the lengths from 3D samples (``depth_samples`` in every result's limb_scale
+    once there are some), and they land nearer the subject's than those learned from the image alone."""
+    seq, clip, true = walk
+    k = seq.camera.intrinsics
+    lms = seq.landmarks[0]
+    cfg = FitConfig(body_height_m=round(clip.height_m, 3))
+    with_depth, image_only = Fitter(cfg), Fitter(cfg)
+    res = [with_depth.fit(lms[i], i, float(seq.times[i]), k.size, mode="video", intrinsics=k, depth_m=seq.depth[i])
+           for i in range(len(lms))]
+    _video(image_only, seq)
+    assert all(r.ok for r in res)
+    assert "depth_samples" in res[-1].extra["limb_scale"]
+    assert "depth_samples" not in image_only._learner.scale.to_json()
+    base = with_depth.base_dims
+
+    def error(f: Fitter) -> float:   # mean |learned - true| over the learned length fields, as ratios
+        return float(np.mean([abs(f._learner.scale.of(n) - getattr(true, n) / getattr(base, n))
+                              for n in ("upper_arm_m", "forearm_m", "thigh_m", "shank_m", "trunk_m", "hip_half_m")]))
+
+    assert error(with_depth) < error(image_only), (error(with_depth), error(image_only))
+    assert error(with_depth) < 0.05
+
+
 def test_the_models_own_rendering_learns_nothing():
     """A rendering of the model itself fits exactly: the estimate stays inside the dead zone, the lengths are
     the configured ones to the last bit and the fit stays exact."""
