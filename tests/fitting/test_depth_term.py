@@ -32,6 +32,25 @@ def measured(pts, rng=None, sigma=0.0):
     return d
 
 
+def _near_solution(pose, dims, noise_px, seed, rng, jitter):
+    """A solution near ``pose`` (its angles plus Gaussian ``jitter`` radians) of the problem that the rendering
+    of ``pose`` with ``noise_px`` of landmark noise poses: (x, a copy of the problem's data, the model points in
+    the camera frame)."""
+    from fitting import forward_kinematics as FK
+    from fitting import layout as L
+    from fitting import problem as P
+    from fitting.result import VARIABLE_NAMES
+
+    lm = S.render(pose, dims=dims, noise_px=noise_px, seed=seed)
+    xy, w, _ = P.landmark_weights(lm, FitConfig())
+    data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data.copy()
+    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+    x[1:] += rng.normal(0.0, jitter, x.size - 1)
+    pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
+    FK.model_points(x, data, pts_b, pts_c)
+    return x, data, pts_c
+
+
 def test_consistent_depth_costs_nothing_and_gives_the_root():
     z_rel = np.linspace(-0.2, 0.2, 12)
     depth = 3.0 + z_rel - SURFACE_M
@@ -61,22 +80,12 @@ def test_kernel_matches_numpy_reference(seed):
     """fitting.depth_rows.depth_term_kernel (numba, on a solution x) against depth_term.depth_fit (NumPy, on
     the same landmark depths): holes, background hits, occluders, and too few depths. Bound: the votes are
     sums of a few metres, so their median, inlier mean and costs agree to a few float64 ulps of 10 m."""
-    from fitting import forward_kinematics as FK
     from fitting import layout as L
-    from fitting import problem as P
     from fitting.depth_rows import depth_term_kernel
-    from fitting.result import VARIABLE_NAMES
 
     rng = np.random.default_rng(seed)
-    dims = BodyDimensions.from_height(1.6)
     pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair")[seed % 3], rng.uniform(-180, 180))
-    lm = S.render(pose, dims=dims, noise_px=2.0, seed=seed)
-    xy, w, _ = P.landmark_weights(lm, FitConfig())
-    data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data
-    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
-    x[1:] += rng.normal(0.0, 0.2, x.size - 1)
-    pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
-    FK.model_points(x, data, pts_b, pts_c)
+    x, data, pts_c = _near_solution(pose, BodyDimensions.from_height(1.6), 2.0, seed, rng, 0.2)
     z_rel = pts_c[:L.N_LM, 2]
     depth = rng.uniform(2.0, 5.0) + z_rel - SURFACE_M + rng.normal(0.0, 0.03, 12)
     depth[rng.random(12) < 0.15] = np.nan
@@ -184,24 +193,14 @@ def test_depth_rows_and_compared_cost_kernels_match_numpy(seed):
     depth term: rows w = sqrt(weight x robust weight) / sigma at the targets (NaN -> 0), off with too few
     depths or no weight; the compared cost is the sum of squares of every residual row but the depth rows,
     plus weight x the depth term's cost."""
-    from fitting import forward_kinematics as FK
     from fitting import jacobian as JAC
     from fitting import layout as L
-    from fitting import problem as P
     from fitting.depth_rows import cost_with_depth, set_depth_rows_at
-    from fitting.result import VARIABLE_NAMES
 
     rng = np.random.default_rng(100 + seed)
-    dims = BodyDimensions.from_height(1.7)
     pose = S.pose(("stand_arms_up", "bend_grab", "sit_chair", "fallen_sideways")[seed], rng.uniform(-180, 180))
-    lm = S.render(pose, dims=dims, noise_px=2.0, seed=seed)
-    xy, w, _ = P.landmark_weights(lm, FitConfig())
-    data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data.copy()
+    x, data, pts_c = _near_solution(pose, BodyDimensions.from_height(1.7), 2.0, seed, rng, 0.1)
     data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = rng.uniform(0.5, 2.0, L.N_LM)   # stale rows of another start
-    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
-    x[1:] += rng.normal(0.0, 0.1, x.size - 1)
-    pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
-    FK.model_points(x, data, pts_b, pts_c)
     z_rel = pts_c[:L.N_LM, 2]
     depth = 3.0 + z_rel - SURFACE_M + rng.normal(0.0, 0.03, 12)
     depth[rng.random(12) < 0.2] = np.nan
@@ -304,24 +303,15 @@ def test_the_torso_hides_the_far_side_seen_from_the_side_and_the_term_expects_it
 def test_occluder_front_kernel_matches_numpy(seed):
     """fitting.depth_rows.occluder_front_into (numba) against depth_term.occluder_front on model poses from every
     side (some landmarks hidden, most not)."""
-    from fitting import forward_kinematics as FK
     from fitting import layout as L
-    from fitting import problem as P
     from fitting.depth_rows import occluder_front_into
-    from fitting.result import VARIABLE_NAMES
 
     rng = np.random.default_rng(50 + seed)
     dims = BodyDimensions.from_height(1.7)
     hidden = 0
     for k in range(24):
         pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair", "stand_arms_front")[k % 4], 15.0 * k)
-        lm = S.render(pose, dims=dims, noise_px=1.0, seed=k)
-        xy, w, _ = P.landmark_weights(lm, FitConfig())
-        data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data
-        x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
-        x[1:] += rng.normal(0.0, 0.1, x.size - 1)
-        pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
-        FK.model_points(x, data, pts_b, pts_c)
+        _, _, pts_c = _near_solution(pose, dims, 1.0, k, rng, 0.1)
         got = np.empty(L.N_LM)
         occluder_front_into(pts_c, got)
         ref = occluder_front(pts_c[:L.N_LM])
