@@ -37,8 +37,15 @@ _RADII = np.array(CAPSULE_RADII)
 
 
 @njit(cache=True)
-def occluder_front_into(pts_c, front):
-    """:func:`fitting.depth_term.occluder_front` of the first 12 rows of ``pts_c`` into ``front`` (12)."""
+def occluder_front_into(pts_c, data, front):
+    """:func:`fitting.depth_term.occluder_front` of the first 12 rows of ``pts_c`` into ``front`` (12), along
+    each landmark's observed ray: with perspective projection the slopes ``(u - cx) / fx``, ``(v - cy) / fy``
+    of its observed pixel (problem ``data``: observations and camera), orthographic along the optical axis."""
+    slope = np.zeros((L.N_LM, 2))
+    if data[L.D_PROJ + L.PJ_MODE] != L.PROJ_ORTHOGRAPHIC:
+        for i in range(L.N_LM):
+            slope[i, 0] = (data[L.D_OBS + 2 * i] + data[L.D_PROJ + L.PJ_OFF_X]) / data[L.D_PROJ + L.PJ_FN_X]
+            slope[i, 1] = (data[L.D_OBS + 2 * i + 1] + data[L.D_PROJ + L.PJ_OFF_Y]) / data[L.D_PROJ + L.PJ_FN_Y]
     for i in range(L.N_LM):
         front[i] = np.inf
     for c in range(_CAPSULES.shape[0]):
@@ -47,18 +54,22 @@ def occluder_front_into(pts_c, front):
         ax = 0.5 * (pts_c[a0, 0] + pts_c[a1, 0])
         ay = 0.5 * (pts_c[a0, 1] + pts_c[a1, 1])
         az = 0.5 * (pts_c[a0, 2] + pts_c[a1, 2])
-        ux = 0.5 * (pts_c[b0, 0] + pts_c[b1, 0]) - ax
-        uy = 0.5 * (pts_c[b0, 1] + pts_c[b1, 1]) - ay
+        ux0 = 0.5 * (pts_c[b0, 0] + pts_c[b1, 0]) - ax
+        uy0 = 0.5 * (pts_c[b0, 1] + pts_c[b1, 1]) - ay
         uz = 0.5 * (pts_c[b0, 2] + pts_c[b1, 2]) - az
-        uu = ux * ux + uy * uy
         for i in range(L.N_LM):
             if i == a0 or i == a1 or i == b0 or i == b1:
                 continue
+            sx, sy = slope[i, 0], slope[i, 1]   # sheared along landmark i's ray: (x - sx z, y - sy z)
+            ux, uy = ux0 - sx * uz, uy0 - sy * uz
+            px = pts_c[i, 0] - sx * pts_c[i, 2] - (ax - sx * az)
+            py = pts_c[i, 1] - sy * pts_c[i, 2] - (ay - sy * az)
+            uu = ux * ux + uy * uy
             s = 0.0
             if uu > 1e-12:
-                s = min(max(((pts_c[i, 0] - ax) * ux + (pts_c[i, 1] - ay) * uy) / uu, 0.0), 1.0)
-            dx = pts_c[i, 0] - (ax + s * ux)
-            dy = pts_c[i, 1] - (ay + s * uy)
+                s = min(max((px * ux + py * uy) / uu, 0.0), 1.0)
+            dx = px - s * ux
+            dy = py - s * uy
             miss2 = dx * dx + dy * dy
             if miss2 < r2:
                 z = az + s * uz - math.sqrt(r2 - miss2)
@@ -78,7 +89,7 @@ def depth_term_kernel(x, data, depth, targets, weights):
     pts_c = np.empty((L.N_POINTS, 3))
     FK.model_points(x, data, pts_b, pts_c)
     front = np.empty(L.N_LM)
-    occluder_front_into(pts_c, front)
+    occluder_front_into(pts_c, data, front)
     votes = np.empty(L.N_LM)
     n = 0
     for i in range(L.N_LM):

@@ -18,8 +18,8 @@ torso seen from the side, the far knee behind the near leg: :func:`occluder_fron
 measures that part's near surface there, so that landmark's vote uses the occluder's front instead of the
 joint's own surface, and it gets no refinement row (its measured depth says where the occluder is, not where
 the joint is). Without this a hypothesis that brings the hidden limb forward onto the occluder's surface
-explains the measurement better than the true one. The body is a few capsules (:data:`CAPSULES`), seen along
-the optical axis (the body's width is small against its distance).
+explains the measurement better than the true one. The body is a few capsules (:data:`CAPSULES`), each
+landmark looked at along its own pixel's ray (with a pinhole camera; along the optical axis without one).
 
 Fewer than :data:`MIN_DEPTHS` depths: no term (a recording without depth is fitted exactly as before).
 And depth that no hypothesis of the frame agrees with on at least half of the measured landmarks
@@ -54,26 +54,31 @@ CAPSULE_RADII = (TORSO_HALF_DEPTH_M,) * 3 + (0.04, 0.04, 0.03, 0.03, 0.05, 0.05,
 HIDDEN_MARGIN_M = 0.03   # hidden: the occluder's front at least this much nearer than the joint's own surface
 
 
-def occluder_front(pts: np.ndarray) -> np.ndarray:
+def occluder_front(pts: np.ndarray, slopes: np.ndarray | None = None) -> np.ndarray:
     """For each of the 12 body landmarks at ``pts`` (12 x 3, metres, camera axes: z away from the camera), the
-    depth of the nearest other body part's front surface on its line of sight (along z: :data:`CAPSULES`)
-    where that is at least HIDDEN_MARGIN_M nearer than the landmark's own surface (``z - SURFACE_M``): the
-    landmark is hidden; +inf where it is not. A capsule never hides its own end points."""
+    depth of the nearest other body part's front surface on its line of sight (:data:`CAPSULES`) where that is
+    at least HIDDEN_MARGIN_M nearer than the landmark's own surface (``z - SURFACE_M``): the landmark is hidden;
+    +inf where it is not. A capsule never hides its own end points.
+
+    The line of sight of landmark i has the slopes ``slopes[i]`` = (dx/dz, dy/dz) (12 x 2: a pinhole camera's
+    ``(u - cx) / fx, (v - cy) / fy`` at its pixel; None: along the optical axis, orthographic); the test is
+    made in coordinates sheared along it (``x - sx z, y - sy z``), where the ray is parallel to z."""
     front = np.full(12, np.inf)
     own = pts[:, 2] - SURFACE_M
+    sl = np.zeros((12, 2)) if slopes is None else np.asarray(slopes, dtype=np.float64)
     for (a0, a1, b0, b1), r in zip(CAPSULES, CAPSULE_RADII, strict=True):
         a = 0.5 * (pts[a0] + pts[a1])
-        u = 0.5 * (pts[b0] + pts[b1]) - a
-        uu = u[0] * u[0] + u[1] * u[1]
+        b = 0.5 * (pts[b0] + pts[b1])
         for i in range(12):
             if i in (a0, a1, b0, b1):
                 continue
-            s = 0.0 if uu <= 1e-12 else min(max(((pts[i, 0] - a[0]) * u[0] + (pts[i, 1] - a[1]) * u[1]) / uu,
-                                                0.0), 1.0)
-            q = a + s * u
-            miss2 = (pts[i, 0] - q[0]) ** 2 + (pts[i, 1] - q[1]) ** 2
+            shear = np.array([[1.0, 0.0, -sl[i, 0]], [0.0, 1.0, -sl[i, 1]]])   # (x, y, z) -> sheared (x, y)
+            a2, u2, p2 = shear @ a, shear @ (b - a), shear @ pts[i]
+            uu = float(u2 @ u2)
+            s = 0.0 if uu <= 1e-12 else min(max(float((p2 - a2) @ u2) / uu, 0.0), 1.0)
+            miss2 = float(np.sum((p2 - a2 - s * u2) ** 2))
             if miss2 < r * r:
-                z = q[2] - math.sqrt(r * r - miss2)
+                z = a[2] + s * (b[2] - a[2]) - math.sqrt(r * r - miss2)
                 if z < own[i] - HIDDEN_MARGIN_M and z < front[i]:
                     front[i] = z
     return front

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bench import mocap_landmarks as M
 from bench import simulate as S
 from fitting import BODY_LANDMARKS, BodyDimensions, FitConfig, Fitter
 from fitting.depth_term import MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, depth_fit, occluder_front
@@ -32,10 +33,11 @@ def measured(pts, rng=None, sigma=0.0):
     return d
 
 
-def _near_solution(pose, dims, noise_px, seed, rng, jitter):
+def _near_solution(pose, dims, noise_px, seed, rng, jitter, intrinsics=None):
     """A solution near ``pose`` (its angles plus Gaussian ``jitter`` radians) of the problem that the rendering
-    of ``pose`` with ``noise_px`` of landmark noise poses: (x, a copy of the problem's data, the model points in
-    the camera frame)."""
+    of ``pose`` with ``noise_px`` of landmark noise poses, perspective with ``intrinsics`` (else orthographic):
+    (x, a copy of the problem's data, the model points in the camera frame, the landmarks' ray slopes
+    ``(u - cx) / fx, (v - cy) / fy`` from their pixels, or None without intrinsics)."""
     from fitting import forward_kinematics as FK
     from fitting import layout as L
     from fitting import problem as P
@@ -43,12 +45,15 @@ def _near_solution(pose, dims, noise_px, seed, rng, jitter):
 
     lm = S.render(pose, dims=dims, noise_px=noise_px, seed=seed)
     xy, w, _ = P.landmark_weights(lm, FitConfig())
-    data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), None).data.copy()
+    assert (w > 0).all()
+    data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), intrinsics).data.copy()
     x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
     x[1:] += rng.normal(0.0, jitter, x.size - 1)
     pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
     FK.model_points(x, data, pts_b, pts_c)
-    return x, data, pts_c
+    slopes = None if intrinsics is None else np.column_stack([(xy[:, 0] - intrinsics.cx) / intrinsics.fx,
+                                                              (xy[:, 1] - intrinsics.cy) / intrinsics.fy])
+    return x, data, pts_c, slopes
 
 
 def test_consistent_depth_costs_nothing_and_gives_the_root():
@@ -85,7 +90,8 @@ def test_kernel_matches_numpy_reference(seed):
 
     rng = np.random.default_rng(seed)
     pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair")[seed % 3], rng.uniform(-180, 180))
-    x, data, pts_c = _near_solution(pose, BodyDimensions.from_height(1.6), 2.0, seed, rng, 0.2)
+    k = M.intrinsics() if seed % 2 else None        # perspective: each landmark seen along its own ray
+    x, data, pts_c, slopes = _near_solution(pose, BodyDimensions.from_height(1.6), 2.0, seed, rng, 0.2, k)
     z_rel = pts_c[:L.N_LM, 2]
     depth = rng.uniform(2.0, 5.0) + z_rel - SURFACE_M + rng.normal(0.0, 0.03, 12)
     depth[rng.random(12) < 0.15] = np.nan
@@ -94,7 +100,7 @@ def test_kernel_matches_numpy_reference(seed):
         depth[MIN_DEPTHS - 1:] = np.nan    # too few: no term
     targets, weights = np.empty(12), np.empty(12)
     n, cost, root, inliers, sigma = depth_term_kernel(x, data, depth, targets, weights)
-    ref = depth_fit(z_rel, depth, occluder_front(pts_c[:L.N_LM]))
+    ref = depth_fit(z_rel, depth, occluder_front(pts_c[:L.N_LM], slopes))
     assert n == int((np.isfinite(depth) & (depth > 0)).sum())
     if ref is None:
         assert n < MIN_DEPTHS
@@ -199,13 +205,14 @@ def test_depth_rows_and_compared_cost_kernels_match_numpy(seed):
 
     rng = np.random.default_rng(100 + seed)
     pose = S.pose(("stand_arms_up", "bend_grab", "sit_chair", "fallen_sideways")[seed], rng.uniform(-180, 180))
-    x, data, pts_c = _near_solution(pose, BodyDimensions.from_height(1.7), 2.0, seed, rng, 0.1)
+    k = M.intrinsics() if seed % 2 else None
+    x, data, pts_c, slopes = _near_solution(pose, BodyDimensions.from_height(1.7), 2.0, seed, rng, 0.1, k)
     data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = rng.uniform(0.5, 2.0, L.N_LM)   # stale rows of another start
     z_rel = pts_c[:L.N_LM, 2]
     depth = 3.0 + z_rel - SURFACE_M + rng.normal(0.0, 0.03, 12)
     depth[rng.random(12) < 0.2] = np.nan
     depth[seed] += 2.5                                           # a background hit
-    ref = depth_fit(z_rel, depth, occluder_front(pts_c[:L.N_LM]))
+    ref = depth_fit(z_rel, depth, occluder_front(pts_c[:L.N_LM], slopes))
     weight = 0.7
 
     res = np.empty(L.N_RES)
@@ -269,7 +276,6 @@ def _sim_depth(pts):
     """The benchmark's simulated depth camera without noise, holes or background: each landmark's own
     surface, or the body part in front of it (bench.depth_sim's capsules, not the fit's torso)."""
     from bench import depth_sim as D
-    from bench import mocap_landmarks as M
 
     return D.simulate_depth(pts, M.intrinsics(), np.random.default_rng(0),
                             D.DepthSim(sigma_k=0.0, hole_rate=0.0, background_rate=0.0))
@@ -280,17 +286,21 @@ def test_the_torso_hides_the_far_side_seen_from_the_side_and_the_term_expects_it
     near surface there (the benchmark's independent body model). The true pose flags them hidden
     (occluder_front) and its votes agree; counted as if seen, they would cost nearly 1 each and pull the root.
     Facing the camera nothing is hidden."""
+    def rays(p):   # each body landmark's line of sight from the pinhole camera
+        b = p[list(BODY_LANDMARKS)]
+        return b[:, :2] / b[:, 2:3]
+
     dims, camera, pose, pts = scene("stand_arms_front", 0.0)
     body = pts[list(BODY_LANDMARKS)]
     rel = body - 0.5 * (pts[23] + pts[24])
-    assert np.isinf(occluder_front(rel)).all()
+    assert np.isinf(occluder_front(rel, rays(pts))).all()
     for yaw in (90.0, -90.0):
         dims, camera, pose, pts = scene("stand_arms_front", yaw)
         rel = pts[list(BODY_LANDMARKS)] - 0.5 * (pts[23] + pts[24])
         far = [i for i in (0, 1, 6, 7) if rel[i, 2] > 0.05]          # the shoulder and hip away from the camera
         assert len(far) == 2
         depth = _sim_depth(pts)[list(BODY_LANDMARKS)]
-        front = occluder_front(rel)
+        front = occluder_front(rel, rays(pts))
         assert np.isfinite(front[far]).all()
         aware, naive = depth_fit(rel[:, 2], depth, front), depth_fit(rel[:, 2], depth)
         true_root = 0.5 * (pts[23, 2] + pts[24, 2])
@@ -302,7 +312,9 @@ def test_the_torso_hides_the_far_side_seen_from_the_side_and_the_term_expects_it
 @pytest.mark.parametrize("seed", range(3))
 def test_occluder_front_kernel_matches_numpy(seed):
     """fitting.depth_rows.occluder_front_into (numba) against depth_term.occluder_front on model poses from every
-    side (some landmarks hidden, most not)."""
+    side (some landmarks hidden, most not), along the optical axis and along each landmark's pinhole ray (the
+    kernel reads the slopes from the problem's observations and camera, the reference gets them from the
+    pixels)."""
     from fitting import layout as L
     from fitting.depth_rows import occluder_front_into
 
@@ -311,10 +323,10 @@ def test_occluder_front_kernel_matches_numpy(seed):
     hidden = 0
     for k in range(24):
         pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair", "stand_arms_front")[k % 4], 15.0 * k)
-        _, _, pts_c = _near_solution(pose, dims, 1.0, k, rng, 0.1)
+        _, data, pts_c, slopes = _near_solution(pose, dims, 1.0, k, rng, 0.1, M.intrinsics() if k % 3 else None)
         got = np.empty(L.N_LM)
-        occluder_front_into(pts_c, got)
-        ref = occluder_front(pts_c[:L.N_LM])
+        occluder_front_into(pts_c, data, got)
+        ref = occluder_front(pts_c[:L.N_LM], slopes)
         np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
         hidden += int(np.isfinite(ref).sum())
     assert 0 < hidden < 24 * 12 // 4
