@@ -40,12 +40,17 @@ _RADII = np.array(CAPSULE_RADII)
 def occluder_front_into(pts_c, data, front):
     """:func:`fitting.depth_term.occluder_front` of the first 12 rows of ``pts_c`` into ``front`` (12), along
     each landmark's observed ray: with perspective projection the slopes ``(u - cx) / fx``, ``(v - cy) / fy``
-    of its observed pixel (problem ``data``: observations and camera), orthographic along the optical axis."""
+    of its observed pixel (problem ``data``: observations, weights and camera; a landmark of weight 0 has no
+    pixel and is looked at along the ray through the landmarks' centroid), orthographic along the optical
+    axis."""
     slope = np.zeros((L.N_LM, 2))
     if data[L.D_PROJ + L.PJ_MODE] != L.PROJ_ORTHOGRAPHIC:
         for i in range(L.N_LM):
-            slope[i, 0] = (data[L.D_OBS + 2 * i] + data[L.D_PROJ + L.PJ_OFF_X]) / data[L.D_PROJ + L.PJ_FN_X]
-            slope[i, 1] = (data[L.D_OBS + 2 * i + 1] + data[L.D_PROJ + L.PJ_OFF_Y]) / data[L.D_PROJ + L.PJ_FN_Y]
+            seen = data[L.D_W + i] > 0.0   # an unusable landmark has no pixel: the landmarks' centroid's ray
+            ox = data[L.D_OBS + 2 * i] if seen else 0.0
+            oy = data[L.D_OBS + 2 * i + 1] if seen else 0.0
+            slope[i, 0] = (ox + data[L.D_PROJ + L.PJ_OFF_X]) / data[L.D_PROJ + L.PJ_FN_X]
+            slope[i, 1] = (oy + data[L.D_PROJ + L.PJ_OFF_Y]) / data[L.D_PROJ + L.PJ_FN_Y]
     for i in range(L.N_LM):
         front[i] = np.inf
     for c in range(_CAPSULES.shape[0]):

@@ -314,7 +314,7 @@ def test_occluder_front_kernel_matches_numpy(seed):
     """fitting.depth_rows.occluder_front_into (numba) against depth_term.occluder_front on model poses from every
     side (some landmarks hidden, most not), along the optical axis and along each landmark's pinhole ray (the
     kernel reads the slopes from the problem's observations and camera, the reference gets them from the
-    pixels)."""
+    pixels), a landmark of weight 0 along the ray through the landmarks' weighted centroid."""
     from fitting import layout as L
     from fitting.depth_rows import occluder_front_into
 
@@ -324,6 +324,11 @@ def test_occluder_front_kernel_matches_numpy(seed):
     for k in range(24):
         pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair", "stand_arms_front")[k % 4], 15.0 * k)
         _, data, pts_c, slopes = _near_solution(pose, dims, 1.0, k, rng, 0.1, M.intrinsics() if k % 3 else None)
+        if slopes is not None and k % 2:   # a landmark without a usable pixel: the ray through the centroid
+            w = data[L.D_W:L.D_W + L.N_LM].copy()
+            j = k % L.N_LM
+            data[L.D_W + j] = 0.0
+            slopes[j] = w @ slopes / w.sum()
         got = np.empty(L.N_LM)
         occluder_front_into(pts_c, data, got)
         ref = occluder_front(pts_c[:L.N_LM], slopes)
