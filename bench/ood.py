@@ -4,7 +4,8 @@ skeleton that is not the model's, perspective cameras all around, image and vide
 Every other fit protocol renders the fitted humanoid itself (in-domain: a noise-free fit can be exact). Here
 the truth is CMU motion capture (:mod:`bench.mocap_landmarks`: the mocap's own joint centres and proportions,
 its hip joints where BlazePose would put its hip landmarks elsewhere), projected by pinhole cameras 2.5-5 m
-away at 8 azimuths, at 5/10/15/30 fps, with 2D noise 0 and 1 % of body height, and with or without a
+away at 8 azimuths, at 5/10/15/30 fps, with 2D noise 0 and 1 % of body height (independent per frame, and
+correlated in time: ``OodPlan.noise_corr_s``), and with or without a
 simulated D435 depth (:mod:`bench.depth_sim`) when the fitter takes one (``Fitter.fit(..., depth_m=)``),
 and with two bodies: link lengths from the body height (``height``, the fit without calibration) and the
 mocap's own lengths as a calibration file (``mocap``, an oracle ``posed calibrate``).
@@ -165,6 +166,9 @@ class OodPlan:
     modes: tuple[str, ...] = ("image", "video")
     bodies: tuple[str, ...] = ("height", "mocap")
     max_s: float | None = None       # use only the first max_s seconds of each clip
+    # the noisy levels are also run with 2D noise correlated in time (AR(1) with each of these correlation times,
+    # seconds; independent per frame is always run): a landmark extractor's error drifts rather than jumps
+    noise_corr_s: tuple[float, ...] = (0.5,)
 
 
 FULL_OOD = OodPlan()
@@ -208,8 +212,26 @@ class Sequence:
     noise_px: np.ndarray                 # (len(noises),) mean noise sd in px
 
 
+def correlated_noise(rng: np.random.Generator, frames: int, fps: float, corr_s: float) -> np.ndarray:
+    """Unit-variance Gaussian noise for the 33 landmarks' x and y over ``frames`` frames at ``fps``, each
+    coordinate an AR(1) process whose correlation falls by 1/e in ``corr_s`` seconds (F x 33 x 2); started
+    from its stationary distribution."""
+    a = math.exp(-1.0 / (fps * corr_s))
+    out = np.empty((frames, 33, 2))
+    e = rng.normal(0.0, 1.0, (33, 2))
+    for t in range(frames):
+        if t:
+            e = a * e + math.sqrt(1.0 - a * a) * rng.normal(0.0, 1.0, (33, 2))
+        out[t] = e
+    return out
+
+
 def build_sequence(clip: M.MocapClip, azimuth: float, master_fps: int, noises: Iterable[float],
-                   seed: int, max_s: float | None = None, sim: DepthSim | None = None) -> Sequence:
+                   seed: int, max_s: float | None = None, sim: DepthSim | None = None,
+                   noise_corr_s: float = 0.0) -> Sequence:
+    """``noises``: 2D noise levels (fractions of the body height, in pixels at the mid-hip's depth), each a
+    landmark set; independent per frame, or with ``noise_corr_s`` > 0 correlated in time (:func:`correlated_noise`,
+    the same standard deviation). The truth and the depth do not depend on the noise."""
     cam = M.choose_distance(clip, azimuth)
     k = cam.intrinsics
     times, pts = clip.resample(master_fps, max_s)
@@ -218,9 +240,18 @@ def build_sequence(clip: M.MocapClip, azimuth: float, master_fps: int, noises: I
     truth = pc[:, M.BODY12_IDX] - mid[:, None, :]
     lms, npx = [], []
     for i, noise in enumerate(noises):
-        rng = np.random.default_rng([seed, i])
+        rng = np.random.default_rng([seed, i] if noise_corr_s <= 0 else [seed, i, 7])
         sd = noise * clip.height_m * k.fy / mid[:, 2]       # 1 % of body height in pixels at the mid-hip's depth
-        lms.append(np.array([M.project(p, k, float(s), rng) for p, s in zip(pc, sd, strict=True)]))
+        if noise_corr_s > 0 and noise > 0:
+            e = correlated_noise(rng, len(pc), master_fps, noise_corr_s)
+            lm = np.array([M.project(p, k) for p in pc])
+            lm[:, :, :2] += sd[:, None, None] * e
+            w, h = k.size                                   # visibility as M.project gives it after noise
+            inside = (lm[:, :, 0] >= 0) & (lm[:, :, 0] < w) & (lm[:, :, 1] >= 0) & (lm[:, :, 1] < h)
+            lm[:, :, 3] = lm[:, :, 4] = np.where(inside, 0.99, 0.05)
+            lms.append(lm)
+        else:
+            lms.append(np.array([M.project(p, k, float(s), rng) for p, s in zip(pc, sd, strict=True)]))
         npx.append(float(sd.mean()))
     drng = np.random.default_rng([seed, 99])
     depth = np.array([simulate_depth(p, k, drng, sim) for p in pc])
@@ -316,8 +347,8 @@ def _fit(fitter: Fitter, lm, i: int, t: float, mode: str, k, depth: np.ndarray |
 
 def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path | None = None,
         progress: Callable[[str], None] | None = None, seed: int = 13) -> dict:
-    """The protocol; returns ``{"description", "cameras", "results"}`` (one result row per mode, fps, noise
-    and depth, over all clips and azimuths)."""
+    """The protocol; returns ``{"description", "cameras", "results"}`` (one result row per mode, fps, noise,
+    noise correlation time, body and depth, over all clips and azimuths)."""
     base = base or FitConfig()
     say = progress or (lambda s: None)
     if data_dir is None:
@@ -360,16 +391,23 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
             depth_n += body_d.size
             depth_nan += int((~ok).sum())
             depth_err.extend(np.abs(body_d[ok] - true_z[ok]).tolist())
+            noisy = tuple(n for n in plan.noises if n > 0)
+            variants = [(noise, 0.0, seq.landmarks[ni]) for ni, noise in enumerate(plan.noises)]
+            for corr in (c for c in plan.noise_corr_s if c > 0 and noisy):
+                drifting = build_sequence(clip, az, master, noisy, seed=1000 * ci + ai + seed, max_s=plan.max_s,
+                                          noise_corr_s=corr)   # the same truth and depth
+                variants += [(noise, corr, drifting.landmarks[ni]) for ni, noise in enumerate(noisy)]
             for ni, noise in enumerate(plan.noises):
-                lms = seq.landmarks[ni]
                 noise_px.setdefault(noise, []).append(float(seq.noise_px[ni]))
+            for noise, corr, lms in variants:
                 for body, fitter in fitters.items():
                     for use_depth in plan.depth:
                         fit_depth = use_depth and takes_depth
                         if use_depth and not takes_depth:
                             continue   # the rows without depth stand in (flagged), see below
                         for mode in plan.modes:
-                            say(f"ood {name} az {az:g} noise {noise} body {body} depth {use_depth} {mode}")
+                            say(f"ood {name} az {az:g} noise {noise} (correlated {corr:g} s) body {body} "
+                                f"depth {use_depth} {mode}")
                             if mode == "image":
                                 wanted = sorted(set().union(*(range(0, len(lms), s) for s in steps.values())))
                                 res = {}
@@ -378,12 +416,12 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                     res[i] = _fit(fitter, lms[i], i, float(seq.times[i]), "image",
                                                   cam.intrinsics, seq.depth[i] if fit_depth else None)
                                 for f, s in steps.items():
-                                    acc = accs.setdefault(("image", f, noise, body, use_depth), _Acc())
+                                    acc = accs.setdefault(("image", f, noise, corr, body, use_depth), _Acc())
                                     for i in range(0, len(lms), s):
                                         acc.add(seq, i, *res[i])
                             else:
                                 for f, s in steps.items():
-                                    acc = accs.setdefault(("video", f, noise, body, use_depth), _Acc())
+                                    acc = accs.setdefault(("video", f, noise, corr, body, use_depth), _Acc())
                                     fitter.reset()
                                     fitter.forget_body()   # each sequence is a new video of a new person
                                     for i in range(0, len(lms), s):
@@ -391,12 +429,12 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                                               cam.intrinsics, seq.depth[i] if fit_depth else None))
     tmp.cleanup()
     results = []
-    for (mode, f, noise, body, use_depth), acc in accs.items():
+    for (mode, f, noise, corr, body, use_depth), acc in accs.items():
         row = {"protocol": PROTOCOL, "domain": DOMAIN, "optimizer": "udeas+lm", "body": body,
                "restarts": base.restarts if mode == "image" else base.video_restarts,
                "max_row": base.row_max if mode == "image" else base.video_row_max, "mode": mode, "fps": f,
-               "noise_rel": noise, "noise_px": _r(np.mean(noise_px[noise]), 2), "depth": use_depth,
-               "depth_used": bool(use_depth and takes_depth)}
+               "noise_rel": noise, "noise_corr_s": corr, "noise_px": _r(np.mean(noise_px[noise]), 2),
+               "depth": use_depth, "depth_used": bool(use_depth and takes_depth)}
         row.update(acc.summary())
         row["mpjpe3d_mm"] = row["mpjpe_mm"]   # the name the in-domain rows use
         results.append(row)
@@ -405,7 +443,7 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
             results.append({**row, "depth": True, "depth_used": False,
                             "note": "Fitter.fit takes no depth_m: the same fits as without depth"})
     order = {b: k for k, b in enumerate(plan.bodies)}
-    results.sort(key=lambda r: (r["depth"], order[r["body"]], r["noise_rel"], r["fps"], r["mode"]))
+    results.sort(key=lambda r: (r["depth"], order[r["body"]], r["noise_rel"], r["noise_corr_s"], r["fps"], r["mode"]))
     return {
         "description": description(plan, takes_depth),
         "cameras": cameras,
@@ -424,6 +462,10 @@ def description(plan: OodPlan, takes_depth: bool) -> dict:
         "domain": DOMAIN,
         "clips": list(plan.clips), "azimuths_deg": list(plan.azimuths), "fps": list(plan.fps),
         "noise": [f"{n:g} x body height (px at the mid-hip depth)" for n in plan.noises],
+        "noise_corr_s": [0.0, *(c for c in plan.noise_corr_s if c > 0)],
+        "noise_correlation": "0: independent per frame; > 0: each landmark coordinate's noise an AR(1) process whose "
+                             "correlation falls by 1/e in that many seconds (same standard deviation), for the "
+                             "noisy levels (bench.ood.correlated_noise): a landmark extractor's error drifts",
         "depth": list(plan.depth), "fitter_takes_depth": takes_depth, "modes": list(plan.modes),
         "bodies": {b: BODIES[b] for b in plan.bodies},
         "truth": "CMU mocap joint centres (bench.bvh.cmu_landmark_world), not the fitted model: the mocap's own "

@@ -217,6 +217,31 @@ def test_mocap_landmarks_33x5_with_the_body_finite_and_in_view(shared_data):
     assert 0.12 < hip_w < 0.15 and abs(hip_w - 0.115 * clip.height_m) > 0.03
 
 
+def test_correlated_noise_has_unit_variance_and_the_asked_correlation_time():
+    """AR(1) per coordinate: standard deviation 1, lag correlation exp(-lag / (fps tau)) (within 4 standard
+    errors over 20 000 frames x 66 coordinates, effectively fewer: the samples are correlated)."""
+    rng = np.random.default_rng(8)
+    fps, tau = 30.0, 0.5
+    e = ood.correlated_noise(rng, 20000, fps, tau)
+    assert e.shape == (20000, 33, 2)
+    assert float(e.std()) == pytest.approx(1.0, abs=0.02)
+    for lag in (1, 15, 30):
+        r = float(np.mean(e[lag:] * e[:-lag]))
+        assert r == pytest.approx(math.exp(-lag / (fps * tau)), abs=0.02), lag
+
+
+def test_correlated_landmarks_share_truth_and_depth_with_independent_ones(shared_data):
+    clip = M.load_clip(shared_data / "mocap" / "cmu" / "131_01.bvh")
+    a = ood.build_sequence(clip, 45.0, 10, (0.01,), seed=3, max_s=2.0)
+    b = ood.build_sequence(clip, 45.0, 10, (0.01,), seed=3, max_s=2.0, noise_corr_s=0.5)
+    assert np.array_equal(a.truth, b.truth) and np.array_equal(a.depth, b.depth, equal_nan=True)
+    clean = ood.build_sequence(clip, 45.0, 10, (0.0,), seed=3, max_s=2.0).landmarks[0]
+    da, db = a.landmarks[0][:, :, :2] - clean[:, :, :2], b.landmarks[0][:, :, :2] - clean[:, :, :2]
+    assert 0.5 < da.std() / db.std() < 2.0                      # the same noise level
+    lag1 = [float(np.corrcoef(d[1:].ravel(), d[:-1].ravel())[0, 1]) for d in (da, db)]
+    assert abs(lag1[0]) < 0.1 and lag1[1] > 0.6                  # 0.1 s apart: exp(-0.2) = 0.82
+
+
 def test_tiny_end_to_end_run_has_every_metric(shared_data):
     from bench import fit as bench
     from bench.commands.fit import markdown
@@ -233,10 +258,10 @@ def test_tiny_end_to_end_run_has_every_metric(shared_data):
     assert all(r["domain"] == "in-domain" for r in rows if r["protocol"] == "paper_poses")
     out = [r for r in rows if r["protocol"] == "ood_mocap"]
     assert all(r["domain"] == "out-of-domain" for r in out)
-    # 2 bodies x 2 modes x 2 fps x 2 noises x 2 depth settings
-    assert sorted((r["body"], r["mode"], r["fps"], r["noise_rel"], r["depth"]) for r in out) == sorted(
-        (b, m, f, n, d) for b in ("height", "mocap") for m in ("image", "video") for f in (15, 30)
-        for n in (0.0, 0.01) for d in (False, True))
+    # 2 bodies x 2 modes x 2 fps x 3 noises (none, independent, correlated in time) x 2 depth settings
+    assert sorted((r["body"], r["mode"], r["fps"], r["noise_rel"], r["noise_corr_s"], r["depth"]) for r in out) == sorted(
+        (b, m, f, n, c, d) for b in ("height", "mocap") for m in ("image", "video") for f in (15, 30)
+        for n, c in ((0.0, 0.0), (0.01, 0.0), (0.01, 0.5)) for d in (False, True))
     takes = ood.fitter_takes_depth()
     for r in out:
         assert r["frames"] == (13 if r["fps"] == 30 else 7) and r["failed"] == 0
@@ -252,11 +277,13 @@ def test_tiny_end_to_end_run_has_every_metric(shared_data):
         assert "root_cam_err_m" in r                           # null until the fitter reports root_cam_m
     # image mode: the 15 fps frames are the even 30 fps frames, fitted once, so identical numbers
     # the mocap's own proportions (an oracle calibration) fit the landmarks better than the height ratios
-    e2d = {(r["body"], r["mode"], r["fps"], r["noise_rel"], r["depth"]): r["err2d_px"] for r in out}
+    e2d = {(r["body"], r["mode"], r["fps"], r["noise_rel"], r["depth"]): r["err2d_px"] for r in out
+           if r["noise_corr_s"] == 0}
     assert e2d[("mocap", "image", 30, 0.0, False)] < e2d[("height", "image", 30, 0.0, False)]
     cams = report["protocol"]["ood_mocap"]["cameras"]
     assert len(cams) == 1 and 2.5 <= cams[0]["distance_m"] <= 5.0
     text = markdown(report)
     assert "Out-of-domain" in text and "In-domain" in text and "| height | image | 30 |" in text
+    assert "| noise corr s |" in text
     with pytest.raises(ValueError, match="unknown protocol"):
         bench.run(plan, FitConfig(), protocols=["nope"])
