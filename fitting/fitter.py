@@ -235,8 +235,7 @@ class Fitter:
             pts, sd = None, 0.0
             if depth is not None and use_persp:   # the lengths in 3D: the depth-consistent, seen landmarks
                 use = (depth.weights >= DEPTH_MIN_WEIGHT) & (frame.weights > 0)
-                pts = joint_points(xy, self._depth, use, SURFACE_M, intrinsics.fx, intrinsics.fy, intrinsics.cx,
-                                   intrinsics.cy)
+                pts = joint_points(xy, self._depth, use, SURFACE_M, intrinsics)
                 sd = DEPTH_RMS_K * depth.root_z ** 2   # the camera's noise at the person's distance
             self._learner.observe(obs, frame.weights, image_scale(x, frame.data), self.dims, pts, sd)
             self._learn_t = t

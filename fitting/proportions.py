@@ -43,6 +43,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from camera_model import Intrinsics
 from fitting.body import BodyDimensions
 from fitting.image2d import distance, down_tilt_deg
 
@@ -113,12 +114,11 @@ class LimbScale:
 
 
 def joint_points(xy_px: np.ndarray, depth_m: np.ndarray, use: np.ndarray, surface_m: np.ndarray,
-                 fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
+                 camera: Intrinsics) -> np.ndarray:
     """The 12 body joint centres in the camera frame (12 x 3, metres) from their pixels ``xy_px`` (12 x 2) and
     measured surface depths ``depth_m`` (12, metres along the optical axis): the joint lies ``surface_m`` (12)
-    behind the surface; NaN rows where ``use`` (12, bool) is False. Pinhole intrinsics in pixels."""
-    z = np.where(use, depth_m + surface_m, np.nan)
-    return np.stack([(xy_px[:, 0] - cx) / fx * z, (xy_px[:, 1] - cy) / fy * z, z], axis=1)
+    behind the surface; NaN rows where ``use`` (12, bool) is False. ``camera``: the pinhole that saw them."""
+    return camera.deproject(xy_px[:, 0], xy_px[:, 1], np.where(use, depth_m + surface_m, np.nan))
 
 
 def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions) -> list[tuple[str, tuple]]:

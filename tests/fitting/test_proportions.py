@@ -303,5 +303,5 @@ def test_joint_points_back_projects_pixels_at_the_measured_depth_behind_the_surf
     px = np.column_stack([k.fx * joints[:, 0] / joints[:, 2] + k.cx, k.fy * joints[:, 1] / joints[:, 2] + k.cy])
     use = np.ones(12, dtype=bool)
     use[3] = False
-    got = PR.joint_points(px, joints[:, 2] - surface, use, surface, k.fx, k.fy, k.cx, k.cy)
+    got = PR.joint_points(px, joints[:, 2] - surface, use, surface, k)
     assert np.allclose(got[use], joints[use], atol=1e-12) and np.isnan(got[3]).all()
