@@ -16,7 +16,7 @@ and foot indices from the ankle and toe joints (see :mod:`bench.bvh`).
   ``DISTANCES_M`` that keeps every landmark of every frame inside the image.
 * :func:`project`: camera-frame points (33, 3) -> (33, 5) ``[x_px, y_px, z, visibility, presence]`` like
   :func:`bench.simulate.render` (z: depth relative to the mid-hip on the x pixel scale; visibility 0.99
-  inside the image, 0.05 outside), with optional Gaussian pixel noise.
+  inside the image, 0.05 outside), with optional Gaussian pixel noise or given pixel errors.
 """
 
 from __future__ import annotations
@@ -163,17 +163,21 @@ def choose_distance(clip: MocapClip, azimuth_deg: float, distances: tuple[float,
 
 
 def project(points_cam: np.ndarray, k: Intrinsics, noise_px: float = 0.0,
-            rng: np.random.Generator | None = None) -> np.ndarray:
+            rng: np.random.Generator | None = None, offset_px: np.ndarray | None = None) -> np.ndarray:
     """(33, 3) camera-frame points (m) -> (33, 5) landmarks ``[x_px, y_px, z, visibility, presence]``.
 
     z: depth relative to the mid-hip (middle of the two hip landmarks) times ``fx / z_midhip`` (the x pixel
     scale, negative nearer: as MediaPipe and :func:`bench.simulate.render`); visibility and presence 0.99
-    inside the image, 0.05 outside; ``noise_px``: Gaussian noise on x and y (needs ``rng``)."""
+    inside the image, 0.05 outside; ``noise_px``: Gaussian noise on x and y (needs ``rng``); ``offset_px``:
+    given pixel errors (33 x 2) added instead (noise drawn elsewhere, e.g. correlated in time)."""
     p = np.asarray(points_cam, float)
     root_z = 0.5 * (p[_IDX["left_hip"], 2] + p[_IDX["right_hip"], 2])
     uv = k.project(p)
     x, y = uv[:, 0], uv[:, 1]
-    if noise_px > 0:
+    if offset_px is not None:
+        x = x + offset_px[:, 0]
+        y = y + offset_px[:, 1]
+    elif noise_px > 0:
         assert rng is not None
         x = x + rng.normal(0.0, noise_px, size=33)
         y = y + rng.normal(0.0, noise_px, size=33)

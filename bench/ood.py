@@ -244,12 +244,7 @@ def build_sequence(clip: M.MocapClip, azimuth: float, master_fps: int, noises: I
         sd = noise * clip.height_m * k.fy / mid[:, 2]       # 1 % of body height in pixels at the mid-hip's depth
         if noise_corr_s > 0 and noise > 0:
             e = correlated_noise(rng, len(pc), master_fps, noise_corr_s)
-            lm = np.array([M.project(p, k) for p in pc])
-            lm[:, :, :2] += sd[:, None, None] * e
-            w, h = k.size                                   # visibility as M.project gives it after noise
-            inside = (lm[:, :, 0] >= 0) & (lm[:, :, 0] < w) & (lm[:, :, 1] >= 0) & (lm[:, :, 1] < h)
-            lm[:, :, 3] = lm[:, :, 4] = np.where(inside, 0.99, 0.05)
-            lms.append(lm)
+            lms.append(np.array([M.project(p, k, offset_px=s * e_t) for p, s, e_t in zip(pc, sd, e, strict=True)]))
         else:
             lms.append(np.array([M.project(p, k, float(s), rng) for p, s in zip(pc, sd, strict=True)]))
         npx.append(float(sd.mean()))
