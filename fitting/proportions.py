@@ -28,7 +28,11 @@ landmark the fit sees with a consistent depth is placed in 3D (its pixel's ray a
 surface offset), and every frame gives each segment whose two ends are placed a sample of its 3D length,
 whatever the pose. Depth noise only lengthens a segment on average (by about ``sigma^2 / L``: 4 mm, 2 %, for a
 forearm at 3 m), and that is taken off each sample's square; no percentile is needed: the median is taken. A
-group with at least MIN_SAMPLES such samples is learned from them instead of from the image.
+group with at least MIN_DEPTH_SAMPLES such samples is learned from them instead of from the image. These
+samples measure the length whatever the pose, so their scatter says how far to believe them: the median is
+shrunk towards the model as a normal prior of spread ``PRIOR_SD`` shrinks it (``shrink``), not by a fixed
+count of pseudo-samples (the image samples keep that: theirs is an upper envelope over poses, and a few
+frames of one pose agree with each other without measuring the length).
 
 Units: lengths in metres; ratios unitless; image coordinates in the fit's normalized units (fitting.problem).
 Plain Python and NumPy (no kernels); the caller (fitting.fitter) decides when to observe, apply and forget.
@@ -40,6 +44,7 @@ import bisect
 import math
 from collections import deque
 from dataclasses import dataclass, field, fields
+from statistics import NormalDist
 
 import numpy as np
 
@@ -72,12 +77,17 @@ DEPTH_MIN_WEIGHT = 0.25     # a landmark's depth is used for lengths when its ro
                             # (fitting.depth_term: within one sigma of the fitted pose's depth; hidden: 0)
 PRIOR_SAMPLES = 20          # the model's own lengths count as this many samples
 MIN_SAMPLES = 10            # no estimate from fewer samples
+MIN_DEPTH_SAMPLES = 5       # 3D samples (depth) that replace a group's image estimate
+PRIOR_SD = 0.10             # the person's lengths around the configured ones (1 sd, ratio) for the 3D samples'
+                            # shrinkage: a few per cent between people of one height, plus the landmark
+                            # detector's joint centres against the model's (a CMU subject's arms: 14-16 % shorter)
 BOUNDS = (0.7, 1.3)         # learned length / configured length
 DEAD_ZONE = 0.03            # |ratio - 1| below this: keep the configured length
 RESOLUTION = 0.005          # learned ratios that all move less than this keep their previous values: a new
                             # body costs a rebuild of the fit's problem, and so small a change is below the
                             # estimate's own scatter (3D samples move the median on most frames)
 _FIELDS = tuple(f.name for f in fields(BodyDimensions))   # BodyDimensions' fields, in order
+_IQR_SD = 2.0 * NormalDist().inv_cdf(0.75)   # a normal distribution's interquartile range in sd (1.349)
 _JSON_KEYS = tuple((f, f.removesuffix("_m")) for f in LENGTH_FIELDS)   # (field, its LimbScale.to_json key)
 _REL_FIELDS = (*LENGTH_FIELDS, "shoulder_half_m")   # the lengths the samples are relative to
 
@@ -161,12 +171,34 @@ def samples(obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions)
     return out
 
 
+def percentile_variance(pct: float) -> float:
+    """n times the variance of the ``pct`` percentile of n normal samples, over their variance
+    (``p (1 - p) / phi(z_p)^2``: pi / 2 for the median, 1.86 for the 75th percentile)."""
+    p = pct / 100.0
+    nd = NormalDist()
+    return p * (1.0 - p) / nd.pdf(nd.inv_cdf(p)) ** 2
+
+
+def shrink(v: float, n: int, spread: float, pct_var: float) -> float:
+    """The ratio ``v`` (a percentile of ``n`` samples of scatter ``spread``, 1 sd) after a normal prior at 1
+    (the configured proportion) of sd PRIOR_SD: ``v``'s own variance is ``pct_var spread^2 / n``
+    (``percentile_variance``), so the posterior mean weighs ``v - 1`` by ``n / (n + n0)``,
+    ``n0 = pct_var spread^2 / PRIOR_SD^2``: samples that agree are believed at once, scattered ones after
+    many. Within BOUNDS."""
+    n0 = pct_var * spread * spread / (PRIOR_SD * PRIOR_SD)
+    return min(max(1.0 + (v - 1.0) * n / (n + n0), BOUNDS[0]), BOUNDS[1])
+
+
 class _Window:
     """The last HISTORY samples of one group (GROUPS), each column also kept sorted (its percentile in O(1)),
     and what they teach (``learned``, computed again only after a sample was added)."""
 
-    def __init__(self, fields: tuple[str, ...], pct: float) -> None:
+    def __init__(self, fields: tuple[str, ...], pct: float, scatter_prior: bool = False) -> None:
+        """``scatter_prior``: 3D samples, learned from MIN_DEPTH_SAMPLES on and shrunk by their scatter
+        (``shrink``); else image samples, from MIN_SAMPLES on and shrunk by PRIOR_SAMPLES."""
         self.fields, self.pct = fields, pct
+        self.pct_var = percentile_variance(pct) if scatter_prior else None
+        self.min_samples = MIN_DEPTH_SAMPLES if scatter_prior else MIN_SAMPLES
         self.ring: deque[list[float]] = deque()   # in arrival order, newest last (at most HISTORY)
         self.sorted: list[list[float]] = [[] for _ in fields]
         self.added = 0                        # samples ever added
@@ -191,13 +223,19 @@ class _Window:
 
     def learned(self) -> dict[str, float]:
         """Each field's learned ratio to the configured proportions, outside DEAD_ZONE only (none below
-        MIN_SAMPLES): the group's percentile shrunk towards 1 by PRIOR_SAMPLES, within BOUNDS."""
+        ``min_samples``): the group's percentile shrunk towards 1 (by PRIOR_SAMPLES, or by the samples'
+        scatter from their interquartile range, see ``shrink``), within BOUNDS."""
         if self._learned is None:
             self._learned = {}
             n = len(self.ring)
-            if n >= MIN_SAMPLES:
-                for f, v in zip(self.fields, self.rank(self.pct), strict=True):
-                    r = min(max(1.0 + (v - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1])
+            if n >= self.min_samples:
+                if self.pct_var is None:
+                    got = [(f, min(max(1.0 + (v - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1]))
+                           for f, v in zip(self.fields, self.rank(self.pct), strict=True)]
+                else:
+                    cols = zip(self.fields, self.rank(self.pct), self.rank(25.0), self.rank(75.0), strict=True)
+                    got = [(f, shrink(v, n, (q3 - q1) / _IQR_SD, self.pct_var)) for f, v, q1, q3 in cols]
+                for f, r in got:
                     if abs(r - 1.0) >= DEAD_ZONE:
                         self._learned[f] = r
         return self._learned
@@ -222,7 +260,7 @@ class ProportionLearner:
         """Start over (another person, or a long time without one)."""
         # per group: the recent samples as multiples of the *configured* proportions
         self._win = {name: _Window(fs, pct) for name, fs, pct in GROUPS}   # GROUPS order
-        self._win3 = {name: _Window(fs, 50.0) for name, fs, _ in GROUPS}   # 3D samples (_add_depth)
+        self._win3 = {name: _Window(fs, 50.0, scatter_prior=True) for name, fs, _ in GROUPS}   # 3D (_add_depth)
         self._scale = LimbScale()
         self._dims_key: tuple | None = None   # the (size, ratios) self._dims was built for
         self._dims = self.base
@@ -299,7 +337,7 @@ class ProportionLearner:
         ratio: dict[str, float] = {}   # LENGTH_FIELDS order (GROUPS order, each group's fields in order)
         for name, win in self._win.items():
             measured = self._win3[name]   # 3D lengths from depth, where there are enough
-            ratio.update(measured.learned() if len(measured.ring) >= MIN_SAMPLES else win.learned())
+            ratio.update(measured.learned() if len(measured.ring) >= measured.min_samples else win.learned())
         # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
         # when standing) add up to the configured ones, the person's height being what the user configured
         old = self._scale

@@ -249,16 +249,15 @@ def test_image_scale_is_the_projections_derivative(intrinsics):
     assert intrinsics == (np.ptp(got) > 0)   # a pinhole's scale differs with each landmark's depth
 
 
-def test_depth_measures_the_lengths_whatever_the_pose():
-    """3D samples (joints placed from measured depth): a person with arms 15 % shorter, thighs 8 % longer and
-    hips 20 % narrower than the model, arms and legs pointing anywhere (no image sample would count: nothing
-    hangs in the image plane), each joint with 3 cm of depth noise, a few joints unknown (NaN) and one
-    background hit per frame: the median of the noise-corrected lengths learns each within 2 %; the image
-    samples are not needed."""
-    base = BodyDimensions.from_height(1.7)
-    person = replace(base, upper_arm_m=0.85 * base.upper_arm_m, forearm_m=0.85 * base.forearm_m,
-                     thigh_m=1.08 * base.thigh_m, hip_half_m=0.8 * base.hip_half_m)
-    rng = np.random.default_rng(4)
+def _shorter_armed(base: BodyDimensions) -> BodyDimensions:
+    """A person with arms 15 % shorter, thighs 8 % longer and hips 20 % narrower than ``base``."""
+    return replace(base, upper_arm_m=0.85 * base.upper_arm_m, forearm_m=0.85 * base.forearm_m,
+                   thigh_m=1.08 * base.thigh_m, hip_half_m=0.8 * base.hip_half_m)
+
+
+def _joints_anywhere(rng: np.random.Generator, person: BodyDimensions, depth_sd_m: float) -> np.ndarray:
+    """The 12 body joints (camera frame, 3 m away) of ``person`` with arms and legs pointing in random
+    directions, each joint's depth with ``depth_sd_m`` of noise."""
 
     def limb(start, lengths):
         out, p = [], np.asarray(start, float)
@@ -268,20 +267,33 @@ def test_depth_measures_the_lengths_whatever_the_pose():
             out.append(p)
         return out
 
+    sh = [np.array([s * person.shoulder_half_m, -person.trunk_m, 3.0]) for s in (1, -1)]
+    hp = [np.array([s * person.hip_half_m, 0.0, 3.0]) for s in (1, -1)]
+    arms = [limb(sh[i], (person.upper_arm_m, person.forearm_m)) for i in (0, 1)]
+    legs = [limb(hp[i], (person.thigh_m, person.shank_m)) for i in (0, 1)]
+    pts = np.array([sh[0], sh[1], arms[0][0], arms[1][0], arms[0][1], arms[1][1],
+                    hp[0], hp[1], legs[0][0], legs[1][0], legs[0][1], legs[1][1]])
+    pts[:, 2] += rng.normal(0.0, depth_sd_m, 12)
+    return pts
+
+
+def test_depth_measures_the_lengths_whatever_the_pose():
+    """3D samples (joints placed from measured depth): a person with arms 15 % shorter, thighs 8 % longer and
+    hips 20 % narrower than the model, arms and legs pointing anywhere (no image sample would count: nothing
+    hangs in the image plane), each joint with 3 cm of depth noise, a few joints unknown (NaN) and one
+    background hit per frame: the median of the noise-corrected lengths learns each within 2 %; the image
+    samples are not needed."""
+    base = BodyDimensions.from_height(1.7)
+    person = _shorter_armed(base)
+    rng = np.random.default_rng(4)
     learner = PR.ProportionLearner(base)
     for _ in range(200):
-        sh = [np.array([s * person.shoulder_half_m, -person.trunk_m, 3.0]) for s in (1, -1)]
-        hp = [np.array([s * person.hip_half_m, 0.0, 3.0]) for s in (1, -1)]
-        arms = [limb(sh[i], (person.upper_arm_m, person.forearm_m)) for i in (0, 1)]
-        legs = [limb(hp[i], (person.thigh_m, person.shank_m)) for i in (0, 1)]
-        pts = np.array([sh[0], sh[1], arms[0][0], arms[1][0], arms[0][1], arms[1][1],
-                        hp[0], hp[1], legs[0][0], legs[1][0], legs[0][1], legs[1][1]])
-        pts[:, 2] += rng.normal(0.0, 0.03, 12)
+        pts = _joints_anywhere(rng, person, 0.03)
         pts[rng.integers(12)] = np.nan                 # a joint without a usable depth
         pts[rng.integers(12), 2] += 2.0                # the wall behind
         learner.observe(np.zeros((12, 2)), np.zeros(12), np.ones(12), base, pts, 0.03)
     scale = learner.scale
-    assert not any(scale.samples.values()) and min(scale.depth_samples.values()) >= PR.MIN_SAMPLES
+    assert not any(scale.samples.values()) and min(scale.depth_samples.values()) >= PR.MIN_DEPTH_SAMPLES
     # the learned lengths before the height normalization: ratio x size; each within 2 % of the person's
     for f in ("upper_arm_m", "forearm_m", "thigh_m", "hip_half_m"):
         want = getattr(person, f) / getattr(base, f)
@@ -292,6 +304,40 @@ def test_depth_measures_the_lengths_whatever_the_pose():
     plain = PR.ProportionLearner(base)
     plain.observe(np.zeros((12, 2)), np.zeros(12), np.ones(12), base, None)
     assert plain.scale.ratio == {} and "depth_samples" not in plain.scale.to_json()
+
+
+def test_3d_samples_that_agree_are_believed_after_a_few():
+    """The 3D samples measure the lengths whatever the pose: MIN_DEPTH_SAMPLES samples that agree (1 cm of
+    depth noise) learn the arms within 3 % (a fixed 20 pseudo-samples would leave them at 0.97); fewer learn
+    nothing; samples that scatter are shrunk towards the configured body, less with each sample."""
+    base = BodyDimensions.from_height(1.7)
+    person = _shorter_armed(base)
+    rng = np.random.default_rng(8)
+    learner = PR.ProportionLearner(base)
+    got = 0
+    while got < PR.MIN_DEPTH_SAMPLES:                  # two arm samples per frame (left and right)
+        assert "upper_arm_m" not in learner.scale.ratio
+        learner.observe(np.zeros((12, 2)), np.zeros(12), np.ones(12), base, _joints_anywhere(rng, person, 0.01),
+                        0.01)
+        got = learner.scale.depth_samples["arm"]
+    assert got <= PR.MIN_DEPTH_SAMPLES + 1
+    for f in ("upper_arm_m", "forearm_m"):
+        assert learner.scale.ratio[f] == pytest.approx(0.85, abs=0.03), f
+    assert PR.percentile_variance(50.0) == pytest.approx(math.pi / 2)
+    assert PR.percentile_variance(75.0) == pytest.approx(1.8568, abs=1e-4)       # 0.1875 / phi(0.6745)^2
+    assert PR.shrink(0.85, 5, 0.0, math.pi / 2) == 0.85                          # no scatter: the samples
+    assert PR.shrink(0.85, 10, PR.PRIOR_SD, 1.0) == pytest.approx(1.0 - 0.15 * 10 / 11)   # one pseudo-sample
+    pulled = [PR.shrink(0.85, n, 0.2, math.pi / 2) for n in (5, 20, 80, 320)]
+    assert all(0.85 < a < b < 1.0 for b, a in zip(pulled, pulled[1:], strict=False))
+    assert PR.shrink(0.5, 1000, 0.0, 1.0) == PR.BOUNDS[0]
+    # a window's estimate is shrink() of its median and interquartile scatter
+    win = PR._Window(("upper_arm_m",), 50.0, scatter_prior=True)
+    rows = rng.normal(0.85, 0.1, PR.MIN_DEPTH_SAMPLES + 6)
+    for v in rows:
+        win.add([float(v)])
+    q1, med, q3 = np.sort(rows)[[int(0.25 * (len(rows) - 1)), int(0.5 * (len(rows) - 1)), int(0.75 * (len(rows) - 1))]]
+    want = PR.shrink(float(med), len(rows), float(q3 - q1) / 1.3489795, math.pi / 2)
+    assert win.learned()["upper_arm_m"] == pytest.approx(want, rel=1e-6) and want > med
 
 
 def test_joint_points_back_projects_pixels_at_the_measured_depth_behind_the_surface():
