@@ -179,14 +179,19 @@ def percentile_variance(pct: float) -> float:
     return p * (1.0 - p) / nd.pdf(nd.inv_cdf(p)) ** 2
 
 
+def toward_configured(v: float, n: int, n0: float) -> float:
+    """The ratio ``v`` learned from ``n`` samples, its departure from 1 (the configured proportion) weighted
+    ``n / (n + n0)`` (the configured body counting as ``n0`` samples), within BOUNDS."""
+    return min(max(1.0 + (v - 1.0) * n / (n + n0), BOUNDS[0]), BOUNDS[1])
+
+
 def shrink(v: float, n: int, spread: float, pct_var: float) -> float:
     """The ratio ``v`` (a percentile of ``n`` samples of scatter ``spread``, 1 sd) after a normal prior at 1
     (the configured proportion) of sd PRIOR_SD: ``v``'s own variance is ``pct_var spread^2 / n``
     (``percentile_variance``), so the posterior mean weighs ``v - 1`` by ``n / (n + n0)``,
-    ``n0 = pct_var spread^2 / PRIOR_SD^2``: samples that agree are believed at once, scattered ones after
-    many. Within BOUNDS."""
-    n0 = pct_var * spread * spread / (PRIOR_SD * PRIOR_SD)
-    return min(max(1.0 + (v - 1.0) * n / (n + n0), BOUNDS[0]), BOUNDS[1])
+    ``n0 = pct_var spread^2 / PRIOR_SD^2`` (``toward_configured``): samples that agree are believed at once,
+    scattered ones after many. Within BOUNDS."""
+    return toward_configured(v, n, pct_var * spread * spread / (PRIOR_SD * PRIOR_SD))
 
 
 class _Window:
@@ -221,6 +226,10 @@ class _Window:
         i = int(pct / 100.0 * (len(self.ring) - 1))
         return [col[i] for col in self.sorted]
 
+    def ready(self) -> bool:
+        """Whether the window holds enough samples for an estimate (``min_samples``)."""
+        return len(self.ring) >= self.min_samples
+
     def learned(self) -> dict[str, float]:
         """Each field's learned ratio to the configured proportions, outside DEAD_ZONE only (none below
         ``min_samples``): the group's percentile shrunk towards 1 (by PRIOR_SAMPLES, or by the samples'
@@ -228,9 +237,9 @@ class _Window:
         if self._learned is None:
             self._learned = {}
             n = len(self.ring)
-            if n >= self.min_samples:
+            if self.ready():
                 if self.pct_var is None:
-                    got = [(f, min(max(1.0 + (v - 1.0) * n / (n + PRIOR_SAMPLES), BOUNDS[0]), BOUNDS[1]))
+                    got = [(f, toward_configured(v, n, PRIOR_SAMPLES))
                            for f, v in zip(self.fields, self.rank(self.pct), strict=True)]
                 else:
                     cols = zip(self.fields, self.rank(self.pct), self.rank(25.0), self.rank(75.0), strict=True)
@@ -337,7 +346,7 @@ class ProportionLearner:
         ratio: dict[str, float] = {}   # LENGTH_FIELDS order (GROUPS order, each group's fields in order)
         for name, win in self._win.items():
             measured = self._win3[name]   # 3D lengths from depth, where there are enough
-            ratio.update(measured.learned() if len(measured.ring) >= measured.min_samples else win.learned())
+            ratio.update(measured.learned() if measured.ready() else win.learned())
         # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
         # when standing) add up to the configured ones, the person's height being what the user configured
         old = self._scale
