@@ -164,7 +164,7 @@ class OodPlan:
     noises: tuple[float, ...] = (0.0, 0.01)
     depth: tuple[bool, ...] = (False, True)
     modes: tuple[str, ...] = ("image", "video")
-    bodies: tuple[str, ...] = ("height", "mocap")
+    bodies: tuple[str, ...] = ("height", "mocap", "seen")
     max_s: float | None = None       # use only the first max_s seconds of each clip
     # the noisy levels are also run with 2D noise correlated in time (AR(1) with each of these correlation times,
     # seconds; independent per frame is always run): a landmark extractor's error drifts rather than jumps
@@ -175,7 +175,11 @@ FULL_OOD = OodPlan()
 QUICK_OOD = OodPlan(azimuths=(45.0, 270.0), fps=(10,), noises=(0.0,), depth=(False,), bodies=("height",))
 BODIES = {"height": "link lengths from the body height (Drillis-Contini ratios: the fit without calibration)",
           "mocap": "the mocap skeleton's own link lengths and widths, given as a calibration file (what a perfect "
-                   "`posed calibrate` would measure): the error left when proportions are known"}
+                   "`posed calibrate` would measure): the error left when proportions are known",
+          "seen": "the height body, video mode only, for a person seen before: first the subject's other clip from "
+                  "90 degrees further round, then a minute without anybody (what video mode learned is kept as "
+                  "the prior its new samples start from), then the clip"}
+SEEN_TURN_DEG = 90.0   # the "seen" body's earlier visit: the other clip from this much further round
 
 
 def mocap_dimensions(clip: M.MocapClip) -> BodyDimensions:
@@ -340,6 +344,17 @@ def _fit(fitter: Fitter, lm, i: int, t: float, mode: str, k, depth: np.ndarray |
     return r, time.thread_time() - c0, time.perf_counter() - w0
 
 
+def _visit(fitter: Fitter, visit: Sequence, ni: int, step: int, use_depth: bool) -> float:
+    """Video mode over ``visit`` (its landmarks of noise level ``ni``, every ``step``-th frame), as an earlier
+    sighting of the person: what it learns stays; returns the time of its last frame (s)."""
+    k = visit.camera.intrinsics
+    for i in range(0, len(visit.times), step):
+        _fit(fitter, visit.landmarks[ni][i], i, float(visit.times[i]), "video", k,
+             visit.depth[i] if use_depth else None)
+    fitter.reset()
+    return float(visit.times[-1])
+
+
 def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path | None = None,
         progress: Callable[[str], None] | None = None, seed: int = 13) -> dict:
     """The protocol; returns ``{"description", "cameras", "results"}`` (one result row per mode, fps, noise,
@@ -360,8 +375,9 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
     depth_nan = depth_n = 0
     noise_px: dict[float, list[float]] = {}
     tmp = tempfile.TemporaryDirectory(prefix="posed-ood-")
+    clips = {name: M.load_clip(Path(data_dir) / f"{name}.bvh") for name in plan.clips}
     for ci, name in enumerate(plan.clips):
-        clip = M.load_clip(Path(data_dir) / f"{name}.bvh")
+        clip = clips[name]
         fitters = {}
         for body in plan.bodies:
             cfg = replace(base, body_height_m=round(clip.height_m, 3), calibration="")
@@ -369,7 +385,7 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                 path = str(Path(tmp.name) / f"{name}.yaml")
                 write_calibration(path, mocap_dimensions(clip), frames=1, source=f"CMU {name} (bench.ood)")
                 cfg = replace(cfg, calibration=path)
-            elif body != "height":
+            elif body not in ("height", "seen"):
                 raise ValueError(f"body {body!r} is not one of: {', '.join(BODIES)}")
             fitters[body] = Fitter(cfg)
             fitters[body].warmup()
@@ -394,6 +410,10 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                 variants += [(noise, corr, drifting.landmarks[ni]) for ni, noise in enumerate(noisy)]
             for ni, noise in enumerate(plan.noises):
                 noise_px.setdefault(noise, []).append(float(seq.noise_px[ni]))
+            if "seen" in plan.bodies:   # the earlier visit: the subject's other clip (this one if alone), turned
+                other = plan.clips[(ci + 1) % len(plan.clips)]
+                visit = build_sequence(clips[other], (az + SEEN_TURN_DEG) % 360.0, master, plan.noises,
+                                       seed=1000 * ci + ai + seed + 500, max_s=plan.max_s)
             for noise, corr, lms in variants:
                 for body, fitter in fitters.items():
                     for use_depth in plan.depth:
@@ -401,6 +421,8 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                         if use_depth and not takes_depth:
                             continue   # the rows without depth stand in (flagged), see below
                         for mode in plan.modes:
+                            if body == "seen" and mode != "video":
+                                continue   # image mode learns nothing: the height body's rows
                             say(f"ood {name} az {az:g} noise {noise} (correlated {corr:g} s) body {body} "
                                 f"depth {use_depth} {mode}")
                             if mode == "image":
@@ -418,9 +440,13 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                 for f, s in steps.items():
                                     acc = accs.setdefault(("video", f, noise, corr, body, use_depth), _Acc())
                                     fitter.reset()
-                                    fitter.forget_body()   # each sequence is a new video of a new person
+                                    fitter.forget_body()   # each sequence is a new video of a new person ...
+                                    t0 = 0.0
+                                    if body == "seen":     # ... or of one seen before, a minute ago
+                                        t0 = _visit(fitter, visit, plan.noises.index(noise), s, fit_depth)
+                                        t0 += base.proportions_forget_s + 30.0
                                     for i in range(0, len(lms), s):
-                                        acc.add(seq, i, *_fit(fitter, lms[i], i, float(seq.times[i]), "video",
+                                        acc.add(seq, i, *_fit(fitter, lms[i], i, t0 + float(seq.times[i]), "video",
                                                               cam.intrinsics, seq.depth[i] if fit_depth else None))
     tmp.cleanup()
     results = []

@@ -106,8 +106,9 @@ class FitConfig:
                                        "height kept) from the frames (fitting.proportions; docs/body-model.md)"}
     )
     proportions_forget_s: float = field(
-        default=30.0, metadata={"doc": "forget the learned proportions after this long without a fitted video "
-                                       "frame (someone else may come)", "unit": "s", "range": (0.0, 86400.0)}
+        default=30.0, metadata={"doc": "after this long without a fitted video frame the learned proportions "
+                                       "are only where new samples start (someone else may come)", "unit": "s",
+                                "range": (0.0, 86400.0)}
     )
     projection: str = field(
         default="auto", metadata={"doc": "camera model: orthographic (the paper), perspective (needs "

@@ -96,8 +96,10 @@ class Fitter:
         self._udeas_s: float = 0.0  # CPU time of the uDEAS kernel in the current fit
 
     def forget_body(self) -> None:
-        """Forget the learned proportions (another person). A lost track (``reset``) keeps them; they are
-        also forgotten after ``proportions_forget_s`` without a fitted video frame, or when time goes back."""
+        """Forget the learned proportions (another person). A lost track (``reset``) keeps them; so does a
+        while without anybody (``proportions_forget_s`` without a fitted video frame), but only as the prior
+        that new samples start from (fitting.proportions ``ProportionLearner.retain``); time going back (another
+        recording) forgets them."""
         if self._learner is not None:
             self._learner.forget()
         self._learn_t = None
@@ -245,8 +247,11 @@ class Fitter:
         """The lengths to fit this frame with: the learned ones in video mode, else the configured ones."""
         if mode != "video" or self._learner is None:
             return self.base_dims
-        if self._learn_t is not None and not 0.0 <= t - self._learn_t <= self.config.proportions_forget_s:
-            self.forget_body()
+        if self._learn_t is not None and t < self._learn_t:
+            self.forget_body()   # time went back: another recording
+        elif self._learn_t is not None and t - self._learn_t > self.config.proportions_forget_s:
+            self._learner.retain()   # a while without anybody: the same person may come back, or someone else
+            self._learn_t = None
         return self._learner.dims()
 
     def _lm(self, data: np.ndarray, x: np.ndarray, iterations: int | None = None) -> tuple[np.ndarray, float]:

@@ -34,8 +34,14 @@ shrunk towards the model as a normal prior of spread ``PRIOR_SD`` shrinks it (``
 count of pseudo-samples (the image samples keep that: theirs is an upper envelope over poses, and a few
 frames of one pose agree with each other without measuring the length).
 
+What was learned outlives a while without anybody in view (``ProportionLearner.retain``): the samples start
+over, shrunk towards the learned ratios instead of the configured ones, so a person coming back is fitted with
+their own proportions at once and someone else's samples move them as they would move the configured ones;
+``forget`` goes back to the configured body (another person for certain, another recording).
+
 Units: lengths in metres; ratios unitless; image coordinates in the fit's normalized units (fitting.problem).
-Plain Python and NumPy (no kernels); the caller (fitting.fitter) decides when to observe, apply and forget.
+Plain Python and NumPy (no kernels); the caller (fitting.fitter) decides when to observe, apply, retain and
+forget.
 """
 
 from __future__ import annotations
@@ -179,35 +185,40 @@ def percentile_variance(pct: float) -> float:
     return p * (1.0 - p) / nd.pdf(nd.inv_cdf(p)) ** 2
 
 
-def toward_configured(v: float, n: int, n0: float) -> float:
-    """The ratio ``v`` learned from ``n`` samples, its departure from 1 (the configured proportion) weighted
-    ``n / (n + n0)`` (the configured body counting as ``n0`` samples), within BOUNDS."""
-    return min(max(1.0 + (v - 1.0) * n / (n + n0), BOUNDS[0]), BOUNDS[1])
+def toward_prior(v: float, n: int, n0: float, prior: float = 1.0) -> float:
+    """The ratio ``v`` learned from ``n`` samples, its departure from ``prior`` (1: the configured proportion;
+    else what was learned before, see ProportionLearner.retain) weighted ``n / (n + n0)`` (the prior counting as
+    ``n0`` samples), within BOUNDS."""
+    return min(max(prior + (v - prior) * n / (n + n0), BOUNDS[0]), BOUNDS[1])
 
 
-def shrink(v: float, n: int, spread: float, pct_var: float) -> float:
-    """The ratio ``v`` (a percentile of ``n`` samples of scatter ``spread``, 1 sd) after a normal prior at 1
-    (the configured proportion) of sd PRIOR_SD: ``v``'s own variance is ``pct_var spread^2 / n``
-    (``percentile_variance``), so the posterior mean weighs ``v - 1`` by ``n / (n + n0)``,
-    ``n0 = pct_var spread^2 / PRIOR_SD^2`` (``toward_configured``): samples that agree are believed at once,
+def shrink(v: float, n: int, spread: float, pct_var: float, prior: float = 1.0) -> float:
+    """The ratio ``v`` (a percentile of ``n`` samples of scatter ``spread``, 1 sd) after a normal prior at
+    ``prior`` (1: the configured proportion) of sd PRIOR_SD: ``v``'s own variance is ``pct_var spread^2 / n``
+    (``percentile_variance``), so the posterior mean weighs ``v - prior`` by ``n / (n + n0)``,
+    ``n0 = pct_var spread^2 / PRIOR_SD^2`` (``toward_prior``): samples that agree are believed at once,
     scattered ones after many. Within BOUNDS."""
-    return toward_configured(v, n, pct_var * spread * spread / (PRIOR_SD * PRIOR_SD))
+    return toward_prior(v, n, pct_var * spread * spread / (PRIOR_SD * PRIOR_SD), prior)
 
 
 class _Window:
     """The last HISTORY samples of one group (GROUPS), each column also kept sorted (its percentile in O(1)),
     and what they teach (``learned``, computed again only after a sample was added)."""
 
-    def __init__(self, fields: tuple[str, ...], pct: float, scatter_prior: bool = False) -> None:
+    def __init__(self, fields: tuple[str, ...], pct: float, scatter_prior: bool = False,
+                 prior: dict[str, float] | None = None) -> None:
         """``scatter_prior``: 3D samples, learned from MIN_DEPTH_SAMPLES on and shrunk by their scatter
-        (``shrink``); else image samples, from MIN_SAMPLES on and shrunk by PRIOR_SAMPLES."""
+        (``shrink``); else image samples, from MIN_SAMPLES on and shrunk by PRIOR_SAMPLES. ``prior``: the
+        ratios the samples are shrunk towards (absent fields: 1, the configured proportion), and what the
+        window teaches before it has enough samples."""
         self.fields, self.pct = fields, pct
+        self.prior = [(prior or {}).get(f, 1.0) for f in fields]
         self.pct_var = percentile_variance(pct) if scatter_prior else None
         self.min_samples = MIN_DEPTH_SAMPLES if scatter_prior else MIN_SAMPLES
         self.ring: deque[list[float]] = deque()   # in arrival order, newest last (at most HISTORY)
         self.sorted: list[list[float]] = [[] for _ in fields]
         self.added = 0                        # samples ever added
-        self._learned: dict[str, float] | None = {}   # None: to be computed again
+        self._learned: dict[str, float] | None = None   # None: to be computed again
 
     def add(self, row: list[float]) -> None:
         """Add ``row`` (one value per field)."""
@@ -231,22 +242,24 @@ class _Window:
         return len(self.ring) >= self.min_samples
 
     def learned(self) -> dict[str, float]:
-        """Each field's learned ratio to the configured proportions, outside DEAD_ZONE only (none below
-        ``min_samples``): the group's percentile shrunk towards 1 (by PRIOR_SAMPLES, or by the samples'
-        scatter from their interquartile range, see ``shrink``), within BOUNDS."""
+        """Each field's learned ratio to the configured proportions, outside DEAD_ZONE only: the group's
+        percentile shrunk towards the prior (by PRIOR_SAMPLES, or by the samples' scatter from their
+        interquartile range, see ``shrink``), within BOUNDS; below ``min_samples`` the prior itself."""
         if self._learned is None:
             self._learned = {}
             n = len(self.ring)
-            if self.ready():
-                if self.pct_var is None:
-                    got = [(f, toward_configured(v, n, PRIOR_SAMPLES))
-                           for f, v in zip(self.fields, self.rank(self.pct), strict=True)]
-                else:
-                    cols = zip(self.fields, self.rank(self.pct), self.rank(25.0), self.rank(75.0), strict=True)
-                    got = [(f, shrink(v, n, (q3 - q1) / _IQR_SD, self.pct_var)) for f, v, q1, q3 in cols]
-                for f, r in got:
-                    if abs(r - 1.0) >= DEAD_ZONE:
-                        self._learned[f] = r
+            if not self.ready():
+                got = list(zip(self.fields, self.prior, strict=True))
+            elif self.pct_var is None:
+                got = [(f, toward_prior(v, n, PRIOR_SAMPLES, c))
+                       for f, v, c in zip(self.fields, self.rank(self.pct), self.prior, strict=True)]
+            else:
+                cols = zip(self.fields, self.rank(self.pct), self.rank(25.0), self.rank(75.0), self.prior,
+                           strict=True)
+                got = [(f, shrink(v, n, (q3 - q1) / _IQR_SD, self.pct_var, c)) for f, v, q1, q3, c in cols]
+            for f, r in got:
+                if abs(r - 1.0) >= DEAD_ZONE:
+                    self._learned[f] = r
         return self._learned
 
 
@@ -266,13 +279,24 @@ class ProportionLearner:
         self.forget()
 
     def forget(self) -> None:
-        """Start over (another person, or a long time without one)."""
-        # per group: the recent samples as multiples of the *configured* proportions
-        self._win = {name: _Window(fs, pct) for name, fs, pct in GROUPS}   # GROUPS order
-        self._win3 = {name: _Window(fs, 50.0, scatter_prior=True) for name, fs, _ in GROUPS}   # 3D (_add_depth)
+        """Start over from the configured proportions (another person, another recording)."""
+        self._start({})
         self._scale = LimbScale()
         self._dims_key: tuple | None = None   # the (size, ratios) self._dims was built for
         self._dims = self.base
+
+    def retain(self) -> None:
+        """Start the samples over with what was learned as their prior (a while without anybody in view): the
+        same person coming back is fitted with their own proportions at once, and someone else's samples move
+        them as they would move the configured ones."""
+        self._start(dict(self._scale.ratio))
+
+    def _start(self, prior: dict[str, float]) -> None:
+        """Empty sample windows shrinking towards ``prior`` (ratios to the configured proportions; absent: 1)."""
+        # per group: the recent samples as multiples of the *configured* proportions
+        self._win = {name: _Window(fs, pct, prior=prior) for name, fs, pct in GROUPS}   # GROUPS order
+        self._win3 = {name: _Window(fs, 50.0, scatter_prior=True, prior=prior)   # 3D (_add_depth)
+                      for name, fs, _ in GROUPS}
 
     @property
     def scale(self) -> LimbScale:

@@ -258,9 +258,11 @@ def test_tiny_end_to_end_run_has_every_metric(shared_data):
     assert all(r["domain"] == "in-domain" for r in rows if r["protocol"] == "paper_poses")
     out = [r for r in rows if r["protocol"] == "ood_mocap"]
     assert all(r["domain"] == "out-of-domain" for r in out)
-    # 2 bodies x 2 modes x 2 fps x 3 noises (none, independent, correlated in time) x 2 depth settings
+    # 2 bodies x 2 modes, and video mode for a person seen before, x 2 fps x 3 noises (none, independent,
+    # correlated in time) x 2 depth settings
     assert sorted((r["body"], r["mode"], r["fps"], r["noise_rel"], r["noise_corr_s"], r["depth"]) for r in out) == sorted(
-        (b, m, f, n, c, d) for b in ("height", "mocap") for m in ("image", "video") for f in (15, 30)
+        (b, m, f, n, c, d) for b, m in (("height", "image"), ("height", "video"), ("mocap", "image"),
+                                        ("mocap", "video"), ("seen", "video")) for f in (15, 30)
         for n, c in ((0.0, 0.0), (0.01, 0.0), (0.01, 0.5)) for d in (False, True))
     takes = ood.fitter_takes_depth()
     for r in out:
@@ -287,3 +289,28 @@ def test_tiny_end_to_end_run_has_every_metric(shared_data):
     assert "| noise corr s |" in text
     with pytest.raises(ValueError, match="unknown protocol"):
         bench.run(plan, FitConfig(), protocols=["nope"])
+
+
+def test_a_person_seen_before_starts_from_what_was_learned(shared_data):
+    """The "seen" body: video mode over an earlier visit learns the subject's arms (the CMU subject's are 14-16 %
+    shorter than the height ratios give); a minute later, well past ``proportions_forget_s``, the first frame of
+    the clip is fitted with those arms (fitting.proportions retain), not with the configured ones."""
+    from dataclasses import replace
+
+    from fitting import FitConfig, Fitter
+
+    clip = M.load_clip(shared_data / "mocap" / "cmu" / "131_01.bvh")
+    visit = ood.build_sequence(clip, 135.0, 10, (0.0,), seed=3, max_s=8.0)
+    seq = ood.build_sequence(clip, 45.0, 10, (0.0,), seed=4, max_s=1.0)
+    cfg = replace(FitConfig(), body_height_m=round(clip.height_m, 3), calibration="")
+    fitter = Fitter(cfg)
+    end = ood._visit(fitter, visit, 0, 1, False)
+    assert end == pytest.approx(float(visit.times[-1]))
+    learned = fitter._learner.scale.of("upper_arm_m")
+    assert learned < 0.97                                          # the arms were learned shorter
+    k = seq.camera.intrinsics
+    t = end + cfg.proportions_forget_s + 30.0
+    first = fitter.fit(seq.landmarks[0][0], 0, t, k.size, mode="video", intrinsics=k)
+    assert first.ok and first.extra["limb_scale"]["upper_arm"] == round(learned, 3)
+    fresh = Fitter(cfg).fit(seq.landmarks[0][0], 0, t, k.size, mode="video", intrinsics=k)
+    assert fresh.extra["limb_scale"]["upper_arm"] == 1.0

@@ -165,6 +165,36 @@ def test_learner_bounds_shrinkage_and_height():
     assert learner.dims() == base
 
 
+def test_retained_proportions_are_the_prior_of_new_samples():
+    """After a while without anybody (``retain``) the learned body stays in use, and new samples move it from
+    there as they would move the configured body: by n / (n + PRIOR_SAMPLES) of their departure (image
+    samples) or by their scatter (3D samples); ``forget`` goes back to the configured body."""
+    base = BodyDimensions.from_height(1.7)
+    learner = PR.ProportionLearner(base)
+    for _ in range(80):
+        learner.add("arm", [0.8, 0.9])
+    learner._scale = learner._estimate()
+    learned, dims = dict(learner.scale.ratio), learner.dims()
+    assert learned["upper_arm_m"] == pytest.approx(1.0 - 0.2 * 80 / 100) and "thigh_m" not in learned
+    learner.retain()
+    assert learner.dims() == dims and all(w.added == 0 for w in learner._win.values())
+    learner._scale = learner._estimate()                      # no samples yet: the retained body
+    assert learner.scale.ratio == learned and learner.dims() == dims
+    n = PR.MIN_SAMPLES
+    for _ in range(n):                                        # someone with the configured arms
+        learner.add("arm", [1.0, 1.0])
+    learner._scale = learner._estimate()
+    for f, v in (("upper_arm_m", 1.0), ("forearm_m", 1.0)):
+        want = learned[f] + (v - learned[f]) * n / (n + PR.PRIOR_SAMPLES)
+        assert learner.scale.ratio[f] == pytest.approx(want) and want < 1.0 - PR.DEAD_ZONE
+    for _ in range(PR.MIN_DEPTH_SAMPLES):
+        learner._win3["arm"].add([1.0, 1.0])                  # 3D samples that agree exactly: believed at once
+    learner._scale = learner._estimate()
+    assert "upper_arm_m" not in learner.scale.ratio          # 1.0: inside the dead zone
+    learner.forget()
+    assert learner.dims() == base and learner._win["arm"].prior == [1.0, 1.0]
+
+
 def test_window_percentile_against_numpy():
     """The sorted window against NumPy's partition of the same last HISTORY samples."""
     rng = np.random.default_rng(3)
@@ -193,11 +223,11 @@ def test_image_mode_calibration_forgetting_and_reset(walk, tmp_path):
     f.reset()                                                         # a lost track keeps what was learned
     f.fit(lm, 61, float(seq.times[60]) + 0.1, k.size, mode="video", intrinsics=k)
     assert f.dims == learned
-    # a long gap (longer than proportions_forget_s): someone else may have come
+    # a long gap (longer than proportions_forget_s): the same person may come back, or someone else: what was
+    # learned is kept as the prior the new samples start from
     f.fit(lm, 62, float(seq.times[60]) + 0.2 + cfg.proportions_forget_s + 1, k.size, mode="video", intrinsics=k)
-    assert f.dims == f.base_dims
-    _video(f, seq, 60)
-    assert f.dims != f.base_dims
+    assert f.dims == learned
+    assert max(w.added for w in f._learner._win.values()) <= 2 and f._learner._win["arm"].prior[0] < 0.97
     f.fit(lm, 0, 0.0, k.size, mode="video", intrinsics=k)              # time went back: another recording
     assert f.dims == f.base_dims
     # warm-up teaches nothing
