@@ -7,8 +7,10 @@ its hip joints where BlazePose would put its hip landmarks elsewhere), projected
 away at 8 azimuths, at 5/10/15/30 fps, with 2D noise 0 and 1 % of body height (independent per frame, and
 correlated in time: ``OodPlan.noise_corr_s``), and with or without a
 simulated D435 depth (:mod:`bench.depth_sim`) when the fitter takes one (``Fitter.fit(..., depth_m=)``),
-and with two bodies: link lengths from the body height (``height``, the fit without calibration) and the
-mocap's own lengths as a calibration file (``mocap``, an oracle ``posed calibrate``).
+and with three bodies: link lengths from the body height (``height``, the fit without calibration), the
+mocap's own lengths as a calibration file (``mocap``, an oracle ``posed calibrate``), and the height body in
+video mode for a person seen before (``seen``: the subject's other clip watched first, then a minute without
+anybody; :data:`BODIES`).
 
 Metrics per frame against the mocap truth in the camera frame (metres), over the 12 body joints:
 
@@ -410,7 +412,8 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                 variants += [(noise, corr, drifting.landmarks[ni]) for ni, noise in enumerate(noisy)]
             for ni, noise in enumerate(plan.noises):
                 noise_px.setdefault(noise, []).append(float(seq.noise_px[ni]))
-            if "seen" in plan.bodies:   # the earlier visit: the subject's other clip (this one if alone), turned
+            # the "seen" body's earlier visit: the subject's other clip (this one if alone), turned
+            if "seen" in plan.bodies and "video" in plan.modes:
                 other = plan.clips[(ci + 1) % len(plan.clips)]
                 visit = build_sequence(clips[other], (az + SEEN_TURN_DEG) % 360.0, master, plan.noises,
                                        seed=1000 * ci + ai + seed + 500, max_s=plan.max_s)
