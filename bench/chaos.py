@@ -35,7 +35,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from bench import chaos_bus, chaos_inputs
+from posed.bench import chaos_bus, chaos_inputs
 
 STAGES = ("capture", "landmarks", "fitting", "publisher")
 
@@ -137,7 +137,7 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
     robot = f"chaos{seed}"
     state = work / "state"
     router_ep = f"tcp/127.0.0.1:{_free_port()}"
-    cmd = [sys.executable, "-m", "daemon.cli", "run", "--source", inp.source,
+    cmd = [sys.executable, "-m", "posed.daemon.cli", "run", "--source", inp.source,
            "--set", f"pipeline.state_dir={state}", "--set", "logging.format=json", "--set", f"robot_id={robot}",
            "--set", f"zenoh.listen=[tcp/127.0.0.1:{_free_port()}]", "--set", f"zenoh.connect=[{router_ep}]",
            "--set", "source.loop=true", "--set", "zenoh.event_republish_s=2",
@@ -148,7 +148,7 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
         cmd += ["--set", o]
     import zenoh
 
-    from client import session_config
+    from posed.client import session_config
 
     faults = {"kill9": 0, "sigstop": 0, "by_stage": {}}
     stopped: dict[int, float] = {}          # pid -> when to SIGCONT

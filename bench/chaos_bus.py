@@ -15,7 +15,7 @@ def open_client(endpoint: str, timeout_s: float = 30.0):
     """A client session to ``endpoint``, retried until it answers."""
     import zenoh
 
-    from client import session_config
+    from posed.client import session_config
 
     deadline = time.monotonic() + timeout_s
     while True:

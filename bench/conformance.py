@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from daemon.preflight import SQUAT_VIDEO
+from posed.daemon.preflight import SQUAT_VIDEO
 
 BODY = (11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28)  # shoulders, elbows, wrists, hips, knees, ankles
 COCO_TO_MP = (0, 2, 5, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28)  # COCO's 17 keypoints, in order

@@ -20,7 +20,7 @@ import numpy as np
 import onnx
 from onnx import numpy_helper
 
-from landmarks import DETECTOR_INPUT_SIZE, LANDMARK_INPUT_SIZE, Roi, detector_input, landmark_input
+from posed.landmarks import DETECTOR_INPUT_SIZE, LANDMARK_INPUT_SIZE, Roi, detector_input, landmark_input
 
 MODEL_INPUTS = {"pose_detection": (DETECTOR_INPUT_SIZE, -1.0),  # side, lowest
                 "pose_landmark_full": (LANDMARK_INPUT_SIZE, 0.0)}

@@ -15,8 +15,8 @@ def ensure_demo_recording(path: Path) -> Path:
     """Write the recording to ``path`` unless it is already there; returns ``path``."""
     if path.is_file():
         return path
-    from bench import simulate
-    from landmarks import LandmarkFrame, RecordingHeader, write_recording
+    from posed.bench import simulate
+    from posed.landmarks import LandmarkFrame, RecordingHeader, write_recording
 
     camera = simulate.Camera(model="pinhole", distance_m=3.0)
     seq = simulate.sequence("squat")

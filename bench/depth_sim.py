@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
-from landmarks import LANDMARK_NAMES
+from posed.camera_model import Intrinsics
+from posed.landmarks import LANDMARK_NAMES
 
 BASELINE_M = 0.050
 FOCAL_D435_PX = 424.0      # 848 px at 90 deg horizontal field of view

@@ -22,14 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.bvh import cmu_landmark_world, read_bvh
-from bench.falls_body import Body, WorldCamera
-from bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
-from camera_model import Intrinsics
-from falls.config import FallsConfig
-from falls.detector import FallDetector
-from falls.features import gravity_from_tilt
-from fitting import FitResult
+from posed.bench.bvh import cmu_landmark_world, read_bvh
+from posed.bench.falls_body import Body, WorldCamera
+from posed.bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
+from posed.camera_model import Intrinsics
+from posed.falls.config import FallsConfig
+from posed.falls.detector import FallDetector
+from posed.falls.features import gravity_from_tilt
+from posed.fitting import FitResult
 
 DETECTING_STATES = ("falling", "on_floor")
 
@@ -190,7 +190,7 @@ def summarise(outcomes: Iterable[Outcome]) -> dict:
 def real_fitter(fit_config=None, with_intrinsics: bool = True):
     """``fit(landmarks, seq, t, image_size, intrinsics)`` through fitting.fitter.Fitter in video mode; with
     intrinsics the fit projects through the pinhole (``fitting.projection: auto``), as with a RealSense."""
-    from fitting import FitConfig, Fitter
+    from posed.fitting import FitConfig, Fitter
 
     fitter = Fitter(fit_config or FitConfig())
     fitter.warmup()
@@ -212,8 +212,8 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
     import json
     from dataclasses import asdict
 
-    from bench.falls_recordings import _fitting_source_hash
-    from daemon.bus.payloads import dumps
+    from posed.bench.falls_recordings import _fitting_source_hash
+    from posed.daemon.bus.payloads import dumps
 
     h = hashlib.sha256()
     for fr in case.frames:

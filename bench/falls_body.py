@@ -18,9 +18,9 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from camera_model import Intrinsics
-from fitting import JOINT_3D_NAMES
-from landmarks import LANDMARK_NAMES
+from posed.camera_model import Intrinsics
+from posed.fitting import JOINT_3D_NAMES
+from posed.landmarks import LANDMARK_NAMES
 
 
 def rot_x(deg: float) -> np.ndarray:

@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
-from daemon.config import Config
+from posed.daemon.config import Config
 
 DETECTING_STATES = ("falling", "on_floor")
 GEOMETRY_KEYS = ("camera_tilt_deg", "camera_roll_deg", "camera_height_m")
@@ -72,7 +72,7 @@ def with_geometry(cfg: Config, camera: dict, geometry: str) -> Config:
 
 
 def _fitting_source_hash() -> str:
-    import fitting
+    from posed import fitting
 
     h = hashlib.sha256()
     for p in sorted(Path(fitting.__file__).parent.glob("*.py")):
@@ -82,9 +82,9 @@ def _fitting_source_hash() -> str:
 
 def cached_fits(path: Path, cfg: Config, cache: Path | None):
     """(header, [(frame, FitResult)]) of one recording, fitted as ``posed falls`` fits it (cached)."""
-    from daemon.commands.falls import fit_frames, taken_frames
-    from fitting import FitResult
-    from landmarks import read_recording
+    from posed.daemon.commands.falls import fit_frames, taken_frames
+    from posed.fitting import FitResult
+    from posed.landmarks import read_recording
 
     header, frames, _problems = read_recording(path)
     frames = list(taken_frames(cfg.pipeline, frames))   # what the daemon's capture stage takes
@@ -101,7 +101,7 @@ def cached_fits(path: Path, cfg: Config, cache: Path | None):
                 return header, list(zip(frames, results, strict=True))
     pairs = list(fit_frames(cfg.fitting, header, frames))
     if key is not None:
-        from daemon.bus.payloads import dumps
+        from posed.daemon.bus.payloads import dumps
 
         key.parent.mkdir(parents=True, exist_ok=True)
         tmp = key.with_suffix(".tmp")
@@ -111,7 +111,7 @@ def cached_fits(path: Path, cfg: Config, cache: Path | None):
 
 
 def score_clip(name: str, kind: str, impact_t: float | None, header, pairs, cfg: Config) -> RecordingOutcome:
-    from daemon.commands.falls import detect
+    from posed.daemon.commands.falls import detect
 
     messages = []
     for _frame, _result, evs in detect(cfg, header, pairs):

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from bench.falls_body import Body, RestingPlace, StickPose, WorldCamera, place
-from fitting import FitResult
+from posed.bench.falls_body import Body, RestingPlace, StickPose, WorldCamera, place
+from posed.fitting import FitResult
 
 STAND = StickPose()
 SIT = StickPose(hip_flex_l=90, hip_flex_r=90, knee_l=90, knee_r=90, sh_flex_l=30, sh_flex_r=30, elbow_l=60,

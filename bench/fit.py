@@ -28,10 +28,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from bench import ood as OOD
-from bench import simulate as S
-from bench.speed_reference import reference_ms
-from fitting import BODY_LANDMARK_NAMES, VARIABLE_NAMES, FitConfig, Fitter, Pose
+from posed.bench import ood as OOD
+from posed.bench import simulate as S
+from posed.bench.speed_reference import reference_ms
+from posed.fitting import BODY_LANDMARK_NAMES, VARIABLE_NAMES, FitConfig, Fitter, Pose
 
 ANGLES = VARIABLE_NAMES[1:]  # the 18 estimated joint and body angles
 HEIGHT_M = 1.60              # the paper's subject: average Korean woman in her twenties
@@ -323,8 +323,8 @@ def run(plan: Plan = FULL, base: FitConfig | None = None, progress: Callable[[st
         description[OOD.PROTOCOL] = {**ood["description"], "cameras": ood["cameras"], "depth_sim": ood["depth_sim"]}
         results.extend(ood["results"])
     if plan.squat_video and "squat_video" in wanted:
-        from bench import squat_video
-        from daemon.preflight import shared_data
+        from posed.bench import squat_video
+        from posed.daemon.preflight import shared_data
         say("squat_video")
         description["squat_video"] = squat_video.__doc__.split("\n\n")[1].replace("\n", " ")
         results.extend(squat_video.run(shared_data(), replace(base, body_height_m=1.65)))

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.bvh import cmu_landmark_world, read_bvh
-from camera_model import Intrinsics
-from landmarks import LANDMARK_NAMES
+from posed.bench.bvh import cmu_landmark_world, read_bvh
+from posed.camera_model import Intrinsics
+from posed.landmarks import LANDMARK_NAMES
 
 CLIPS = ("131_01", "131_02")
 IMAGE_SIZE = (640, 480)

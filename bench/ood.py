@@ -47,10 +47,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bench import mocap_landmarks as M
-from bench.depth_sim import DepthSim, simulate_depth
-from fitting import BodyDimensions, FitConfig, Fitter, write_calibration
-from landmarks import LANDMARK_NAMES
+from posed.bench import mocap_landmarks as M
+from posed.bench.depth_sim import DepthSim, simulate_depth
+from posed.fitting import BodyDimensions, FitConfig, Fitter, write_calibration
+from posed.landmarks import LANDMARK_NAMES
 
 PROTOCOL = "ood_mocap"
 DOMAIN = "out-of-domain"
@@ -364,7 +364,7 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
     base = base or FitConfig()
     say = progress or (lambda s: None)
     if data_dir is None:
-        from daemon.preflight import shared_data
+        from posed.daemon.preflight import shared_data
         data_dir = shared_data() / "mocap" / "cmu"
     takes_depth = fitter_takes_depth()
     master = math.lcm(*plan.fps)

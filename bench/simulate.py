@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
-from fitting import BodyDimensions, FitResult, Pose, joints_3d, landmarks_camera
+from posed.camera_model import Intrinsics
+from posed.fitting import BodyDimensions, FitResult, Pose, joints_3d, landmarks_camera
 
 __all__ = [
     "FLOOR_POSES", "PAPER_POSES", "POSES", "SEQUENCE_NAMES", "Camera", "Placement", "Pose", "Sequence", "body_dimensions",

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fitting import BodyDimensions, FitConfig, Fitter
+from posed.fitting import BodyDimensions, FitConfig, Fitter
 
 VIDEO_FPS = 5.0
 RATES = (5.0, 10.0, 30.0)

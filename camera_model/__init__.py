@@ -4,6 +4,6 @@ Dependency-free (the standard library and numpy): hal, landmarks, fitting, falls
 import it. See :mod:`camera_model.intrinsics` for the frames, the units and the capture-time convention.
 """
 
-from camera_model.intrinsics import Intrinsics
+from posed.camera_model.intrinsics import Intrinsics
 
 __all__ = ["Intrinsics"]

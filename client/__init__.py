@@ -12,11 +12,11 @@ _API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 
 def __getattr__(name: str):
     if name in _API:
-        from client import api
+        from posed.client import api
 
         return getattr(api, name)
     if name in __all__:
-        from client import types
+        from posed.client import types
 
         return getattr(types, name)
     raise AttributeError(f"module 'client' has no attribute {name!r}")

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import zenoh
 
-from client import types as t
+from posed.client import types as t
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 HISTORY_LIMIT = 10000                      # the daemon's largest accepted limit

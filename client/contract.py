@@ -35,7 +35,7 @@ def schema(name: str) -> dict:
     stem = FORMATS.get(name, name)
     if stem not in SCHEMA_NAMES:
         raise KeyError(f"no schema {name!r}; known: {', '.join(sorted([*FORMATS, FIT_RESULT]))}")
-    return json.loads(resources.files("client").joinpath("schemas", f"{stem}.json").read_text())
+    return json.loads(resources.files("posed.client").joinpath("schemas", f"{stem}.json").read_text())
 
 
 @cache

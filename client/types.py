@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from falls import FallEvent
-from fitting import FitResult
+from posed.falls import FallEvent
+from posed.fitting import FitResult
 
 N_LANDMARKS = 33
 DELIVERY_FIELDS = ("published_at", "acked_at")

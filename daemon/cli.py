@@ -9,10 +9,10 @@ import os
 import pkgutil
 import sys
 
-from daemon import commands
-from daemon.config import EX_CONFIG
-from daemon.config.load import ConfigError
-from daemon.version import __version__
+from posed.daemon import commands
+from posed.daemon.config import EX_CONFIG
+from posed.daemon.config.load import ConfigError
+from posed.daemon.version import __version__
 
 
 def build_parser() -> argparse.ArgumentParser:

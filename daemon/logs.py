@@ -21,7 +21,7 @@ import threading
 
 import structlog
 
-from daemon import journald
+from posed.daemon import journald
 
 _LEVELS = {"debug": logging.DEBUG, "info": logging.INFO, "warning": logging.WARNING, "error": logging.ERROR}
 _configured: tuple[str, str, str | None] | None = None

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from camera_model import Intrinsics
-from fitting import FitResult
-from landmarks import LandmarkFrame
+from posed.camera_model import Intrinsics
+from posed.fitting import FitResult
+from posed.landmarks import LandmarkFrame
 
 STAGES = ("capture", "landmarks", "fitting", "publisher")
 

@@ -12,8 +12,8 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from daemon.config import Config
-from hal import is_landmark_recording
+from posed.daemon.config import Config
+from posed.hal import is_landmark_recording
 
 ROOT = Path(__file__).resolve().parent.parent
 SQUAT_VIDEO = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"
@@ -59,7 +59,7 @@ def resolve_source(cfg: Config, make_recording: Callable[[Path], Path]) -> Confi
 def _without_query(src, problems: list[str]):
     """The source config with a URI query (``?loop=true&realtime=false``) moved out of its path into its keys,
     as the capture stage reads it (hal.parse_uri); a bad query is a problem."""
-    from hal import SourceError, parse_uri
+    from posed.hal import SourceError, parse_uri
 
     try:
         return parse_uri(f"file:{src.path}", base=src)
@@ -102,7 +102,7 @@ def check(cfg: Config) -> list[str]:
 def calibration_problems(path: str) -> list[str]:
     """What is wrong with the calibration file ``path`` (read with a bound: a huge file or /dev/zero is an
     error, not a hang), as ``fitting.calibration:`` lines."""
-    from fitting import CalibrationError, read_calibration
+    from posed.fitting import CalibrationError, read_calibration
 
     try:
         read_calibration(path)
@@ -125,7 +125,7 @@ def _zenoh_problems(cfg: Config) -> list[str]:
     except OSError as exc:
         return [f"zenoh.config_file: {path} cannot be read ({exc.strerror}); make it readable by the daemon's "
                 "user or leave the key empty"]
-    from daemon.bus.session import ZenohConfigError, build_config
+    from posed.daemon.bus.session import ZenohConfigError, build_config
 
     try:
         build_config(cfg.zenoh)
@@ -135,7 +135,7 @@ def _zenoh_problems(cfg: Config) -> list[str]:
 
 
 def _model_problems(cfg: Config) -> list[str]:
-    from landmarks import ModelMissingError, find_models, verify_models
+    from posed.landmarks import ModelMissingError, find_models, verify_models
 
     try:
         verify_models(find_models(cfg.landmarks.models_dir or None))

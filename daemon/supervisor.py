@@ -33,19 +33,19 @@ import time
 import traceback
 from dataclasses import dataclass
 
-from daemon import clock, logs
-from daemon.config import EX_CONFIG, Config
-from daemon.proc import orphans, procstat, shm
-from daemon.proc.control import DOORBELLS, Control
-from daemon.proc.health import CAMERA_STATES
-from daemon.proc.notify import Notifier
-from daemon.proc.ring import FrameRing
-from daemon.proc.status import fmt_ms, memory_fields, nan_to_zero, pss_mb, rounded
-from daemon.proc.watchdog import RestartPolicy, verdict
-from daemon.stages.base import EXIT_FATAL, StageArgs, stage_main
-from daemon.stages.plan import StageSpec, default_plan
-from daemon.version import __version__
-from hal import is_realsense_recording, to_uri
+from posed.daemon import clock, logs
+from posed.daemon.config import EX_CONFIG, Config
+from posed.daemon.proc import orphans, procstat, shm
+from posed.daemon.proc.control import DOORBELLS, Control
+from posed.daemon.proc.health import CAMERA_STATES
+from posed.daemon.proc.notify import Notifier
+from posed.daemon.proc.ring import FrameRing
+from posed.daemon.proc.status import fmt_ms, memory_fields, nan_to_zero, pss_mb, rounded
+from posed.daemon.proc.watchdog import RestartPolicy, verdict
+from posed.daemon.stages.base import EXIT_FATAL, StageArgs, stage_main
+from posed.daemon.stages.plan import StageSpec, default_plan
+from posed.daemon.version import __version__
+from posed.hal import is_realsense_recording, to_uri
 
 EX_SOFTWARE = 70   # escalated without a systemd watchdog to do the restart
 TICK_S = 0.1

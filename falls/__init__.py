@@ -5,8 +5,8 @@ updates (``falling``, ``on_floor``, ``alarm``, ``recovered``); :class:`FallsConf
 section. Imports only numpy, :mod:`camera_model` and the public face of :mod:`fitting`.
 """
 
-from falls.config import FallsConfig
-from falls.detector import FallDetector, Sample
-from falls.event import FALL_STATES, FallEvent
+from posed.falls.config import FallsConfig
+from posed.falls.detector import FallDetector, Sample
+from posed.falls.event import FALL_STATES, FallEvent
 
 __all__ = ["FALL_STATES", "FallDetector", "FallEvent", "FallsConfig", "Sample"]

@@ -23,9 +23,9 @@ import math
 
 import numpy as np
 
-from falls.config import FallsConfig
-from falls.features import gravity_from_tilt
-from falls.geometry import GravityLearner, tilt_roll_deg
+from posed.falls.config import FallsConfig
+from posed.falls.features import gravity_from_tilt
+from posed.falls.geometry import GravityLearner, tilt_roll_deg
 
 GRAVITY_STEP_DEG = 1.0   # a learned gravity is applied when it moved this far from the one in use
 FLOOR_MIN_WEIGHT = 5.0   # standing observations before the learned floor replaces the configured one

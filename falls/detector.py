@@ -32,12 +32,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camera_model import Intrinsics
-from falls.camera_geometry import CameraGeometry
-from falls.config import FallsConfig
-from falls.event import FallEvent
-from falls.features import ANKLE_OVER_LEG, PELVIS_OVER_LEG, FrameFeatures, measure
-from fitting import FitResult
+from posed.camera_model import Intrinsics
+from posed.falls.camera_geometry import CameraGeometry
+from posed.falls.config import FallsConfig
+from posed.falls.event import FallEvent
+from posed.falls.features import ANKLE_OVER_LEG, PELVIS_OVER_LEG, FrameFeatures, measure
+from posed.fitting import FitResult
 
 LOST_HORIZON_S = 0.4     # lost while falling: the pelvis would reach floor level this soon at its last speed
 PROFILE_WINDOW_S = 0.25  # descent profile: speeds over this window (three frames at 10 fps)

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
-from fitting import BODY_LANDMARK_NAMES, BODY_LANDMARKS, FitResult
+from posed.camera_model import Intrinsics
+from posed.fitting import BODY_LANDMARK_NAMES, BODY_LANDMARKS, FitResult
 
 # joints_3d name -> MediaPipe landmark index
 LANDMARK_INDEX = dict(zip(BODY_LANDMARK_NAMES, BODY_LANDMARKS, strict=True))

@@ -22,12 +22,24 @@ import importlib
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from fitting.body import BodyDimensions, CalibrationError, read_calibration, write_calibration
-    from fitting.calibration import CalibrationFailed, calibrate
-    from fitting.config import FitConfig
-    from fitting.fitter import Fitter
-    from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS, Pose, joints_3d, landmarks_camera
-    from fitting.result import BODY_ANGLE_NAMES, JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+    from posed.fitting.body import BodyDimensions, CalibrationError, read_calibration, write_calibration
+    from posed.fitting.calibration import CalibrationFailed, calibrate
+    from posed.fitting.config import FitConfig
+    from posed.fitting.fitter import Fitter
+    from posed.fitting.kinematics import (
+        BODY_LANDMARK_NAMES,
+        BODY_LANDMARKS,
+        Pose,
+        joints_3d,
+        landmarks_camera,
+    )
+    from posed.fitting.result import (
+        BODY_ANGLE_NAMES,
+        JOINT_3D_NAMES,
+        JOINT_ANGLE_NAMES,
+        VARIABLE_NAMES,
+        FitResult,
+    )
 
 __all__ = [
     "BODY_ANGLE_NAMES",
@@ -52,24 +64,24 @@ __all__ = [
 
 # public name -> (module that defines it, its name there)
 _ORIGIN = {
-    "BodyDimensions": ("fitting.body", "BodyDimensions"),
-    "CalibrationError": ("fitting.body", "CalibrationError"),
-    "read_calibration": ("fitting.body", "read_calibration"),
-    "write_calibration": ("fitting.body", "write_calibration"),
-    "CalibrationFailed": ("fitting.calibration", "CalibrationFailed"),
-    "calibrate": ("fitting.calibration", "calibrate"),
-    "FitConfig": ("fitting.config", "FitConfig"),
-    "Fitter": ("fitting.fitter", "Fitter"),
-    "BODY_LANDMARKS": ("fitting.kinematics", "BODY_LANDMARKS"),
-    "BODY_LANDMARK_NAMES": ("fitting.kinematics", "BODY_LANDMARK_NAMES"),
-    "Pose": ("fitting.kinematics", "Pose"),
-    "joints_3d": ("fitting.kinematics", "joints_3d"),
-    "landmarks_camera": ("fitting.kinematics", "landmarks_camera"),
-    "BODY_ANGLE_NAMES": ("fitting.result", "BODY_ANGLE_NAMES"),
-    "JOINT_3D_NAMES": ("fitting.result", "JOINT_3D_NAMES"),
-    "JOINT_ANGLE_NAMES": ("fitting.result", "JOINT_ANGLE_NAMES"),
-    "VARIABLE_NAMES": ("fitting.result", "VARIABLE_NAMES"),
-    "FitResult": ("fitting.result", "FitResult"),
+    "BodyDimensions": ("posed.fitting.body", "BodyDimensions"),
+    "CalibrationError": ("posed.fitting.body", "CalibrationError"),
+    "read_calibration": ("posed.fitting.body", "read_calibration"),
+    "write_calibration": ("posed.fitting.body", "write_calibration"),
+    "CalibrationFailed": ("posed.fitting.calibration", "CalibrationFailed"),
+    "calibrate": ("posed.fitting.calibration", "calibrate"),
+    "FitConfig": ("posed.fitting.config", "FitConfig"),
+    "Fitter": ("posed.fitting.fitter", "Fitter"),
+    "BODY_LANDMARKS": ("posed.fitting.kinematics", "BODY_LANDMARKS"),
+    "BODY_LANDMARK_NAMES": ("posed.fitting.kinematics", "BODY_LANDMARK_NAMES"),
+    "Pose": ("posed.fitting.kinematics", "Pose"),
+    "joints_3d": ("posed.fitting.kinematics", "joints_3d"),
+    "landmarks_camera": ("posed.fitting.kinematics", "landmarks_camera"),
+    "BODY_ANGLE_NAMES": ("posed.fitting.result", "BODY_ANGLE_NAMES"),
+    "JOINT_3D_NAMES": ("posed.fitting.result", "JOINT_3D_NAMES"),
+    "JOINT_ANGLE_NAMES": ("posed.fitting.result", "JOINT_ANGLE_NAMES"),
+    "VARIABLE_NAMES": ("posed.fitting.result", "VARIABLE_NAMES"),
+    "FitResult": ("posed.fitting.result", "FitResult"),
 }
 
 

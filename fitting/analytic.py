@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from fitting import layout as L
-from fitting.loss import pose_loss
-from fitting.refine import limb_from_observation
+from posed.fitting import layout as L
+from posed.fitting.loss import pose_loss
+from posed.fitting.refine import limb_from_observation
 
 
 @njit(cache=True)

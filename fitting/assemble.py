@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fitting import problem as P
-from fitting.depth_term import DepthFit
-from fitting.reported import ANGLES, JOINTS, N_REPORTED, reported_values
-from fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+from posed.fitting import problem as P
+from posed.fitting.depth_term import DepthFit
+from posed.fitting.reported import ANGLES, JOINTS, N_REPORTED, reported_values
+from posed.fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 
 _DEPENDS = {  # variables that only these landmarks observe
     "left_elbow": ("theta_sh_l", "phi_sh_l"), "right_elbow": ("theta_sh_r", "phi_sh_r"),

@@ -15,8 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fitting.body import BodyDimensions
-from fitting.image2d import distance, down_tilt_deg
+from posed.fitting.body import BodyDimensions
+from posed.fitting.image2d import distance, down_tilt_deg
 
 MIN_FRAMES = 10
 EYE_HEIGHT = 0.936          # eye height / body height (Drillis & Contini)

@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from fitting import layout as L
-from fitting.loss import pose_loss_terms
-from fitting.refine import data_mse, levenberg_marquardt_into, limb_flip, lm_work, pelvis_projection
+from posed.fitting import layout as L
+from posed.fitting.loss import pose_loss_terms
+from posed.fitting.refine import data_mse, levenberg_marquardt_into, limb_flip, lm_work, pelvis_projection
 
 # the joint whose flexion tells whether a limb is bent, per limb (refine.LIMB_* order: the arms, then the legs)
 LIMB_JOINT = np.array([L.X_TEL_L, L.X_TEL_R, L.X_TKN_L, L.X_TKN_R])

@@ -17,10 +17,10 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import forward_kinematics as FK
-from fitting import jacobian as JAC
-from fitting import layout as L
-from fitting.depth_term import (
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import jacobian as JAC
+from posed.fitting import layout as L
+from posed.fitting.depth_term import (
     CAPSULE_RADII,
     CAPSULES,
     DEPTH_RMS_K,

@@ -27,23 +27,23 @@ import time
 
 import numpy as np
 
-from camera_model import Intrinsics
-from fitting import forward_kinematics as FK
-from fitting import jitcache, refine, udeas
-from fitting import layout as L
-from fitting import problem as P
-from fitting.analytic import analytic_start
-from fitting.assemble import assemble
-from fitting.body import BodyDimensions, dimensions_for
-from fitting.candidates import image_candidates, score_all, score_into
-from fitting.config import FitConfig
-from fitting.depth_rows import depth_fit_at
-from fitting.depth_term import DEPTH_RMS_K, SURFACE_M, DepthFit, usable
-from fitting.hypotheses import best_hypothesis, video_starts
-from fitting.kinematics import BODY_LANDMARKS
-from fitting.projection import image_scale
-from fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
-from fitting.result import FitResult
+from posed.camera_model import Intrinsics
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import jitcache, refine, udeas
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting.analytic import analytic_start
+from posed.fitting.assemble import assemble
+from posed.fitting.body import BodyDimensions, dimensions_for
+from posed.fitting.candidates import image_candidates, score_all, score_into
+from posed.fitting.config import FitConfig
+from posed.fitting.depth_rows import depth_fit_at
+from posed.fitting.depth_term import DEPTH_RMS_K, SURFACE_M, DepthFit, usable
+from posed.fitting.hypotheses import best_hypothesis, video_starts
+from posed.fitting.kinematics import BODY_LANDMARKS
+from posed.fitting.projection import image_scale
+from posed.fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
+from posed.fitting.result import FitResult
 
 MODES = ("video", "image")
 _TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
@@ -106,7 +106,7 @@ class Fitter:
 
     def warmup(self) -> None:
         """Compile (or load from the numba cache) every kernel by fitting a simulated frame in both modes."""
-        from fitting.warmup import warmup_depth, warmup_landmarks
+        from posed.fitting.warmup import warmup_depth, warmup_landmarks
 
         lm = warmup_landmarks(self.dims)
         noisy = warmup_landmarks(self.dims, noise_px=3.0, seed=1)

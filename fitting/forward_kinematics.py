@@ -23,8 +23,8 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import layout as L
-from fitting.rotations import body_rot, mm, put_point, r0, rx, rx_cs, ry, ry_cs, rz, rz_cs
+from posed.fitting import layout as L
+from posed.fitting.rotations import body_rot, mm, put_point, r0, rx, rx_cs, ry, ry_cs, rz, rz_cs
 
 # Dempster / Winter segment masses (fitting.body.SEGMENT_MASS, fractions of body mass) and centre-of-mass
 # positions along the segments (fractions of their length from the proximal joint).

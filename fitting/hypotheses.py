@@ -17,10 +17,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from fitting import layout as L
-from fitting.analytic import analytic_start
-from fitting.depth_rows import cost_with_depth, set_depth_rows_at
-from fitting.refine import levenberg_marquardt_into, limb_flip, lm_work
+from posed.fitting import layout as L
+from posed.fitting.analytic import analytic_start
+from posed.fitting.depth_rows import cost_with_depth, set_depth_rows_at
+from posed.fitting.refine import levenberg_marquardt_into, limb_flip, lm_work
 
 
 @njit(cache=True)

@@ -30,12 +30,12 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import layout as L
-from fitting.forward_kinematics import empty_work as empty_fk_work
-from fitting.forward_kinematics import model_points_into
-from fitting.penalties import hinge_jacobian, hinge_residuals
-from fitting.projection import MIN_DEPTH, project
-from fitting.rotations import body_rot, column, mm, r0, rx, ry, rz
+from posed.fitting import layout as L
+from posed.fitting.forward_kinematics import empty_work as empty_fk_work
+from posed.fitting.forward_kinematics import model_points_into
+from posed.fitting.penalties import hinge_jacobian, hinge_residuals
+from posed.fitting.projection import MIN_DEPTH, project
+from posed.fitting.rotations import body_rot, column, mm, r0, rx, ry, rz
 
 ORIGIN = (0.0, 0.0, 0.0)  # the mid-hip: centre of the body and lumbar rotations
 

@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fitting.body import SEGMENT_MASS, BodyDimensions
-from fitting.result import BODY_ANGLE_NAMES, JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES
+from posed.fitting.body import SEGMENT_MASS, BodyDimensions
+from posed.fitting.result import BODY_ANGLE_NAMES, JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES
 
 # Camera axes of the pelvis axes in the neutral pose (columns: x_B, y_B, z_B in C).
 R0 = np.array([[0.0, 1.0, 0.0],

@@ -15,10 +15,10 @@ import math
 
 from numba import njit
 
-from fitting import layout as L
-from fitting.forward_kinematics import fk_update, load_rot, update_trig
-from fitting.penalties import penalties
-from fitting.projection import project_w
+from posed.fitting import layout as L
+from posed.fitting.forward_kinematics import fk_update, load_rot, update_trig
+from posed.fitting.penalties import penalties
+from posed.fitting.projection import project_w
 
 
 @njit(cache=True)

@@ -16,7 +16,7 @@ import math
 
 from numba import njit
 
-from fitting import layout as L
+from posed.fitting import layout as L
 
 MAX_SEEDS = 4
 # R0 is a signed permutation: row i of R0^T R_CB is s times row k of R_CB, (k, s) = R0T_ROWS[i]

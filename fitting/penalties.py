@@ -12,7 +12,7 @@ import math
 
 from numba import njit
 
-from fitting import layout as L
+from posed.fitting import layout as L
 
 
 @njit(cache=True)

@@ -16,13 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
-from fitting import layout as L
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
-from fitting.orientation import MAX_SEEDS, orientation_seeds_into
-from fitting.packing import normalized_into, reference_scale_of, weights_into
+from posed.camera_model import Intrinsics
+from posed.fitting import layout as L
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
+from posed.fitting.orientation import MAX_SEEDS, orientation_seeds_into
+from posed.fitting.packing import normalized_into, reference_scale_of, weights_into
 
 DEG = math.pi / 180.0
 

@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from fitting import forward_kinematics as FK
-from fitting import layout as L
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import layout as L
 
 MIN_DEPTH = 1e-3  # a point is kept at least this fraction of Tz in front of the camera
 

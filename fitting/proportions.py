@@ -54,9 +54,9 @@ from statistics import NormalDist
 
 import numpy as np
 
-from camera_model import Intrinsics
-from fitting.body import BodyDimensions
-from fitting.image2d import distance, down_tilt_deg
+from posed.camera_model import Intrinsics
+from posed.fitting.body import BodyDimensions
+from posed.fitting.image2d import distance, down_tilt_deg
 
 # limbs: (upper segment, lower segment), their length fields and the body-12 indices (fitting.kinematics
 # BODY_LANDMARKS order: shoulders 0/1, elbows 2/3, wrists 4/5, hips 6/7, knees 8/9, ankles 10/11) per side

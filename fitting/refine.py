@@ -23,11 +23,11 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import forward_kinematics as FK
-from fitting import jacobian as JAC
-from fitting import layout as L
-from fitting import penalties as PEN
-from fitting import rotations as ROT
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import jacobian as JAC
+from posed.fitting import layout as L
+from posed.fitting import penalties as PEN
+from posed.fitting import rotations as ROT
 
 REL_TOL = 1e-3  # LM stops when an accepted step lowers the cost by less than this fraction of it
 

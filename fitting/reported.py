@@ -16,10 +16,10 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import forward_kinematics as FK
-from fitting import layout as L
-from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES
-from fitting.root import root_position
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import layout as L
+from posed.fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES
+from posed.fitting.root import root_position
 
 # the joint angles the model holds fixed (not estimated), in the order of the fitter's fixed values
 FIXED_NAMES = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")

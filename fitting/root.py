@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from fitting import layout as L
-from fitting.projection import MIN_DEPTH
+from posed.fitting import layout as L
+from posed.fitting.projection import MIN_DEPTH
 
 
 @njit(cache=True)

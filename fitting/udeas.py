@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fitting import loss as LOSS
+from posed.fitting import loss as LOSS
 
 PROBLEM_POSE, PROBLEM_SPHERE, PROBLEM_RASTRIGIN, PROBLEM_ROSENBROCK = 0, 1, 2, 3
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fitting.body import BodyDimensions
-from fitting.kinematics import Pose, landmarks_camera
+from posed.fitting.body import BodyDimensions
+from posed.fitting.kinematics import Pose, landmarks_camera
 
 IMAGE_SIZE = (640, 480)
 POSE = Pose({"theta_sh_l": 90.0, "theta_sh_r": 85.0, "phi_sh_l": -5.0, "phi_sh_r": -3.0, "theta_el_l": 10.0,

@@ -1,6 +1,6 @@
 """Hardware abstraction: RealSense, V4L2 and replay cameras behind one interface.
 
-    import hal
+    from posed import hal
     with hal.open_source("file:squat.mp4?realtime=false") as src:   # or a hal.SourceConfig
         frame = src.read(timeout_s=2.0)                               # a hal.Frame
 
@@ -15,8 +15,8 @@ docs/hal.md describes timestamps, recovery, fault injection and recording.
 
 from typing import TYPE_CHECKING
 
-from hal.config import SourceConfig
-from hal.errors import (
+from posed.hal.config import SourceConfig
+from posed.hal.errors import (
     EndOfStream,
     SourceCorrupt,
     SourceDisconnected,
@@ -25,14 +25,14 @@ from hal.errors import (
     SourceTimeout,
     SourceUnsupported,
 )
-from hal.frame import Frame
-from hal.recorder import RecordSummary, check_output, record
-from hal.registry import REGISTRY, is_landmark_recording, is_realsense_recording, open_source, register
-from hal.source import Source
-from hal.uri import parse_uri, to_uri
+from posed.hal.frame import Frame
+from posed.hal.recorder import RecordSummary, check_output, record
+from posed.hal.registry import REGISTRY, is_landmark_recording, is_realsense_recording, open_source, register
+from posed.hal.source import Source
+from posed.hal.uri import parse_uri, to_uri
 
 if TYPE_CHECKING:
-    from hal.db3 import Db3Writer
+    from posed.hal.db3 import Db3Writer
 
 __all__ = [
     "REGISTRY",
@@ -63,7 +63,7 @@ def __getattr__(name: str):
     # The RealSense recording writer loads on first use: only recording and the benchmarks need it, and its
     # module (with the RealSense glue) would add ~20 ms to every ``import hal``.
     if name == "Db3Writer":
-        from hal.db3 import Db3Writer
+        from posed.hal.db3 import Db3Writer
 
         globals()[name] = Db3Writer
         return Db3Writer

@@ -44,7 +44,7 @@ def wall_to_monotonic(unix_s: float) -> float:
 def wait_until_due(t_due: float, deadline: float, timeout_s: float, name: str, clock, sleep) -> None:
     """Real-time replay: sleep until a frame's capture time ``t_due`` (seconds, monotonic clock), but never
     past the read's ``deadline``; raise SourceTimeout when the frame is due after the read timeout."""
-    from hal.errors import SourceTimeout
+    from posed.hal.errors import SourceTimeout
 
     wait = t_due - clock()
     if wait <= 0:

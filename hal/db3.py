@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from camera_model import Intrinsics
-from hal.errors import SourceUnsupported
-from hal.realsense import import_rs
+from posed.camera_model import Intrinsics
+from posed.hal.errors import SourceUnsupported
+from posed.hal.realsense import import_rs
 
 IDENTITY_ROTATION = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 

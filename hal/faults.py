@@ -21,10 +21,10 @@ import random
 import time
 from typing import Any
 
-from hal.config import SourceConfig
-from hal.errors import SourceCorrupt, SourceDisconnected, SourceTimeout
-from hal.frame import Frame
-from hal.source import Source
+from posed.hal.config import SourceConfig
+from posed.hal.errors import SourceCorrupt, SourceDisconnected, SourceTimeout
+from posed.hal.frame import Frame
+from posed.hal.source import Source
 
 
 class FaultySource(Source):

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
+from posed.camera_model import Intrinsics
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,9 +16,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hal.config import SourceConfig
-from hal.errors import SourceCorrupt, SourceNotFound
-from hal.replay import MediaEnd, ReplaySource, as_bgr
+from posed.hal.config import SourceConfig
+from posed.hal.errors import SourceCorrupt, SourceNotFound
+from posed.hal.replay import MediaEnd, ReplaySource, as_bgr
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
 

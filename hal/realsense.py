@@ -39,21 +39,21 @@ from typing import Any
 
 import numpy as np
 
-from camera_model import Intrinsics
-from hal.clock import DeviceClock, wall_to_monotonic
-from hal.config import SourceConfig
-from hal.errors import (
+from posed.camera_model import Intrinsics
+from posed.hal.clock import DeviceClock, wall_to_monotonic
+from posed.hal.config import SourceConfig
+from posed.hal.errors import (
     EndOfStream,
     SourceCorrupt,
     SourceDisconnected,
     SourceNotFound,
     SourceUnsupported,
 )
-from hal.frame import Frame
-from hal.imu import GravityEstimate, find_accel, rotation_of, sample_sink
-from hal.replay import Timeline
-from hal.rs_playback import PlaybackPipeline
-from hal.source import Source
+from posed.hal.frame import Frame
+from posed.hal.imu import GravityEstimate, find_accel, rotation_of, sample_sink
+from posed.hal.replay import Timeline
+from posed.hal.rs_playback import PlaybackPipeline
+from posed.hal.source import Source
 
 # After hardware_reset() the camera re-enumerates; touching it too soon has crashed librealsense
 # (realsenseai/librealsense#11304), so the next start waits at least this long.

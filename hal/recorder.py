@@ -27,11 +27,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from hal.errors import EndOfStream, SourceCorrupt, SourceDisconnected, SourceTimeout, SourceUnsupported
-from hal.frame import Frame
-from hal.imu import G_M_S2
-from hal.sidecar import SidecarWriter, sidecar_path
-from hal.source import Source
+from posed.hal.errors import EndOfStream, SourceCorrupt, SourceDisconnected, SourceTimeout, SourceUnsupported
+from posed.hal.frame import Frame
+from posed.hal.imu import G_M_S2
+from posed.hal.sidecar import SidecarWriter, sidecar_path
+from posed.hal.source import Source
 
 VIDEO_CODECS = {".mkv": "FFV1", ".avi": "MJPG", ".mp4": "mp4v"}
 
@@ -129,7 +129,7 @@ class _Db3Sink(_Sink):
     format = "db3"
 
     def __init__(self, path: Path, first: Frame, fps: float, source: str) -> None:
-        from hal.db3 import Db3Writer
+        from posed.hal.db3 import Db3Writer
 
         if first.intrinsics is None:
             raise SourceUnsupported(f"{path}: a RealSense recording needs the camera intrinsics and {source} has "

@@ -10,10 +10,10 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from hal.config import SourceConfig
-from hal.errors import SourceNotFound, SourceUnsupported
-from hal.source import Source
-from hal.uri import parse_uri, split_query
+from posed.hal.config import SourceConfig
+from posed.hal.errors import SourceNotFound, SourceUnsupported
+from posed.hal.source import Source
+from posed.hal.uri import parse_uri, split_query
 
 VIDEO_EXTENSIONS = (".mp4", ".m4v", ".mov", ".avi", ".mkv", ".webm", ".mpg", ".mpeg", ".ts", ".wmv", ".flv",
                     ".h264", ".h265", ".mjpeg", ".mjpg", ".gif", ".3gp")
@@ -34,13 +34,13 @@ def is_realsense_recording(path: str | os.PathLike) -> bool:
 
 
 def _open_realsense(config: SourceConfig) -> Source:
-    from hal.realsense import RealSenseSource
+    from posed.hal.realsense import RealSenseSource
 
     return RealSenseSource(config)
 
 
 def _open_v4l2(config: SourceConfig) -> Source:
-    from hal.v4l2 import V4L2Source
+    from posed.hal.v4l2 import V4L2Source
 
     return V4L2Source(config)
 
@@ -61,18 +61,18 @@ def open_file(config: SourceConfig) -> Source:
         raise SourceNotFound(f"{path}: no such file or folder; check source.path or the file: URI", f"file:{path}")
     suffix = p.suffix.lower()
     if p.is_dir():
-        from hal.images import ImageFolderSource
+        from posed.hal.images import ImageFolderSource
 
         return ImageFolderSource(config, path)
     if is_realsense_recording(p):
-        from hal.realsense import RealSenseSource
+        from posed.hal.realsense import RealSenseSource
 
         return RealSenseSource(config, playback=path)
-    from hal.images import IMAGE_EXTENSIONS, ImageFolderSource
+    from posed.hal.images import IMAGE_EXTENSIONS, ImageFolderSource
 
     if suffix in IMAGE_EXTENSIONS:
         return ImageFolderSource(config, path)
-    from hal.video import VideoFileSource
+    from posed.hal.video import VideoFileSource
 
     if suffix in VIDEO_EXTENSIONS:
         return VideoFileSource(config, path)
@@ -90,7 +90,7 @@ def _probe_unknown_file(config: SourceConfig, path: str) -> Source:
         raise SourceUnsupported(
             f"{path}: not a video, image, image folder or RealSense recording (.db3/.bag) that hal can read; "
             f"videos: {' '.join(VIDEO_EXTENSIONS)}", f"file:{path}")
-    from hal.video import VideoFileSource
+    from posed.hal.video import VideoFileSource
 
     return VideoFileSource(config, path)
 
@@ -120,7 +120,7 @@ def open_source(spec: SourceConfig | str) -> Source:
         raise SourceUnsupported(f"source type {config.type!r} is not one of: {', '.join(REGISTRY)}", config.type)
     source = factory(config)
     if config.has_faults:
-        from hal.faults import FaultySource
+        from posed.hal.faults import FaultySource
 
         source = FaultySource(source, config)
     return source

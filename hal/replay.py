@@ -21,13 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from camera_model import Intrinsics
-from hal.clock import wait_until_due
-from hal.config import SourceConfig
-from hal.errors import EndOfStream
-from hal.frame import Frame
-from hal.sidecar import Timestamps, read_sidecar, sidecar_path
-from hal.source import Source
+from posed.camera_model import Intrinsics
+from posed.hal.clock import wait_until_due
+from posed.hal.config import SourceConfig
+from posed.hal.errors import EndOfStream
+from posed.hal.frame import Frame
+from posed.hal.sidecar import Timestamps, read_sidecar, sidecar_path
+from posed.hal.source import Source
 
 
 class MediaEnd(Exception):

@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from camera_model import Intrinsics
-from hal.errors import SourceCorrupt
+from posed.camera_model import Intrinsics
+from posed.hal.errors import SourceCorrupt
 
 FORMAT = "posed.timestamps"
 VERSION = 1

@@ -12,9 +12,9 @@ import abc
 from collections.abc import Callable
 from typing import Any
 
-from hal.config import SourceConfig
-from hal.errors import SourceError, SourceTimeout
-from hal.frame import Frame
+from posed.hal.config import SourceConfig
+from posed.hal.errors import SourceError, SourceTimeout
+from posed.hal.frame import Frame
 
 
 class Source(abc.ABC):

@@ -15,8 +15,8 @@ import os
 import typing
 from urllib.parse import parse_qsl
 
-from hal.config import SOURCE_TYPES, SourceConfig
-from hal.errors import SourceUnsupported
+from posed.hal.config import SOURCE_TYPES, SourceConfig
+from posed.hal.errors import SourceUnsupported
 
 FAULT_KEYS = ("drop", "stall_at", "stall_s", "disconnect_at", "disconnect_s", "corrupt_at", "seed")
 _HINTS = typing.get_type_hints(SourceConfig)

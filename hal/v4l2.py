@@ -32,11 +32,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from hal.config import SourceConfig
-from hal.errors import SourceDisconnected, SourceError, SourceNotFound
-from hal.frame import Frame
-from hal.replay import as_bgr, config_intrinsics, fourcc_text
-from hal.source import Source
+from posed.hal.config import SourceConfig
+from posed.hal.errors import SourceDisconnected, SourceError, SourceNotFound
+from posed.hal.frame import Frame
+from posed.hal.replay import as_bgr, config_intrinsics, fourcc_text
+from posed.hal.source import Source
 
 CaptureFactory = Callable[[Any, int], Any]
 

@@ -14,9 +14,9 @@ import os
 import cv2
 import numpy as np
 
-from hal.config import SourceConfig
-from hal.errors import SourceCorrupt, SourceNotFound
-from hal.replay import MediaEnd, ReplaySource, as_bgr, fourcc_text
+from posed.hal.config import SourceConfig
+from posed.hal.errors import SourceCorrupt, SourceNotFound
+from posed.hal.replay import MediaEnd, ReplaySource, as_bgr, fourcc_text
 
 # Reads tried after a decode failure before the rest of the file is given up (FFmpeg needed 10 on a
 # damaged 5 fps H.264 test file; each failed read costs well under a millisecond).

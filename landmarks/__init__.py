@@ -35,14 +35,14 @@ import importlib
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT_SIZE
-    from landmarks.config import LandmarkConfig
-    from landmarks.crop import detector_input, landmark_input
-    from landmarks.decode import CROP_SIZE as LANDMARK_INPUT_SIZE
-    from landmarks.depth import depth_patch_radius, sample_depth, with_depth
-    from landmarks.models import ModelMissingError, default_models_dir, find_models, verify_models
-    from landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points
-    from landmarks.recording import (
+    from posed.landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT_SIZE
+    from posed.landmarks.config import LandmarkConfig
+    from posed.landmarks.crop import detector_input, landmark_input
+    from posed.landmarks.decode import CROP_SIZE as LANDMARK_INPUT_SIZE
+    from posed.landmarks.depth import depth_patch_radius, sample_depth, with_depth
+    from posed.landmarks.models import ModelMissingError, default_models_dir, find_models, verify_models
+    from posed.landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points
+    from posed.landmarks.recording import (
         LANDMARK_NAMES,
         DepthSource,
         LandmarkFrame,
@@ -55,8 +55,8 @@ if TYPE_CHECKING:
         read_recording,
         write_recording,
     )
-    from landmarks.roi import Roi
-    from landmarks.runtime import (
+    from posed.landmarks.roi import Roi
+    from posed.landmarks.runtime import (
         DetectorOutputs,
         LandmarkOutputs,
         OnnxDetector,
@@ -101,38 +101,38 @@ __all__ = [
 
 # public name -> (module that defines it, its name there)
 _ORIGIN = {
-    "DETECTOR_INPUT_SIZE": ("landmarks.anchors", "INPUT_SIZE"),
-    "LandmarkConfig": ("landmarks.config", "LandmarkConfig"),
-    "detector_input": ("landmarks.crop", "detector_input"),
-    "landmark_input": ("landmarks.crop", "landmark_input"),
-    "LANDMARK_INPUT_SIZE": ("landmarks.decode", "CROP_SIZE"),
-    "depth_patch_radius": ("landmarks.depth", "depth_patch_radius"),
-    "sample_depth": ("landmarks.depth", "sample_depth"),
-    "with_depth": ("landmarks.depth", "with_depth"),
-    "ModelMissingError": ("landmarks.models", "ModelMissingError"),
-    "default_models_dir": ("landmarks.models", "default_models_dir"),
-    "find_models": ("landmarks.models", "find_models"),
-    "verify_models": ("landmarks.models", "verify_models"),
-    "PoseLandmarker": ("landmarks.pipeline", "PoseLandmarker"),
-    "rotate_image": ("landmarks.pipeline", "rotate_image"),
-    "rotate_points": ("landmarks.pipeline", "rotate_points"),
-    "LANDMARK_NAMES": ("landmarks.recording", "LANDMARK_NAMES"),
-    "DepthSource": ("landmarks.recording", "DepthSource"),
-    "LandmarkFrame": ("landmarks.recording", "LandmarkFrame"),
-    "RecordingError": ("landmarks.recording", "RecordingError"),
-    "RecordingHeader": ("landmarks.recording", "RecordingHeader"),
-    "RecordingProblem": ("landmarks.recording", "RecordingProblem"),
-    "RecordingWriter": ("landmarks.recording", "RecordingWriter"),
-    "dumps": ("landmarks.recording", "dumps"),
-    "iter_recording": ("landmarks.recording", "iter_recording"),
-    "read_recording": ("landmarks.recording", "read_recording"),
-    "write_recording": ("landmarks.recording", "write_recording"),
-    "Roi": ("landmarks.roi", "Roi"),
-    "DetectorOutputs": ("landmarks.runtime", "DetectorOutputs"),
-    "LandmarkOutputs": ("landmarks.runtime", "LandmarkOutputs"),
-    "OnnxDetector": ("landmarks.runtime", "OnnxDetector"),
-    "OnnxLandmarkModel": ("landmarks.runtime", "OnnxLandmarkModel"),
-    "SessionSettings": ("landmarks.runtime", "SessionSettings"),
+    "DETECTOR_INPUT_SIZE": ("posed.landmarks.anchors", "INPUT_SIZE"),
+    "LandmarkConfig": ("posed.landmarks.config", "LandmarkConfig"),
+    "detector_input": ("posed.landmarks.crop", "detector_input"),
+    "landmark_input": ("posed.landmarks.crop", "landmark_input"),
+    "LANDMARK_INPUT_SIZE": ("posed.landmarks.decode", "CROP_SIZE"),
+    "depth_patch_radius": ("posed.landmarks.depth", "depth_patch_radius"),
+    "sample_depth": ("posed.landmarks.depth", "sample_depth"),
+    "with_depth": ("posed.landmarks.depth", "with_depth"),
+    "ModelMissingError": ("posed.landmarks.models", "ModelMissingError"),
+    "default_models_dir": ("posed.landmarks.models", "default_models_dir"),
+    "find_models": ("posed.landmarks.models", "find_models"),
+    "verify_models": ("posed.landmarks.models", "verify_models"),
+    "PoseLandmarker": ("posed.landmarks.pipeline", "PoseLandmarker"),
+    "rotate_image": ("posed.landmarks.pipeline", "rotate_image"),
+    "rotate_points": ("posed.landmarks.pipeline", "rotate_points"),
+    "LANDMARK_NAMES": ("posed.landmarks.recording", "LANDMARK_NAMES"),
+    "DepthSource": ("posed.landmarks.recording", "DepthSource"),
+    "LandmarkFrame": ("posed.landmarks.recording", "LandmarkFrame"),
+    "RecordingError": ("posed.landmarks.recording", "RecordingError"),
+    "RecordingHeader": ("posed.landmarks.recording", "RecordingHeader"),
+    "RecordingProblem": ("posed.landmarks.recording", "RecordingProblem"),
+    "RecordingWriter": ("posed.landmarks.recording", "RecordingWriter"),
+    "dumps": ("posed.landmarks.recording", "dumps"),
+    "iter_recording": ("posed.landmarks.recording", "iter_recording"),
+    "read_recording": ("posed.landmarks.recording", "read_recording"),
+    "write_recording": ("posed.landmarks.recording", "write_recording"),
+    "Roi": ("posed.landmarks.roi", "Roi"),
+    "DetectorOutputs": ("posed.landmarks.runtime", "DetectorOutputs"),
+    "LandmarkOutputs": ("posed.landmarks.runtime", "LandmarkOutputs"),
+    "OnnxDetector": ("posed.landmarks.runtime", "OnnxDetector"),
+    "OnnxLandmarkModel": ("posed.landmarks.runtime", "OnnxLandmarkModel"),
+    "SessionSettings": ("posed.landmarks.runtime", "SessionSettings"),
 }
 
 

@@ -21,9 +21,9 @@ import math
 import cv2
 import numpy as np
 
-from landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT
-from landmarks.decode import CROP_SIZE
-from landmarks.roi import Roi
+from posed.landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT
+from posed.landmarks.decode import CROP_SIZE
+from posed.landmarks.roi import Roi
 
 
 def roi_to_image_affine(roi: Roi, out_size: int) -> np.ndarray:

@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
-from landmarks.detector import stable_sigmoid
-from landmarks.roi import Roi
+from posed.landmarks.detector import stable_sigmoid
+from posed.landmarks.roi import Roi
 
 NUM_ALL_LANDMARKS = 39
 NUM_BODY_LANDMARKS = 33

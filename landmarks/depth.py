@@ -32,7 +32,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from landmarks.recording import LandmarkFrame
+from posed.landmarks.recording import LandmarkFrame
 
 
 def depth_patch_radius(width: int, height: int) -> int:

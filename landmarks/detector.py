@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from landmarks.anchors import INPUT_SIZE, NUM_ANCHORS, ssd_anchor_centres
+from posed.landmarks.anchors import INPUT_SIZE, NUM_ANCHORS, ssd_anchor_centres
 
 NUM_COORDS = 12
 NUM_KEYPOINTS = 4

@@ -27,14 +27,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from landmarks.config import LandmarkConfig
-from landmarks.crop import detector_input, landmark_input
-from landmarks.decode import AUX_END, AUX_START, NUM_BODY_LANDMARKS, decode_pose
-from landmarks.detector import Detection, DetectorDecoder
-from landmarks.models import default_models_dir, find_models, verify_models
-from landmarks.recording import LandmarkFrame
-from landmarks.roi import Roi, roi_from_alignment
-from landmarks.runtime import (
+from posed.landmarks.config import LandmarkConfig
+from posed.landmarks.crop import detector_input, landmark_input
+from posed.landmarks.decode import AUX_END, AUX_START, NUM_BODY_LANDMARKS, decode_pose
+from posed.landmarks.detector import Detection, DetectorDecoder
+from posed.landmarks.models import default_models_dir, find_models, verify_models
+from posed.landmarks.recording import LandmarkFrame
+from posed.landmarks.roi import Roi, roi_from_alignment
+from posed.landmarks.runtime import (
     DETECTOR_INPUT,
     LANDMARK_INPUT,
     DetectorRunner,
@@ -43,7 +43,7 @@ from landmarks.runtime import (
     OnnxLandmarkModel,
     SessionSettings,
 )
-from landmarks.smoothing import PoseSmoother
+from posed.landmarks.smoothing import PoseSmoother
 
 # Rotations (degrees, clockwise on screen) tried in turn when the detector finds nobody in the upright frame.
 FALLBACK_ROTATIONS = (90, -90)

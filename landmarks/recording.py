@@ -30,7 +30,7 @@ from typing import Any, BinaryIO, TextIO
 
 import numpy as np
 
-from camera_model import Intrinsics
+from posed.camera_model import Intrinsics
 
 FORMAT = "posed.landmarks"
 VERSION = 1

@@ -21,10 +21,10 @@ from typing import NamedTuple, Protocol
 import numpy as np
 import onnxruntime as ort
 
-from landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT
-from landmarks.anchors import NUM_ANCHORS
-from landmarks.decode import CROP_SIZE as LANDMARK_INPUT
-from landmarks.models import ModelCorruptError, ModelMissingError
+from posed.landmarks.anchors import INPUT_SIZE as DETECTOR_INPUT
+from posed.landmarks.anchors import NUM_ANCHORS
+from posed.landmarks.decode import CROP_SIZE as LANDMARK_INPUT
+from posed.landmarks.models import ModelCorruptError, ModelMissingError
 
 
 class ModelLoadError(ModelCorruptError):

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from landmarks.roi import alignment_size
+from posed.landmarks.roi import alignment_size
 
 DEFAULT_FREQUENCY = 30.0
 MIN_OBJECT_SCALE = 1e-6

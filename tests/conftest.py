@@ -28,6 +28,6 @@ def shared_data() -> Path:
 def _logs_to_stdout():
     """structlog's configuration is process-wide: a command run in an earlier test (e.g. `posed record`, which
     logs to stderr) must not decide where a later test's log lines go."""
-    from daemon import logs
+    from posed.daemon import logs
 
     logs.configure("info", "json")

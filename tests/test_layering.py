@@ -31,6 +31,13 @@ CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers"}
 CLI = ("daemon/cli.py", "daemon/commands/")
 
 
+def _root(module: str) -> str:
+    """The package an import names: ``posed.fitting.result`` -> ``fitting`` (our packages by their folders),
+    ``numpy.linalg`` -> ``numpy``; a bare ``posed`` is the root package, which holds no code of a layer."""
+    parts = module.split(".")
+    return parts[1] if parts[0] == "posed" and len(parts) > 1 else parts[0]
+
+
 def imports(path: Path) -> list[tuple[str, bool]]:
     """(imported root package, at module level?) for every absolute import in ``path``."""
     tree = ast.parse(path.read_text(), str(path))
@@ -38,9 +45,11 @@ def imports(path: Path) -> list[tuple[str, bool]]:
     out = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            out += [(alias.name.split(".")[0], id(node) in top) for alias in node.names]
+            out += [(_root(alias.name), id(node) in top) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module == "posed":
+            out += [(alias.name, id(node) in top) for alias in node.names]      # from posed import hal
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            out.append((node.module.split(".")[0], id(node) in top))
+            out.append((_root(node.module), id(node) in top))
     return out
 
 
@@ -74,12 +83,12 @@ def test_nothing_but_bench_imports_daemon():
 def test_checker_catches_a_violation(tmp_path, monkeypatch):
     pkg = tmp_path / "fitting"
     pkg.mkdir()
-    (pkg / "bad.py").write_text("import numpy\ndef f():\n    from daemon import config\n    import yaml\n")
+    (pkg / "bad.py").write_text("import numpy\ndef f():\n    from posed.daemon import config\n    import yaml\n")
     cmd = tmp_path / "daemon" / "commands"
     cmd.mkdir(parents=True)
-    (cmd / "lazy.py").write_text("def f():\n    from bench import fit\n")
-    (cmd / "eager.py").write_text("from bench import fit\n")
-    (tmp_path / "daemon" / "stage.py").write_text("def f():\n    import bench.simulate\n")
+    (cmd / "lazy.py").write_text("def f():\n    from posed.bench import fit\n")
+    (cmd / "eager.py").write_text("from posed import bench\n")
+    (tmp_path / "daemon" / "stage.py").write_text("def f():\n    import posed.bench.simulate\n")
     monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
     assert violations("fitting") == ["fitting/bad.py imports daemon", "fitting/bad.py imports yaml"]
     assert violations("daemon") == ["daemon/commands/eager.py imports bench at module level",

@@ -2,9 +2,9 @@
 use from their ``__init__``, and daemon/, falls/ and bench/ import only those names, from the package itself,
 never an inner module. The model converter ``landmarks.convert`` is a public subpackage with its own
 ``__all__``. Checked on the source, so an import inside a function counts too; so does ``hal.recorder.x``
-after ``import hal``.
+after ``from posed import hal``. Modules are named here by their folders (``fitting.result`` is ``posed.fitting.result``).
 
-``import fitting`` and ``import landmarks`` stay cheap: their names load on first use, so neither the
+``from posed import fitting, landmarks`` stays cheap: their names load on first use, so neither the
 command line nor a package that needs only a result type pays for numba or onnxruntime."""
 
 import ast
@@ -57,13 +57,22 @@ def _dotted(node: ast.expr, bound: dict[str, str]) -> str | None:
     return None
 
 
+def _short(module: str) -> str:
+    """``posed.fitting.result`` -> ``fitting.result``: the checks speak of the packages by their folders."""
+    return module.removeprefix("posed.")
+
+
 def file_violations(path: Path, rel: str) -> list[str]:
     tree = ast.parse(path.read_text(), str(path))
     bad = []
-    bound: dict[str, str] = {}  # name bound by `import hal` (or `import hal as h`) -> the package
+    bound: dict[str, str] = {}  # name bound by `from posed import hal` (or `... as h`) -> the package
     for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module == "posed":
+            # `from posed import hal` binds the package as `import hal` did
+            node = ast.Import(names=[ast.alias(a.name, a.asname) for a in node.names], lineno=node.lineno)
         if isinstance(node, ast.Import):
             for alias in node.names:
+                alias = ast.alias(_short(alias.name), alias.asname)
                 if alias.name.split(".")[0] not in PACKAGES:
                     continue
                 if alias.name not in FACES:
@@ -74,15 +83,16 @@ def file_violations(path: Path, rel: str) -> list[str]:
                     root = alias.name.split(".")[0]
                     bound[root] = root
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            if node.module.split(".")[0] not in PACKAGES:
+            module = _short(node.module)
+            if module.split(".")[0] not in PACKAGES:
                 continue
             names = [a.name for a in node.names]
-            if node.module not in FACES:
-                bad.append(f"{rel}:{node.lineno}: from {node.module} import {', '.join(names)}")
+            if module not in FACES:
+                bad.append(f"{rel}:{node.lineno}: from {module} import {', '.join(names)}")
                 continue
-            hidden = [n for n in names if n not in PUBLIC[node.module] and f"{node.module}.{n}" not in FACES]
+            hidden = [n for n in names if n not in PUBLIC[module] and f"{module}.{n}" not in FACES]
             if hidden:
-                bad.append(f"{rel}:{node.lineno}: from {node.module} import {', '.join(hidden)}")
+                bad.append(f"{rel}:{node.lineno}: from {module} import {', '.join(hidden)}")
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute):
             base = _dotted(node.value, bound)
@@ -110,17 +120,18 @@ def test_checker_catches_a_violation(tmp_path):
     (tmp_path / "daemon" / "commands").mkdir(parents=True)
     (tmp_path / "falls").mkdir()
     (tmp_path / "bench").mkdir()
-    (tmp_path / "daemon" / "a.py").write_text("from fitting.result import FitResult\nfrom fitting import Fitter\n")
+    (tmp_path / "daemon" / "a.py").write_text(
+        "from posed.fitting.result import FitResult\nfrom posed.fitting import Fitter\n")
     (tmp_path / "daemon" / "commands" / "b.py").write_text(
         "def f():\n"
-        "    from landmarks.recording import LandmarkFrame\n"
-        "    from landmarks.convert import fetch_models\n"
-        "    from landmarks.convert.fetch import FetchError\n"
-        "    from landmarks import convert, PoseLandmarker\n")
+        "    from posed.landmarks.recording import LandmarkFrame\n"
+        "    from posed.landmarks.convert import fetch_models\n"
+        "    from posed.landmarks.convert.fetch import FetchError\n"
+        "    from posed.landmarks import convert, PoseLandmarker\n")
     (tmp_path / "bench" / "c.py").write_text(
-        "import hal\nimport fitting.kernels\nfrom hal import registry, open_source\n"
+        "from posed import hal\nimport posed.fitting.kernels\nfrom posed.hal import registry, open_source\n"
         "hal.recorder.check_output('x.mp4')\nhal.open_source('file:x.mp4')\n")
-    (tmp_path / "falls" / "d.py").write_text("from fitting import BODY_LANDMARKS, kernels as K\n")
+    (tmp_path / "falls" / "d.py").write_text("from posed.fitting import BODY_LANDMARKS, kernels as K\n")
     (tmp_path / "falls" / "e.py").write_text("def f(landmarks, hal):\n    return landmarks.shape, hal.recorder\n")
     assert violations(tmp_path) == [
         "bench/c.py:2: import fitting.kernels",
@@ -137,7 +148,7 @@ def _module(name: str):
     if name == "landmarks.convert":
         pytest.importorskip("tflite")
         pytest.importorskip("onnx")
-    return importlib.import_module(name)
+    return importlib.import_module(f"posed.{name}")
 
 
 @pytest.mark.parametrize("name", FACES)
@@ -183,15 +194,15 @@ def _loaded_after(code: str) -> list[str]:
     return json.loads(out.splitlines()[-1])
 
 
-HEAVY = ("numba", "onnxruntime", "fitting.fitter", "landmarks.pipeline", "landmarks.runtime")
+HEAVY = ("numba", "onnxruntime", "posed.fitting.fitter", "posed.landmarks.pipeline", "posed.landmarks.runtime")
 
 
 def test_importing_fitting_and_landmarks_loads_neither_numba_nor_onnxruntime():
-    assert _loaded_after("import fitting, landmarks") == []
+    assert _loaded_after("from posed import fitting, landmarks") == []
     # what the config, the messages and falls take from them
-    assert _loaded_after("import fitting, landmarks\nfitting.FitResult, fitting.FitConfig, "
+    assert _loaded_after("from posed import fitting, landmarks\nfitting.FitResult, fitting.FitConfig, "
                          "fitting.BODY_LANDMARKS, landmarks.LandmarkFrame, landmarks.LandmarkConfig") == []
 
 
 def test_the_command_line_loads_neither_numba_nor_onnxruntime():
-    assert _loaded_after("import daemon.cli\ndaemon.cli.build_parser()") == []
+    assert _loaded_after("import posed.daemon.cli\nposed.daemon.cli.build_parser()") == []

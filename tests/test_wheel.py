@@ -21,12 +21,16 @@ IGNORE = shutil.ignore_patterns(".venv", ".git", "build", "dist", "*.egg-info", 
                                 ".ruff_cache", "*.pyc", "*.nbi", "*.nbc")
 
 
-def _packages() -> list[str]:
-    """The top-level packages pyproject.toml ships (its packages.find include patterns, matched on folders)."""
-    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
-    patterns = meta["tool"]["setuptools"]["packages"]["find"]["include"]
-    roots = sorted({p.rstrip("*").rstrip(".") for p in patterns})
-    return [r for r in roots if (ROOT / r / "__init__.py").is_file()]
+def _package_dirs() -> dict[str, str]:
+    """What pyproject.toml ships: import package -> its folder in the checkout (``posed.daemon`` -> ``daemon``),
+    through its ``package-dir`` map (the longest mapped prefix wins, as in setuptools)."""
+    tool = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    mapped = tool["package-dir"]
+    out = {}
+    for pkg in tool["packages"]:
+        base = max((k for k in mapped if pkg == k or pkg.startswith(k + ".")), key=len)
+        out[pkg] = "/".join([mapped[base], *pkg[len(base):].split(".")[1:]])
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -41,36 +45,56 @@ def wheel(tmp_path_factory) -> Path:
     return whl
 
 
-def test_every_top_level_folder_with_code_is_shipped():
-    """A new package (a folder with __init__.py) must be added to packages.find, or the wheel lacks it."""
-    shipped = set(_packages())
-    code = {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file() and p.name != "tests"}
-    assert code <= shipped, f"add to [tool.setuptools.packages.find] include: {sorted(code - shipped)}"
+def test_every_folder_with_code_is_shipped_as_part_of_posed():
+    """A new package (a folder with __init__.py) must be added to [tool.setuptools] packages (and a new
+    top-level folder to package-dir), or the wheel lacks it; every shipped package is ``posed`` or under it."""
+    dirs = _package_dirs()
+    assert all(pkg == "posed" or pkg.startswith("posed.") for pkg in dirs), sorted(dirs)
+    assert all((ROOT / d / "__init__.py").is_file() for d in dirs.values()), dirs
+    code = {init.parent.relative_to(ROOT).as_posix() for init in ROOT.rglob("__init__.py")
+            if not {".venv", "tests", "build", ".git"} & set(init.relative_to(ROOT).parts)}
+    missing = sorted(code - set(dirs.values()))
+    assert not missing, f"add to [tool.setuptools] packages (and package-dir): {missing}"
 
 
 def test_the_wheel_holds_every_module_data_file_licence_and_script(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     expected = []
-    for pkg in _packages():
-        for path in (ROOT / pkg).rglob("*"):
-            rel = path.relative_to(ROOT)
-            if path.is_file() and "__pycache__" not in rel.parts and path.suffix not in (".pyc", ".nbi", ".nbc"):
-                expected.append(rel.as_posix())          # modules and every data file the code may open
+    for pkg, folder in _package_dirs().items():
+        for path in (ROOT / folder).iterdir():
+            if path.is_file() and path.suffix not in (".pyc", ".nbi", ".nbc"):
+                expected.append("/".join([*pkg.split("."), path.name]))   # modules and the data the code opens
+        for sub in (ROOT / folder).iterdir():               # data folders (schemas/, static/): no __init__.py
+            if sub.is_dir() and not (sub / "__init__.py").is_file() and sub.name != "__pycache__":
+                expected += ["/".join([*pkg.split("."), f.relative_to(ROOT / folder).as_posix()])
+                             for f in sub.rglob("*") if f.is_file() and "__pycache__" not in f.parts]
     missing = sorted(set(expected) - names)
     assert not missing, f"not in the wheel (package-data in pyproject.toml?): {missing[:20]}"
     assert not [n for n in names if "__pycache__" in n or n.endswith((".nbi", ".nbc"))]
     # what the code opens beside its modules: the fitting kernels' sources (hashed by fitting.jitcache), the
     # MediaPipe peer script of `posed bench peer`
-    assert {"fitting/udeas.py", "fitting/refine.py", "bench/commands/_mediapipe_peer.py"} <= names
+    assert {"posed/fitting/udeas.py", "posed/fitting/refine.py", "posed/bench/commands/_mediapipe_peer.py"} <= names
     dist_info = next(n.split("/")[0] for n in names if n.endswith(".dist-info/METADATA"))
     meta = zipfile.ZipFile(wheel).read(f"{dist_info}/METADATA").decode()
     assert "License-Expression: Apache-2.0" in meta
-    from daemon.version import __version__
+    from posed.daemon.version import __version__
 
     assert f"\nVersion: {__version__}\n" in meta and wheel.name.startswith(f"posed-{__version__}-")
     licence = zipfile.ZipFile(wheel).read(f"{dist_info}/licenses/LICENSE").decode()
     assert licence == (ROOT / "LICENSE").read_text() and "Apache License" in licence and "Version 2.0" in licence
-    assert "posed = daemon.cli:main" in zipfile.ZipFile(wheel).read(f"{dist_info}/entry_points.txt").decode()
+    assert "posed = posed.daemon.cli:main" in zipfile.ZipFile(wheel).read(f"{dist_info}/entry_points.txt").decode()
+
+
+def test_the_wheel_adds_one_top_level_import_package_posed(wheel):
+    """A robot's site-packages holds ROS tools, vendor SDKs and other daemons: posed adds ``posed`` and nothing
+    else (no ``daemon``, ``client`` or ``bench`` to clash with theirs)."""
+    names = zipfile.ZipFile(wheel).namelist()
+    roots = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
+    assert roots == {"posed"}, sorted(roots)
+    dist_info = next(n.split("/")[0] for n in names if n.endswith(".dist-info/METADATA"))
+    top_level = f"{dist_info}/top_level.txt"
+    if top_level in names:
+        assert zipfile.ZipFile(wheel).read(top_level).decode().split() == ["posed"]
 
 
 @pytest.fixture(scope="module")
@@ -97,15 +121,15 @@ def _posed(venv: Path, *args: str, env: dict | None = None, timeout: float = 120
 
 def test_the_installed_wheel_runs_from_its_own_files(installed):
     r = _posed(installed, "--version")
-    from daemon.version import __version__
+    from posed.daemon.version import __version__
 
     assert r.returncode == 0 and r.stdout.strip() == f"posed {__version__}", r.stdout + r.stderr
-    where = subprocess.run([str(installed / "bin" / "python"), "-c", "import daemon, fitting; "
+    where = subprocess.run([str(installed / "bin" / "python"), "-c", "from posed import daemon, fitting; "
                             "print(daemon.__file__); print(fitting.__file__)"],
                            capture_output=True, text=True, cwd=installed, check=True).stdout.split()
     assert all(str(installed) in w for w in where), where          # not the checkout
     r = _posed(installed, "config", "template")
-    from daemon.config.doc import template
+    from posed.daemon.config.doc import template
 
     assert r.returncode == 0 and r.stdout == template(), r.stderr
     show = _posed(installed, "config", "show", "--set", "robot_id=wheel")
@@ -118,7 +142,7 @@ def test_the_installed_wheel_runs_from_its_own_files(installed):
 def test_models_verify_and_demo_from_the_installed_wheel(installed, tmp_path, shared_data):
     """`posed models verify` and `posed demo` from the wheel, on the models `make` fetched (`posed models fetch`
     from a wheel needs the `convert` extra, as the README says; its error names it)."""
-    from landmarks import default_models_dir
+    from posed.landmarks import default_models_dir
 
     env = {"POSED_MODELS_DIR": str(default_models_dir(None)), "POSED_SHARED_DATA": str(shared_data),
            "NUMBA_CACHE_DIR": str(tmp_path / "numba")}

@@ -9,10 +9,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from viz import draw
-from viz.names import MAIN_ANGLES, short_label
-from viz.reproject import Reprojection
-from viz.skeleton import LANDMARK_BONES, MODEL_BONES, with_mid_shoulder
+from posed.viz import draw
+from posed.viz.names import MAIN_ANGLES, short_label
+from posed.viz.reproject import Reprojection
+from posed.viz.skeleton import LANDMARK_BONES, MODEL_BONES, with_mid_shoulder
 
 MIN_VISIBILITY = 0.3   # landmarks less visible than this are drawn hollow and without bones (the fit drops them)
 FALL_COLOURS = {"up": (60, 180, 60), "falling": (0, 165, 255), "on_floor": (0, 0, 230), "down": (0, 0, 230),

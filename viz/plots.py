@@ -24,8 +24,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
-from viz.names import PANEL_TITLES, label, side
-from viz.series import AngleSeries, Episode
+from posed.viz.names import PANEL_TITLES, label, side
+from posed.viz.series import AngleSeries, Episode
 
 # one colour per joint family; the side is told by the line style
 FAMILY_COLOURS = {"hp": "#1f5fa8", "kn": "#7b3294", "sh": "#2e8b57", "el": "#b8860b", "tr": "#333333",

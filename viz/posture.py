@@ -47,7 +47,7 @@ _UP = np.array([0.0, -1.0, 0.0])     # up in the camera frame (y image down), th
 
 @lru_cache(maxsize=1)
 def _dims():
-    from fitting import BodyDimensions
+    from posed.fitting import BodyDimensions
 
     return BodyDimensions.from_height(1.6)
 
@@ -81,7 +81,7 @@ def method_text() -> list[str]:
 def inclinations(angles: Mapping[str, float]) -> tuple[float, float]:
     """(trunk, steeper thigh) inclination from the vertical in degrees for one sample's angles (joint angles
     by ``fitting.JOINT_ANGLE_NAMES`` and body angles ``theta_bd``..; missing joint angles 0)."""
-    from fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, Pose, joints_3d
+    from posed.fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, Pose, joints_3d
 
     joints = {k: float(v) for k, v in angles.items() if k in JOINT_ANGLE_NAMES and np.isfinite(v)}
     body = {k: float(angles.get(k, 0.0)) for k in BODY_ANGLE_NAMES}

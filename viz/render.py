@@ -8,11 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
-from viz import overlay
-from viz.overlay import FrameInfo
-from viz.reproject import camera_joints, reproject
-from viz.side_view import SideFrame, render_side
+from posed.camera_model import Intrinsics
+from posed.viz import overlay
+from posed.viz.overlay import FrameInfo
+from posed.viz.reproject import camera_joints, reproject
+from posed.viz.side_view import SideFrame, render_side
 
 BLANK = (90, 90, 90)   # the background when there is no source video (a landmark recording alone)
 

@@ -19,10 +19,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from viz import posture
-from viz.names import MEASURED_ANGLES, PANELS, short_label
-from viz.plots import FALL_COLOUR, plot_angles, zone_text
-from viz.series import AngleSeries, Episode
+from posed.viz import posture
+from posed.viz.names import MEASURED_ANGLES, PANELS, short_label
+from posed.viz.plots import FALL_COLOUR, plot_angles, zone_text
+from posed.viz.series import AngleSeries, Episode
 
 BODY_ANGLES = ("theta_bd", "phi_bd", "psi_bd")
 

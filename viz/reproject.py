@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
+from posed.camera_model import Intrinsics
 
 # BlazePose index of each fitted body joint (fitting.BODY_LANDMARK_NAMES order)
 LANDMARK_INDEX = {

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from viz.names import FIXED_ANGLES
+from posed.viz.names import FIXED_ANGLES
 
 # messages of one event, in the order they can happen (falls.FALL_STATES)
 STATE_WORDS = {"falling": "fall", "on_floor": "on the floor", "alarm": "ALARM", "recovered": "got up"}

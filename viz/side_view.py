@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from viz import draw
-from viz.skeleton import MODEL_BONES, with_mid_shoulder
+from posed.viz import draw
+from posed.viz.skeleton import MODEL_BONES, with_mid_shoulder
 
 ANKLE_HEIGHT_M = 0.08
 BACKGROUND = (32, 32, 32)

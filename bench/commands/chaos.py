@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bench.chaos import ChaosPlan, run_campaign  # not at import: `posed bench` lists this module
-    from daemon.preflight import shared_data
+    from posed.bench.chaos import ChaosPlan, run_campaign  # not at import: `posed bench` lists this module
+    from posed.daemon.preflight import shared_data
 
     if args.seconds <= 0 or args.corrupt_every < 0 or args.ack_flood < 0 or args.hook_megabytes < 0:
         print("posed bench chaos: --seconds must be > 0; --corrupt-every, --ack-flood, --hook-megabytes >= 0",

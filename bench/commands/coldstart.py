@@ -84,7 +84,7 @@ def _free_port() -> int:
 def _router(endpoint: str):
     import zenoh
 
-    from client import session_config
+    from posed.client import session_config
 
     return zenoh.open(session_config("router", listen=[endpoint]))
 
@@ -103,7 +103,7 @@ def _children(pid: int) -> list[int]:
 def _tree_cpu(pid: int) -> dict:
     """CPU seconds (user + system) used so far by ``pid`` and its descendants: on an idle machine the start
     cannot take less wall time than ``max_process`` (one process's own work) nor than ``total`` / CPUs."""
-    from daemon.proc.procstat import sample
+    from posed.daemon.proc.procstat import sample
 
     per: dict[int, float] = {}
     todo = [pid]
@@ -122,7 +122,7 @@ def time_start(source: str, env: dict, work: Path, timeout_s: float, n: int) -> 
     router_ep = f"tcp/127.0.0.1:{_free_port()}"
     first: list[float] = []
     notify = _Notify(str(work / f"notify-{n}.sock"))
-    cmd = [sys.executable, "-m", "daemon.cli", "run", "--source", source,
+    cmd = [sys.executable, "-m", "posed.daemon.cli", "run", "--source", source,
            "--set", f"zenoh.listen=[tcp/127.0.0.1:{_free_port()}]", "--set", f"zenoh.connect=[{router_ep}]",
            "--set", f"pipeline.state_dir={work / f'state-{n}'}", "--set", "robot_id=coldstart",
            "--set", "logging.format=json"]
@@ -158,7 +158,7 @@ def time_start(source: str, env: dict, work: Path, timeout_s: float, n: int) -> 
 
 
 def run(args: argparse.Namespace) -> int:
-    from daemon.preflight import SQUAT_VIDEO, shared_data
+    from posed.daemon.preflight import SQUAT_VIDEO, shared_data
 
     source = args.source
     if source is None:
@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         env = {**base_env, "NUMBA_CACHE_DIR": str(cache)}
         say(f"empty numba cache {cache}; posed warmup ...")
         t0 = time.monotonic()
-        w = subprocess.run([sys.executable, "-m", "daemon.cli", "warmup", "--no-check"], env=env,
+        w = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "warmup", "--no-check"], env=env,
                            capture_output=True, text=True, timeout=1800)
         report["warmup_s"] = round(time.monotonic() - t0, 2)
         if w.returncode != 0:

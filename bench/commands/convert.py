@@ -28,8 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _real_inputs() -> dict:
     """pose.jpg, the sitting image and every 16th frame of the squat video (BGR), from the shared test data."""
-    from bench import conformance
-    from daemon.preflight import shared_data
+    from posed.bench import conformance
+    from posed.daemon.preflight import shared_data
 
     root = shared_data()
     images = {ref.name: ref.image for ref in (conformance.pose_jpg(root), conformance.sitting(root))}
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         import onnx
         import onnxruntime as ort
 
-        from bench.convert_equivalence import (
+        from posed.bench.convert_equivalence import (
             ExactModel,
             diff_outputs,
             litert_outputs,
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"posed bench convert: {exc.name} is not installed; it needs the test extra: "
               "pip install -e '.[test]'", file=sys.stderr)
         return 2
-    from landmarks import ModelMissingError, default_models_dir, find_models
+    from posed.landmarks import ModelMissingError, default_models_dir, find_models
 
     try:
         paths = find_models(default_models_dir(args.models_dir or ""))

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args
+from posed.daemon.commands import add_config_args, config_from_args
 
 TARGETS = {"recall": 0.95, "false_alarms": 0, "median_latency_s": 1.0}
 
@@ -40,8 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bench.falls import run_bench  # not at import: `posed` imports every bench module to list it
-    from daemon.preflight import shared_data
+    from posed.bench.falls import run_bench  # not at import: `posed` imports every bench module to list it
+    from posed.daemon.preflight import shared_data
 
     cfg = config_from_args(args)
     splits = {"all": ("tune", "heldout", "cmu"), "none": ()}.get(args.split, (args.split,))
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
             mark = "ok " if o.detected == (o.kind == "fall") else "MISS" if o.kind == "fall" else "FALSE"
             print(f"{mark:5} {o.name:52} {','.join(o.states) or '-':28}{lat}", file=sys.stderr, flush=True)
 
-    from daemon.preflight import cache_dir
+    from posed.daemon.preflight import cache_dir
 
     report = run_bench(splits, "truth" if args.truth else "real", cfg.falls, args.only, shared, progress,
                        fit_config=cfg.fitting, with_intrinsics=not args.no_intrinsics,
@@ -91,8 +91,8 @@ RECORDING_TARGETS = {"recall": 7 / 8, "false_alarm_rate": 1 / 19, "median_latenc
 
 
 def _recordings(args, cfg) -> dict:
-    from bench.falls_recordings import run_recordings
-    from daemon.preflight import cache_dir
+    from posed.bench.falls_recordings import run_recordings
+    from posed.daemon.preflight import cache_dir
 
     def progress(o):
         if not args.json:

@@ -12,7 +12,7 @@ import argparse
 import json
 import sys
 
-from daemon.commands import config_from_args
+from posed.daemon.commands import config_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bench import fit as bench
+    from posed.bench import fit as bench
 
     base = config_from_args(args).fitting
     plan = bench.QUICK if args.quick else bench.FULL

@@ -15,9 +15,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-import hal
-from camera_model import Intrinsics
-from daemon.preflight import SQUAT_VIDEO, shared_data
+from posed import hal
+from posed.camera_model import Intrinsics
+from posed.daemon.preflight import SQUAT_VIDEO, shared_data
 
 
 def _drain(src: hal.Source) -> int:
@@ -32,7 +32,7 @@ def _drain(src: hal.Source) -> int:
 
 def measure(video: Path | None = None, repeats: int = 5) -> dict[str, float]:
     """Decode, .db3 and recording speeds on ``video`` (default: the squat video)."""
-    from hal import Db3Writer  # not at import: `posed` imports every bench module to list it
+    from posed.hal import Db3Writer  # not at import: `posed` imports every bench module to list it
 
     video = shared_data() / SQUAT_VIDEO if video is None else video
     out: dict[str, float] = {}

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from daemon.commands import add_config_args, config_from_args
-from daemon.preflight import SQUAT_VIDEO, shared_data
+from posed.daemon.commands import add_config_args, config_from_args
+from posed.daemon.preflight import SQUAT_VIDEO, shared_data
 
 MEDIAPIPE_TRACKING_MS = 33.0  # MediaPipe 0.10.21's own pipeline, median per frame, tracking (measured once)
 
@@ -45,7 +45,7 @@ class LiteRTDetector:
     def __init__(self, path: Path, threads: int) -> None:
         from ai_edge_litert.interpreter import Interpreter
 
-        from landmarks import DetectorOutputs
+        from posed.landmarks import DetectorOutputs
 
         self._outputs = DetectorOutputs
         self.interpreter = Interpreter(model_path=str(path), num_threads=threads)
@@ -65,7 +65,7 @@ class LiteRTLandmarkModel:
     def __init__(self, path: Path, threads: int) -> None:
         from ai_edge_litert.interpreter import Interpreter
 
-        from landmarks import LandmarkOutputs
+        from posed.landmarks import LandmarkOutputs
 
         self._outputs = LandmarkOutputs
         self.interpreter = Interpreter(model_path=str(path), num_threads=threads)
@@ -85,10 +85,10 @@ def _landmark_model_full_graph(tflite: Path, onnx_path: Path, settings):
     """The landmark model converted with all five outputs, segmentation head included (in memory), for
     comparison with the shipped model, which leaves it out; None without the converter's packages."""
     try:
-        from landmarks.convert import convert
+        from posed.landmarks.convert import convert
     except ImportError:
         return None
-    from landmarks import OnnxLandmarkModel
+    from posed.landmarks import OnnxLandmarkModel
 
     full = convert(tflite.read_bytes(), tflite.stem)
     return OnnxLandmarkModel(onnx_path, settings, model=full.SerializeToString())
@@ -157,7 +157,7 @@ def _ratio(a: float, b: float) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    from landmarks import (
+    from posed.landmarks import (
         ModelMissingError,
         OnnxDetector,
         OnnxLandmarkModel,

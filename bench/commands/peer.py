@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from daemon.commands import add_config_args, config_from_args
+from posed.daemon.commands import add_config_args, config_from_args
 
 ROTATIONS = (0, 90, -90, 180)
 PEER_SCRIPT = Path(__file__).with_name("_mediapipe_peer.py")
@@ -62,9 +62,9 @@ def _run_peer(python: str, request: dict) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bench import conformance
-    from daemon.preflight import shared_data
-    from landmarks import ModelMissingError, PoseLandmarker, rotate_image, rotate_points
+    from posed.bench import conformance
+    from posed.daemon.preflight import shared_data
+    from posed.landmarks import ModelMissingError, PoseLandmarker, rotate_image, rotate_points
 
     python = args.mediapipe_python
     if not python or not Path(python).is_file():

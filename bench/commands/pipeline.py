@@ -22,9 +22,9 @@ import threading
 import time
 from pathlib import Path
 
-from daemon.commands import add_config_args
-from daemon.commands._child import free_endpoint, run_command, stop
-from daemon.proc.stats import percentile_summary
+from posed.daemon.commands import add_config_args
+from posed.daemon.commands._child import free_endpoint, run_command, stop
+from posed.daemon.proc.stats import percentile_summary
 
 TARGET_PUBLISHED = 0.99
 TARGET_P95_MS = 80.0
@@ -50,7 +50,7 @@ def bench_video() -> Path:
     import cv2
     import numpy as np
 
-    from daemon.preflight import SQUAT_VIDEO, cache_dir, shared_data
+    from posed.daemon.preflight import SQUAT_VIDEO, cache_dir, shared_data
 
     out = cache_dir() / "bench" / "pose_squats_640x480_10fps.mp4"
     if out.is_file():
@@ -106,7 +106,7 @@ class _Collector:
 
 
 def run_phase(name: str, video: Path, args: argparse.Namespace) -> dict:
-    from daemon.commands.watch import open_viewer
+    from posed.daemon.commands.watch import open_viewer
 
     paced = name == "paced"
     endpoint = free_endpoint()

@@ -13,8 +13,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 
-from daemon.proc.throttle import shown
-from falls import FALL_STATES
+from posed.daemon.proc.throttle import shown
+from posed.falls import FALL_STATES
 
 MAX_PAYLOAD_BYTES = 4096
 MAX_ID_CHARS = 128          # event ids are 32 hex digits (uuid4().hex)

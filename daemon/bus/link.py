@@ -20,12 +20,12 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 
-from daemon.bus import acks, queries
-from daemon.bus.payloads import dumps
-from daemon.bus.session import ZenohConfigError, describe_open_error, open_session
-from daemon.bus.topics import Topics
-from daemon.config.sections import ZenohConfig
-from daemon.proc.throttle import Throttle
+from posed.daemon.bus import acks, queries
+from posed.daemon.bus.payloads import dumps
+from posed.daemon.bus.session import ZenohConfigError, describe_open_error, open_session
+from posed.daemon.bus.topics import Topics
+from posed.daemon.config.sections import ZenohConfig
+from posed.daemon.proc.throttle import Throttle
 
 MATCH_POLL_S = 0.5          # how often the events/fall publisher's matching status is read
 LOG_FAILURE_EVERY = 12      # after the first, every 12th failed attempt to open the session is logged

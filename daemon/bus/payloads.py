@@ -15,10 +15,10 @@ import math
 from dataclasses import replace
 from datetime import datetime
 
-from client.contract import VERSION
-from daemon import clock
-from daemon.messages import FitMsg, origin, timing_ms
-from falls import FallEvent
+from posed.client.contract import VERSION
+from posed.daemon import clock
+from posed.daemon.messages import FitMsg, origin, timing_ms
+from posed.falls import FallEvent
 
 JSON_ENCODING = "application/json"   # every publication and every query reply (zenoh.Encoding.APPLICATION_JSON)
 

@@ -12,8 +12,8 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 
-from daemon.bus import payloads
-from daemon.bus.payloads import JSON_ENCODING, dumps
+from posed.daemon.bus import payloads
+from posed.daemon.bus.payloads import JSON_ENCODING, dumps
 
 HISTORY_DEFAULT_LIMIT = 100
 HISTORY_MAX_LIMIT = 10000
@@ -57,7 +57,7 @@ def answer_state(query, key: str, latest: LatestState, log) -> None:
 def parse_history_parameters(params) -> tuple[float | None, float | None, int]:
     """since/until (unix seconds, ISO 8601 or relative forms such as 2h) and limit from a query's parameters;
     raises ValueError naming the bad one."""
-    from daemon.timeparse import parse_time
+    from posed.daemon.timeparse import parse_time
 
     def get(key):
         v = params.get(key) if params is not None else None
@@ -104,7 +104,7 @@ def answer_history(query, base: str, lookup: HistoryLookup, log) -> None:
 
 def parse_ack(payload: str) -> str:
     """The event id in an acknowledgement (:func:`daemon.bus.acks.parse_ack_message`); "" when none."""
-    from daemon.bus.acks import BadAck, parse_ack_message
+    from posed.daemon.bus.acks import BadAck, parse_ack_message
 
     try:
         return parse_ack_message(payload).id

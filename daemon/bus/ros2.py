@@ -30,8 +30,8 @@ import os
 import time
 from dataclasses import dataclass
 
-from daemon.bus import ros2_messages as rm
-from daemon.config.sections import Ros2Config
+from posed.daemon.bus import ros2_messages as rm
+from posed.daemon.config.sections import Ros2Config
 
 ADMIN_SPACE = "@ros2_lv"
 QOS_DEFAULT = "::,10:,:,:,,"      # reliable, volatile, keep last 10, no deadline/lifespan, automatic liveliness

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from daemon.config.sections import ZenohConfig
+from posed.daemon.config.sections import ZenohConfig
 
 _ANY_HOST = ("0.0.0.0", "[::]", "::")
 

@@ -9,8 +9,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from daemon.config import Config, load_config
-from daemon.config.paths import config_file
+from posed.daemon.config import Config, load_config
+from posed.daemon.config.paths import config_file
 
 CONFIG_HELP = ("config file (default: $POSED_CONFIG, else /etc/posed/config.yaml when it exists, else the "
                "embedded default)")

@@ -7,7 +7,7 @@ import dataclasses
 import sys
 import time
 
-from daemon.config import Config
+from posed.daemon.config import Config
 
 
 def open_client(cfg: Config, endpoints: tuple[str, ...], wait_s: float, who: str):
@@ -15,7 +15,7 @@ def open_client(cfg: Config, endpoints: tuple[str, ...], wait_s: float, who: str
     for ``wait_s``; None after a message on stderr when it cannot connect."""
     import zenoh
 
-    from daemon.bus.session import ZenohConfigError, build_config
+    from posed.daemon.bus.session import ZenohConfigError, build_config
 
     zcfg = dataclasses.replace(cfg.zenoh, mode="client", listen=(), connect=endpoints, multicast_scouting=False)
     if not endpoints:

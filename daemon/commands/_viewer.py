@@ -7,7 +7,7 @@ import math
 import threading
 import time
 
-from daemon.proc.stats import percentile_summary
+from posed.daemon.proc.stats import percentile_summary
 
 
 class Summary:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 def names() -> list[str]:
     """The benchmark names: the modules of ``bench.commands``, found without importing them."""
-    spec = importlib.util.find_spec("bench")
+    spec = importlib.util.find_spec("posed.bench")
     if spec is None or not spec.submodule_search_locations:
         return []
     folder = Path(next(iter(spec.submodule_search_locations))) / "commands"
@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    module = importlib.import_module(f"bench.commands.{args.name}")
+    module = importlib.import_module(f"posed.bench.commands.{args.name}")
     parser = argparse.ArgumentParser(prog=f"posed bench {args.name}",
                                      description=(module.__doc__ or "").strip().split("\n")[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -55,7 +55,7 @@ def _run(args: argparse.Namespace) -> int:
 def with_version(text: str) -> str:
     """A benchmark's ``--json`` output with ``posed_version`` added to its JSON object (or to each JSON-object
     line); anything else is passed on unchanged."""
-    from daemon.version import __version__
+    from posed.daemon.version import __version__
 
     def tag(obj):
         return {"posed_version": __version__, **obj} if isinstance(obj, dict) else obj

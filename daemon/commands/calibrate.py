@@ -14,7 +14,7 @@ from pathlib import Path
 
 import yaml
 
-from daemon.commands import add_config_args, config_from_args, error_printer
+from posed.daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,8 +32,8 @@ _err = error_printer("posed calibrate")
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitting import CalibrationFailed, calibrate, read_calibration, write_calibration
-    from landmarks import RecordingError, RecordingProblem, iter_recording
+    from posed.fitting import CalibrationFailed, calibrate, read_calibration, write_calibration
+    from posed.landmarks import RecordingError, RecordingProblem, iter_recording
 
     cfg = config_from_args(args).fitting
     height = args.height if args.height is not None else cfg.body_height_m

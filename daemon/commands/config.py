@@ -7,12 +7,13 @@ calibration file, hook commands, the fit's row lengths): exit 0, or every proble
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import sys
 from dataclasses import asdict
 
-from daemon.commands import add_config_args, config_from_args
-from daemon.config import EX_CONFIG, load_config
+from posed.daemon.commands import add_config_args, config_from_args
+from posed.daemon.config import EX_CONFIG, load_config
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,13 +28,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_config_args(show)
     show.set_defaults(func=_show)
     actions.add_parser("template", help="print the documented default config (config.yaml)").set_defaults(
-        func=lambda a: print(__import__("daemon.config.doc").config.doc.template(), end=""))
+        func=lambda a: print(importlib.import_module("posed.daemon.config.doc").template(), end=""))
     actions.add_parser("doc", help="print the config reference (docs/config.md)").set_defaults(
-        func=lambda a: print(__import__("daemon.config.doc").config.doc.reference(), end=""))
+        func=lambda a: print(importlib.import_module("posed.daemon.config.doc").reference(), end=""))
 
 
 def _check(args: argparse.Namespace) -> int:
-    from daemon.preflight import check
+    from posed.daemon.preflight import check
 
     problems = check(load_config(args.file, overrides=args.overrides))
     if problems:

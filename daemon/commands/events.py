@@ -10,9 +10,9 @@ import sys
 import time
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, config_path
-from daemon.config.paths import EVENTS_FILE, reading_state_dir
-from daemon.timeparse import parse_time
+from posed.daemon.commands import add_config_args, config_from_args, config_path
+from posed.daemon.config.paths import EVENTS_FILE, reading_state_dir
+from posed.daemon.timeparse import parse_time
 
 STATES = ("falling", "on_floor", "alarm", "recovered")  # falls.FALL_STATES (not imported: no numpy here)
 
@@ -66,7 +66,7 @@ def journal_path(args: argparse.Namespace, cfg=None) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from daemon.outbox.journal import EventJournal, JournalError  # not at import: it pulls in structlog
+    from posed.daemon.outbox.journal import EventJournal, JournalError  # not at import: it pulls in structlog
 
     try:
         since = parse_time(args.since) if args.since else None
@@ -114,7 +114,7 @@ def _permission_hint(path: Path, exc: BaseException) -> str:
 
 def _read_journal(path: Path):
     """Every stored message, or None when the journal is missing or unreadable (the ack is sent anyway)."""
-    from daemon.outbox.journal import EventJournal, JournalError
+    from posed.daemon.outbox.journal import EventJournal, JournalError
 
     if not path.is_file():
         return None
@@ -126,8 +126,8 @@ def _read_journal(path: Path):
 
 
 def run_ack(args: argparse.Namespace) -> int:
-    from daemon.bus.session import daemon_endpoints
-    from daemon.commands._bus import open_client
+    from posed.daemon.bus.session import daemon_endpoints
+    from posed.daemon.commands._bus import open_client
 
     cfg = config_from_args(args)
     event_id = args.id.strip()
@@ -153,7 +153,7 @@ def run_ack(args: argparse.Namespace) -> int:
         return 1
     key = f"posed/{robot}/events/ack"
     with session:
-        from client import PosedClient
+        from posed.client import PosedClient
 
         # the client puts the ack (posed.ack JSON) and, reading the robot's event history over Zenoh, puts it
         # again until the daemon shows it acknowledged (a put racing the route to the daemon can be lost)

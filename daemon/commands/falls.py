@@ -19,7 +19,7 @@ import sys
 import time
 from collections.abc import Iterable, Iterator
 
-from daemon.commands import add_config_args, config_from_args, error_printer
+from posed.daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -37,7 +37,7 @@ _err = error_printer("posed falls")
 
 def taken_frames(pipeline_config, frames: Iterable) -> Iterator:
     """The frames the capture stage takes from a recording: at most ``target_fps`` by capture time."""
-    from daemon.stages.capture import _Thinner
+    from posed.daemon.stages.capture import _Thinner
 
     thinner = _Thinner(pipeline_config.target_fps)
     for frame in frames:
@@ -47,8 +47,8 @@ def taken_frames(pipeline_config, frames: Iterable) -> Iterator:
 
 def fit_frames(fit_config, header, frames: Iterable) -> Iterator[tuple[object, object]]:
     """(LandmarkFrame, FitResult) per frame, fitted as the fitting stage fits them."""
-    from daemon.stages.fit import StreamFit
-    from fitting import Fitter
+    from posed.daemon.stages.fit import StreamFit
+    from posed.fitting import Fitter
 
     stream = StreamFit(Fitter(fit_config))
     for frame in frames:
@@ -57,8 +57,8 @@ def fit_frames(fit_config, header, frames: Iterable) -> Iterator[tuple[object, o
 
 def detect(cfg, header, fitted: Iterable[tuple[object, object]], log=None) -> Iterator[tuple[object, object, list]]:
     """(frame, result, fall-event messages) per frame, through the publisher stage's FallWatch."""
-    from daemon.messages import FitMsg
-    from daemon.stages.fall_watch import FallWatch
+    from posed.daemon.messages import FitMsg
+    from posed.daemon.stages.fall_watch import FallWatch
 
     if log is None:
         import structlog
@@ -76,8 +76,8 @@ def event_payload(event, wall0: float | None = None) -> str:
     times map the recording's time line onto the wall clock with its t = 0 at ``wall0`` (default: now)."""
     from dataclasses import replace
 
-    from daemon.bus.payloads import dumps, event_message, stamp_event
-    from daemon.clock import iso
+    from posed.daemon.bus.payloads import dumps, event_message, stamp_event
+    from posed.daemon.clock import iso
 
     wall0 = time.time() if wall0 is None else wall0
 
@@ -92,8 +92,8 @@ def event_payload(event, wall0: float | None = None) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitting import CalibrationError
-    from landmarks import RecordingError, RecordingProblem, iter_recording
+    from posed.fitting import CalibrationError
+    from posed.landmarks import RecordingError, RecordingProblem, iter_recording
 
     cfg = config_from_args(args)
     try:

@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, error_printer
+from posed.daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,8 +34,8 @@ _err = error_printer("posed fit")
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitting import CalibrationError, FitResult, Fitter
-    from landmarks import RecordingError, RecordingProblem, dumps, iter_recording
+    from posed.fitting import CalibrationError, FitResult, Fitter
+    from posed.landmarks import RecordingError, RecordingProblem, dumps, iter_recording
 
     cfg = config_from_args(args).fitting
     try:
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         _err(str(exc))
         return 2
     if cfg.calibration:                     # bounded first: a huge file or /dev/zero is not read whole
-        from daemon.preflight import calibration_problems
+        from posed.daemon.preflight import calibration_problems
 
         for problem in calibration_problems(cfg.calibration):
             _err(problem)
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         _err(f"{exc} (fitting.calibration in the config)")
         return 2
-    from daemon.commands.warmup import warm_fitter
+    from posed.daemon.commands.warmup import warm_fitter
 
     warm_fitter(fitter, _err)        # compile before frame 0: its fit_ms must be the fit alone
     intrinsics = header.camera

@@ -8,13 +8,13 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from daemon.commands import add_config_args, config_from_args, config_path
-from daemon.config.paths import HISTORY_FILE, reading_state_dir
-from daemon.timeparse import iso, parse_time
+from posed.daemon.commands import add_config_args, config_from_args, config_path
+from posed.daemon.config.paths import HISTORY_FILE, reading_state_dir
+from posed.daemon.timeparse import iso, parse_time
 
 if TYPE_CHECKING:
-    from daemon.config.sections import PipelineConfig
-    from daemon.history.store import AngleHistory
+    from posed.daemon.config.sections import PipelineConfig
+    from posed.daemon.history.store import AngleHistory
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,7 +38,7 @@ def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = Non
 
     ``pipeline``: the config's pipeline section when the caller has loaded it (else it is loaded here when
     there is no --db)."""
-    from daemon.history.store import AngleHistory  # not at import: it pulls in structlog
+    from posed.daemon.history.store import AngleHistory  # not at import: it pulls in structlog
 
     since = parse_time(args.since) if args.since else None
     until = parse_time(args.until) if args.until else None
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _summary(hist: AngleHistory, since, until, out) -> None:
-    from daemon.history.store import ANGLE_COLUMNS
+    from posed.daemon.history.store import ANGLE_COLUMNS
 
     rows = list(hist.rows(since, until))
     if not rows:

@@ -26,8 +26,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from camera_model import Intrinsics
-from daemon.commands import add_config_args, config_from_args, error_printer
+from posed.camera_model import Intrinsics
+from posed.daemon.commands import add_config_args, config_from_args, error_printer
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 READ_TIMEOUT_S = 5.0        # a RealSense recording's next frame (played as fast as it decodes)
@@ -98,7 +98,7 @@ def open_input(path: Path, fps: float | None, default_fps: float) -> FrameSource
         return _image_files(files, "folder", fps or default_fps)
     if path.suffix.lower() in IMAGE_SUFFIXES:
         return _image_files([path], "image", fps or default_fps)
-    import hal
+    from posed import hal
 
     if hal.is_realsense_recording(path):
         return _realsense(path, fps, default_fps)
@@ -174,7 +174,7 @@ def _video(path: Path, fps: float | None, default_fps: float) -> FrameSource:
 
 def _realsense(path: Path, fps: float | None, default_fps: float) -> FrameSource:
     """A RealSense recording played as fast as it decodes, colour with its aligned depth (hal)."""
-    import hal
+    from posed import hal
 
     source = None
     try:
@@ -242,7 +242,14 @@ class Progress:
 
 
 def run(args: argparse.Namespace) -> int:
-    from landmarks import DepthSource, ModelMissingError, PoseLandmarker, RecordingHeader, dumps, with_depth
+    from posed.landmarks import (
+        DepthSource,
+        ModelMissingError,
+        PoseLandmarker,
+        RecordingHeader,
+        dumps,
+        with_depth,
+    )
 
     config = config_from_args(args)
     path = Path(args.input)

@@ -7,7 +7,7 @@ import json
 import sys
 import time
 
-from daemon.commands import add_config_args, config_from_args
+from posed.daemon.commands import add_config_args, config_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,7 +43,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 
 def _models_dir(args: argparse.Namespace):
-    from landmarks import default_models_dir
+    from posed.landmarks import default_models_dir
 
     if args.models_dir:
         return default_models_dir(args.models_dir)
@@ -52,7 +52,7 @@ def _models_dir(args: argparse.Namespace):
 
 def _fetch(args: argparse.Namespace) -> int:
     try:
-        from landmarks.convert import FetchError, fetch_models
+        from posed.landmarks.convert import FetchError, fetch_models
     except ImportError as exc:  # a runtime-only install lacks the converter's tflite/onnx packages
         missing = exc.name or str(exc)
         print(f"posed models fetch: the converter needs the Python package {missing!r}, part of posed's "
@@ -80,7 +80,7 @@ def _fetch(args: argparse.Namespace) -> int:
 
 
 def _verify(args: argparse.Namespace) -> int:
-    from landmarks import ModelMissingError, find_models, verify_models
+    from posed.landmarks import ModelMissingError, find_models, verify_models
 
     try:
         paths = find_models(_models_dir(args))

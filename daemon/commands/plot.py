@@ -13,10 +13,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, config_path, read_jsonl
-from daemon.commands.history import add_range_args, history_path, open_history
-from daemon.config.paths import EVENTS_FILE
-from viz.names import PANELS
+from posed.daemon.commands import add_config_args, config_from_args, config_path, read_jsonl
+from posed.daemon.commands.history import add_range_args, history_path, open_history
+from posed.daemon.config.paths import EVENTS_FILE
+from posed.viz.names import PANELS
 
 # the older panel names, still accepted
 PANEL_ALIASES = {"torso": ("trunk",), "sagittal": ("arms", "legs")}
@@ -54,8 +54,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def parse_panels(spec: str) -> list[tuple[str, tuple[str, ...]]]:
-    from fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES
-    from viz.names import MEASURED_ANGLES
+    from posed.fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES
+    from posed.viz.names import MEASURED_ANGLES
 
     known = [n for n in JOINT_ANGLE_NAMES + BODY_ANGLE_NAMES if n in MEASURED_ANGLES]
     panels = []
@@ -76,7 +76,7 @@ def parse_panels(spec: str) -> list[tuple[str, tuple[str, ...]]]:
 
 def _prepare(args, cmd: str):
     """(panels, tz) or an exit status after reporting the problem."""
-    from viz.plots import local_zone
+    from posed.viz.plots import local_zone
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
@@ -104,11 +104,11 @@ def _write(out: Path, png: bytes, cmd: str) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    from daemon.history.plot import angle_series, event_marks
-    from daemon.history.store import ANGLE_COLUMNS
-    from daemon.outbox.journal import EventJournal, JournalError
-    from viz.plots import plot_angles, zone_text
-    from viz.series import episodes
+    from posed.daemon.history.plot import angle_series, event_marks
+    from posed.daemon.history.store import ANGLE_COLUMNS
+    from posed.daemon.outbox.journal import EventJournal, JournalError
+    from posed.viz.plots import plot_angles, zone_text
+    from posed.viz.series import episodes
 
     cmd = "posed plot history"
     prepared = _prepare(args, cmd)
@@ -151,10 +151,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    from falls import FallEvent
-    from fitting import FitResult
-    from viz.plots import plot_angles
-    from viz.series import AngleSeries, EventMark, episodes
+    from posed.falls import FallEvent
+    from posed.fitting import FitResult
+    from posed.viz.plots import plot_angles
+    from posed.viz.series import AngleSeries, EventMark, episodes
 
     cmd = "posed plot fit"
     prepared = _prepare(args, cmd)
@@ -197,7 +197,7 @@ def _start_time(text: str, tz) -> float:
     anything else as ``--since`` takes it."""
     import datetime as dt
 
-    from daemon.timeparse import parse_time
+    from posed.daemon.timeparse import parse_time
 
     try:
         d = dt.datetime.fromisoformat(text.strip())

@@ -13,9 +13,9 @@ import os
 import signal
 import sys
 
-import hal
-from daemon import logs
-from daemon.commands import add_config_args, config_from_args
+from posed import hal
+from posed.daemon import logs
+from posed.daemon.commands import add_config_args, config_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:

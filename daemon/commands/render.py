@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, error_printer, read_jsonl
+from posed.daemon.commands import add_config_args, config_from_args, error_printer, read_jsonl
 
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
 
@@ -49,7 +49,7 @@ _err = error_printer("posed render")
 
 
 def _intrinsics(header_camera, image_size, config, hfov):
-    from camera_model import Intrinsics
+    from posed.camera_model import Intrinsics
 
     if header_camera is not None:
         return header_camera
@@ -67,11 +67,11 @@ def _fit_video(args, config, progress_on):
     """Landmarks + fit over a video (video mode, like the daemon): (source info, intrinsics, items, problems)."""
     from dataclasses import replace
 
-    from daemon.commands.landmarks import open_input
-    from daemon.stages.fit import StreamFit
-    from fitting import Fitter
-    from landmarks import PoseLandmarker
-    from viz.video import Progress
+    from posed.daemon.commands.landmarks import open_input
+    from posed.daemon.stages.fit import StreamFit
+    from posed.fitting import Fitter
+    from posed.landmarks import PoseLandmarker
+    from posed.viz.video import Progress
 
     source = open_input(Path(args.input), None, config.source.fps)
     intrinsics = _intrinsics(source.camera, source.image_size, config, args.hfov)
@@ -104,14 +104,14 @@ def _frame_count(path) -> int | None:
 
 def _read_fit(path: str):
     """The fit results of a ``posed fit`` output by seq, and how many lines could not be read."""
-    from fitting import FitResult
+    from posed.fitting import FitResult
 
     results, problems = read_jsonl(path, FitResult.from_json)
     return {r.seq: r for r in results}, problems
 
 
 def _from_recording(args, config):
-    from landmarks import RecordingProblem, iter_recording
+    from posed.landmarks import RecordingProblem, iter_recording
 
     header, frames = iter_recording(args.input)   # RecordingError: caller reports
     fits, problems = _read_fit(args.fit)
@@ -129,10 +129,10 @@ def _from_recording(args, config):
 def run(args: argparse.Namespace) -> int:
     import cv2
 
-    from daemon.commands.landmarks import InputError
-    from landmarks import ModelMissingError, RecordingError
-    from viz.render import ClipRenderer, FrameInput
-    from viz.video import Progress, VideoError, VideoOut
+    from posed.daemon.commands.landmarks import InputError
+    from posed.landmarks import ModelMissingError, RecordingError
+    from posed.viz.render import ClipRenderer, FrameInput
+    from posed.viz.video import Progress, VideoError, VideoOut
 
     config = config_from_args(args)
     progress_on = args.progress or sys.stderr.isatty()
@@ -209,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _falls(items, image_size, intrinsics, config):
     """The fall detector's state after each frame and the last event message's state."""
-    from falls import FallDetector
+    from posed.falls import FallDetector
 
     detector = FallDetector(config.falls, config.robot_id)
     out, last = [], None

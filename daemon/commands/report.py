@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from daemon.commands import add_config_args, config_from_args, config_path, error_printer
+from posed.daemon.commands import add_config_args, config_from_args, config_path, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,14 +51,14 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from daemon.commands.history import history_path
-    from daemon.config.paths import EVENTS_FILE
-    from daemon.history.plot import angle_series, event_marks
-    from daemon.history.store import ANGLE_COLUMNS, AngleHistory
-    from daemon.outbox.journal import EventJournal, JournalError
-    from viz.plots import local_zone
-    from viz.report import day_report
-    from viz.series import episodes
+    from posed.daemon.commands.history import history_path
+    from posed.daemon.config.paths import EVENTS_FILE
+    from posed.daemon.history.plot import angle_series, event_marks
+    from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
+    from posed.daemon.outbox.journal import EventJournal, JournalError
+    from posed.viz.plots import local_zone
+    from posed.viz.report import day_report
+    from posed.viz.series import episodes
 
     try:
         tz = local_zone(args.tz)

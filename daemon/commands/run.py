@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from daemon import logs
-from daemon.commands import add_config_args, config_from_args
-from daemon.config import EX_CONFIG
+from posed.daemon import logs
+from posed.daemon.commands import add_config_args, config_from_args
+from posed.daemon.config import EX_CONFIG
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -17,8 +17,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from daemon.preflight import check, resolve_source
-    from daemon.supervisor import Supervisor
+    from posed.daemon.preflight import check, resolve_source
+    from posed.daemon.supervisor import Supervisor
 
     cfg = resolve_source(config_from_args(args), _demo_recording)
     problems = check(cfg)
@@ -33,6 +33,6 @@ def _run(args: argparse.Namespace) -> int:
 
 def _demo_recording(path):
     """The generated demo input, made only when the real squat video is missing (offline code: loaded here)."""
-    from bench.demo_recording import ensure_demo_recording
+    from posed.bench.demo_recording import ensure_demo_recording
 
     return ensure_demo_recording(path)

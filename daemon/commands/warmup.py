@@ -18,7 +18,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from daemon.commands import add_config_args, config_from_args
+from posed.daemon.commands import add_config_args, config_from_args
 
 SAY_AFTER_S = 5.0   # a warm cache loads in 1-4 s even on a busy 2-core machine: say nothing then
 
@@ -62,7 +62,7 @@ def warm_fitter(fitter, say: Callable[[str], None], after_s: float = SAY_AFTER_S
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitting import CalibrationError, Fitter
+    from posed.fitting import CalibrationError, Fitter
 
     def say(msg: str) -> None:
         print(f"posed warmup: {msg}", flush=True)
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
 CHECK = """
 import time
 t0 = time.perf_counter()
-from fitting import FitConfig, Fitter
+from posed.fitting import FitConfig, Fitter
 Fitter(FitConfig()).warmup()
 print(round(time.perf_counter() - t0, 3))
 """

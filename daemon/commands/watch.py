@@ -8,7 +8,7 @@ import json
 import sys
 import time
 
-from daemon.commands import add_config_args, config_from_args
+from posed.daemon.commands import add_config_args, config_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,8 +29,8 @@ def open_viewer(endpoint: str, wait_s: float, quiet: bool = False):
     """A client session to ``endpoint``, retried for ``wait_s``; None with a message when it cannot connect."""
     import zenoh
 
-    from daemon.bus.session import build_config
-    from daemon.config.sections import ZenohConfig
+    from posed.daemon.bus.session import build_config
+    from posed.daemon.config.sections import ZenohConfig
 
     cfg = ZenohConfig(mode="client", listen=(), connect=(endpoint,))
     deadline = time.monotonic() + wait_s
@@ -70,10 +70,10 @@ def _subscribe(posed, robot: str, summary) -> list:
 
 
 def _watch(args: argparse.Namespace) -> int:
-    from client import PosedClient
-    from daemon.bus.session import daemon_endpoints
-    from daemon.commands._bus import open_client
-    from daemon.commands._viewer import Summary
+    from posed.client import PosedClient
+    from posed.daemon.bus.session import daemon_endpoints
+    from posed.daemon.commands._bus import open_client
+    from posed.daemon.commands._viewer import Summary
 
     cfg = config_from_args(args)
     endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg.zenoh)

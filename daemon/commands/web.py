@@ -13,7 +13,7 @@ import argparse
 import signal
 import threading
 
-from daemon.commands import add_config_args, config_from_args, error_printer
+from posed.daemon.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,16 +36,16 @@ _err = error_printer("posed web")
 def endpoints(config, given: list[str] | None) -> list[str]:
     """Where the daemon is: ``given``, else the config's connect list, else its own listen endpoints (a
     wildcard address as 127.0.0.1)."""
-    from daemon.bus.session import daemon_endpoints
+    from posed.daemon.bus.session import daemon_endpoints
 
     return list(given or config.zenoh.connect or daemon_endpoints(config.zenoh))
 
 
 def run(args: argparse.Namespace) -> int:
-    from client import PosedClient, PosedClientError
-    from viz.web.bus import RobotLink
-    from viz.web.hub import Hub
-    from viz.web.server import WebServer
+    from posed.client import PosedClient, PosedClientError
+    from posed.viz.web.bus import RobotLink
+    from posed.viz.web.hub import Hub
+    from posed.viz.web.server import WebServer
 
     config = config_from_args(args)
     web = config.web

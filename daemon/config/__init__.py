@@ -3,7 +3,7 @@ package's section, and the daemon's own sections in ``sections``), loading and v
 frozen dataclasses, every problem with its key path), the generated documentation (``doc``) and the state
 files' paths (``paths``)."""
 
-from daemon.config.load import ConfigError, ConfigProblem
-from daemon.config.schema import DEFAULT_CONFIG, EX_CONFIG, Config, load_config
+from posed.daemon.config.load import ConfigError, ConfigProblem
+from posed.daemon.config.schema import DEFAULT_CONFIG, EX_CONFIG, Config, load_config
 
 __all__ = ["DEFAULT_CONFIG", "EX_CONFIG", "Config", "ConfigError", "ConfigProblem", "load_config"]

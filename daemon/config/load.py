@@ -232,7 +232,8 @@ def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str, str, str]
             limits.append("one of " + ", ".join(str(c) for c in meta["choices"]))
         if meta.get("pattern"):
             limits.append(f"pattern {meta['pattern']}")
-        type_s = str(tp).replace("typing.", "") if not isinstance(tp, type) else tp.__name__
+        # a nested type by its own name (``tuple[HookConfig, ...]``), not its module path
+        type_s = re.sub(r"\b(?:[a-z_]\w*\.)+([A-Z]\w*)", r"\1", str(tp)) if not isinstance(tp, type) else tp.__name__
         rows.append((path, type_s, repr(default), "; ".join(limits), meta.get("doc", "")))
     return rows
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from daemon.config.sections import PipelineConfig
+from posed.daemon.config.sections import PipelineConfig
 
 EVENTS_FILE = "events.sqlite3"
 HISTORY_FILE = "history.sqlite3"

@@ -10,7 +10,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from daemon.config.load import (
+from posed.daemon.config.load import (
     ConfigError,
     ConfigProblem,
     apply_override,
@@ -18,7 +18,7 @@ from daemon.config.load import (
     parse_yaml,
     read_config_bytes,
 )
-from daemon.config.sections import (
+from posed.daemon.config.sections import (
     HooksConfig,
     LoggingConfig,
     PipelineConfig,
@@ -26,10 +26,10 @@ from daemon.config.sections import (
     WebConfig,
     ZenohConfig,
 )
-from falls.config import FallsConfig
-from fitting import FitConfig
-from hal import SourceConfig
-from landmarks import LandmarkConfig
+from posed.falls.config import FallsConfig
+from posed.fitting import FitConfig
+from posed.hal import SourceConfig
+from posed.landmarks import LandmarkConfig
 
 EX_CONFIG = 78
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config.yaml"
@@ -75,7 +75,7 @@ def source_override(uri: str) -> tuple[dict, list[ConfigProblem]]:
 
 
 def _embedded_text() -> str:
-    from daemon.config.doc import template  # doc imports this module
+    from posed.daemon.config.doc import template  # doc imports this module
 
     return template()
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
-from viz.series import AngleSeries, EventMark
+from posed.viz.series import AngleSeries, EventMark
 
 
 def angle_series(rows: Sequence[tuple], columns: Sequence[str]) -> AngleSeries:

@@ -7,9 +7,9 @@ clock. With ``falls.history_enabled`` false there is no store and every call doe
 
 from __future__ import annotations
 
-from daemon import clock
-from daemon.history.store import AngleHistory
-from fitting import FitResult
+from posed.daemon import clock
+from posed.daemon.history.store import AngleHistory
+from posed.fitting import FitResult
 
 MAINTAIN_EVERY_S = 60.0
 

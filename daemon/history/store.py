@@ -22,10 +22,10 @@ import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from daemon import logs
-from daemon.clock import iso
-from falls.config import FallsConfig
-from fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, FitResult
+from posed.daemon import logs
+from posed.daemon.clock import iso
+from posed.falls.config import FallsConfig
+from posed.fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, FitResult
 
 ANGLE_COLUMNS = JOINT_ANGLE_NAMES + BODY_ANGLE_NAMES
 CSV_HEADER = ("wall_time", "wall", "t", "seq", "level", *ANGLE_COLUMNS)

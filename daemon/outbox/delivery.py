@@ -16,11 +16,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
-from daemon import clock
-from daemon.outbox.hooks import HookRunner
-from daemon.outbox.journal import EventJournal
-from daemon.proc.throttle import Throttle, shown
-from falls.event import FallEvent
+from posed.daemon import clock
+from posed.daemon.outbox.hooks import HookRunner
+from posed.daemon.outbox.journal import EventJournal
+from posed.daemon.proc.throttle import Throttle, shown
+from posed.falls.event import FallEvent
 
 
 class EventOutbox:

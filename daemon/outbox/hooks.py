@@ -34,11 +34,11 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from daemon import logs
-from daemon.config.sections import HookConfig, HooksConfig
-from daemon.proc import orphans
-from daemon.proc.throttle import Throttle
-from falls.event import FallEvent
+from posed.daemon import logs
+from posed.daemon.config.sections import HookConfig, HooksConfig
+from posed.daemon.proc import orphans
+from posed.daemon.proc.throttle import Throttle
+from posed.falls.event import FallEvent
 
 KEEP_OUTCOMES = 200   # HookRunner.outcomes keeps this many of the latest runs
 TERM_GRACE_S = 1.0    # at shutdown: SIGTERM to a hook's process group, SIGKILL this much later

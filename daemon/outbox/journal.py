@@ -31,13 +31,13 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
-from daemon import logs
-from daemon.clock import iso
-from daemon.outbox import journal_file as jfile
-from daemon.outbox import journal_rows as rows
-from daemon.outbox.journal_file import JournalError
-from daemon.outbox.journal_rows import Selection, StoredEvent
-from falls.event import FallEvent
+from posed.daemon import logs
+from posed.daemon.clock import iso
+from posed.daemon.outbox import journal_file as jfile
+from posed.daemon.outbox import journal_rows as rows
+from posed.daemon.outbox.journal_file import JournalError
+from posed.daemon.outbox.journal_rows import Selection, StoredEvent
+from posed.falls.event import FallEvent
 
 __all__ = ["EventJournal", "JournalError", "StoredEvent"]
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sqlite3
 from pathlib import Path
 
-from daemon.outbox import journal_rows as rows
+from posed.daemon.outbox import journal_rows as rows
 
 
 class JournalError(RuntimeError):
@@ -17,7 +17,7 @@ class JournalError(RuntimeError):
 def default_connect(path: Path) -> sqlite3.Connection:
     """The daemon's connection: autocommit (transactions are explicit), 5 s busy timeout, any thread; the
     file is created (or kept) private, mode 0600 (:mod:`daemon.outbox.private`)."""
-    from daemon.outbox.private import private_file
+    from posed.daemon.outbox.private import private_file
 
     private_file(path)
     return sqlite3.connect(path, timeout=5.0, isolation_level=None, check_same_thread=False)

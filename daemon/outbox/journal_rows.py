@@ -12,7 +12,7 @@ import sqlite3
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from falls.event import FallEvent
+from posed.falls.event import FallEvent
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS messages (

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from daemon.proc import shm
-from daemon.proc.health import HealthBoard
-from daemon.proc.mailbox import Mailbox
+from posed.daemon.proc import shm
+from posed.daemon.proc.health import HealthBoard
+from posed.daemon.proc.mailbox import Mailbox
 
 # name -> capacity in bytes. frames: capture -> landmarks (FrameRef); landmarks: -> fitting; fits: ->
 # publisher; status: supervisor -> publisher; report.<stage>: stage -> supervisor (fatal errors, camera info).

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from daemon.messages import StageHealth
+from posed.daemon.messages import StageHealth
 
 FIELDS = (
     "pid", "beat", "step_started", "frames", "drops", "state", "ready", "stop", "fps",

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camera_model import Intrinsics
-from daemon.messages import FrameRef
-from daemon.proc import shm
+from posed.camera_model import Intrinsics
+from posed.daemon.messages import FrameRef
+from posed.daemon.proc import shm
 
 _HDR = 8
 
@@ -49,7 +49,7 @@ class FrameTooLarge(ValueError):
 def too_large_fix(pixels: int) -> str:
     """What to do about a frame of ``pixels`` that did not fit: a value of ``pipeline.frame_max_pixels``
     within the key's own range, or (above its maximum) scaling the image down."""
-    from daemon.config.sections import PipelineConfig
+    from posed.daemon.config.sections import PipelineConfig
 
     hi = PipelineConfig.__dataclass_fields__["frame_max_pixels"].metadata["range"][1]
     if pixels <= hi:

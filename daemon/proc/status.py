@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from daemon.proc import procstat
+from posed.daemon.proc import procstat
 
 
 def rounded(v, nd: int = 1):

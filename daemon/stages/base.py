@@ -26,11 +26,11 @@ import traceback
 from dataclasses import dataclass
 from typing import Any
 
-from daemon import clock, logs
-from daemon.config import Config
-from daemon.proc.control import Control, ControlSpec
-from daemon.proc.ring import FrameRing, RingSpec
-from daemon.proc.stats import RateMeter, Window
+from posed.daemon import clock, logs
+from posed.daemon.config import Config
+from posed.daemon.proc.control import Control, ControlSpec
+from posed.daemon.proc.ring import FrameRing, RingSpec
+from posed.daemon.proc.stats import RateMeter, Window
 
 EXIT_FATAL = 78         # the stage cannot work with this config or installation: do not restart
 EXIT_FAILED = 1

@@ -30,11 +30,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from daemon import clock
-from daemon.messages import LandmarkMsg, origin
-from daemon.proc.ring import FrameTooLarge, too_large_fix
-from daemon.proc.throttle import Throttle
-from daemon.stages.base import StageRuntime, sleep_until
+from posed.daemon import clock
+from posed.daemon.messages import LandmarkMsg, origin
+from posed.daemon.proc.ring import FrameTooLarge, too_large_fix
+from posed.daemon.proc.throttle import Throttle
+from posed.daemon.stages.base import StageRuntime, sleep_until
 
 REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
 
@@ -54,8 +54,15 @@ class _Thinner:
 
 
 def run(rt: StageRuntime) -> None:
-    import hal
-    from hal import EndOfStream, SourceCorrupt, SourceError, SourceNotFound, SourceTimeout, SourceUnsupported
+    from posed import hal
+    from posed.hal import (
+        EndOfStream,
+        SourceCorrupt,
+        SourceError,
+        SourceNotFound,
+        SourceTimeout,
+        SourceUnsupported,
+    )
 
     src_cfg = rt.config.source
     paced = not (src_cfg.type == "file" and not src_cfg.realtime)
@@ -178,7 +185,7 @@ def _close(source) -> None:
 
 def run_recording(rt: StageRuntime) -> None:
     """Replay a ``*.landmarks.jsonl`` recording as the landmark stage's output."""
-    from landmarks import RecordingError, RecordingProblem, iter_recording
+    from posed.landmarks import RecordingError, RecordingProblem, iter_recording
 
     src = rt.config.source
     thinner = _Thinner(rt.config.pipeline.target_fps)

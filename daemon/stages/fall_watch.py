@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from daemon.messages import FitMsg
-from falls import FallDetector, FallEvent, FallsConfig
+from posed.daemon.messages import FitMsg
+from posed.falls import FallDetector, FallEvent, FallsConfig
 
 LOG_FIRST_FAILURES = 3
 LOG_FAILURE_EVERY = 100

@@ -10,9 +10,9 @@ offline ``posed falls``.
 
 from __future__ import annotations
 
-from daemon import clock
-from daemon.messages import FitMsg, origin
-from daemon.stages.base import StageRuntime
+from posed.daemon import clock
+from posed.daemon.messages import FitMsg, origin
+from posed.daemon.stages.base import StageRuntime
 
 RESET_GAP_S = 1.0
 
@@ -34,7 +34,7 @@ class StreamFit:
 
 
 def run(rt: StageRuntime) -> None:
-    from fitting import CalibrationError, FitResult, Fitter
+    from posed.fitting import CalibrationError, FitResult, Fitter
 
     with rt.step():
         try:

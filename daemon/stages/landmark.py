@@ -16,13 +16,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from daemon import clock
-from daemon.messages import LandmarkMsg, origin
-from daemon.stages.base import StageRuntime
+from posed.daemon import clock
+from posed.daemon.messages import LandmarkMsg, origin
+from posed.daemon.stages.base import StageRuntime
 
 
 def run(rt: StageRuntime) -> None:
-    from landmarks import ModelMissingError, PoseLandmarker, with_depth
+    from posed.landmarks import ModelMissingError, PoseLandmarker, with_depth
 
     with rt.step():
         try:

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import hal
-from daemon.config import Config
+from posed import hal
+from posed.daemon.config import Config
 
 
 @dataclass(frozen=True)
@@ -31,11 +31,11 @@ def is_landmark_recording(cfg: Config) -> bool:
 def default_plan(cfg: Config) -> tuple[StageSpec, ...]:
     """capture -> landmarks -> fitting -> publisher (-> web, when ``web.enabled``: the live page, a receiver of
     the publisher's topics); a ``*.landmarks.jsonl`` source skips the landmark stage."""
-    fit = StageSpec("fitting", "daemon.stages.fit:run", "landmarks", "fits")
-    pub = StageSpec("publisher", "daemon.stages.publish:run", "fits", None)
-    web = (StageSpec("web", "daemon.stages.web:run"),) if cfg.web.enabled else ()
+    fit = StageSpec("fitting", "posed.daemon.stages.fit:run", "landmarks", "fits")
+    pub = StageSpec("publisher", "posed.daemon.stages.publish:run", "fits", None)
+    web = (StageSpec("web", "posed.daemon.stages.web:run"),) if cfg.web.enabled else ()
     if is_landmark_recording(cfg):
-        return (StageSpec("capture", "daemon.stages.capture:run_recording", None, "landmarks"), fit, pub, *web)
-    return (StageSpec("capture", "daemon.stages.capture:run", None, "frames", uses_ring=True),
-            StageSpec("landmarks", "daemon.stages.landmark:run", "frames", "landmarks", uses_ring=True),
+        return (StageSpec("capture", "posed.daemon.stages.capture:run_recording", None, "landmarks"), fit, pub, *web)
+    return (StageSpec("capture", "posed.daemon.stages.capture:run", None, "frames", uses_ring=True),
+            StageSpec("landmarks", "posed.daemon.stages.landmark:run", "frames", "landmarks", uses_ring=True),
             fit, pub, *web)

@@ -30,21 +30,27 @@ from __future__ import annotations
 
 import contextlib
 
-from daemon import clock
-from daemon.bus.link import BusLink
-from daemon.bus.payloads import event_message, landmarks_message, pose_message, stamp_event, status_message
-from daemon.bus.ros2 import Ros2Bridge
-from daemon.bus.session import ZenohConfigError
-from daemon.config import paths
-from daemon.history.recorder import HistoryRecorder
-from daemon.history.store import AngleHistory
-from daemon.messages import FitMsg, origin
-from daemon.outbox.delivery import EventOutbox
-from daemon.outbox.hooks import HookRunner
-from daemon.outbox.journal import EventJournal
-from daemon.outbox.private import private_file, private_folder
-from daemon.stages.base import StageRuntime
-from daemon.stages.fall_watch import FallWatch
+from posed.daemon import clock
+from posed.daemon.bus.link import BusLink
+from posed.daemon.bus.payloads import (
+    event_message,
+    landmarks_message,
+    pose_message,
+    stamp_event,
+    status_message,
+)
+from posed.daemon.bus.ros2 import Ros2Bridge
+from posed.daemon.bus.session import ZenohConfigError
+from posed.daemon.config import paths
+from posed.daemon.history.recorder import HistoryRecorder
+from posed.daemon.history.store import AngleHistory
+from posed.daemon.messages import FitMsg, origin
+from posed.daemon.outbox.delivery import EventOutbox
+from posed.daemon.outbox.hooks import HookRunner
+from posed.daemon.outbox.journal import EventJournal
+from posed.daemon.outbox.private import private_file, private_folder
+from posed.daemon.stages.base import StageRuntime
+from posed.daemon.stages.fall_watch import FallWatch
 
 
 class PublisherStage:

@@ -13,18 +13,18 @@ from __future__ import annotations
 import threading
 import time
 
-from daemon.bus.session import daemon_endpoints
-from daemon.stages.base import StageRuntime
+from posed.daemon.bus.session import daemon_endpoints
+from posed.daemon.stages.base import StageRuntime
 
 CONNECT_TRY_S = 0.5
 BIND_RETRY_S = 5.0
 
 
 def run(rt: StageRuntime) -> None:
-    from client import PosedClient, PosedClientError
-    from viz.web.bus import RobotLink
-    from viz.web.hub import Hub
-    from viz.web.server import WebServer
+    from posed.client import PosedClient, PosedClientError
+    from posed.viz.web.bus import RobotLink
+    from posed.viz.web.hub import Hub
+    from posed.viz.web.server import WebServer
 
     config = rt.config
     web = config.web

@@ -4,7 +4,7 @@ robot's journal, through the router), and new events as they come. Run: python s
 import sys
 import time
 
-from client import PosedClient
+from posed.client import PosedClient
 
 with PosedClient.connect(sys.argv[1] if len(sys.argv) > 1 else "tcp/127.0.0.1:7447") as posed:
     posed.on_alive(lambda a: print(f"robot {a.robot} {'up' if a.alive else 'GONE'}", flush=True))

@@ -7,15 +7,15 @@ Public names: ``fetch_models(models_dir, source=None, force=False, say=...) -> F
 ``CONVERTER_VERSION``, ``SUPPORTED_OPS``, ``ConversionError``, ``UnsupportedOperatorError``; ``densify`` and
 ``DimMetadata`` (TFLite sparse tensors)."""
 
-from landmarks.convert.converter import (
+from posed.landmarks.convert.converter import (
     CONVERTER_VERSION,
     SUPPORTED_OPS,
     ConversionError,
     UnsupportedOperatorError,
     convert,
 )
-from landmarks.convert.densify import DimMetadata, densify
-from landmarks.convert.fetch import FetchError, FetchResult, fetch_models
+from posed.landmarks.convert.densify import DimMetadata, densify
+from posed.landmarks.convert.fetch import FetchError, FetchResult, fetch_models
 
 __all__ = [
     "CONVERTER_VERSION",

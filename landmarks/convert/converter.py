@@ -20,9 +20,9 @@ import onnx
 import tflite
 from onnx import helper
 
-from landmarks.convert.densify import densify
-from landmarks.convert.onnx_graph import NCHW, NHWC, TO_NCHW, OnnxGraph, value_info
-from landmarks.convert.tflite_graph import Graph, Operator, Tensor, read_graph
+from posed.landmarks.convert.densify import densify
+from posed.landmarks.convert.onnx_graph import NCHW, NHWC, TO_NCHW, OnnxGraph, value_info
+from posed.landmarks.convert.tflite_graph import Graph, Operator, Tensor, read_graph
 
 CONVERTER_VERSION = "2"  # 2: outputs can be selected; unused operators are pruned
 OPSET = 17

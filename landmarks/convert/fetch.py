@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from landmarks.convert.converter import CONVERTER_VERSION, OPSET, convert
-from landmarks.convert.tflite_graph import read_graph
-from landmarks.models import (
+from posed.landmarks.convert.converter import CONVERTER_VERSION, OPSET, convert
+from posed.landmarks.convert.tflite_graph import read_graph
+from posed.landmarks.models import (
     DETECTOR_ONNX,
     DETECTOR_TFLITE,
     LANDMARK_ONNX,

@@ -10,7 +10,7 @@ import numpy as np
 import tflite
 from flatbuffers.table import Table
 
-from landmarks.convert.densify import DimMetadata
+from posed.landmarks.convert.densify import DimMetadata
 
 _DTYPES = {
     tflite.TensorType.FLOAT32: np.dtype("<f4"),

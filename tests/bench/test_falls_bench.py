@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from bench.bvh import CMU_UNIT_M, cmu_landmark_world, forward_kinematics, read_bvh
-from daemon.cli import main
+from posed.bench.bvh import CMU_UNIT_M, cmu_landmark_world, forward_kinematics, read_bvh
+from posed.daemon.cli import main
 
 
 def test_cmu_bvh_parses_to_a_plausible_rigid_body(shared_data):
@@ -50,8 +50,8 @@ def test_bench_reports_falls_and_latency(capsys):
 
 def test_real_fit_detects_a_fall_and_not_lying_on_a_bed():
     """End to end through fitting.fitter.Fitter (video mode, perspective): the detector's input as in the daemon."""
-    from bench.falls import real_fitter, run_case, scenario_cases
-    from falls.config import FallsConfig
+    from posed.bench.falls import real_fitter, run_case, scenario_cases
+    from posed.falls.config import FallsConfig
 
     cases = {c.name: c for c in scenario_cases("tune")
              if c.name in ("tune/fall/standing-forward/fast-v100", "tune/adl/lie-on-bed-side/normal-v30")}
@@ -92,7 +92,7 @@ def test_bench_scores_labelled_real_recordings(shared_data, tmp_path, capsys):
 
 
 def test_bench_recordings_folder_errors_name_the_problem(tmp_path):
-    from bench.falls_recordings import read_labels
+    from posed.bench.falls_recordings import read_labels
 
     with pytest.raises(FileNotFoundError, match="labels.json"):
         read_labels(tmp_path)

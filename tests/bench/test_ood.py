@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from bench import depth_sim as D
-from bench import mocap_landmarks as M
-from bench import ood
+from posed.bench import depth_sim as D
+from posed.bench import mocap_landmarks as M
+from posed.bench import ood
 
 
 def _rotation(rng: np.random.Generator) -> np.ndarray:
@@ -131,7 +131,7 @@ def test_depth_simulator_statistics():
 def _person_33(z0: float) -> np.ndarray:
     """33 points of a person standing 3 m in front of the camera, facing it, arms hanging a little away from the
     body (camera frame: x right, y down, z forward; the person's left on the image's right)."""
-    from landmarks import LANDMARK_NAMES
+    from posed.landmarks import LANDMARK_NAMES
     at = {"nose": (0.0, -0.68, -0.10), "left_ear": (0.07, -0.70, 0.0), "right_ear": (-0.07, -0.70, 0.0),
           "shoulder": (0.18, -0.50, 0.0), "elbow": (0.26, -0.22, 0.0), "wrist": (0.28, 0.03, 0.0),
           "hip": (0.08, 0.0, 0.0), "knee": (0.09, 0.45, 0.0), "ankle": (0.09, 0.88, 0.0)}
@@ -243,9 +243,9 @@ def test_correlated_landmarks_share_truth_and_depth_with_independent_ones(shared
 
 
 def test_tiny_end_to_end_run_has_every_metric(shared_data):
-    from bench import fit as bench
-    from bench.commands.fit import markdown
-    from fitting import FitConfig
+    from posed.bench import fit as bench
+    from posed.bench.commands.fit import markdown
+    from posed.fitting import FitConfig
 
     tiny = ood.OodPlan(clips=("131_01",), azimuths=(90.0,), fps=(15, 30), noises=(0.0, 0.01),
                        depth=(False, True), max_s=0.4)
@@ -297,7 +297,7 @@ def test_a_person_seen_before_starts_from_what_was_learned(shared_data):
     the clip is fitted with those arms (fitting.proportions retain), not with the configured ones."""
     from dataclasses import replace
 
-    from fitting import FitConfig, Fitter
+    from posed.fitting import FitConfig, Fitter
 
     clip = M.load_clip(shared_data / "mocap" / "cmu" / "131_01.bvh")
     visit = ood.build_sequence(clip, 135.0, 10, (0.0,), seed=3, max_s=8.0)

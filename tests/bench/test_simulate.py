@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from bench import simulate as S
-from fitting import landmarks_camera
+from posed.bench import simulate as S
+from posed.fitting import landmarks_camera
 
 
 def test_six_paper_poses_and_floor_poses_render():

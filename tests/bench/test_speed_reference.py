@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.speed_reference import SIZE, reference_ms, workload
+from posed.bench.speed_reference import SIZE, reference_ms, workload
 
 
 def reference_workload(rounds: int) -> float:

@@ -8,7 +8,7 @@ import pickle
 import numpy as np
 import pytest
 
-from camera_model import Intrinsics
+from posed.camera_model import Intrinsics
 
 K = Intrinsics(fx=615.2, fy=612.8, cx=322.4, cy=241.1, width=640, height=480)
 
@@ -89,7 +89,7 @@ def test_json_with_size_round_trips_and_pickles():
 def test_recording_camera_json_is_the_old_four_numbers():
     """The landmark recording's header ``camera`` (interfaces.md section 1): fx, fy, cx, cy only, the size from
     the header's image_size; written exactly as before."""
-    from landmarks.recording import RecordingHeader
+    from posed.landmarks.recording import RecordingHeader
 
     old_line = ('{"format": "posed.landmarks", "version": 1, "image_size": [640, 480], "fps": 30.0, '
                 '"source": "cam", "camera": {"fx": 600.0, "fy": 601.0, "cx": 320.0, "cy": 240.5}}')

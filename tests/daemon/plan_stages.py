@@ -7,9 +7,9 @@ import dataclasses
 import os
 import time
 
-from daemon import clock
-from daemon.stages.base import StageRuntime
-from daemon.stages.plan import StageSpec
+from posed.daemon import clock
+from posed.daemon.stages.base import StageRuntime
+from posed.daemon.stages.plan import StageSpec
 
 
 def source(rt: StageRuntime) -> None:
@@ -76,9 +76,9 @@ FATAL_PLAN = PLAN[:3] + (StageSpec("publisher", "tests.daemon.plan_stages:fatal"
 def fall_fits(rt: StageRuntime) -> None:
     """Feeds the publisher FitMsgs of a scripted fall (bench.falls_scenarios, perfect fits), without drops,
     then idles. Capture times are the scenario's time line from the start of the stage."""
-    from bench import falls_scenarios as scenarios
-    from daemon.messages import FitMsg
-    from landmarks import LandmarkFrame
+    from posed.bench import falls_scenarios as scenarios
+    from posed.daemon.messages import FitMsg
+    from posed.landmarks import LandmarkFrame
 
     sc = next(s for s in scenarios.catalogue("tune") if s.name == FALL_SCENARIO)
     intrinsics = sc.camera.intrinsics
@@ -106,5 +106,5 @@ FALL_SCENARIO = "tune/fall/standing-forward/fast-v30"
 FALL_OVERRIDES = ("falls.camera_tilt_deg=12", "falls.camera_height_m=1.0", "falls.alarm_after_s=3")
 PUBLISHER_PLAN = (
     StageSpec("capture", "tests.daemon.plan_stages:fall_fits", None, "fits"),
-    StageSpec("publisher", "daemon.stages.publish:run", "fits", None),
+    StageSpec("publisher", "posed.daemon.stages.publish:run", "fits", None),
 )

@@ -8,9 +8,9 @@ import argparse
 import json
 import sys
 
-from daemon import logs
-from daemon.config import load_config
-from daemon.supervisor import Supervisor
+from posed.daemon import logs
+from posed.daemon.config import load_config
+from posed.daemon.supervisor import Supervisor
 from tests.daemon.plan_stages import FATAL_PLAN, PLAN, PUBLISHER_PLAN
 
 

@@ -11,14 +11,14 @@ from types import SimpleNamespace
 import pytest
 import zenoh
 
-from daemon.bus import link as link_mod
-from daemon.bus import queries
-from daemon.bus.link import BusLink
-from daemon.bus.payloads import dumps, pose_message
-from daemon.bus.session import ZenohConfigError
-from daemon.config.sections import ZenohConfig
-from daemon.outbox.journal import StoredEvent
-from falls.event import FallEvent
+from posed.daemon.bus import link as link_mod
+from posed.daemon.bus import queries
+from posed.daemon.bus.link import BusLink
+from posed.daemon.bus.payloads import dumps, pose_message
+from posed.daemon.bus.session import ZenohConfigError
+from posed.daemon.config.sections import ZenohConfig
+from posed.daemon.outbox.journal import StoredEvent
+from posed.falls.event import FallEvent
 from tests.daemon.fakes import FakeQuery, FakeSession, RecordingLog, sample
 
 

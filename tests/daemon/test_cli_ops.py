@@ -12,12 +12,12 @@ from pathlib import Path
 
 import pytest
 
-from daemon.cli import build_parser, main
-from daemon.commands import config_from_args, config_path
-from daemon.config import load_config
-from daemon.config.paths import SERVICE_STATE_DIR, config_file, reading_state_dir
-from daemon.config.sections import PipelineConfig
-from daemon.version import __version__
+from posed.daemon.cli import build_parser, main
+from posed.daemon.commands import config_from_args, config_path
+from posed.daemon.config import load_config
+from posed.daemon.config.paths import SERVICE_STATE_DIR, config_file, reading_state_dir
+from posed.daemon.config.sections import PipelineConfig
+from posed.daemon.version import __version__
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -46,7 +46,7 @@ def test_every_command_reads_the_config_named_by_posed_config(tmp_path, monkeypa
 
 
 def test_the_embedded_default_is_the_documented_config_yaml(monkeypatch):
-    from daemon.config.doc import template
+    from posed.daemon.config.doc import template
 
     monkeypatch.delenv("POSED_CONFIG", raising=False)
     assert load_config(None) == load_config(ROOT / "config.yaml") == load_config(None, overrides=[])
@@ -81,7 +81,7 @@ def test_read_only_commands_find_the_service_state(tmp_path):
 
 
 def test_clients_reach_the_daemon_where_it_listens():
-    from daemon.bus.session import daemon_endpoints
+    from posed.daemon.bus.session import daemon_endpoints
 
     cfg = load_config(None)
     assert daemon_endpoints(cfg.zenoh) == ("tcp/127.0.0.1:7447",)
@@ -104,7 +104,7 @@ def test_version(capsys):
 def test_every_bench_json_carries_the_version(monkeypatch, capsys):
     """`posed bench NAME --json` adds posed_version to what the benchmark prints (one object, indented or not,
     or one object per line); a benchmark that prints something else is passed on unchanged."""
-    import daemon.commands.bench as bench_cmd
+    import posed.daemon.commands.bench as bench_cmd
 
     outputs = [json.dumps({"fps": 10.0}), json.dumps({"a": 1}, indent=2), '{"n": 1}\n{"n": 2}', "plain text"]
 
@@ -116,7 +116,7 @@ def test_every_bench_json_carries_the_version(monkeypatch, capsys):
     real = bench_cmd.importlib.import_module
     for text in outputs:
         monkeypatch.setattr(bench_cmd.importlib, "import_module",
-                            lambda mod, text=text: fake(text) if mod.startswith("bench.commands.") else real(mod))
+                            lambda mod, text=text: fake(text) if mod.startswith("posed.bench.commands.") else real(mod))
         assert main(["bench", name, "--json"]) == 0
         out = capsys.readouterr().out
         if text == "plain text":
@@ -129,7 +129,7 @@ def test_every_bench_json_carries_the_version(monkeypatch, capsys):
 
 
 def test_warm_fitter_says_it_is_compiling_only_when_it_takes_long():
-    from daemon.commands.warmup import warm_fitter
+    from posed.daemon.commands.warmup import warm_fitter
 
     said: list[str] = []
     release = threading.Event()
@@ -157,7 +157,7 @@ def test_warm_fitter_says_it_is_compiling_only_when_it_takes_long():
 
 def test_posed_fit_compiles_before_the_first_frame(tmp_path, monkeypatch, capsys):
     """frame 0's fit_ms is the fit alone: `posed fit` warms the fitter up before fitting anything."""
-    import fitting
+    from posed import fitting
 
     calls: list[str] = []
     real = fitting.Fitter
@@ -173,8 +173,8 @@ def test_posed_fit_compiles_before_the_first_frame(tmp_path, monkeypatch, capsys
 
     monkeypatch.setattr(fitting, "Fitter", Recording)
     rec = tmp_path / "one.landmarks.jsonl"
-    from bench import simulate
-    from landmarks import LandmarkFrame, RecordingHeader, write_recording
+    from posed.bench import simulate
+    from posed.landmarks import LandmarkFrame, RecordingHeader, write_recording
 
     lm = simulate.render(simulate.pose("stand_arms_front"))
     write_recording(rec, RecordingHeader((640, 480), 10.0), [LandmarkFrame(0, 0.0, lm), LandmarkFrame(1, 0.1, lm)])
@@ -201,7 +201,7 @@ def test_config_check_set_and_bench_phase_have_help():
     check = next(a for a in sub.choices["config"]._actions if isinstance(a, argparse._SubParsersAction))
     set_help = [a.help for a in check.choices["check"]._actions if "--set" in a.option_strings]
     assert set_help and set_help[0]
-    import bench.commands.pipeline as pipeline
+    import posed.bench.commands.pipeline as pipeline
 
     p = argparse.ArgumentParser()
     pipeline.add_arguments(p)
@@ -210,7 +210,7 @@ def test_config_check_set_and_bench_phase_have_help():
 
 def test_run_accepts_a_file_uri_with_loop(shared_data):
     """`--source file:VIDEO?loop=true` is what the docs show: preflight checks the file, not 'VIDEO?loop=true'."""
-    from daemon.preflight import check
+    from posed.daemon.preflight import check
 
     video = shared_data / "reference" / "tfjs_pose_squats" / "pose_squats.mp4"
     cfg = load_config(None, source=f"file:{video}?loop=true&realtime=false")
@@ -222,7 +222,7 @@ def test_run_accepts_a_file_uri_with_loop(shared_data):
 
 
 def test_watch_says_what_a_starting_daemon_is_doing():
-    from daemon.commands._viewer import Summary, waiting_for
+    from posed.daemon.commands._viewer import Summary, waiting_for
 
     status = {"state": "starting", "stages": {"capture": {"state": "running"}, "landmarks": {"state": "running"},
                                               "fitting": {"state": "starting"}}}
@@ -235,7 +235,7 @@ def test_watch_says_what_a_starting_daemon_is_doing():
 
 
 def test_landmarks_progress_lines(capsys):
-    from daemon.commands.landmarks import Progress
+    from posed.daemon.commands.landmarks import Progress
 
     p = Progress(total=10, period_s=0.0)
     p.frame(3, 2)
@@ -258,7 +258,7 @@ def test_models_fetch_without_the_convert_extra_names_it(tmp_path):
     shadow.mkdir()
     (shadow / "tflite.py").write_text("raise ModuleNotFoundError(\"No module named 'tflite'\", name='tflite')\n")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(shadow), str(ROOT)])}
-    r = subprocess.run([sys.executable, "-m", "daemon.cli", "models", "fetch", "--models-dir", str(tmp_path / "m")],
+    r = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "models", "fetch", "--models-dir", str(tmp_path / "m")],
                        capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
     assert r.returncode == 69, r.stdout + r.stderr
     assert "'tflite'" in r.stderr and "pip install 'posed[convert]'" in r.stderr

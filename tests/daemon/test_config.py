@@ -5,10 +5,10 @@ from pathlib import Path
 
 import pytest
 
-from daemon.cli import main
-from daemon.config import EX_CONFIG, Config, load_config
-from daemon.config import doc as configdoc
-from daemon.config.load import ConfigError
+from posed.daemon.cli import main
+from posed.daemon.config import EX_CONFIG, Config, load_config
+from posed.daemon.config import doc as configdoc
+from posed.daemon.config.load import ConfigError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -27,7 +27,7 @@ def test_config_yaml_is_the_generated_template_and_docs_match():
 
 
 def test_every_key_is_documented():
-    from daemon.config.load import describe
+    from posed.daemon.config.load import describe
 
     for path, _type, _default, _limits, doc in describe(Config):
         assert doc, f"{path} has no doc"
@@ -67,7 +67,7 @@ def test_config_check_cli_exit_codes(tmp_path, capsys):
 def test_config_check_as_a_real_process(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("robot_id: 'has space'\nzenoh: {mode: router}\n")
-    proc = subprocess.run([sys.executable, "-m", "daemon.cli", "config", "check", str(bad)],
+    proc = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "config", "check", str(bad)],
                           capture_output=True, text=True, cwd=ROOT)
     assert proc.returncode == 78
     assert "robot_id: 'has space' does not match" in proc.stderr

@@ -3,10 +3,10 @@ import pickle
 
 import pytest
 
-from camera_model import Intrinsics
-from daemon.messages import FrameRef, StageHealth, origin
-from falls import FallEvent
-from fitting import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+from posed.camera_model import Intrinsics
+from posed.daemon.messages import FrameRef, StageHealth, origin
+from posed.falls import FallEvent
+from posed.fitting import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 
 
 def _via_json(obj):

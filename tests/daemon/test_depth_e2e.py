@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import hal
-from daemon.cli import main
-from landmarks import read_recording, sample_depth
+from posed import hal
+from posed.daemon.cli import main
+from posed.landmarks import read_recording, sample_depth
 from tests.daemon.replay_util import replay_to_end
 from tests.hal.conftest import (
     DB3_FRAMES,

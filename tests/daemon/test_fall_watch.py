@@ -7,8 +7,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from daemon.stages.fall_watch import FallWatch
-from falls import FallsConfig
+from posed.daemon.stages.fall_watch import FallWatch
+from posed.falls import FallsConfig
 from tests.daemon.fakes import RecordingLog
 
 

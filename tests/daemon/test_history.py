@@ -7,12 +7,12 @@ import math
 
 import cv2
 
-from daemon.cli import main
-from daemon.history.store import ANGLE_COLUMNS, AngleHistory, read_csv
-from daemon.outbox.journal import EventJournal
-from falls.config import FallsConfig
-from falls.event import FallEvent
-from fitting import JOINT_ANGLE_NAMES, FitResult
+from posed.daemon.cli import main
+from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory, read_csv
+from posed.daemon.outbox.journal import EventJournal
+from posed.falls.config import FallsConfig
+from posed.falls.event import FallEvent
+from posed.fitting import JOINT_ANGLE_NAMES, FitResult
 
 
 def result(seq: int, t: float) -> FitResult:
@@ -132,8 +132,8 @@ def test_events_cli_lists_journal(tmp_path, capsys):
 def test_recorder_adds_on_capture_time_and_maintains_about_once_a_minute(tmp_path):
     import time
 
-    from daemon import clock
-    from daemon.history.recorder import HistoryRecorder
+    from posed.daemon import clock
+    from posed.daemon.history.recorder import HistoryRecorder
     from tests.daemon.fakes import RecordingLog
 
     class Store:

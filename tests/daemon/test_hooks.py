@@ -8,9 +8,9 @@ import textwrap
 import time
 from pathlib import Path
 
-from daemon.config.sections import HookConfig, HooksConfig
-from daemon.outbox.hooks import HookRunner
-from falls.event import FallEvent
+from posed.daemon.config.sections import HookConfig, HooksConfig
+from posed.daemon.outbox.hooks import HookRunner
+from posed.falls.event import FallEvent
 
 EVENT = FallEvent(id="abc123", robot="r1", state="falling", t_onset=1.0, t_impact=1.5, t_detect=2.0,
                   confidence=0.85, features=("pelvis_descent_fast", "trunk_horizontal"), wall_time="2024-01-01T00:00:00")

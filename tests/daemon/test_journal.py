@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from daemon.outbox.journal import EventJournal, JournalError
-from falls.event import FallEvent
+from posed.daemon.outbox.journal import EventJournal, JournalError
+from posed.falls.event import FallEvent
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -56,8 +56,8 @@ def test_pragmas_wal_and_full_sync(tmp_path):
 CHILD = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, {root!r})
-    from falls.event import FallEvent
-    from daemon.outbox.journal import EventJournal
+    from posed.falls.event import FallEvent
+    from posed.daemon.outbox.journal import EventJournal
     j = EventJournal(sys.argv[1])
     j.append(FallEvent(id="k9", robot="r1", state="falling", t_onset=1.0, t_impact=1.5, t_detect=2.0,
                        confidence=0.9, features=("x",)))
@@ -187,8 +187,8 @@ def test_readonly_reads_without_creating_or_moving_anything(tmp_path, capsys):
 
 def test_a_selection_means_the_same_on_disk_and_in_memory(tmp_path):
     """Messages waiting in memory (disk full) are selected by the same rule as the stored ones."""
-    from daemon.outbox import journal_rows as rows
-    from daemon.outbox.journal_rows import Selection
+    from posed.daemon.outbox import journal_rows as rows
+    from posed.daemon.outbox.journal_rows import Selection
 
     clock = iter(range(1000, 2000)).__next__
     with EventJournal(tmp_path / "events.sqlite3", clock=lambda: float(clock())) as j:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import structlog
 
-from daemon import logs
+from posed.daemon import logs
 
 
 def test_a_replaced_stdout_gets_the_lines_and_a_closed_one_is_never_written(monkeypatch):
@@ -57,7 +57,7 @@ def _stream_of(path):
 def test_journald_is_reachable_only_through_its_stream_and_socket(tmp_path):
     import socket
 
-    from daemon import journald
+    from posed.daemon import journald
 
     out, stream_id = _stream_of(tmp_path / "stream")
     other, other_id = _stream_of(tmp_path / "other")
@@ -108,7 +108,7 @@ def test_journal_fields_of_structlog_events(monkeypatch):
 
 
 def test_a_failed_journal_send_falls_back_to_a_json_line():
-    from daemon import journald
+    from posed.daemon import journald
 
     def refuse(*items):
         raise ConnectionRefusedError("journald is restarting")
@@ -129,7 +129,7 @@ def test_journald_when_reachable_else_json_lines(tmp_path):
     import sys
     import uuid
 
-    from daemon import journald
+    from posed.daemon import journald
 
     tag = uuid.uuid4().hex
     out_path = tmp_path / "stdout"
@@ -164,7 +164,7 @@ def test_journald_when_reachable_else_json_lines(tmp_path):
 
 PAUSED_READER_CHILD = r"""
 import sys, time
-from daemon import logs
+from posed.daemon import logs
 logs.configure("info", "json")
 log = logs.get("flood")
 t0 = time.monotonic()

@@ -6,7 +6,7 @@ import os
 import signal
 import time
 
-from daemon.proc.control import Control
+from posed.daemon.proc.control import Control
 
 
 def test_newest_wins_and_drops_are_counted():

@@ -5,7 +5,7 @@ import os
 import socket
 import uuid
 
-from daemon.proc.notify import Notifier
+from posed.daemon.proc.notify import Notifier
 
 
 def test_no_socket_means_no_op(monkeypatch):

@@ -4,7 +4,7 @@ import os
 import subprocess
 import sys
 
-from daemon.proc import orphans
+from posed.daemon.proc import orphans
 
 
 def _dead_pid() -> int:

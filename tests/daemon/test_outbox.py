@@ -3,9 +3,9 @@ republishing on a new subscriber and on the period, acknowledgement, status."""
 
 from __future__ import annotations
 
-from daemon.outbox.delivery import EventOutbox
-from daemon.outbox.journal import EventJournal
-from falls.event import FallEvent
+from posed.daemon.outbox.delivery import EventOutbox
+from posed.daemon.outbox.journal import EventJournal
+from posed.falls.event import FallEvent
 from tests.daemon.fakes import RecordingLog
 
 

@@ -139,8 +139,8 @@ def test_no_router_reachable_keeps_running(tmp_path, mode):
 
 
 def test_native_zenoh_config_file_is_read_and_posed_keys_win(tmp_path):
-    from daemon.bus.session import ZenohConfigError, build_config
-    from daemon.config.sections import ZenohConfig
+    from posed.daemon.bus.session import ZenohConfigError, build_config
+    from posed.daemon.config.sections import ZenohConfig
 
     native = tmp_path / "zenoh.json5"
     native.write_text('{ mode: "router", listen: { endpoints: ["tcp/0.0.0.0:9999"] },\n'

@@ -87,7 +87,7 @@ def test_ack_flood_is_counted_not_logged_line_by_line(tmp_path):
     (b'{"id": "e2", "state": "alarm"}', ("e2", "alarm")), (b'{"id": 7}', ("7", None)),
 ])
 def test_ack_message_parsed(payload, expected):
-    from daemon.bus import acks
+    from posed.daemon.bus import acks
 
     got = acks.parse_ack_message(payload)
     assert (got.id, got.state) == expected
@@ -99,7 +99,7 @@ def test_ack_message_parsed(payload, expected):
     (b"y" * 5000, "bytes"), (b'{"id": ""}', "empty"), (b'{"id": "e", "state": 3}', "state"),
 ])
 def test_bad_ack_messages_rejected_with_reason(payload, why):
-    from daemon.bus import acks
+    from posed.daemon.bus import acks
 
     with pytest.raises(acks.BadAck, match=why):
         acks.parse_ack_message(payload)

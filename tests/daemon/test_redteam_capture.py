@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from daemon.config.sections import PipelineConfig
+from posed.daemon.config.sections import PipelineConfig
 from tests.daemon.zenoh_util import client, free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -29,7 +29,7 @@ def test_oversized_and_corrupt_images_are_skipped_and_counted(tmp_path, squat_fr
     ep = f"tcp/127.0.0.1:{free_port()}"
     out = tmp_path / "out.log"
     with open(out, "w") as fh:
-        proc = subprocess.Popen([sys.executable, "-m", "daemon.cli", "run", "--source", f"file:{folder}",
+        proc = subprocess.Popen([sys.executable, "-m", "posed.daemon.cli", "run", "--source", f"file:{folder}",
                                  "--set", f"pipeline.state_dir={tmp_path / 'state'}", "--set", "logging.format=json",
                                  "--set", f"zenoh.listen=[{ep}]", "--set", "robot_id=rt",
                                  "--set", "pipeline.status_period_s=0.3", "--set", "source.realtime=false",
@@ -65,7 +65,7 @@ def test_oversized_and_corrupt_images_are_skipped_and_counted(tmp_path, squat_fr
 
 
 def test_ring_message_for_a_frame_that_fits_the_range(tmp_path):
-    from daemon.proc.ring import FrameRing, FrameTooLarge
+    from posed.daemon.proc.ring import FrameRing, FrameTooLarge
 
     ring = FrameRing.create(2, 640 * 480, False)
     try:

@@ -18,7 +18,7 @@ RECORDING = "falls/urfd_dev/urfd_18_adl.landmarks.jsonl"
 
 
 def posed(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "daemon.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "posed.daemon.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout)
 
 
@@ -43,7 +43,7 @@ def test_missing_calibration_is_exit_78_at_check_and_at_start_before_any_stage(t
 
 def test_every_start_up_problem_is_listed_at_once(tmp_path, shared_data):
     models = tmp_path / "models"
-    from landmarks import find_models
+    from posed.landmarks import find_models
 
     shutil.copytree(find_models(None).models_dir, models)
     with open(models / "pose_landmark_full.onnx", "r+b") as fh:          # damage one byte of a real model

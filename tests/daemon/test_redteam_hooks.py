@@ -13,9 +13,9 @@ import textwrap
 import time
 from pathlib import Path
 
-from daemon.config.sections import HookConfig, HooksConfig
-from daemon.outbox.hooks import HookRunner
-from falls.event import FallEvent
+from posed.daemon.config.sections import HookConfig, HooksConfig
+from posed.daemon.outbox.hooks import HookRunner
+from posed.falls.event import FallEvent
 from tests.daemon.redteam_util import publisher_daemon, until
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -79,9 +79,9 @@ def test_no_retry_starts_after_shutdown_began(tmp_path):
 
 RSS_PROBE = """
 import json, sys, time
-from daemon.config.sections import HookConfig, HooksConfig
-from daemon.outbox.hooks import HookRunner
-from falls.event import FallEvent
+from posed.daemon.config.sections import HookConfig, HooksConfig
+from posed.daemon.outbox.hooks import HookRunner
+from posed.falls.event import FallEvent
 
 def hwm_mb():
     for line in open("/proc/self/status"):

@@ -22,7 +22,7 @@ def _limited():
 
 
 def posed(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "daemon.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "posed.daemon.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout, preexec_fn=_limited)
 
 
@@ -69,7 +69,7 @@ def test_posed_fit_with_dev_zero_as_calibration(shared_data):
 
 
 def test_recording_reader_stops_at_an_over_long_line(tmp_path, shared_data):
-    from landmarks import RecordingProblem, iter_recording
+    from posed.landmarks import RecordingProblem, iter_recording
 
     lines = (shared_data / RECORDING).read_bytes().splitlines(keepends=True)
     path = tmp_path / "long.landmarks.jsonl"
@@ -84,8 +84,8 @@ def test_sidecar_with_a_huge_line_is_a_clear_error(tmp_path):
     import cv2
     import numpy as np
 
-    import hal
-    from hal import SourceError
+    from posed import hal
+    from posed.hal import SourceError
 
     cv2.imwrite(str(tmp_path / "img_0.png"), np.zeros((8, 8, 3), np.uint8))
     head = json.dumps({"format": "posed.timestamps", "version": 1}).encode() + b"\n"

@@ -63,7 +63,7 @@ def test_semaphores_left_by_a_kill_9_of_the_group_are_removed_at_next_start(tmp_
 
 
 def test_remove_stale_unlinks_only_the_semaphores_a_dead_supervisor_listed(tmp_path):
-    from daemon.proc import shm
+    from posed.daemon.proc import shm
 
     dead = _dead_pid()
     listed = ["mp-aaaa1111", "mp-bbbb2222"]
@@ -109,7 +109,7 @@ def test_missing_camera_is_waiting_for_camera_in_status_and_systemd(tmp_path):
     listener = NotifyListener(sock)
     ep = f"tcp/127.0.0.1:{free_port()}"
     with open(tmp_path / "out.log", "w") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "daemon.cli", "run", "--source", "v4l2:/dev/video99",
+        proc = subprocess.Popen([sys.executable, "-m", "posed.daemon.cli", "run", "--source", "v4l2:/dev/video99",
                                  "--set", f"pipeline.state_dir={tmp_path / 'state'}", "--set", "logging.format=json",
                                  "--set", f"zenoh.listen=[{ep}]", "--set", "robot_id=cam",
                                  "--set", "pipeline.status_period_s=0.3"],

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from camera_model import Intrinsics
-from daemon.proc import shm
-from daemon.proc.ring import FrameRing, FrameTooLarge
+from posed.camera_model import Intrinsics
+from posed.daemon.proc import shm
+from posed.daemon.proc.ring import FrameRing, FrameTooLarge
 
 
 def _frame(h, w, value):

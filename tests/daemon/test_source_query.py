@@ -1,9 +1,9 @@
 """A source URI with a query (``file:PATH?loop=true``, as ``--source`` gives it) reaches the stage plan and the
 stages split: a looped landmark recording is still replayed directly (no camera or landmark stage)."""
 
-from daemon.config import load_config
-from daemon.preflight import check, resolve_source
-from daemon.stages.plan import default_plan
+from posed.daemon.config import load_config
+from posed.daemon.preflight import check, resolve_source
+from posed.daemon.stages.plan import default_plan
 
 
 def _never(_):

@@ -180,18 +180,18 @@ def test_fatal_stage_error_exits_78_with_the_fix(harness):
 
 @pytest.mark.parametrize("name", ["walk.landmarks.jsonl", "WALK.LANDMARKS.JSONL"])
 def test_a_landmark_recording_in_any_case_skips_the_camera_and_landmark_stages(tmp_path, name):
-    from daemon.config import load_config
-    from daemon.stages.plan import default_plan
+    from posed.daemon.config import load_config
+    from posed.daemon.stages.plan import default_plan
 
     rec = tmp_path / name
     rec.write_text("")
     plan = default_plan(load_config(None, source=f"file:{rec}"))
     assert [s.name for s in plan] == ["capture", "fitting", "publisher"]
-    assert plan[0].entry == "daemon.stages.capture:run_recording"
+    assert plan[0].entry == "posed.daemon.stages.capture:run_recording"
 
 
 def test_realsense_recordings_in_any_case_carry_depth():
-    from hal import is_realsense_recording
+    from posed.hal import is_realsense_recording
 
     assert is_realsense_recording("a/b.db3") and is_realsense_recording("B.DB3") and is_realsense_recording("x.Bag")
     assert not is_realsense_recording("squat.mp4") and not is_realsense_recording("db3")

@@ -2,7 +2,7 @@
 
 import math
 
-from daemon.proc.watchdog import RestartPolicy, verdict
+from posed.daemon.proc.watchdog import RestartPolicy, verdict
 
 NAN = math.nan
 

@@ -8,7 +8,7 @@ import time
 
 import zenoh
 
-from client import session_config
+from posed.client import session_config
 
 
 def free_port() -> int:

@@ -12,8 +12,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.falls_body import StickPose
-from bench.falls_scenarios import (
+from posed.bench.falls_body import StickPose
+from posed.bench.falls_scenarios import (
     SIT,
     STAND,
     Key,
@@ -25,10 +25,10 @@ from bench.falls_scenarios import (
     make,
     truth_result,
 )
-from falls.config import FallsConfig
-from falls.detector import FallDetector
-from falls.event import FallEvent
-from falls.features import gravity_from_tilt
+from posed.falls.config import FallsConfig
+from posed.falls.detector import FallDetector
+from posed.falls.event import FallEvent
+from posed.falls.features import gravity_from_tilt
 
 TUNE = {sc.name: sc for sc in catalogue("tune")}
 
@@ -155,7 +155,7 @@ def test_torso_out_of_view_is_not_judged():
 
 
 def test_unknown_intrinsics_fall_back_to_the_field_of_view():
-    from camera_model import Intrinsics
+    from posed.camera_model import Intrinsics
 
     sc = TUNE["tune/fall/standing-backward/fast-v30"]
     assert sc.camera.intrinsics == Intrinsics.from_hfov(sc.camera.hfov, 640, 480)

@@ -10,12 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.falls_body import WorldCamera
-from bench.falls_scenarios import frames, make, truth_result, walk
-from falls.config import FallsConfig
-from falls.detector import FallDetector
-from falls.features import gravity_from_tilt
-from falls.geometry import GravityLearner, tilt_roll_deg
+from posed.bench.falls_body import WorldCamera
+from posed.bench.falls_scenarios import frames, make, truth_result, walk
+from posed.falls.config import FallsConfig
+from posed.falls.detector import FallDetector
+from posed.falls.features import gravity_from_tilt
+from posed.falls.geometry import GravityLearner, tilt_roll_deg
 
 TILT, ROLL = 15.0, 6.0
 
@@ -47,7 +47,7 @@ def test_tilt_and_roll_conventions_round_trip():
 
 
 def test_learned_from_a_walking_person_through_the_real_fit():
-    from bench.falls import real_fitter
+    from posed.bench.falls import real_fitter
 
     sc = walking_scene()
     det = learn(sc, real_fitter())
@@ -131,10 +131,10 @@ class _Log:
 def test_frame_gravity_reaches_the_detector_through_the_publisher_stage():
     """A landmark frame carrying the IMU's gravity (recording field "gravity") sets the detector's gravity;
     a malformed one is logged and the frame is still judged."""
-    from daemon.messages import FitMsg
-    from daemon.stages.fall_watch import FallWatch
-    from fitting import FitResult
-    from landmarks import LandmarkFrame
+    from posed.daemon.messages import FitMsg
+    from posed.daemon.stages.fall_watch import FallWatch
+    from posed.fitting import FitResult
+    from posed.landmarks import LandmarkFrame
 
     log = _Log()
     watch = FallWatch.from_config(FallsConfig(camera_tilt_deg=5.0), "r", log)

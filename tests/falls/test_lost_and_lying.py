@@ -16,10 +16,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.falls_body import StickPose
-from bench.falls_scenarios import STAND, Key, Truth, _lie, catalogue, frames, make, truth_result
-from falls.config import FallsConfig
-from falls.detector import FallDetector
+from posed.bench.falls_body import StickPose
+from posed.bench.falls_scenarios import STAND, Key, Truth, _lie, catalogue, frames, make, truth_result
+from posed.falls.config import FallsConfig
+from posed.falls.detector import FallDetector
 from tests.falls.test_detector import long_fall
 
 TUNE = {sc.name: sc for sc in catalogue("tune")}
@@ -125,7 +125,7 @@ def test_partial_bodies_are_judged(name):
 def test_partial_bodies_through_the_real_fit():
     """The real fit (fitting.min_landmarks 6) fits shoulders, hips, knees and ankles with a shoulder off the
     image and marks the arms unobserved; the detector judges the frame."""
-    from bench.falls import real_fitter
+    from posed.bench.falls import real_fitter
 
     sc = TUNE["tune/fall/standing-forward/fast-v30"]
     fit = real_fitter()

@@ -11,8 +11,8 @@ import json
 
 import pytest
 
-from daemon.cli import main
-from falls.event import FallEvent
+from posed.daemon.cli import main
+from posed.falls.event import FallEvent
 
 GEOMETRY = ["--set", "falls.camera_tilt_deg=0", "--set", "falls.camera_roll_deg=0",
             "--set", "falls.camera_height_m=0.85", "--set", "robot_id=bench1"]
@@ -47,7 +47,7 @@ def test_a_real_fall_that_ends_out_of_sight_is_found(shared_data, capsys):
     assert 0.0 <= first["t_detect"] - impact <= 1.0
     assert 0.5 <= first["confidence"] < 0.9            # not seen on the floor: less sure than a seen fall
     assert first["wall_time"] and FallEvent.from_json(first).to_json() == first
-    from client.contract import errors
+    from posed.client.contract import errors
 
     assert errors(first) == []                                     # the published message's contract
     assert first["format"] == "posed.fall_event" and first["time_unix"] - first["t_detect"] > 1e9

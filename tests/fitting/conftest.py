@@ -2,7 +2,7 @@
 
 import pytest
 
-from fitting import jitcache
+from posed.fitting import jitcache
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 def reference_root(x, data, pts_c, root_z=None):
     """fitting.root.root_position's sums in plain Python floats: (X, Y, Z) in metres, or None when not known."""
-    from fitting import layout as L
-    from fitting.projection import MIN_DEPTH
+    from posed.fitting import layout as L
+    from posed.fitting.projection import MIN_DEPTH
 
     if data[L.D_PROJ + L.PJ_MODE] == L.PROJ_ORTHOGRAPHIC:
         return None

@@ -3,15 +3,15 @@ Python loop, and what they are for: limbs placed on their own 2D landmarks."""
 
 import numpy as np
 
-from fitting import forward_kinematics as FK
-from fitting import layout as L
-from fitting import loss as LOSS
-from fitting import problem as P
-from fitting import refine
-from fitting.analytic import analytic_start
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.warmup import warmup_landmarks
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import layout as L
+from posed.fitting import loss as LOSS
+from posed.fitting import problem as P
+from posed.fitting import refine
+from posed.fitting.analytic import analytic_start
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.warmup import warmup_landmarks
 
 DIMS = BodyDimensions.from_height(1.7)
 

@@ -6,14 +6,14 @@ import json
 import numpy as np
 import pytest
 
-from fitting import forward_kinematics as FK
-from fitting import layout as L
-from fitting import problem as P
-from fitting.assemble import assemble, unobserved
-from fitting.depth_term import DepthFit
-from fitting.kinematics import BODY_LANDMARK_NAMES
-from fitting.reported import FIXED_NAMES, rounded
-from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting.assemble import assemble, unobserved
+from posed.fitting.depth_term import DepthFit
+from posed.fitting.kinematics import BODY_LANDMARK_NAMES
+from posed.fitting.reported import FIXED_NAMES, rounded
+from posed.fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 from tests.fitting.root_reference import reference_root
 from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 

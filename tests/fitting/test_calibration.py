@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import yaml
 
-from bench import simulate as S
-from fitting.body import BodyDimensions, CalibrationError, read_calibration, write_calibration
-from fitting.calibration import CalibrationFailed, calibrate
-from fitting.config import FitConfig
-from fitting.fitter import Fitter
+from posed.bench import simulate as S
+from posed.fitting.body import BodyDimensions, CalibrationError, read_calibration, write_calibration
+from posed.fitting.calibration import CalibrationFailed, calibrate
+from posed.fitting.config import FitConfig
+from posed.fitting.fitter import Fitter
 
 
 def standing_frames(dims, n=12, noise=1.0, yaw=0.0):
@@ -84,7 +84,7 @@ def test_implausible_length_rejected(tmp_path):
 
 def test_huge_or_binary_calibration_files_are_clear_errors(tmp_path):
     """Read with a bound: /dev/zero or a huge file is an error naming the size, binary data one naming the byte."""
-    from fitting import CalibrationError, read_calibration
+    from posed.fitting import CalibrationError, read_calibration
 
     with pytest.raises(CalibrationError, match="larger than 65536 bytes"):
         read_calibration("/dev/zero")

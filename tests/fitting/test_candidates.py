@@ -4,13 +4,13 @@ the last bit, with an exact fit (which ends the search) and without, with and wi
 import numpy as np
 import pytest
 
-from fitting import forward_kinematics as FK
-from fitting import layout as L
-from fitting import problem as P
-from fitting import refine
-from fitting.candidates import LIMB_JOINT, image_candidates, score_all, score_into
-from fitting.fitter import EXACT_MSE, STRAIGHT_RAD
-from fitting.loss import pose_loss_terms
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting import refine
+from posed.fitting.candidates import LIMB_JOINT, image_candidates, score_all, score_into
+from posed.fitting.fitter import EXACT_MSE, STRAIGHT_RAD
+from posed.fitting.loss import pose_loss_terms
 
 from .test_hypotheses import _problem
 

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 import yaml
 
-from bench import simulate as S
-from landmarks import LandmarkFrame, RecordingHeader, write_recording
+from posed.bench import simulate as S
+from posed.landmarks import LandmarkFrame, RecordingHeader, write_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def posed(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "daemon.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "posed.daemon.cli", *map(str, args)], capture_output=True, text=True,
                           cwd=cwd or ROOT, timeout=300)
 
 
@@ -81,9 +81,9 @@ def test_posed_calibrate(tmp_path):
 
 
 def test_bench_fit_report_structure():
-    from bench import fit as bench
-    from bench.commands.fit import markdown
-    from fitting import FitConfig
+    from posed.bench import fit as bench
+    from posed.bench.commands.fit import markdown
+    from posed.fitting import FitConfig
 
     plan = bench.Plan(paper_yaws=(30.0,), floor_yaws=(90.0,), motion_yaws=(30.0,), seeds=(0,), motion_seeds=(0,),
                       settings=((6, 6),), noises=(0.0,), table3=False, sequences=("stand_to_sit",))

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench import mocap_landmarks as M
-from bench import simulate as S
-from fitting import BODY_LANDMARKS, BodyDimensions, FitConfig, Fitter
-from fitting.depth_term import MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, depth_fit, occluder_front
+from posed.bench import mocap_landmarks as M
+from posed.bench import simulate as S
+from posed.fitting import BODY_LANDMARKS, BodyDimensions, FitConfig, Fitter
+from posed.fitting.depth_term import MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, depth_fit, occluder_front
 
 SIZE = (640, 480)
 LIMBS = ((0, 2), (2, 4), (1, 3), (3, 5), (6, 8), (8, 10), (7, 9), (9, 11))  # body-landmark index pairs
@@ -38,10 +38,10 @@ def _near_solution(pose, dims, noise_px, seed, rng, jitter, intrinsics=None):
     of ``pose`` with ``noise_px`` of landmark noise poses, perspective with ``intrinsics`` (else orthographic):
     (x, a copy of the problem's data, the model points in the camera frame, the landmarks' ray slopes
     ``(u - cx) / fx, (v - cy) / fy`` from their pixels, or None without intrinsics)."""
-    from fitting import forward_kinematics as FK
-    from fitting import layout as L
-    from fitting import problem as P
-    from fitting.result import VARIABLE_NAMES
+    from posed.fitting import forward_kinematics as FK
+    from posed.fitting import layout as L
+    from posed.fitting import problem as P
+    from posed.fitting.result import VARIABLE_NAMES
 
     lm = S.render(pose, dims=dims, noise_px=noise_px, seed=seed)
     xy, w, _ = P.landmark_weights(lm, FitConfig())
@@ -85,8 +85,8 @@ def test_kernel_matches_numpy_reference(seed):
     """fitting.depth_rows.depth_term_kernel (numba, on a solution x) against depth_term.depth_fit (NumPy, on
     the same landmark depths): holes, background hits, occluders, and too few depths. Bound: the votes are
     sums of a few metres, so their median, inlier mean and costs agree to a few float64 ulps of 10 m."""
-    from fitting import layout as L
-    from fitting.depth_rows import depth_term_kernel
+    from posed.fitting import layout as L
+    from posed.fitting.depth_rows import depth_term_kernel
 
     rng = np.random.default_rng(seed)
     pose = S.pose(("walk_left_forward", "bend_grab", "sit_chair")[seed % 3], rng.uniform(-180, 180))
@@ -183,7 +183,7 @@ def test_a_bad_depth_array_is_a_clear_failure():
 
 
 def test_garbage_depth_is_judged_unusable_and_real_depth_usable():
-    from fitting.depth_term import usable
+    from posed.fitting.depth_term import usable
 
     z_rel = np.linspace(-0.2, 0.2, 12)
     good = 3.0 + z_rel - SURFACE_M
@@ -199,9 +199,9 @@ def test_depth_rows_and_compared_cost_kernels_match_numpy(seed):
     depth term: rows w = sqrt(weight x robust weight) / sigma at the targets (NaN -> 0), off with too few
     depths or no weight; the compared cost is the sum of squares of every residual row but the depth rows,
     plus weight x the depth term's cost."""
-    from fitting import jacobian as JAC
-    from fitting import layout as L
-    from fitting.depth_rows import cost_with_depth, set_depth_rows_at
+    from posed.fitting import jacobian as JAC
+    from posed.fitting import layout as L
+    from posed.fitting.depth_rows import cost_with_depth, set_depth_rows_at
 
     rng = np.random.default_rng(100 + seed)
     pose = S.pose(("stand_arms_up", "bend_grab", "sit_chair", "fallen_sideways")[seed], rng.uniform(-180, 180))
@@ -245,8 +245,8 @@ def test_video_mode_with_depth_on_real_motion(shared_data, azimuth):
     depth (surface offsets, holes, edge hits, z^2 noise) and with garbage depth: the real depth lowers the
     3D error and the depth flips of the limbs; garbage is judged unusable and changes nothing for the worse.
     At 180 degrees (walking away) the 2D landmarks alone leave the body's yaw ambiguous: depth settles it."""
-    from bench import mocap_landmarks as M
-    from bench import ood
+    from posed.bench import mocap_landmarks as M
+    from posed.bench import ood
 
     clip = M.load_clip(shared_data / "mocap" / "cmu" / "131_01.bvh")
     seq = ood.build_sequence(clip, azimuth, 10, (0.01,), seed=21, max_s=4.0)
@@ -275,7 +275,7 @@ def test_video_mode_with_depth_on_real_motion(shared_data, azimuth):
 def _sim_depth(pts):
     """The benchmark's simulated depth camera without noise, holes or background: each landmark's own
     surface, or the body part in front of it (bench.depth_sim's capsules, not the fit's torso)."""
-    from bench import depth_sim as D
+    from posed.bench import depth_sim as D
 
     return D.simulate_depth(pts, M.intrinsics(), np.random.default_rng(0),
                             D.DepthSim(sigma_k=0.0, hole_rate=0.0, background_rate=0.0))
@@ -315,8 +315,8 @@ def test_occluder_front_kernel_matches_numpy(seed):
     side (some landmarks hidden, most not), along the optical axis and along each landmark's pinhole ray (the
     kernel reads the slopes from the problem's observations and camera, the reference gets them from the
     pixels), a landmark of weight 0 along the ray through the landmarks' weighted centroid."""
-    from fitting import layout as L
-    from fitting.depth_rows import occluder_front_into
+    from posed.fitting import layout as L
+    from posed.fitting.depth_rows import occluder_front_into
 
     rng = np.random.default_rng(50 + seed)
     dims = BodyDimensions.from_height(1.7)

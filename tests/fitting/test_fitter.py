@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from bench import simulate as S
-from fitting.config import FitConfig
-from fitting.fitter import Fitter
-from fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+from posed.bench import simulate as S
+from posed.fitting.config import FitConfig
+from posed.fitting.fitter import Fitter
+from posed.fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 
 SIZE = (640, 480)
 

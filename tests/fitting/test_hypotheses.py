@@ -6,18 +6,18 @@ import math
 import numpy as np
 import pytest
 
-from camera_model import Intrinsics
-from fitting import forward_kinematics as FK
-from fitting import layout as L
-from fitting import problem as P
-from fitting import refine
-from fitting.analytic import analytic_start
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.depth_rows import cost_with_depth, set_depth_rows_at
-from fitting.hypotheses import best_hypothesis, video_starts
-from fitting.kinematics import BODY_LANDMARKS
-from fitting.warmup import warmup_depth, warmup_landmarks
+from posed.camera_model import Intrinsics
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting import refine
+from posed.fitting.analytic import analytic_start
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.depth_rows import cost_with_depth, set_depth_rows_at
+from posed.fitting.hypotheses import best_hypothesis, video_starts
+from posed.fitting.kinematics import BODY_LANDMARKS
+from posed.fitting.warmup import warmup_depth, warmup_landmarks
 
 DIMS = BodyDimensions.from_height(1.7)
 LO, HI = P.LIMIT_LO_RAD, P.LIMIT_HI_RAD

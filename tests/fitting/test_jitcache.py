@@ -11,15 +11,15 @@ from pathlib import Path
 
 import pytest
 
-from fitting import jitcache
+from posed.fitting import jitcache
 
 ROOT = Path(__file__).resolve().parents[2]
 PROBE = """
 import importlib
 import json
 from pathlib import Path
-from fitting import jitcache
-modules = [importlib.import_module(f"fitting.{name}") for name in jitcache.KERNEL_MODULES]
+from posed.fitting import jitcache
+modules = [importlib.import_module(f"posed.fitting.{name}") for name in jitcache.KERNEL_MODULES]
 jitcache.ensure_fresh()
 paths = {str(Path(f._cache._cache_path)) for m in modules for f in vars(m).values() if hasattr(f, "_cache")}
 print(json.dumps(sorted(paths)))
@@ -29,17 +29,17 @@ IMPORT_THEN_START = """
 import importlib
 import json
 from pathlib import Path
-from fitting import jitcache
-from fitting import loss
+from posed.fitting import jitcache
+from posed.fitting import loss
 cache = Path(loss.pose_loss._cache._cache_path)
 stale = [cache / f"{name}.kernel-1.py311.nbi" for name in jitcache.KERNEL_MODULES + jitcache.RETIRED_MODULES]
 for path in stale:
     path.write_bytes(b"old machine code")
 (cache / "unrelated.thing-1.py311.nbc").write_bytes(b"not ours")
 for name in jitcache.KERNEL_MODULES + ("fitter", "problem"):
-    importlib.import_module(f"fitting.{name}")
+    importlib.import_module(f"posed.fitting.{name}")
 after_import = sorted(p.name for p in stale if p.is_file())
-from fitting.fitter import Fitter
+from posed.fitting.fitter import Fitter
 Fitter()
 after_start = sorted(p.name for p in stale if p.is_file())
 unrelated = (cache / "unrelated.thing-1.py311.nbc").is_file()
@@ -93,13 +93,13 @@ def test_importing_the_kernels_deletes_nothing_until_the_fitter_starts(tmp_path)
 
 
 def _fitting_imports(path: Path) -> set[str]:
-    """The fitting modules ``path`` imports (``from fitting import x``, ``from fitting.x import ...``)."""
+    """The fitting modules ``path`` imports (``from posed.fitting import x``, ``from posed.fitting.x import ...``)."""
     out = set()
     for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.module == "fitting":
+        if isinstance(node, ast.ImportFrom) and node.module == "posed.fitting":
             out |= {alias.name for alias in node.names}
-        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("fitting."):
-            out.add(node.module.split(".")[1])
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("posed.fitting."):
+            out.add(node.module.split(".")[2])
     return out
 
 

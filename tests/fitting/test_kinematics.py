@@ -6,14 +6,14 @@ import math
 import numpy as np
 import pytest
 
-from fitting import forward_kinematics as FK
-from fitting import jacobian as JAC
-from fitting import layout as L
-from fitting import loss as LOSS
-from fitting import problem as P
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.kinematics import (
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import jacobian as JAC
+from posed.fitting import layout as L
+from posed.fitting import loss as LOSS
+from posed.fitting import problem as P
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.kinematics import (
     BODY_LANDMARKS,
     Pose,
     body_angles_from_rotation,
@@ -21,7 +21,7 @@ from fitting.kinematics import (
     landmarks_camera,
     skeleton,
 )
-from fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES
+from posed.fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.72)
 FIXED = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
@@ -136,7 +136,7 @@ def test_pelvis_tilt_is_exactly_unobservable():
 
 @pytest.mark.parametrize("perspective", [False, True])
 def test_analytic_jacobian_matches_finite_differences(perspective):
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     cfg = FitConfig(w_limit=0.5)
     rng = np.random.default_rng(7 + perspective)

@@ -5,15 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from fitting import forward_kinematics as FK
-from fitting import layout as L
-from fitting import loss as LOSS
-from fitting import penalties as PEN
-from fitting import problem as P
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.kinematics import BODY_LANDMARKS, Pose, landmarks_camera, skeleton, to_camera
-from fitting.result import VARIABLE_NAMES
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import layout as L
+from posed.fitting import loss as LOSS
+from posed.fitting import penalties as PEN
+from posed.fitting import problem as P
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.kinematics import BODY_LANDMARKS, Pose, landmarks_camera, skeleton, to_camera
+from posed.fitting.result import VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.6)
 
@@ -49,7 +49,7 @@ def ref_comd(pose: Pose, cfg: FitConfig):
 
 
 def frame_for(pose, cfg, noise=0.0, seed=0):
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     lm = S.render(pose, dims=DIMS, noise_px=noise, seed=seed)
     xy, w, _ = P.landmark_weights(lm, cfg)
@@ -63,7 +63,7 @@ def x_of(pose, gamma=1.0):
 @pytest.mark.parametrize("name", ["walk_left_forward", "sit_chair", "lying_side", "kneel"])
 @pytest.mark.parametrize("mode", ["feet", "support"])
 def test_loss_terms_match_reference(name, mode):
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     cfg = FitConfig(com_mode=mode)
     truth = S.pose(name, 25.0)
@@ -102,7 +102,7 @@ def test_penalty_functions_eqs_9_to_11():
 
 
 def test_truth_has_zero_2d_error_and_stable_poses_zero_com_deviation():
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     cfg = FitConfig()
     for name in S.PAPER_POSES + S.FLOOR_POSES:
@@ -117,8 +117,8 @@ def test_truth_has_zero_2d_error_and_stable_poses_zero_com_deviation():
 
 
 def test_perspective_loss_is_exact_at_the_truth():
-    from bench import simulate as S
-    from bench.simulate import Camera
+    from posed.bench import simulate as S
+    from posed.bench.simulate import Camera
 
     cfg = FitConfig()
     cam = Camera(model="pinhole", distance_m=2.5)

@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from fitting import layout as L
-from fitting import orientation as O
-from fitting import problem as P
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.kinematics import R0, body_angles_from_rotation, body_rotation
-from fitting.warmup import POSE, warmup_landmarks
+from posed.fitting import layout as L
+from posed.fitting import orientation as O
+from posed.fitting import problem as P
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.kinematics import R0, body_angles_from_rotation, body_rotation
+from posed.fitting.warmup import POSE, warmup_landmarks
 
 DIMS = BodyDimensions.from_height(1.7)
 DEG = math.pi / 180.0

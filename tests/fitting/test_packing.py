@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from fitting import layout as L
-from fitting import problem as P
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
-from fitting.warmup import warmup_landmarks
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.kinematics import BODY_LANDMARK_NAMES, BODY_LANDMARKS
+from posed.fitting.warmup import warmup_landmarks
 
 DIMS = BodyDimensions.from_height(1.7)
 SEGMENTS = (((0, 1), 2 * DIMS.shoulder_half_m), ((6, 7), 2 * DIMS.hip_half_m), ((0, 2), DIMS.upper_arm_m),

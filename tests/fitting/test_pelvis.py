@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from fitting import layout as L
-from fitting import problem as P
-from fitting import refine
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.warmup import warmup_landmarks
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting import refine
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.warmup import warmup_landmarks
 
 DIMS = BodyDimensions.from_height(1.7)
 LO, HI = P.LIMIT_LO_RAD, P.LIMIT_HI_RAD
@@ -21,7 +21,7 @@ LO, HI = P.LIMIT_LO_RAD, P.LIMIT_HI_RAD
 def unpruned(x, data):
     """The search without the bound: every 1-degree grid point, every breakpoint, then the golden-section
     polish (the kernel's steps, each point evaluated)."""
-    from fitting import forward_kinematics as FK
+    from posed.fitting import forward_kinematics as FK
     upright = FK.torso_uprightness(x)
     f = lambda d: refine._prior_along(x, d, data, LO, HI, upright)   # noqa: E731
     best_d, best = 0.0, f(0.0)
@@ -68,7 +68,7 @@ def test_same_choice_as_the_unpruned_search(cfg):
 def test_moves_no_landmark_and_lowers_the_prior():
     data = _data(FitConfig())
     rng = np.random.default_rng(4)
-    from fitting import forward_kinematics as FK
+    from posed.fitting import forward_kinematics as FK
     for _ in range(50):
         x = rng.uniform(LO, HI) * 0.5
         x[0] = 1.0

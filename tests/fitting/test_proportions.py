@@ -14,12 +14,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench import mocap_landmarks as M
-from bench import ood
-from bench import simulate as S
-from fitting import BodyDimensions, FitConfig, Fitter, write_calibration
-from fitting import proportions as PR
-from fitting.kinematics import BODY_LANDMARKS
+from posed.bench import mocap_landmarks as M
+from posed.bench import ood
+from posed.bench import simulate as S
+from posed.fitting import BodyDimensions, FitConfig, Fitter, write_calibration
+from posed.fitting import proportions as PR
+from posed.fitting.kinematics import BODY_LANDMARKS
 
 
 @pytest.fixture(scope="module")
@@ -250,11 +250,11 @@ def test_image_mode_calibration_forgetting_and_reset(walk, tmp_path):
 def test_image_scale_is_the_projections_derivative(intrinsics):
     """image_scale against a finite difference of the projection itself: a landmark moved by 1 mm parallel
     to the image plane moves by image_scale x 1 mm in the image (normalized units)."""
-    from camera_model import Intrinsics
-    from fitting import forward_kinematics as FK
-    from fitting import layout as L
-    from fitting import problem as P
-    from fitting.projection import image_scale, project
+    from posed.camera_model import Intrinsics
+    from posed.fitting import forward_kinematics as FK
+    from posed.fitting import layout as L
+    from posed.fitting import problem as P
+    from posed.fitting.projection import image_scale, project
 
     dims = S.body_dimensions(1.6)
     cfg = FitConfig(body_height_m=1.6)
@@ -371,7 +371,7 @@ def test_3d_samples_that_agree_are_believed_after_a_few():
 
 
 def test_joint_points_back_projects_pixels_at_the_measured_depth_behind_the_surface():
-    from camera_model import Intrinsics
+    from posed.camera_model import Intrinsics
 
     k = Intrinsics(width=640, height=480, fx=600.0, fy=610.0, cx=320.0, cy=240.0)
     joints = np.column_stack([np.linspace(-0.4, 0.4, 12), np.linspace(-0.8, 0.8, 12), np.linspace(2.5, 3.5, 12)])

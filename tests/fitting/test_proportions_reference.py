@@ -11,8 +11,8 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from fitting import proportions as PR
-from fitting.body import BodyDimensions
+from posed.fitting import proportions as PR
+from posed.fitting.body import BodyDimensions
 
 _FIELDS = tuple(f.name for f in fields(BodyDimensions))
 

@@ -5,13 +5,13 @@ descent direction leaves the box, and the relative stopping rule."""
 import numpy as np
 import pytest
 
-from fitting import jacobian as JAC
-from fitting import layout as L
-from fitting import problem as P
-from fitting import refine
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.result import VARIABLE_NAMES
+from posed.fitting import jacobian as JAC
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting import refine
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.result import VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.65)
 EPS = np.finfo(float).eps
@@ -63,7 +63,7 @@ def reference_lm(x0, lo, hi, data, max_iter):
 
 
 def frame_and_start(seed):
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     cfg = FitConfig()
     truth = S.pose("bend_grab", 40.0)

@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from fitting import forward_kinematics as FK
-from fitting import jacobian as JAC
-from fitting import layout as L
-from fitting import problem as P
-from fitting.body import BodyDimensions
-from fitting.config import FitConfig
-from fitting.kinematics import BODY_LANDMARKS, body_rotation, landmarks_camera, rot_x, rot_y, rot_z
-from fitting.result import VARIABLE_NAMES
+from posed.fitting import forward_kinematics as FK
+from posed.fitting import jacobian as JAC
+from posed.fitting import layout as L
+from posed.fitting import problem as P
+from posed.fitting.body import BodyDimensions
+from posed.fitting.config import FitConfig
+from posed.fitting.kinematics import BODY_LANDMARKS, body_rotation, landmarks_camera, rot_x, rot_y, rot_z
+from posed.fitting.result import VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.65)
 
@@ -26,7 +26,7 @@ def x_of(pose, gamma):
 @pytest.mark.parametrize("perspective", [False, True])
 def test_landmark_rows_match_reference(perspective):
     """Rows R_LM..: sqrt(w_i / sum w) (b_i - a_i T) with T the weighted least-squares translation."""
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     cfg = FitConfig()
     cam = S.Camera(model="pinhole", distance_m=3.0) if perspective else None
@@ -122,7 +122,7 @@ def test_depth_rows_match_reference_and_finite_differences():
     rng = np.random.default_rng(3)
     d[L.D_DEPTH:L.D_DEPTH + L.N_LM] = rng.normal(0.0, 0.2, L.N_LM)
     d[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = rng.uniform(0.0, 30.0, L.N_LM)
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     pose = S.pose("walk_left_forward", 35.0)
     x = x_of(pose, 1.0)
@@ -148,7 +148,7 @@ def test_residuals_into_and_jacobian_into_reuse_their_work():
     alternating pinhole and orthographic frames, with and without depth rows and the prior: bit for bit
     JAC.residuals_jacobian (checked against the NumPy references here and finite differences in
     test_kinematics.py), whose work arrays are fresh."""
-    from bench import simulate as S
+    from posed.bench import simulate as S
 
     cfg = FitConfig()
     cam = S.Camera(model="pinhole", distance_m=3.0)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench import simulate as S
-from fitting import BodyDimensions, FitConfig, Fitter
+from posed.bench import simulate as S
+from posed.fitting import BodyDimensions, FitConfig, Fitter
 from tests.fitting.root_reference import reference_root
 from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 
@@ -57,10 +57,10 @@ def test_no_intrinsics_no_root():
 def test_root_kernel_matches_the_python_sums(intrinsics):
     """The kernel against the same sums in plain Python, to the last bit (with and without a measured depth,
     landmarks left out, points clamped to MIN_DEPTH)."""
-    from fitting import forward_kinematics as FK
-    from fitting import layout as L
-    from fitting import problem as P
-    from fitting.root import root_position
+    from posed.fitting import forward_kinematics as FK
+    from posed.fitting import layout as L
+    from posed.fitting import problem as P
+    from posed.fitting.root import root_position
 
     dims, cfg = DIMS, CONFIG
     xy, w = walking_weights()

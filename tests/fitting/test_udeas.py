@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from fitting import udeas
+from posed.fitting import udeas
 
 MASK = (1 << 64) - 1
 

@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from fitting import FitConfig, Fitter
+from posed.fitting import FitConfig, Fitter
 
 STANDING = [*range(20, 28), *range(43, 52)]  # between the squats: image mode gives knees of 3-20 degrees
 

@@ -14,12 +14,12 @@ CHILD = r"""
 import json
 import numpy as np
 from numba.core.registry import CPUDispatcher
-from camera_model import Intrinsics
-from fitting import Fitter
-from fitting import jitcache
+from posed.camera_model import Intrinsics
+from posed.fitting import Fitter
+from posed.fitting import jitcache
 import importlib
 
-mods = [importlib.import_module(f"fitting.{m}") for m in jitcache.KERNEL_MODULES]
+mods = [importlib.import_module(f"posed.fitting.{m}") for m in jitcache.KERNEL_MODULES]
 def signatures():
     return {f"{m.__name__}.{n}": len(v.signatures) for m in mods for n, v in vars(m).items()
             if isinstance(v, CPUDispatcher)}
@@ -27,7 +27,7 @@ def signatures():
 f = Fitter()
 f.warmup()
 before = signatures()
-from fitting.warmup import warmup_depth, warmup_landmarks
+from posed.fitting.warmup import warmup_depth, warmup_landmarks
 rng = np.random.default_rng(5)
 k = Intrinsics(610.0, 605.0, 330.0, 235.0, 640, 480)
 lm = warmup_landmarks(f.dims, noise_px=2.0, seed=9)
@@ -50,4 +50,4 @@ def test_warmup_leaves_nothing_to_compile():
     got = json.loads(out.stdout.strip().splitlines()[-1])
     grew = {k: (got["before"][k], v) for k, v in got["after"].items() if v != got["before"].get(k)}
     assert grew == {}, f"compiled after warm-up: {grew}"
-    assert got["before"]["fitting.depth_rows.depth_term_kernel"] >= 1
+    assert got["before"]["posed.fitting.depth_rows.depth_term_kernel"] >= 1

@@ -3,10 +3,10 @@ inputs, for tests that need a real pose to pack random solutions against (fittin
 
 from __future__ import annotations
 
-from bench import simulate as S
-from camera_model import Intrinsics
-from fitting import BodyDimensions, FitConfig
-from fitting import problem as P
+from posed.bench import simulate as S
+from posed.camera_model import Intrinsics
+from posed.fitting import BodyDimensions, FitConfig
+from posed.fitting import problem as P
 
 DIMS = BodyDimensions.from_height(1.7)
 CONFIG = FitConfig(body_height_m=1.7)

@@ -13,9 +13,9 @@ import zenoh
 from hypothesis import given
 from hypothesis import strategies as st
 
-from daemon.bus.link import BusLink
-from daemon.config.sections import ZenohConfig
-from falls import FALL_STATES
+from posed.daemon.bus.link import BusLink
+from posed.daemon.config.sections import ZenohConfig
+from posed.falls import FALL_STATES
 from tests.fuzz.strategies import FUZZ, deep_nesting, json_values
 
 EVENT_ID = "0123456789abcdef0123456789abcdef"

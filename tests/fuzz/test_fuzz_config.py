@@ -12,7 +12,7 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
-from daemon.config import Config, ConfigError, load_config
+from posed.daemon.config import Config, ConfigError, load_config
 from tests.fuzz.strategies import FUZZ, deep_nesting
 
 

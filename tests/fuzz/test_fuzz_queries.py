@@ -13,9 +13,9 @@ import zenoh
 from hypothesis import given
 from hypothesis import strategies as st
 
-from daemon.bus import queries
-from daemon.outbox.journal import EventJournal
-from daemon.timeparse import parse_time
+from posed.daemon.bus import queries
+from posed.daemon.outbox.journal import EventJournal
+from posed.daemon.timeparse import parse_time
 from tests.fuzz.strategies import FUZZ
 
 BASE = "posed/fuzz/events/history"

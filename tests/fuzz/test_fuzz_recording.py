@@ -11,7 +11,7 @@ import numpy as np
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from landmarks import (
+from posed.landmarks import (
     LandmarkFrame,
     RecordingError,
     RecordingHeader,

@@ -11,10 +11,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from daemon.config import ConfigError, load_config
-from hal.config import SourceConfig
-from hal.errors import SourceUnsupported
-from hal.uri import FAULT_KEYS, parse_uri
+from posed.daemon.config import ConfigError, load_config
+from posed.hal.config import SourceConfig
+from posed.hal.errors import SourceUnsupported
+from posed.hal.uri import FAULT_KEYS, parse_uri
 from tests.fuzz.strategies import FUZZ
 
 FIELDS = {f.name: f for f in dataclasses.fields(SourceConfig)}

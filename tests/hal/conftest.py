@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from camera_model import Intrinsics
+from posed.camera_model import Intrinsics
 
 SQUAT_FRAMES = 65
 SQUAT_FPS = 5.0
@@ -77,7 +77,7 @@ class Db3Recording:
 @pytest.fixture(scope="session")
 def squat_db3(tmp_path_factory: pytest.TempPathFactory, squat_frames: list[np.ndarray]) -> Db3Recording:
     """A small RealSense recording made by pyrealsense2's software device + recorder from the real video."""
-    from hal.db3 import Db3Writer
+    from posed.hal.db3 import Db3Writer
 
     path = tmp_path_factory.mktemp("db3") / "squat.db3"
     colour, pts = colour_frames(squat_frames, 10, DB3_FRAMES)
@@ -100,7 +100,7 @@ ACCEL_NOISE_M_S2 = 0.05     # per axis, about the BMI055's at 63 Hz (datasheet: 
 
 
 def imu_down(tilt_deg: float = IMU_TILT_DEG, roll_deg: float = IMU_ROLL_DEG) -> np.ndarray:
-    from falls.features import gravity_from_tilt
+    from posed.falls.features import gravity_from_tilt
 
     return np.asarray(gravity_from_tilt(tilt_deg, roll_deg), dtype=np.float64)
 
@@ -108,8 +108,8 @@ def imu_down(tilt_deg: float = IMU_TILT_DEG, roll_deg: float = IMU_ROLL_DEG) -> 
 @pytest.fixture(scope="session")
 def squat_imu_db3(tmp_path_factory: pytest.TempPathFactory, squat_frames: list[np.ndarray]) -> Db3Recording:
     """Colour (the real squat video) + accelerometer, recorded by pyrealsense2's software device + recorder."""
-    from hal.db3 import Db3Writer
-    from hal.imu import G_M_S2
+    from posed.hal.db3 import Db3Writer
+    from posed.hal.imu import G_M_S2
 
     path = tmp_path_factory.mktemp("imu") / "squat_imu.db3"
     colour, pts = colour_frames(squat_frames, 20, IMU_FRAMES)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hal.clock import DeviceClock, wall_to_monotonic
+from posed.hal.clock import DeviceClock, wall_to_monotonic
 
 
 def simulate(n: int, seed: int, offset: float, drift_ppm: float = 0.0):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-import hal
-from hal.faults import FaultySource
+from posed import hal
+from posed.hal.faults import FaultySource
 
 
 def uri(video, query: str) -> str:

@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-import hal
-from hal.images import ImageFolderSource
+from posed import hal
+from posed.hal.images import ImageFolderSource
 
 
 @pytest.fixture()

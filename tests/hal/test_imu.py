@@ -10,8 +10,8 @@ import time
 import numpy as np
 import pytest
 
-import hal
-from hal.imu import G_M_S2, MIN_SAMPLES, GravityEstimate, find_accel, rotation_of, sample_sink
+from posed import hal
+from posed.hal.imu import G_M_S2, MIN_SAMPLES, GravityEstimate, find_accel, rotation_of, sample_sink
 from tests.hal.conftest import ACCEL_HZ, IMU_FRAMES, imu_down
 
 # the recorded samples have 0.05 m/s^2 of noise per axis: averaged over ~50 samples (0.5 s) the direction

@@ -13,10 +13,10 @@ import numpy as np
 import pyrealsense2 as rs
 import pytest
 
-import hal
-from hal.config import SourceConfig
-from hal.realsense import PLAYBACK_SLICE_S, RESET_SETTLE_S, RealSenseSource
-from hal.rs_playback import PlaybackPipeline
+from posed import hal
+from posed.hal.config import SourceConfig
+from posed.hal.realsense import PLAYBACK_SLICE_S, RESET_SETTLE_S, RealSenseSource
+from posed.hal.rs_playback import PlaybackPipeline
 from tests.hal.conftest import (
     BOX_MM,
     COLOUR_K,
@@ -293,12 +293,12 @@ def test_daemon_side_runs_without_pyrealsense2(squat_video):
         "    hal.open_source('realsense:').open()\n"
         "except hal.SourceUnsupported as e:\n"
         "    print('unsupported', 'pyrealsense2' in str(e))\n"
-        "print(f.image.shape, [m for m in sys.modules if m.startswith('hal.realsense') or m == 'hal.db3'])\n"
+        "print(f.image.shape, [m for m in sys.modules if m.startswith('posed.hal.realsense') or m == 'posed.hal.db3'])\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
                          cwd=Path(__file__).resolve().parents[2])
     assert out.returncode == 0, out.stderr
-    assert out.stdout.splitlines() == ["unsupported True", "(1280, 720, 3) ['hal.realsense']"]
+    assert out.stdout.splitlines() == ["unsupported True", "(1280, 720, 3) ['posed.hal.realsense']"]
 
 
 def test_corrupt_and_missing_recordings(tmp_path, squat_db3):

@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
-import hal
-from daemon.cli import main
-from hal.sidecar import read_sidecar, sidecar_path
+from posed import hal
+from posed.daemon.cli import main
+from posed.hal.sidecar import read_sidecar, sidecar_path
 from tests.hal.conftest import DB3_FRAMES, SQUAT_FPS
 
 

@@ -7,13 +7,13 @@ import cv2
 import numpy as np
 import pytest
 
-import hal
-from hal import SourceCorrupt
+from posed import hal
+from posed.hal import SourceCorrupt
 
 
 @pytest.mark.parametrize("ext", ["png", "jpg", "bmp"])
 def test_header_size_without_decoding(tmp_path, ext):
-    from hal.images import header_size
+    from posed.hal.images import header_size
 
     path = tmp_path / f"a.{ext}"
     cv2.imwrite(str(path), np.zeros((37, 53, 3), np.uint8))

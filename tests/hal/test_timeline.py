@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import hal
-from hal.frame import Frame
-from hal.recorder import _Db3Sink, _ImageSink, _VideoSink, check_output
-from hal.replay import Timeline
+from posed import hal
+from posed.hal.frame import Frame
+from posed.hal.recorder import _Db3Sink, _ImageSink, _VideoSink, check_output
+from posed.hal.replay import Timeline
 
 
 class FakeClock:

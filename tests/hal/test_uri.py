@@ -7,11 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-import hal
-from camera_model import Intrinsics
-from hal.config import SourceConfig
-from hal.frame import Frame
-from hal.uri import parse_uri, split_query
+from posed import hal
+from posed.camera_model import Intrinsics
+from posed.hal.config import SourceConfig
+from posed.hal.frame import Frame
+from posed.hal.uri import parse_uri, split_query
 
 
 def test_uri_forms():

@@ -11,10 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-import hal
-from camera_model import Intrinsics
-from hal.config import SourceConfig
-from hal.v4l2 import V4L2Source
+from posed import hal
+from posed.camera_model import Intrinsics
+from posed.hal.config import SourceConfig
+from posed.hal.v4l2 import V4L2Source
 
 PROPS = {cv2.CAP_PROP_FOURCC: "FOURCC", cv2.CAP_PROP_FRAME_WIDTH: "WIDTH", cv2.CAP_PROP_FRAME_HEIGHT: "HEIGHT",
          cv2.CAP_PROP_FPS: "FPS", cv2.CAP_PROP_BUFFERSIZE: "BUFFERSIZE"}

@@ -9,10 +9,10 @@ import time
 import numpy as np
 import pytest
 
-import hal
-from camera_model import Intrinsics
-from hal.config import SourceConfig
-from hal.video import VideoFileSource
+from posed import hal
+from posed.camera_model import Intrinsics
+from posed.hal.config import SourceConfig
+from posed.hal.video import VideoFileSource
 from tests.hal.conftest import SQUAT_FPS, SQUAT_FRAMES
 
 

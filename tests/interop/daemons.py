@@ -40,7 +40,7 @@ class Daemon:
         self.dir.mkdir(parents=True, exist_ok=True)
         self.state_dir = state_dir or self.dir / "state"
         self.listen = f"tcp/127.0.0.1:{free_port()}"
-        self.cmd = [sys.executable, "-m", "daemon.cli", "run", "--source", f"file:{source}",
+        self.cmd = [sys.executable, "-m", "posed.daemon.cli", "run", "--source", f"file:{source}",
                     "--set", f"pipeline.state_dir={self.state_dir}", "--set", "logging.format=json",
                     "--set", f"robot_id={robot}", "--set", f"zenoh.listen=[{self.listen}]",
                     "--set", f"zenoh.connect=[{router}]", "--set", "source.realtime=false"]

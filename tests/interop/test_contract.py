@@ -11,7 +11,7 @@ import time
 import pytest
 import zenoh
 
-from client import PosedClient, contract
+from posed.client import PosedClient, contract
 from tests.daemon.zenoh_util import client, free_port, router
 from tests.interop.daemons import SQUAT, URFD, Collector, Daemon, fall_overrides, wait_for
 

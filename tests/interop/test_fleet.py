@@ -13,7 +13,7 @@ import time
 import pytest
 import zenoh
 
-from client import Alive, PosedClient
+from posed.client import Alive, PosedClient
 from tests.daemon.zenoh_util import free_port
 from tests.interop.daemons import ROOT, URFD, Daemon, fall_overrides, wait_for
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from jsonschema import Draft202012Validator
 
-from client import contract
+from posed.client import contract
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "formats.md"
 

@@ -9,12 +9,12 @@ import time
 
 import pytest
 
-from client import contract
-from daemon import clock
-from daemon.bus import payloads
-from daemon.bus.ros2 import Ros2Bridge
-from daemon.config.sections import Ros2Config
-from falls import FallEvent
+from posed.client import contract
+from posed.daemon import clock
+from posed.daemon.bus import payloads
+from posed.daemon.bus.ros2 import Ros2Bridge
+from posed.daemon.config.sections import Ros2Config
+from posed.falls import FallEvent
 from tests.daemon.fakes import RecordingLog
 
 

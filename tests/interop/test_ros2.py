@@ -29,8 +29,8 @@ from zenoh_ros2_sdk.keyexpr import endpoint_liveliness_keyexpr, node_liveliness_
 from zenoh_ros2_sdk.session import ZenohSession
 from zenoh_ros2_sdk.utils import get_type_hash, load_dependencies_recursive
 
-from daemon.bus import ros2
-from daemon.bus import ros2_messages as rm
+from posed.daemon.bus import ros2
+from posed.daemon.bus import ros2_messages as rm
 from tests.daemon.zenoh_util import client, free_port, router
 from tests.interop.daemons import ROOT, URFD, Daemon, fall_overrides, wait_for
 

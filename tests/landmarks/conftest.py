@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from landmarks import ModelMissingError, default_models_dir, find_models, verify_models
+from posed.landmarks import ModelMissingError, default_models_dir, find_models, verify_models
 from tests.hal.conftest import squat_db3, squat_frames, squat_video  # noqa: F401 (a RealSense .db3 with depth)
 
 

@@ -1,6 +1,6 @@
 import numpy as np
 
-from landmarks.anchors import NUM_ANCHORS, ssd_anchor_centres
+from posed.landmarks.anchors import NUM_ANCHORS, ssd_anchor_centres
 
 
 def test_pose_detector_has_2254_anchors_in_three_grids():

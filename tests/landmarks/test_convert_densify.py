@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from ai_edge_litert.interpreter import Interpreter, OpResolverType
 
-from landmarks.convert.densify import DENSE, SPARSE_CSR, DimMetadata, densify
-from landmarks.convert.tflite_graph import read_graph
+from posed.landmarks.convert.densify import DENSE, SPARSE_CSR, DimMetadata, densify
+from posed.landmarks.convert.tflite_graph import read_graph
 
 
 def D(size):  # a DENSE level, as in the schema

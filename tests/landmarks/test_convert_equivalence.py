@@ -22,11 +22,17 @@ import onnx
 import onnxruntime as ort
 import pytest
 
-from bench import conformance
-from bench.convert_equivalence import ExactModel, diff_outputs, litert_outputs, model_input, random_input
-from landmarks.convert import convert
-from landmarks.convert.fetch import PINNED
-from landmarks.convert.tflite_graph import read_graph
+from posed.bench import conformance
+from posed.bench.convert_equivalence import (
+    ExactModel,
+    diff_outputs,
+    litert_outputs,
+    model_input,
+    random_input,
+)
+from posed.landmarks.convert import convert
+from posed.landmarks.convert.fetch import PINNED
+from posed.landmarks.convert.tflite_graph import read_graph
 
 MODELS = {"detector": "pose_detection", "landmark": "pose_landmark_full"}
 KEPT = {pin.name.removesuffix(".tflite"): pin.outputs for pin in PINNED}

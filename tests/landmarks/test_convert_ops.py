@@ -13,8 +13,8 @@ import pytest
 import tflite
 from ai_edge_litert.interpreter import Interpreter, OpResolverType
 
-from landmarks.convert import SUPPORTED_OPS, ConversionError, UnsupportedOperatorError, convert
-from landmarks.convert.tflite_graph import TFLiteFormatError
+from posed.landmarks.convert import SUPPORTED_OPS, ConversionError, UnsupportedOperatorError, convert
+from posed.landmarks.convert.tflite_graph import TFLiteFormatError
 
 T = tflite.TensorType
 OP = tflite.BuiltinOperator
@@ -546,7 +546,7 @@ def test_unsupported_fused_activation_is_named(act):
 
 
 def test_supported_ops_are_exactly_those_of_the_pose_models(models_dir):
-    from landmarks.convert.tflite_graph import read_graph
+    from posed.landmarks.convert.tflite_graph import read_graph
 
     used = set()
     for name in ("pose_detection.tflite", "pose_landmark_full.tflite"):

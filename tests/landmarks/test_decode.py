@@ -3,14 +3,14 @@ import math
 import numpy as np
 import pytest
 
-from landmarks.decode import (
+from posed.landmarks.decode import (
     decode_crop_landmarks,
     decode_pose,
     project_to_image,
     refine_from_heatmap,
     rotate_world,
 )
-from landmarks.roi import Roi
+from posed.landmarks.roi import Roi
 
 
 def _reference_refine(lms, hm, kernel=7, min_conf=0.5):

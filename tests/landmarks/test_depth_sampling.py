@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from landmarks import LandmarkFrame, depth_patch_radius, sample_depth, with_depth
+from posed.landmarks import LandmarkFrame, depth_patch_radius, sample_depth, with_depth
 
 SCALE = 0.001
 

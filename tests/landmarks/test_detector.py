@@ -3,8 +3,8 @@ import warnings
 import numpy as np
 import pytest
 
-from landmarks.anchors import ssd_anchor_centres
-from landmarks.detector import (
+from posed.landmarks.anchors import ssd_anchor_centres
+from posed.landmarks.detector import (
     Detection,
     DetectorDecoder,
     decode_raw,

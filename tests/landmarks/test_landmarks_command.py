@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from daemon.cli import main
-from landmarks import read_recording
+from posed.daemon.cli import main
+from posed.landmarks import read_recording
 
 
 @pytest.fixture(autouse=True)

@@ -8,9 +8,9 @@ import json
 
 import numpy as np
 
-import hal
-from daemon.cli import main
-from landmarks import read_recording, sample_depth
+from posed import hal
+from posed.daemon.cli import main
+from posed.landmarks import read_recording, sample_depth
 from tests.hal.conftest import (
     BOX_MM,
     COLOUR_K,

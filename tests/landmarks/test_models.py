@@ -16,10 +16,10 @@ from pathlib import Path
 
 import pytest
 
-from daemon.cli import main
-from landmarks.convert.converter import CONVERTER_VERSION
-from landmarks.convert.fetch import PINNED, FetchError, _write_error, fetch_models, up_to_date
-from landmarks.models import (
+from posed.daemon.cli import main
+from posed.landmarks.convert.converter import CONVERTER_VERSION
+from posed.landmarks.convert.fetch import PINNED, FetchError, _write_error, fetch_models, up_to_date
+from posed.landmarks.models import (
     ENV_MODELS_DIR,
     MODEL_FILES,
     ModelCorruptError,
@@ -109,16 +109,16 @@ def test_find_models_paths(fetched):
 def test_verify_is_cheap_and_passes(fetched, monkeypatch):
     # cheap by construction rather than by a clock: it hashes the two ONNX files the daemon runs, once each,
     # and nothing else (its speed is in docs/models.md)
-    import landmarks.models
+    import posed.landmarks.models as models
 
     hashed = []
-    real = landmarks.models.sha256_file
+    real = models.sha256_file
 
     def counting(path, *args, **kw):
         hashed.append(Path(path).name)
         return real(path, *args, **kw)
 
-    monkeypatch.setattr(landmarks.models, "sha256_file", counting)
+    monkeypatch.setattr(models, "sha256_file", counting)
     paths = find_models(fetched)
     manifest = verify_models(paths)
     assert sorted(hashed) == ["pose_detection.onnx", "pose_landmark_full.onnx"]
@@ -327,7 +327,7 @@ def test_second_fetch_of_the_real_folder_is_fast(models_dir):
     the machine's load): it finds the folder up to date and does nothing else, no download, conversion or
     write (test_fetch_from_folder_writes_everything_then_does_nothing checks the steps in-process)."""
     before = {p.name: p.stat().st_mtime_ns for p in models_dir.iterdir()}
-    proc = subprocess.run([sys.executable, "-m", "daemon.cli", "models", "fetch", "--models-dir", str(models_dir)],
+    proc = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "models", "fetch", "--models-dir", str(models_dir)],
                           capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert "up to date" in proc.stdout and "nothing to do" in proc.stdout

@@ -11,10 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-from bench import conformance
-from landmarks.config import LandmarkConfig
-from landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points, unrotate_points
-from landmarks.recording import LandmarkFrame
+from posed.bench import conformance
+from posed.landmarks.config import LandmarkConfig
+from posed.landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points, unrotate_points
+from posed.landmarks.recording import LandmarkFrame
 
 BODY = list(conformance.BODY)
 COCO_TO_MP = list(conformance.COCO_TO_MP)

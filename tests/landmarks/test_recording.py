@@ -3,8 +3,8 @@ import json
 import numpy as np
 import pytest
 
-from camera_model import Intrinsics
-from landmarks.recording import (
+from posed.camera_model import Intrinsics
+from posed.landmarks.recording import (
     LandmarkFrame,
     RecordingError,
     RecordingHeader,

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from camera_model import Intrinsics
-from landmarks import (
+from posed.camera_model import Intrinsics
+from posed.landmarks import (
     DepthSource,
     LandmarkFrame,
     RecordingError,

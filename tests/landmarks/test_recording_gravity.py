@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from landmarks import LandmarkFrame, RecordingHeader, read_recording, write_recording
+from posed.landmarks import LandmarkFrame, RecordingHeader, read_recording, write_recording
 
 HEADER = {"format": "posed.landmarks", "version": 1, "image_size": [640, 480], "fps": 30.0, "source": "rs"}
 

@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from landmarks.crop import detector_input, landmark_input, letterbox_roi, roi_to_image_affine
-from landmarks.decode import project_to_image
-from landmarks.roi import Roi, normalize_radians, roi_from_alignment
+from posed.landmarks.crop import detector_input, landmark_input, letterbox_roi, roi_to_image_affine
+from posed.landmarks.decode import project_to_image
+from posed.landmarks.roi import Roi, normalize_radians, roi_from_alignment
 
 
 @pytest.mark.parametrize("angle, want", [(0.0, 0.0), (math.pi, -math.pi), (-math.pi, -math.pi),

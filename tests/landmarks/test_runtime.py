@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from landmarks.config import LandmarkConfig
-from landmarks.models import ModelCorruptError, ModelMissingError
-from landmarks.pipeline import PoseLandmarker
-from landmarks.runtime import ModelLoadError, OnnxDetector, OnnxLandmarkModel, SessionSettings
+from posed.landmarks.config import LandmarkConfig
+from posed.landmarks.models import ModelCorruptError, ModelMissingError
+from posed.landmarks.pipeline import PoseLandmarker
+from posed.landmarks.runtime import ModelLoadError, OnnxDetector, OnnxLandmarkModel, SessionSettings
 
 
 def test_models_load_and_give_outputs_in_canonical_shapes(models_dir):

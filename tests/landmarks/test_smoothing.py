@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from landmarks.smoothing import (
+from posed.landmarks.smoothing import (
     AUX_PARAMS,
     LANDMARK_PARAMS,
     VISIBILITY_ALPHA,

@@ -7,11 +7,11 @@ from __future__ import annotations
 import datetime as dt
 from pathlib import Path
 
-from daemon.commands.falls import detect, fit_frames
-from daemon.config import load_config
-from daemon.history.store import AngleHistory
-from daemon.outbox.journal import EventJournal
-from landmarks import read_recording
+from posed.daemon.commands.falls import detect, fit_frames
+from posed.daemon.config import load_config
+from posed.daemon.history.store import AngleHistory
+from posed.daemon.outbox.journal import EventJournal
+from posed.landmarks import read_recording
 
 # (clip, local time it starts) — urfd_04 is a fall that ends on the floor, the adl clips are daily activities
 SESSIONS = (("urfd_16_adl", "08:10:00"), ("urfd_04_fall", "10:31:05"), ("urfd_22_adl", "14:02:30"),

@@ -6,9 +6,9 @@ from __future__ import annotations
 import json
 import math
 
-from falls import FallEvent
-from fitting import FitResult
-from viz.web.hub import WINDOW_S, Hub
+from posed.falls import FallEvent
+from posed.fitting import FitResult
+from posed.viz.web.hub import WINDOW_S, Hub
 
 
 class Clock:

@@ -13,15 +13,15 @@ import cv2
 import numpy as np
 import pytest
 
-from daemon.cli import main
-from daemon.history.plot import angle_series, event_marks
-from daemon.history.store import ANGLE_COLUMNS, AngleHistory
-from daemon.outbox.journal import EventJournal
+from posed.daemon.cli import main
+from posed.daemon.history.plot import angle_series, event_marks
+from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
+from posed.daemon.outbox.journal import EventJournal
+from posed.viz import posture
+from posed.viz.names import FIXED_ANGLES, PANELS, label
+from posed.viz.plots import angle_figure
+from posed.viz.series import AngleSeries, Episode, episodes
 from tests.viz.day import build_day
-from viz import posture
-from viz.names import FIXED_ANGLES, PANELS, label
-from viz.plots import angle_figure
-from viz.series import AngleSeries, Episode, episodes
 
 TZ = ZoneInfo("America/New_York")   # not the machine's zone (UTC here): the axis must follow --tz
 DAY = dt.date(2026, 7, 14)          # summer time: UTC-04:00
@@ -85,7 +85,7 @@ def test_fall_markers_close_together_do_not_overlap():
 
 
 def test_unmeasured_angles_are_gaps_not_zero():
-    from fitting import FitResult
+    from posed.fitting import FitResult
 
     ok = FitResult(0, 0.0, True, joint_angles_deg={"theta_kn_l": 30.0, "theta_el_l": 0.0, "theta_hd": 0.0},
                    variables={"theta_bd": 1.0}, extra={"unobserved": ["theta_el_l"]})
@@ -144,7 +144,7 @@ def test_report_is_one_self_contained_html_with_the_day(day, tmp_path):
 
 
 def test_plot_fit_takes_the_start_in_the_plot_zone_and_marks_posed_falls_events(shared_data, tmp_path, capsys):
-    from daemon.commands.plot import _start_time
+    from posed.daemon.commands.plot import _start_time
 
     assert _start_time("2026-07-14T10:00:00", TZ) == dt.datetime(2026, 7, 14, 14, 0, tzinfo=dt.UTC).timestamp()
     assert _start_time("2026-07-14T10:00:00Z", TZ) == dt.datetime(2026, 7, 14, 10, 0, tzinfo=dt.UTC).timestamp()

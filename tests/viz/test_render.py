@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from camera_model import Intrinsics
-from daemon.cli import main
-from viz.reproject import reproject
+from posed.camera_model import Intrinsics
+from posed.daemon.cli import main
+from posed.viz.reproject import reproject
 
 FRAMES = 65          # pose_squats.mp4 (data README)
 SIZE = (720, 1280)

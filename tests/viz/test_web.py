@@ -15,11 +15,11 @@ from pathlib import Path
 
 import pytest
 
-from daemon.commands._child import free_endpoint, run_command, stop
-from daemon.outbox.journal import EventJournal
+from posed.daemon.commands._child import free_endpoint, run_command, stop
+from posed.daemon.outbox.journal import EventJournal
+from posed.viz.web.hub import Hub
+from posed.viz.web.server import WebServer
 from tests.viz.browser import Browser
-from viz.web.hub import Hub
-from viz.web.server import WebServer
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
@@ -37,7 +37,7 @@ def _daemon(tmp_path: Path, source: str, *settings: str):
 
 
 def _web(endpoint: str):
-    proc = subprocess.Popen([sys.executable, "-m", "daemon.cli", "web", ROBOT, "--connect", endpoint, "--port", "0",
+    proc = subprocess.Popen([sys.executable, "-m", "posed.daemon.cli", "web", ROBOT, "--connect", endpoint, "--port", "0",
                              "--wait", "180"],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     url = proc.stdout.readline().strip()
@@ -189,8 +189,8 @@ def test_server_with_a_token_needs_it(server):
 
 
 def test_config_refuses_serving_beyond_localhost_without_a_token():
-    from daemon.config import load_config
-    from daemon.config.load import ConfigError
+    from posed.daemon.config import load_config
+    from posed.daemon.config.load import ConfigError
 
     with pytest.raises(ConfigError) as exc:
         load_config(None, overrides=["web.host=0.0.0.0"])

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from daemon.commands._child import free_endpoint, run_command, stop
-from daemon.outbox.journal import EventJournal
+from posed.daemon.commands._child import free_endpoint, run_command, stop
+from posed.daemon.outbox.journal import EventJournal
 
 ROOT = Path(__file__).resolve().parents[2]
 ROBOT = "webstage"

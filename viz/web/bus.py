@@ -4,7 +4,7 @@ put on ``posed/ROBOT/events/ack`` that every receiver uses). The one module that
 
 from __future__ import annotations
 
-from viz.web.hub import Hub
+from posed.viz.web.hub import Hub
 
 HISTORY_SINCE = "7d"
 HISTORY_LIMIT = 200

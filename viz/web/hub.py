@@ -16,7 +16,7 @@ import threading
 import time
 from collections import deque
 
-from viz.names import MAIN_ANGLES, short_label
+from posed.viz.names import MAIN_ANGLES, short_label
 
 CHART_ANGLES = ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r", "theta_tr")
 WINDOW_S = 60.0
