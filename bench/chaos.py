@@ -137,7 +137,7 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
     robot = f"chaos{seed}"
     state = work / "state"
     router_ep = f"tcp/127.0.0.1:{_free_port()}"
-    cmd = [sys.executable, "-m", "posed.daemon.cli", "run", "--source", inp.source,
+    cmd = [sys.executable, "-m", "posed.cli", "run", "--source", inp.source,
            "--set", f"pipeline.state_dir={state}", "--set", "logging.format=json", "--set", f"robot_id={robot}",
            "--set", f"zenoh.listen=[tcp/127.0.0.1:{_free_port()}]", "--set", f"zenoh.connect=[{router_ep}]",
            "--set", "source.loop=true", "--set", "zenoh.event_republish_s=2",

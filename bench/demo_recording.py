@@ -18,7 +18,7 @@ def ensure_demo_recording(path: Path) -> Path:
     from posed.bench import simulate
     from posed.landmarks import LandmarkFrame, RecordingHeader, write_recording
 
-    camera = simulate.Camera(model="pinhole", distance_m=3.0)
+    camera = simulate.LevelCamera(model="pinhole", distance_m=3.0)
     seq = simulate.sequence("squat")
     frames = []
     t_offset = 0.0

@@ -5,7 +5,7 @@
 recordings' geometry (``camera_tilt_deg``, ``camera_roll_deg``, ``camera_height_m``; the intrinsics are in
 each recording's header).
 
-Every clip goes through exactly what ``posed falls`` runs (daemon.commands.falls: the frames the capture
+Every clip goes through exactly what ``posed falls`` runs (posed.commands.falls: the frames the capture
 stage takes at ``pipeline.target_fps``, the fitting stage's StreamFit in video mode, the publisher stage's
 FallWatch). A fall counts as detected by its first
 ``falling`` or ``on_floor`` message; latency = that message's ``t_detect`` minus ``impact_t``; a daily
@@ -82,7 +82,7 @@ def _fitting_source_hash() -> str:
 
 def cached_fits(path: Path, cfg: Config, cache: Path | None):
     """(header, [(frame, FitResult)]) of one recording, fitted as ``posed falls`` fits it (cached)."""
-    from posed.daemon.commands.falls import fit_frames, taken_frames
+    from posed.commands.falls import fit_frames, taken_frames
     from posed.fitting import FitResult
     from posed.landmarks import read_recording
 
@@ -111,7 +111,7 @@ def cached_fits(path: Path, cfg: Config, cache: Path | None):
 
 
 def score_clip(name: str, kind: str, impact_t: float | None, header, pairs, cfg: Config) -> RecordingOutcome:
-    from posed.daemon.commands.falls import detect
+    from posed.commands.falls import detect
 
     messages = []
     for _frame, _result, evs in detect(cfg, header, pairs):

@@ -100,8 +100,9 @@ def load_clip(path: str | Path) -> MocapClip:
 
 
 @dataclass(frozen=True)
-class Camera:
-    """A pinhole camera in the world: ``rot`` rows are the camera's x (right), y (down), z (forward) axes."""
+class LookAtCamera:
+    """A pinhole camera in the mocap world aimed at a point (``look_at_camera``): ``rot`` rows are the camera's
+    x (right), y (down), z (forward) axes. (Not ``simulate.LevelCamera``, which is placed relative to a body.)"""
 
     position: np.ndarray
     rot: np.ndarray
@@ -120,7 +121,7 @@ class Camera:
 
 def look_at_camera(centre_xy: np.ndarray, heading_xy: np.ndarray, azimuth_deg: float, distance_m: float,
                    height_m: float = CAMERA_HEIGHT_M, aim_height_m: float = AIM_HEIGHT_M,
-                   k: Intrinsics | None = None) -> Camera:
+                   k: Intrinsics | None = None) -> LookAtCamera:
     """A camera ``distance_m`` (horizontally) from ``centre_xy`` at ``azimuth_deg`` from the walking direction
     (counter-clockwise seen from above: 90 = the walker's left), looking at the centre ``aim_height_m`` high;
     no roll (image x stays horizontal)."""
@@ -134,10 +135,10 @@ def look_at_camera(centre_xy: np.ndarray, heading_xy: np.ndarray, azimuth_deg: f
     right = np.cross(fwd, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right)
     down = np.cross(fwd, right)
-    return Camera(pos, np.stack([right, down, fwd]), k or intrinsics(), float(azimuth_deg), float(distance_m))
+    return LookAtCamera(pos, np.stack([right, down, fwd]), k or intrinsics(), float(azimuth_deg), float(distance_m))
 
 
-def in_view(cam: Camera, points_world: np.ndarray, margin_px: float = MARGIN_PX) -> bool:
+def in_view(cam: LookAtCamera, points_world: np.ndarray, margin_px: float = MARGIN_PX) -> bool:
     """Every point of every frame in front of the camera and ``margin_px`` inside the image."""
     pc = cam.to_camera(points_world)
     if (pc[..., 2] <= 0.3).any():
@@ -148,7 +149,7 @@ def in_view(cam: Camera, points_world: np.ndarray, margin_px: float = MARGIN_PX)
                  & (uv[..., 1] >= margin_px) & (uv[..., 1] <= h - 1 - margin_px)).all())
 
 
-def choose_distance(clip: MocapClip, azimuth_deg: float, distances: tuple[float, ...] = DISTANCES_M) -> Camera:
+def choose_distance(clip: MocapClip, azimuth_deg: float, distances: tuple[float, ...] = DISTANCES_M) -> LookAtCamera:
     """The nearest camera (of ``distances``) at this azimuth that keeps the whole clip in the image; the
     farthest one when none does (the caller reports the fraction of points outside)."""
     centre, heading = clip.path()

@@ -208,7 +208,7 @@ class Sequence:
     """One clip seen by one camera at the master frame rate: landmarks, depths and truth per frame."""
 
     clip: str
-    camera: M.Camera
+    camera: M.LookAtCamera
     height_m: float
     times: np.ndarray
     landmarks: list[np.ndarray]          # per noise level: (F, 33, 5)

@@ -11,7 +11,7 @@
   (interfaces.md section 1), orthographic or pinhole camera, optional Gaussian pixel noise with a seed.
 
 The person stands on a floor (the lowest landmark touches it); the camera is level (gravity is image down),
-at ``Camera.height_m`` above the floor. Angles are degrees everywhere (Vicon polarity, see
+at ``LevelCamera.height_m`` above the floor. Angles are degrees everywhere (Vicon polarity, see
 :mod:`fitting.kinematics`).
 """
 
@@ -27,7 +27,7 @@ from posed.camera_model import Intrinsics
 from posed.fitting import BodyDimensions, FitResult, Pose, joints_3d, landmarks_camera
 
 __all__ = [
-    "FLOOR_POSES", "PAPER_POSES", "POSES", "SEQUENCE_NAMES", "Camera", "Placement", "Pose", "Sequence", "body_dimensions",
+    "FLOOR_POSES", "PAPER_POSES", "POSES", "SEQUENCE_NAMES", "LevelCamera", "Placement", "Pose", "Sequence", "body_dimensions",
     "ground_truth", "pose", "render", "render_sequence", "sequence",
 ]
 
@@ -117,8 +117,10 @@ STANDING = _pose(theta_hp_l=1, theta_hp_r=1, theta_kn_l=2, theta_kn_r=2, phi_hp_
 # --- camera and rendering ------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class Camera:
-    """A level camera looking along +z (image x right, y down).
+class LevelCamera:
+    """A level camera looking along +z (image x right, y down), placed relative to the body it renders.
+    (bench's other cameras: ``mocap_landmarks.LookAtCamera``, aimed at a point of a mocap world;
+    ``falls_body.WorldCamera``, a room camera with a tilt and roll for the fall scenarios.)
 
     model: "orthographic" (the paper's reprojection) or "pinhole". Orthographic: ``px_per_m`` pixels per
     metre (None: a standing body fills 60 % of the image height, so raised arms and a lying body fit). Pinhole: ``fx, fy, cx, cy`` in pixels
@@ -182,7 +184,7 @@ def render(
     height_m: float = 1.60,
     dims: BodyDimensions | None = None,
     image_size: tuple[int, int] = (640, 480),
-    camera: Camera | None = None,
+    camera: LevelCamera | None = None,
     placement: Placement | None = None,
     noise_px: float = 0.0,
     seed: int | None = None,
@@ -195,7 +197,7 @@ def render(
     outside. ``noise_px``: standard deviation of Gaussian noise added to x and y (seeded by ``seed``).
     """
     dims = dims or BodyDimensions.from_height(height_m)
-    camera = camera or Camera()
+    camera = camera or LevelCamera()
     placement = placement or Placement()
     w, h = image_size
     if camera.model == "orthographic":
@@ -212,7 +214,7 @@ def render(
         fx, fy, cx, cy = k.fx, k.fy, k.cx, k.cy
         pts, root = _world_points(pose_, dims, placement, camera.distance_m, cam_h)
         if (pts[:, 2] < 0.05).any():
-            raise ValueError("part of the body is behind the camera; increase Camera.distance_m")
+            raise ValueError("part of the body is behind the camera; increase LevelCamera.distance_m")
         x = cx + fx * pts[:, 0] / pts[:, 2]
         y = cy + fy * pts[:, 1] / pts[:, 2]
         z = fx / root[2] * (pts[:, 2] - root[2])
@@ -226,13 +228,13 @@ def render(
     return np.column_stack([x, y, z, vis, vis])
 
 
-def apparent_gamma(dims: BodyDimensions, image_size: tuple[int, int], camera: Camera | None = None,
+def apparent_gamma(dims: BodyDimensions, image_size: tuple[int, int], camera: LevelCamera | None = None,
                    placement: Placement | None = None) -> float:
     """The size factor gamma the fit reports for this camera: standing body height in pixels / image height.
 
     (Orthographic: exact. Pinhole: at the depth of the mid-hip of a standing person.)
     """
-    camera = camera or Camera()
+    camera = camera or LevelCamera()
     h = image_size[1]
     if camera.model == "orthographic":
         s = camera.px_per_m or FILL * h / dims.body_height_m

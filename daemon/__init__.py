@@ -1,1 +1,2 @@
-"""posed daemon: the supervisor, its stage processes, Zenoh publishing, falls and the CLI."""
+"""The posed service: the supervisor, its stage processes, the Zenoh bus, the fall-event outbox, the joint-angle
+history and the configuration. The ``posed`` command line that starts it is :mod:`posed.cli` (folder ``posed/``)."""

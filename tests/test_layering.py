@@ -1,11 +1,12 @@
 """Dependency direction (docs/architecture.md, "The house"):
 
-    daemon -> hal, landmarks, fitting, falls        falls -> fitting (its public result types)
-    bench (offline) -> anything                     only the CLI -> bench, and lazily (inside a function)
-    nothing -> daemon (but bench, which drives it)  every package -> camera_model (numpy only)
+    posed/ (the command line: posed.cli, posed.commands) -> anything below it; bench only lazily (in a function)
+    daemon (the service) -> hal, landmarks, fitting, falls, client, viz; never the command line, never bench
+    falls -> fitting (its public result types)      bench (offline) -> anything
+    nothing -> daemon but the command line and bench   every package -> camera_model (numpy only)
 
-Each runtime package imports only what its layer allows; checked on the source, so a lazy import inside a
-function counts too."""
+Each package imports only what its layer allows; checked on the source, so a lazy import inside a function
+counts too. Our own packages are named by their folders (``posed.fitting.result`` -> ``fitting``)."""
 
 import ast
 import sys
@@ -27,8 +28,10 @@ ALLOWED = {
 RUNTIME = ("daemon", "hal", "landmarks", "fitting", "falls", "camera_model", "viz", "client")
 # The model converter and its fetcher run only at `posed models fetch`; never in the daemon.
 CONVERTER_EXTRA = {"tflite", "onnx", "flatbuffers"}
-# The command line may load the offline package, inside a function, when a command needs it.
-CLI = ("daemon/cli.py", "daemon/commands/")
+# The command line's house: the folder `posed/` (the root package, posed.cli and posed.commands). It may load
+# the offline package, inside a function, when a command needs it; nothing below it imports it.
+CLI_HOUSE = "posed"
+CLI_MODULES = {"cli", "commands", "__main__"}
 
 
 def _root(module: str) -> str:
@@ -64,15 +67,27 @@ def violations(package: str) -> list[str]:
                     allowed = allowed | CONVERTER_EXTRA
                 if root not in allowed:
                     bad.append(f"{rel} imports {root}")
-            elif root == "bench" and (module_level or not rel.startswith(CLI)):
-                bad.append(f"{rel} imports bench" + (" at module level" if rel.startswith(CLI) else ""))
+            elif package == CLI_HOUSE:
+                if root == "bench" and module_level:
+                    bad.append(f"{rel} imports bench at module level")
+            elif root == "bench":
+                bad.append(f"{rel} imports bench")
+            elif root in CLI_MODULES:
+                bad.append(f"{rel} imports the command line (posed.{root})")
     return bad
 
 
-@pytest.mark.parametrize("package", RUNTIME)
+@pytest.mark.parametrize("package", (*RUNTIME, CLI_HOUSE))
 def test_package_imports_only_its_layer(package):
     assert (ROOT / package).is_dir()
     assert violations(package) == []
+
+
+def test_the_command_line_lives_in_its_own_house():
+    """``daemon/`` holds the service only: no ``posed`` subcommand is defined there."""
+    assert (ROOT / CLI_HOUSE / "cli.py").is_file() and (ROOT / CLI_HOUSE / "commands" / "__init__.py").is_file()
+    assert not (ROOT / "daemon" / "cli.py").exists() and not (ROOT / "daemon" / "commands").exists()
+    assert not [p for p in (ROOT / "daemon").rglob("*.py") if "add_parser(" in p.read_text()]
 
 
 def test_nothing_but_bench_imports_daemon():
@@ -84,12 +99,16 @@ def test_checker_catches_a_violation(tmp_path, monkeypatch):
     pkg = tmp_path / "fitting"
     pkg.mkdir()
     (pkg / "bad.py").write_text("import numpy\ndef f():\n    from posed.daemon import config\n    import yaml\n")
-    cmd = tmp_path / "daemon" / "commands"
+    cmd = tmp_path / "posed" / "commands"
     cmd.mkdir(parents=True)
     (cmd / "lazy.py").write_text("def f():\n    from posed.bench import fit\n")
     (cmd / "eager.py").write_text("from posed import bench\n")
+    (cmd / "run.py").write_text("from posed.daemon.supervisor import Supervisor\n")
+    (tmp_path / "daemon").mkdir()
     (tmp_path / "daemon" / "stage.py").write_text("def f():\n    import posed.bench.simulate\n")
+    (tmp_path / "daemon" / "up.py").write_text("from posed.commands import add_config_args\n")
     monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
     assert violations("fitting") == ["fitting/bad.py imports daemon", "fitting/bad.py imports yaml"]
-    assert violations("daemon") == ["daemon/commands/eager.py imports bench at module level",
-                                    "daemon/stage.py imports bench"]
+    assert violations("posed") == ["posed/commands/eager.py imports bench at module level"]
+    assert violations("daemon") == ["daemon/stage.py imports bench",
+                                    "daemon/up.py imports the command line (posed.commands)"]

@@ -1,5 +1,5 @@
 """Public faces (docs/architecture.md, "The house"): fitting, landmarks and hal each export what other packages
-use from their ``__init__``, and daemon/, falls/ and bench/ import only those names, from the package itself,
+use from their ``__init__``, and posed/ (the command line), daemon/, falls/ and bench/ import only those names, from the package itself,
 never an inner module. The model converter ``landmarks.convert`` is a public subpackage with its own
 ``__all__``. Checked on the source, so an import inside a function counts too; so does ``hal.recorder.x``
 after ``from posed import hal``. Modules are named here by their folders (``fitting.result`` is ``posed.fitting.result``).
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-CLIENTS = ("daemon", "falls", "bench")
+CLIENTS = ("posed", "daemon", "falls", "bench")   # posed/: the command line
 PACKAGES = ("fitting", "landmarks", "hal")
 SUBPACKAGES = ("landmarks.convert",)  # public too, with their own __all__
 FACES = PACKAGES + SUBPACKAGES
@@ -102,8 +102,8 @@ def file_violations(path: Path, rel: str) -> list[str]:
 
 
 def violations(root: Path = ROOT) -> list[str]:
-    """Every import (or attribute use) of an inner module of fitting, landmarks or hal in daemon/, falls/
-    and bench/ under ``root``, as ``file:line: import``."""
+    """Every import (or attribute use) of an inner module of fitting, landmarks or hal in posed/ (the
+    command line), daemon/, falls/ and bench/ under ``root``, as ``file:line: import``."""
     bad = []
     for client in CLIENTS:
         for path in sorted((root / client).rglob("*.py")):
@@ -117,12 +117,13 @@ def test_clients_import_only_the_public_faces():
 
 
 def test_checker_catches_a_violation(tmp_path):
-    (tmp_path / "daemon" / "commands").mkdir(parents=True)
+    (tmp_path / "posed" / "commands").mkdir(parents=True)
+    (tmp_path / "daemon").mkdir()
     (tmp_path / "falls").mkdir()
     (tmp_path / "bench").mkdir()
     (tmp_path / "daemon" / "a.py").write_text(
         "from posed.fitting.result import FitResult\nfrom posed.fitting import Fitter\n")
-    (tmp_path / "daemon" / "commands" / "b.py").write_text(
+    (tmp_path / "posed" / "commands" / "b.py").write_text(
         "def f():\n"
         "    from posed.landmarks.recording import LandmarkFrame\n"
         "    from posed.landmarks.convert import fetch_models\n"
@@ -138,9 +139,9 @@ def test_checker_catches_a_violation(tmp_path):
         "bench/c.py:3: from hal import registry",
         "bench/c.py:4: hal.recorder",
         "daemon/a.py:1: from fitting.result import FitResult",
-        "daemon/commands/b.py:2: from landmarks.recording import LandmarkFrame",
-        "daemon/commands/b.py:4: from landmarks.convert.fetch import FetchError",
         "falls/d.py:1: from fitting import kernels",
+        "posed/commands/b.py:2: from landmarks.recording import LandmarkFrame",
+        "posed/commands/b.py:4: from landmarks.convert.fetch import FetchError",
     ]
 
 
@@ -205,4 +206,4 @@ def test_importing_fitting_and_landmarks_loads_neither_numba_nor_onnxruntime():
 
 
 def test_the_command_line_loads_neither_numba_nor_onnxruntime():
-    assert _loaded_after("import posed.daemon.cli\nposed.daemon.cli.build_parser()") == []
+    assert _loaded_after("import posed.cli\nposed.cli.build_parser()") == []

@@ -6,6 +6,7 @@ runs from it with the embedded default config and no file beside it, and ``posed
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -82,7 +83,7 @@ def test_the_wheel_holds_every_module_data_file_licence_and_script(wheel):
     assert f"\nVersion: {__version__}\n" in meta and wheel.name.startswith(f"posed-{__version__}-")
     licence = zipfile.ZipFile(wheel).read(f"{dist_info}/licenses/LICENSE").decode()
     assert licence == (ROOT / "LICENSE").read_text() and "Apache License" in licence and "Version 2.0" in licence
-    assert "posed = posed.daemon.cli:main" in zipfile.ZipFile(wheel).read(f"{dist_info}/entry_points.txt").decode()
+    assert "posed = posed.cli:main" in zipfile.ZipFile(wheel).read(f"{dist_info}/entry_points.txt").decode()
 
 
 def test_the_wheel_adds_one_top_level_import_package_posed(wheel):
@@ -113,10 +114,33 @@ def installed(wheel, tmp_path_factory) -> Path:
     return venv
 
 
+def _environ(env: dict | None = None) -> dict:
+    return {**{k: v for k, v in os.environ.items() if k not in ("POSED_CONFIG", "PYTHONPATH")}, **(env or {})}
+
+
 def _posed(venv: Path, *args: str, env: dict | None = None, timeout: float = 120):
-    environ = {k: v for k, v in os.environ.items() if k not in ("POSED_CONFIG", "PYTHONPATH")}
     return subprocess.run([str(venv / "bin" / "posed"), *args], capture_output=True, text=True, timeout=timeout,
-                          cwd=venv, env={**environ, **(env or {})})
+                          cwd=venv, env=_environ(env))
+
+
+@pytest.fixture(scope="module")
+def numba_cache(tmp_path_factory) -> Path:
+    """One numba cache for the installed wheel's processes (`posed warmup` fills it once)."""
+    return tmp_path_factory.mktemp("numba")
+
+
+def test_every_command_runs_from_the_installed_wheel(installed):
+    from posed.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    modules = {m.stem for m in (ROOT / "posed" / "commands").glob("[!_]*.py")}
+    assert set(sub.choices) == modules, sorted(set(sub.choices) ^ modules)
+    for name in sub.choices:
+        r = _posed(installed, name, "--help")
+        assert r.returncode == 0 and r.stdout.startswith(f"usage: posed {name}"), (name, r.stdout + r.stderr)
+    r = subprocess.run([str(installed / "bin" / "python"), "-m", "posed", "--version"], capture_output=True,
+                       text=True, cwd=installed, env=_environ(), timeout=60)
+    assert r.returncode == 0 and r.stdout.startswith("posed "), r.stderr
 
 
 def test_the_installed_wheel_runs_from_its_own_files(installed):
@@ -139,13 +163,13 @@ def test_the_installed_wheel_runs_from_its_own_files(installed):
 
 @pytest.mark.slow
 @pytest.mark.timeout(1000)
-def test_models_verify_and_demo_from_the_installed_wheel(installed, tmp_path, shared_data):
+def test_models_verify_and_demo_from_the_installed_wheel(installed, tmp_path, shared_data, numba_cache):
     """`posed models verify` and `posed demo` from the wheel, on the models `make` fetched (`posed models fetch`
     from a wheel needs the `convert` extra, as the README says; its error names it)."""
     from posed.landmarks import default_models_dir
 
     env = {"POSED_MODELS_DIR": str(default_models_dir(None)), "POSED_SHARED_DATA": str(shared_data),
-           "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+           "NUMBA_CACHE_DIR": str(numba_cache)}
     r = _posed(installed, "models", "verify", env=env)
     assert r.returncode == 0 and "intact" in r.stdout, r.stdout + r.stderr
     r = _posed(installed, "warmup", env=env, timeout=600)       # what deploy/install.sh and `make` do
@@ -154,3 +178,43 @@ def test_models_verify_and_demo_from_the_installed_wheel(installed, tmp_path, sh
     assert r.returncode == 0, r.stdout + r.stderr
     assert r.stdout.splitlines()[-1].startswith("posed demo:") and "daemon exit status 0" in r.stdout
     assert not list(tmp_path.glob("posed-demo-*")), "posed demo left its temporary state behind"
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_the_client_and_ros2_examples_run_from_the_installed_wheel(installed, tmp_path, shared_data, numba_cache):
+    """docs/client.md's and docs/ros2.md's examples, as written, with the wheel's Python against `posed run`
+    from the wheel (ROS 2 enabled) replaying a real fall through a router on 127.0.0.1."""
+    from tests.daemon.zenoh_util import free_port, router
+    from tests.interop.daemons import URFD, Daemon, fall_overrides, wait_for
+    from tests.interop.test_client import doc_example
+
+    py = str(installed / "bin" / "python")
+    env = _environ({"NUMBA_CACHE_DIR": str(numba_cache), "ROS_DOMAIN_ID": "0"})
+    port = free_port()
+    rep = f"tcp/127.0.0.1:{port}"
+    r = router(rep)
+    d = Daemon(tmp_path, "wheel1", shared_data / URFD / "urfd_02_fall.landmarks.jsonl", rep,
+               *fall_overrides(shared_data), "source.loop=true", "source.realtime=true", "ros2.enabled=true",
+               python=py, cwd=installed, env=env)
+    try:
+        d.start()
+        code = doc_example().replace("tcp/127.0.0.1:7447", rep)
+
+        def client_example():
+            out = subprocess.run([py, "-c", code], cwd=installed, env=env, capture_output=True, text=True,
+                                 timeout=120)
+            assert out.returncode == 0, out.stderr[-2000:]
+            return out.stdout if re.search(r"^wheel1 \d+ ", out.stdout, re.M) else None
+
+        text = wait_for(client_example, 400, "poses printed by docs/client.md's example", d)
+        assert "robots up: ['wheel1']" in text
+        ros = re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "ros2.md").read_text(), re.S)[0]
+        out = subprocess.run([py, "-c", ros.replace("router_port=7447", f"router_port={port}")], cwd=installed,
+                             env=env, capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr[-2000:]
+        lines = [x for x in out.stdout.splitlines() if x.strip()]
+        assert lines and "'theta_kn_l':" in lines[-1], out.stdout[-2000:] + out.stderr[-2000:]
+    finally:
+        d.stop()
+        r.close()

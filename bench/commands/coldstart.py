@@ -122,7 +122,7 @@ def time_start(source: str, env: dict, work: Path, timeout_s: float, n: int) -> 
     router_ep = f"tcp/127.0.0.1:{_free_port()}"
     first: list[float] = []
     notify = _Notify(str(work / f"notify-{n}.sock"))
-    cmd = [sys.executable, "-m", "posed.daemon.cli", "run", "--source", source,
+    cmd = [sys.executable, "-m", "posed.cli", "run", "--source", source,
            "--set", f"zenoh.listen=[tcp/127.0.0.1:{_free_port()}]", "--set", f"zenoh.connect=[{router_ep}]",
            "--set", f"pipeline.state_dir={work / f'state-{n}'}", "--set", "robot_id=coldstart",
            "--set", "logging.format=json"]
@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         env = {**base_env, "NUMBA_CACHE_DIR": str(cache)}
         say(f"empty numba cache {cache}; posed warmup ...")
         t0 = time.monotonic()
-        w = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "warmup", "--no-check"], env=env,
+        w = subprocess.run([sys.executable, "-m", "posed.cli", "warmup", "--no-check"], env=env,
                            capture_output=True, text=True, timeout=1800)
         report["warmup_s"] = round(time.monotonic() - t0, 2)
         if w.returncode != 0:

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from posed.daemon.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args
 
 TARGETS = {"recall": 0.95, "false_alarms": 0, "median_latency_s": 1.0}
 

@@ -12,7 +12,7 @@ import argparse
 import json
 import sys
 
-from posed.daemon.commands import config_from_args
+from posed.commands import config_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

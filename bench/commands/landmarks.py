@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from posed.daemon.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args
 from posed.daemon.preflight import SQUAT_VIDEO, shared_data
 
 MEDIAPIPE_TRACKING_MS = 33.0  # MediaPipe 0.10.21's own pipeline, median per frame, tracking (measured once)

@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from posed.daemon.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args
 
 ROTATIONS = (0, 90, -90, 180)
 PEER_SCRIPT = Path(__file__).with_name("_mediapipe_peer.py")

@@ -22,8 +22,8 @@ import threading
 import time
 from pathlib import Path
 
-from posed.daemon.commands import add_config_args
-from posed.daemon.commands._child import free_endpoint, run_command, stop
+from posed.commands import add_config_args
+from posed.commands._child import free_endpoint, run_command, stop
 from posed.daemon.proc.stats import percentile_summary
 
 TARGET_PUBLISHED = 0.99
@@ -106,7 +106,7 @@ class _Collector:
 
 
 def run_phase(name: str, video: Path, args: argparse.Namespace) -> dict:
-    from posed.daemon.commands.watch import open_viewer
+    from posed.commands.watch import open_viewer
 
     paced = name == "paced"
     endpoint = free_endpoint()

@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.mark.timeout(400)
 def test_small_campaign_loses_no_event(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "bench", "chaos", "--json", "--input", "falls",
+    r = subprocess.run([sys.executable, "-m", "posed.cli", "bench", "chaos", "--json", "--input", "falls",
                         "--seconds", "15", "--seed", "3", "--ack-flood", "3000", "--hook-megabytes", "5",
                         "--corrupt-every", "20", "--events-before-chaos", "1", "--settle", "40",
                         "--work", str(tmp_path)],

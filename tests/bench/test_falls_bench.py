@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from posed.bench.bvh import CMU_UNIT_M, cmu_landmark_world, forward_kinematics, read_bvh
-from posed.daemon.cli import main
+from posed.cli import main
 
 
 def test_cmu_bvh_parses_to_a_plausible_rigid_body(shared_data):

@@ -46,18 +46,18 @@ def test_noise_is_seeded_and_sized():
 
 def test_cameras():
     pose = S.pose("walk_left_forward", 30.0)
-    ortho = S.render(pose, camera=S.Camera(px_per_m=150.0))
+    ortho = S.render(pose, camera=S.LevelCamera(px_per_m=150.0))
     cam = landmarks_camera(pose, S.body_dimensions(1.6))
     np.testing.assert_allclose(ortho[11, :2] - ortho[23, :2], 150.0 * (cam[11, :2] - cam[23, :2]), atol=1e-9)
-    pin = S.render(pose, camera=S.Camera(model="pinhole", fx=500, fy=500, distance_m=4.0))
+    pin = S.render(pose, camera=S.LevelCamera(model="pinhole", fx=500, fy=500, distance_m=4.0))
     assert abs(np.hypot(*(pin[11, :2] - pin[12, :2])) - 125 * np.hypot(*(cam[11, :2] - cam[12, :2]))) < 8
     # the nearer shoulder looks wider apart from the mid-hip than in orthographic projection at the hip depth
-    assert S.apparent_gamma(S.body_dimensions(1.6), (640, 480), S.Camera(model="pinhole", distance_m=4.0)) == \
+    assert S.apparent_gamma(S.body_dimensions(1.6), (640, 480), S.LevelCamera(model="pinhole", distance_m=4.0)) == \
         pytest.approx(600 / 4.0 * 1.6 / 480)
     off = S.render(pose, placement=S.Placement(x_m=3.0))
     assert (off[:, 3] < 0.1).any()  # out of the image: low visibility
     with pytest.raises(ValueError):
-        S.Camera(model="fisheye")
+        S.LevelCamera(model="fisheye")
 
 
 def test_sequences_have_ground_truth():

@@ -107,7 +107,7 @@ def test_only_listed_receivers_ack_and_read_history(tmp_path):
                                   for st in ("falling", "on_floor", "alarm"))
             # the documented way for an administrator: `posed events ack` with a receiver config holding a
             # listed certificate (its session takes zenoh.config_file like the daemon's)
-            r = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "events", "ack", event_id, "--connect", ep,
+            r = subprocess.run([sys.executable, "-m", "posed.cli", "events", "ack", event_id, "--connect", ep,
                                 "--robot", "sec", "--journal", str(tmp_path / "state" / "events.sqlite3"),
                                 "--set", f"zenoh.config_file={tmp_path / f'client-{LISTED}' / 'receiver.json5'}"],
                                cwd=ROOT, capture_output=True, text=True, timeout=60)

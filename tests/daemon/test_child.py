@@ -8,7 +8,7 @@ import subprocess
 import sys
 import time
 
-from posed.daemon.commands import _child, demo
+from posed.commands import _child, demo
 
 SLEEPER = "import time; print('up', flush=True); time.sleep(60)"
 STUBBORN = ("import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); print('up', flush=True); "
@@ -52,7 +52,7 @@ def test_stop_kills_a_child_that_ignores_sigterm():
 def test_run_command_puts_the_users_settings_last():
     cmd = _child.run_command(["robot_id=demo", "source.loop=true"], config="my.yaml", source="file:a.mp4",
                              overrides=["robot_id=mine"])
-    assert cmd[:4] == [sys.executable, "-m", "posed.daemon.cli", "run"]
+    assert cmd[:4] == [sys.executable, "-m", "posed.cli", "run"]
     sets = [cmd[i + 1] for i, arg in enumerate(cmd) if arg == "--set"]
     assert sets == ["robot_id=demo", "source.loop=true", "robot_id=mine"]
     assert cmd[cmd.index("--config") + 1] == "my.yaml" and cmd[cmd.index("--source") + 1] == "file:a.mp4"

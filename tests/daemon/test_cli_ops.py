@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from posed.daemon.cli import build_parser, main
-from posed.daemon.commands import config_from_args, config_path
+from posed.cli import build_parser, main
+from posed.commands import config_from_args, config_path
 from posed.daemon.config import load_config
 from posed.daemon.config.paths import SERVICE_STATE_DIR, config_file, reading_state_dir
 from posed.daemon.config.sections import PipelineConfig
@@ -104,7 +104,7 @@ def test_version(capsys):
 def test_every_bench_json_carries_the_version(monkeypatch, capsys):
     """`posed bench NAME --json` adds posed_version to what the benchmark prints (one object, indented or not,
     or one object per line); a benchmark that prints something else is passed on unchanged."""
-    import posed.daemon.commands.bench as bench_cmd
+    import posed.commands.bench as bench_cmd
 
     outputs = [json.dumps({"fps": 10.0}), json.dumps({"a": 1}, indent=2), '{"n": 1}\n{"n": 2}', "plain text"]
 
@@ -129,7 +129,7 @@ def test_every_bench_json_carries_the_version(monkeypatch, capsys):
 
 
 def test_warm_fitter_says_it_is_compiling_only_when_it_takes_long():
-    from posed.daemon.commands.warmup import warm_fitter
+    from posed.commands.warmup import warm_fitter
 
     said: list[str] = []
     release = threading.Event()
@@ -222,7 +222,7 @@ def test_run_accepts_a_file_uri_with_loop(shared_data):
 
 
 def test_watch_says_what_a_starting_daemon_is_doing():
-    from posed.daemon.commands._viewer import Summary, waiting_for
+    from posed.commands._viewer import Summary, waiting_for
 
     status = {"state": "starting", "stages": {"capture": {"state": "running"}, "landmarks": {"state": "running"},
                                               "fitting": {"state": "starting"}}}
@@ -235,7 +235,7 @@ def test_watch_says_what_a_starting_daemon_is_doing():
 
 
 def test_landmarks_progress_lines(capsys):
-    from posed.daemon.commands.landmarks import Progress
+    from posed.commands.landmarks import Progress
 
     p = Progress(total=10, period_s=0.0)
     p.frame(3, 2)
@@ -258,7 +258,7 @@ def test_models_fetch_without_the_convert_extra_names_it(tmp_path):
     shadow.mkdir()
     (shadow / "tflite.py").write_text("raise ModuleNotFoundError(\"No module named 'tflite'\", name='tflite')\n")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(shadow), str(ROOT)])}
-    r = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "models", "fetch", "--models-dir", str(tmp_path / "m")],
+    r = subprocess.run([sys.executable, "-m", "posed.cli", "models", "fetch", "--models-dir", str(tmp_path / "m")],
                        capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
     assert r.returncode == 69, r.stdout + r.stderr
     assert "'tflite'" in r.stderr and "pip install 'posed[convert]'" in r.stderr

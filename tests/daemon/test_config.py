@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.daemon.config import EX_CONFIG, Config, load_config
 from posed.daemon.config import doc as configdoc
 from posed.daemon.config.load import ConfigError
@@ -67,7 +67,7 @@ def test_config_check_cli_exit_codes(tmp_path, capsys):
 def test_config_check_as_a_real_process(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("robot_id: 'has space'\nzenoh: {mode: router}\n")
-    proc = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "config", "check", str(bad)],
+    proc = subprocess.run([sys.executable, "-m", "posed.cli", "config", "check", str(bad)],
                           capture_output=True, text=True, cwd=ROOT)
     assert proc.returncode == 78
     assert "robot_id: 'has space' does not match" in proc.stderr

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from posed import hal
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.landmarks import read_recording, sample_depth
 from tests.daemon.replay_util import replay_to_end
 from tests.hal.conftest import (

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.daemon.history.store import AngleHistory
 from posed.daemon.outbox.journal import EventJournal
 from posed.daemon.version import __version__
@@ -110,8 +110,8 @@ def test_plot_checks_the_output_name_before_reading(tmp_path, capsys):
 
 
 def test_plot_loads_the_config_once(tmp_path, monkeypatch):
-    import posed.daemon.commands.history as history_cmd
-    import posed.daemon.commands.plot as plot_cmd
+    import posed.commands.history as history_cmd
+    import posed.commands.plot as plot_cmd
 
     state = tmp_path / "state"
     write_history(state / "history.sqlite3")
@@ -173,7 +173,7 @@ def test_events_ack_against_a_running_daemon(tmp_path):
              f"source: {{type: file, path: '{recording}'}}", "logging: {format: json}"]
     cfg_file.write_text("\n".join(lines) + "\n")
     env = {**os.environ, "POSED_CONFIG": str(cfg_file)}
-    proc = subprocess.Popen([sys.executable, "-m", "posed.daemon.cli", "run"], cwd=ROOT, env=env,
+    proc = subprocess.Popen([sys.executable, "-m", "posed.cli", "run"], cwd=ROOT, env=env,
                             stdout=open(tmp_path / "out.log", "w"), stderr=subprocess.STDOUT)
     journal = state / "events.sqlite3"
     try:
@@ -185,26 +185,26 @@ def test_events_ack_against_a_running_daemon(tmp_path):
         states = _journal_states(journal)
         assert {"falling", "on_floor", "alarm"} <= set(states) and not any(states.values()), states
         # `posed watch` finds the daemon through the same config; the status carries the version
-        watch = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "watch", "--json", "--seconds", "3"], cwd=ROOT,
+        watch = subprocess.run([sys.executable, "-m", "posed.cli", "watch", "--json", "--seconds", "3"], cwd=ROOT,
                                env=env, capture_output=True, text=True, timeout=60)
         msgs = [json.loads(line) for line in watch.stdout.splitlines()]
         status = [m["value"] for m in msgs if m["key"] == "posed/acker/status"]
         assert status and status[-1]["posed_version"] == __version__, watch.stdout[-2000:] + watch.stderr
-        listed = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "events"], cwd=ROOT, env=env,
+        listed = subprocess.run([sys.executable, "-m", "posed.cli", "events"], cwd=ROOT, env=env,
                                 capture_output=True, text=True, timeout=60)
         prefix = listed.stdout.splitlines()[1].split()[1]          # the 12-character id column
-        ack = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "events", "ack", prefix, "--state", "alarm"],
+        ack = subprocess.run([sys.executable, "-m", "posed.cli", "events", "ack", prefix, "--state", "alarm"],
                              cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
         assert ack.returncode == 0, ack.stdout + ack.stderr
         assert "acknowledged" in ack.stdout and "(alarm)" in ack.stdout
         states = _journal_states(journal)
         assert states["alarm"] is not None
         assert states["falling"] is None and states["on_floor"] is None, "only the alarm was acknowledged"
-        ack = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "events", "ack", prefix], cwd=ROOT, env=env,
+        ack = subprocess.run([sys.executable, "-m", "posed.cli", "events", "ack", prefix], cwd=ROOT, env=env,
                              capture_output=True, text=True, timeout=60)
         assert ack.returncode == 0, ack.stdout + ack.stderr
         assert all(v is not None for v in _journal_states(journal).values())
-        bad = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "events", "ack", prefix, "--state", "lying"],
+        bad = subprocess.run([sys.executable, "-m", "posed.cli", "events", "ack", prefix, "--state", "lying"],
                              cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
         assert bad.returncode == 2 and "falling, on_floor, alarm, recovered" in bad.stderr.replace("'", "")
     finally:

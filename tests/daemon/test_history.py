@@ -7,7 +7,7 @@ import math
 
 import cv2
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory, read_csv
 from posed.daemon.outbox.journal import EventJournal
 from posed.falls.config import FallsConfig

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.landmarks import read_recording
 from tests.daemon.replay_util import replay_to_end
 from tests.hal.conftest import IMU_FRAMES, IMU_ROLL_DEG, IMU_TILT_DEG, imu_down

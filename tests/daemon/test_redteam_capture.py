@@ -29,7 +29,7 @@ def test_oversized_and_corrupt_images_are_skipped_and_counted(tmp_path, squat_fr
     ep = f"tcp/127.0.0.1:{free_port()}"
     out = tmp_path / "out.log"
     with open(out, "w") as fh:
-        proc = subprocess.Popen([sys.executable, "-m", "posed.daemon.cli", "run", "--source", f"file:{folder}",
+        proc = subprocess.Popen([sys.executable, "-m", "posed.cli", "run", "--source", f"file:{folder}",
                                  "--set", f"pipeline.state_dir={tmp_path / 'state'}", "--set", "logging.format=json",
                                  "--set", f"zenoh.listen=[{ep}]", "--set", "robot_id=rt",
                                  "--set", "pipeline.status_period_s=0.3", "--set", "source.realtime=false",

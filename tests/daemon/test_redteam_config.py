@@ -18,7 +18,7 @@ RECORDING = "falls/urfd_dev/urfd_18_adl.landmarks.jsonl"
 
 
 def posed(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "posed.daemon.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "posed.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout)
 
 

@@ -22,7 +22,7 @@ def _limited():
 
 
 def posed(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "posed.daemon.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "posed.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout, preexec_fn=_limited)
 
 

@@ -41,7 +41,7 @@ def test_broken_log_pipe_never_stops_the_supervisor(tmp_path, shared_data, sig):
     recording = shared_data / "falls" / "urfd_dev" / "urfd_18_adl.landmarks.jsonl"
     reader = subprocess.Popen(["cat"], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL)
     daemon = subprocess.Popen(
-        [sys.executable, "-m", "posed.daemon.cli", "run", "--source", f"file:{recording}",
+        [sys.executable, "-m", "posed.cli", "run", "--source", f"file:{recording}",
          "--set", "source.loop=true", "--set", f"pipeline.state_dir={tmp_path / 'state'}",
          "--set", f"zenoh.listen=[tcp/127.0.0.1:{free_port()}]", "--set", "logging.format=json",
          "--set", "logging.stats_period_s=1", "--set", "pipeline.status_period_s=0.2"],

@@ -109,7 +109,7 @@ def test_missing_camera_is_waiting_for_camera_in_status_and_systemd(tmp_path):
     listener = NotifyListener(sock)
     ep = f"tcp/127.0.0.1:{free_port()}"
     with open(tmp_path / "out.log", "w") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "posed.daemon.cli", "run", "--source", "v4l2:/dev/video99",
+        proc = subprocess.Popen([sys.executable, "-m", "posed.cli", "run", "--source", "v4l2:/dev/video99",
                                  "--set", f"pipeline.state_dir={tmp_path / 'state'}", "--set", "logging.format=json",
                                  "--set", f"zenoh.listen=[{ep}]", "--set", "robot_id=cam",
                                  "--set", "pipeline.status_period_s=0.3"],

@@ -48,7 +48,7 @@ class Viewer:
 
 
 def posed_run(tmp_path: Path, source: Path, *overrides: str, env: dict | None = None) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "posed.daemon.cli", "run", "--source", f"file:{source}",
+    cmd = [sys.executable, "-m", "posed.cli", "run", "--source", f"file:{source}",
            "--set", f"pipeline.state_dir={tmp_path / 'state'}", "--set", "logging.format=json"]
     for o in overrides:
         cmd += ["--set", o]
@@ -174,7 +174,7 @@ def test_demo_runs_and_stops(tmp_path, data, shared_data):
     if data == "generated":
         env["POSED_SHARED_DATA"] = str(tmp_path / "no-shared-data")
         env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
-    r = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "demo", "--seconds", "3"], cwd=ROOT, env=env,
+    r = subprocess.run([sys.executable, "-m", "posed.cli", "demo", "--seconds", "3"], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
     lines = r.stdout.splitlines()

@@ -11,7 +11,7 @@ import json
 
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.falls.event import FallEvent
 
 GEOMETRY = ["--set", "falls.camera_tilt_deg=0", "--set", "falls.camera_roll_deg=0",

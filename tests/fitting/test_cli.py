@@ -16,20 +16,20 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def posed(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "posed.daemon.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "posed.cli", *map(str, args)], capture_output=True, text=True,
                           cwd=cwd or ROOT, timeout=300)
 
 
 def recording(path: Path, camera=None) -> Path:
     frames = S.render_sequence(S.sequence("stand_to_sit", 30.0), fps=10,
-                               camera=S.Camera(model="pinhole") if camera else None)
+                               camera=S.LevelCamera(model="pinhole") if camera else None)
     out = [LandmarkFrame(i, t, lm) for i, (t, lm, _p) in enumerate(frames[:8])]
     out.append(LandmarkFrame(8, 0.8, None))                       # no person
     partial = frames[9][1].copy()
     partial[[25, 26, 27, 28, 15, 13, 14]] = np.nan                # knees, ankles, a wrist, elbows unknown
     out.append(LandmarkFrame(9, 0.9, partial))
     header = RecordingHeader((640, 480), 10.0, "test",
-                             S.Camera(model="pinhole").intrinsics((640, 480)) if camera else None)
+                             S.LevelCamera(model="pinhole").intrinsics((640, 480)) if camera else None)
     write_recording(path, header, out)
     with open(path, "a", encoding="utf-8") as fh:                 # a malformed line, then a good frame
         fh.write('{"seq": 10, "t": 1.0, "landmarks": [1, 2]}\n')

@@ -17,7 +17,7 @@ LIMBS = ((0, 2), (2, 4), (1, 3), (3, 5), (6, 8), (8, 10), (7, 9), (9, 11))  # bo
 
 def scene(name, yaw, distance=3.0, height=1.6):
     dims = BodyDimensions.from_height(height)
-    camera = S.Camera(model="pinhole", distance_m=distance, height_m=1.2)
+    camera = S.LevelCamera(model="pinhole", distance_m=distance, height_m=1.2)
     pose = S.pose(name, yaw)
     pts, _ = S._world_points(pose, dims, S.Placement(), camera.distance_m, camera.height_m)
     return dims, camera, pose, pts

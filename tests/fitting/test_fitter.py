@@ -80,7 +80,7 @@ def test_video_mode_tracks_a_fall(fitter):
 
 
 def test_perspective_with_intrinsics(fitter):
-    cam = S.Camera(model="pinhole", distance_m=3.0)
+    cam = S.LevelCamera(model="pinhole", distance_m=3.0)
     pose = S.pose("bend_grab", 30.0)
     lm = S.render(pose, camera=cam)
     r = fitter.fit(lm, 0, 0.0, SIZE, mode="image", intrinsics=cam.intrinsics(SIZE))

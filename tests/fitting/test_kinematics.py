@@ -141,11 +141,11 @@ def test_analytic_jacobian_matches_finite_differences(perspective):
     cfg = FitConfig(w_limit=0.5)
     rng = np.random.default_rng(7 + perspective)
     pose = S.pose("kneel", 35.0)
-    lm = S.render(pose, dims=DIMS, camera=S.Camera(model="pinhole") if perspective else None)
+    lm = S.render(pose, dims=DIMS, camera=S.LevelCamera(model="pinhole") if perspective else None)
     xy, w, _ = P.landmark_weights(lm, cfg)
     w[3] = 0.4  # a down-weighted landmark
     frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS),
-                   S.Camera(model="pinhole").intrinsics((640, 480)) if perspective else None,   # 600, 600, 320, 240
+                   S.LevelCamera(model="pinhole").intrinsics((640, 480)) if perspective else None,   # 600, 600, 320, 240
                    fixed_deg=np.array([5, -3, 10, -8, 4, 2, -3, 1.0]))
     data = frame.data.copy()
     data[L.D_PRIOR] = 1e-4

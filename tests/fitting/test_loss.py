@@ -118,10 +118,10 @@ def test_truth_has_zero_2d_error_and_stable_poses_zero_com_deviation():
 
 def test_perspective_loss_is_exact_at_the_truth():
     from posed.bench import simulate as S
-    from posed.bench.simulate import Camera
+    from posed.bench.simulate import LevelCamera
 
     cfg = FitConfig()
-    cam = Camera(model="pinhole", distance_m=2.5)
+    cam = LevelCamera(model="pinhole", distance_m=2.5)
     for name in ("bend_grab", "lying_back"):
         pose = S.pose(name, 35.0)
         lm = S.render(pose, dims=DIMS, camera=cam)

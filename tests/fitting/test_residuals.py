@@ -29,7 +29,7 @@ def test_landmark_rows_match_reference(perspective):
     from posed.bench import simulate as S
 
     cfg = FitConfig()
-    cam = S.Camera(model="pinhole", distance_m=3.0) if perspective else None
+    cam = S.LevelCamera(model="pinhole", distance_m=3.0) if perspective else None
     truth = S.pose("bend_grab", 40.0)
     lm = S.render(truth, dims=DIMS, noise_px=3.0, seed=4, **({"camera": cam} if cam else {}))
     xy, w, _ = P.landmark_weights(lm, cfg)
@@ -151,7 +151,7 @@ def test_residuals_into_and_jacobian_into_reuse_their_work():
     from posed.bench import simulate as S
 
     cfg = FitConfig()
-    cam = S.Camera(model="pinhole", distance_m=3.0)
+    cam = S.LevelCamera(model="pinhole", distance_m=3.0)
     truth = S.pose("bend_grab", 40.0)
     lm = S.render(truth, dims=DIMS, noise_px=3.0, seed=4, camera=cam)
     xy, w, _ = P.landmark_weights(lm, cfg)

@@ -21,7 +21,7 @@ def truth_mid_hip(pose, dims, camera, placement, image_size):
 @pytest.mark.parametrize("distance, x_m, yaw", [(2.5, 0.0, 30.0), (3.0, 0.6, -60.0), (5.0, -0.8, 120.0)])
 def test_root_is_the_rendered_placement(distance, x_m, yaw):
     dims = BodyDimensions.from_height(1.6)
-    camera = S.Camera(model="pinhole", distance_m=distance, height_m=1.2)
+    camera = S.LevelCamera(model="pinhole", distance_m=distance, height_m=1.2)
     placement = S.Placement(x_m=x_m)
     pose = S.pose("stand_arms_front", yaw)
     size = (640, 480)
@@ -39,7 +39,7 @@ def test_a_wrong_body_height_scales_the_distance():
     """Without depth the distance comes from the person's size: a person taken 10 % taller than they are
     is placed 10 % further away."""
     dims = BodyDimensions.from_height(1.6)
-    camera = S.Camera(model="pinhole", distance_m=3.0, height_m=1.2)
+    camera = S.LevelCamera(model="pinhole", distance_m=3.0, height_m=1.2)
     lm = S.render(S.pose("stand_arms_front", 30.0), dims=dims, camera=camera, image_size=(640, 480))
     k = camera.intrinsics((640, 480))
     right = Fitter(FitConfig(body_height_m=1.6)).fit(lm, 0, 0.0, (640, 480), mode="image", intrinsics=k)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from posed import hal
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.hal.sidecar import read_sidecar, sidecar_path
 from tests.hal.conftest import DB3_FRAMES, SQUAT_FPS
 

@@ -34,13 +34,18 @@ class Daemon:
     """One ``posed run`` (robot ``robot``) listening on its own port and connecting to ``router``."""
 
     def __init__(self, tmp: Path, robot: str, source: Path, router: str, *overrides: str,
-                 state_dir: Path | None = None, config: Path | None = None) -> None:
+                 state_dir: Path | None = None, config: Path | None = None, python: str = sys.executable,
+                 cwd: Path = ROOT, env: dict | None = None) -> None:
+        """``python``, ``cwd`` and ``env``: another installation of posed (an installed wheel, run from a folder
+        that is not the checkout)."""
         self.robot = robot
+        self.cwd = cwd
+        self.env = env
         self.dir = tmp / robot
         self.dir.mkdir(parents=True, exist_ok=True)
         self.state_dir = state_dir or self.dir / "state"
         self.listen = f"tcp/127.0.0.1:{free_port()}"
-        self.cmd = [sys.executable, "-m", "posed.daemon.cli", "run", "--source", f"file:{source}",
+        self.cmd = [python, "-m", "posed.cli", "run", "--source", f"file:{source}",
                     "--set", f"pipeline.state_dir={self.state_dir}", "--set", "logging.format=json",
                     "--set", f"robot_id={robot}", "--set", f"zenoh.listen=[{self.listen}]",
                     "--set", f"zenoh.connect=[{router}]", "--set", "source.realtime=false"]
@@ -53,7 +58,8 @@ class Daemon:
 
     def start(self) -> Daemon:
         self.runs += 1
-        self.proc = subprocess.Popen(self.cmd, cwd=ROOT, stdout=open(self.dir / f"out{self.runs}.log", "w"),
+        self.proc = subprocess.Popen(self.cmd, cwd=self.cwd, env=self.env,
+                                     stdout=open(self.dir / f"out{self.runs}.log", "w"),
                                      stderr=open(self.dir / f"err{self.runs}.log", "w"))
         return self
 

@@ -77,7 +77,7 @@ def test_the_plain_zenoh_example_of_formats_md_runs(fleet_of_one):
 
 def test_posed_watch_reads_through_the_client(fleet_of_one):
     rep, d = fleet_of_one
-    out = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "watch", "--connect", rep, "--seconds", "4"],
+    out = subprocess.run([sys.executable, "-m", "posed.cli", "watch", "--connect", rep, "--seconds", "4"],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert "posed watch: robot docs1 up" in out.stdout

@@ -2,7 +2,7 @@
 
 import json
 
-from posed.daemon.cli import main
+from posed.cli import main
 
 
 def test_bench_json_has_every_kept_output_of_both_models_per_input(models_dir, monkeypatch, capsys):

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 
 
 def test_bench_json_has_both_back_ends_per_thread_count(models_dir, monkeypatch, capsys):

@@ -1,7 +1,7 @@
 """``posed bench peer``: MediaPipe itself runs in a separate venv (not installed by `make test`), so here only
 the command's refusal without it; the measured numbers live in docs/benchmarks.md."""
 
-from posed.daemon.cli import main
+from posed.cli import main
 
 
 def test_without_a_mediapipe_python_it_names_the_recipe(monkeypatch, tmp_path, capsys):

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.landmarks import read_recording
 
 

@@ -9,7 +9,7 @@ import json
 import numpy as np
 
 from posed import hal
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.landmarks import read_recording, sample_depth
 from tests.hal.conftest import (
     BOX_MM,

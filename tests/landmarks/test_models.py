@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.landmarks.convert.converter import CONVERTER_VERSION
 from posed.landmarks.convert.fetch import PINNED, FetchError, _write_error, fetch_models, up_to_date
 from posed.landmarks.models import (
@@ -327,7 +327,7 @@ def test_second_fetch_of_the_real_folder_is_fast(models_dir):
     the machine's load): it finds the folder up to date and does nothing else, no download, conversion or
     write (test_fetch_from_folder_writes_everything_then_does_nothing checks the steps in-process)."""
     before = {p.name: p.stat().st_mtime_ns for p in models_dir.iterdir()}
-    proc = subprocess.run([sys.executable, "-m", "posed.daemon.cli", "models", "fetch", "--models-dir", str(models_dir)],
+    proc = subprocess.run([sys.executable, "-m", "posed.cli", "models", "fetch", "--models-dir", str(models_dir)],
                           capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert "up to date" in proc.stdout and "nothing to do" in proc.stdout

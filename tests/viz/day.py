@@ -1,5 +1,5 @@
 """A day of history made by replaying real recordings through the product's own classes: the fit as the
-fitting stage runs it and the fall detector as the publisher stage runs it (``daemon.commands.falls``), the
+fitting stage runs it and the fall detector as the publisher stage runs it (``posed.commands.falls``), the
 angles into ``AngleHistory`` and the event messages into ``EventJournal`` with the clock of the day."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import datetime as dt
 from pathlib import Path
 
-from posed.daemon.commands.falls import detect, fit_frames
+from posed.commands.falls import detect, fit_frames
 from posed.daemon.config import load_config
 from posed.daemon.history.store import AngleHistory
 from posed.daemon.outbox.journal import EventJournal

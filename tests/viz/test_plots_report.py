@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.daemon.history.plot import angle_series, event_marks
 from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
 from posed.daemon.outbox.journal import EventJournal
@@ -144,7 +144,7 @@ def test_report_is_one_self_contained_html_with_the_day(day, tmp_path):
 
 
 def test_plot_fit_takes_the_start_in_the_plot_zone_and_marks_posed_falls_events(shared_data, tmp_path, capsys):
-    from posed.daemon.commands.plot import _start_time
+    from posed.commands.plot import _start_time
 
     assert _start_time("2026-07-14T10:00:00", TZ) == dt.datetime(2026, 7, 14, 14, 0, tzinfo=dt.UTC).timestamp()
     assert _start_time("2026-07-14T10:00:00Z", TZ) == dt.datetime(2026, 7, 14, 10, 0, tzinfo=dt.UTC).timestamp()

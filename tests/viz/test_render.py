@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from posed.camera_model import Intrinsics
-from posed.daemon.cli import main
+from posed.cli import main
 from posed.viz.reproject import reproject
 
 FRAMES = 65          # pose_squats.mp4 (data README)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from posed.daemon.commands._child import free_endpoint, run_command, stop
+from posed.commands._child import free_endpoint, run_command, stop
 from posed.daemon.outbox.journal import EventJournal
 from posed.viz.web.hub import Hub
 from posed.viz.web.server import WebServer
@@ -37,7 +37,7 @@ def _daemon(tmp_path: Path, source: str, *settings: str):
 
 
 def _web(endpoint: str):
-    proc = subprocess.Popen([sys.executable, "-m", "posed.daemon.cli", "web", ROBOT, "--connect", endpoint, "--port", "0",
+    proc = subprocess.Popen([sys.executable, "-m", "posed.cli", "web", ROBOT, "--connect", endpoint, "--port", "0",
                              "--wait", "180"],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     url = proc.stdout.readline().strip()

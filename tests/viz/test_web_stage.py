@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from posed.daemon.commands._child import free_endpoint, run_command, stop
+from posed.commands._child import free_endpoint, run_command, stop
 from posed.daemon.outbox.journal import EventJournal
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from posed.daemon.commands import add_config_args, config_from_args, config_path
+from posed.commands import add_config_args, config_from_args, config_path
 from posed.daemon.config.paths import EVENTS_FILE, reading_state_dir
 from posed.daemon.timeparse import parse_time
 
@@ -126,8 +126,8 @@ def _read_journal(path: Path):
 
 
 def run_ack(args: argparse.Namespace) -> int:
+    from posed.commands._bus import open_client
     from posed.daemon.bus.session import daemon_endpoints
-    from posed.daemon.commands._bus import open_client
 
     cfg = config_from_args(args)
     event_id = args.id.strip()

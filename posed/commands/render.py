@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from posed.daemon.commands import add_config_args, config_from_args, error_printer, read_jsonl
+from posed.commands import add_config_args, config_from_args, error_printer, read_jsonl
 
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
 
@@ -67,7 +67,7 @@ def _fit_video(args, config, progress_on):
     """Landmarks + fit over a video (video mode, like the daemon): (source info, intrinsics, items, problems)."""
     from dataclasses import replace
 
-    from posed.daemon.commands.landmarks import open_input
+    from posed.commands.landmarks import open_input
     from posed.daemon.stages.fit import StreamFit
     from posed.fitting import Fitter
     from posed.landmarks import PoseLandmarker
@@ -129,7 +129,7 @@ def _from_recording(args, config):
 def run(args: argparse.Namespace) -> int:
     import cv2
 
-    from posed.daemon.commands.landmarks import InputError
+    from posed.commands.landmarks import InputError
     from posed.landmarks import ModelMissingError, RecordingError
     from posed.viz.render import ClipRenderer, FrameInput
     from posed.viz.video import Progress, VideoError, VideoOut

@@ -12,7 +12,7 @@ import json
 import sys
 from dataclasses import asdict
 
-from posed.daemon.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args
 from posed.daemon.config import EX_CONFIG, load_config
 
 

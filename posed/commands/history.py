@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from posed.daemon.commands import add_config_args, config_from_args, config_path
+from posed.commands import add_config_args, config_from_args, config_path
 from posed.daemon.config.paths import HISTORY_FILE, reading_state_dir
 from posed.daemon.timeparse import iso, parse_time
 

@@ -7,7 +7,7 @@ import json
 import sys
 import time
 
-from posed.daemon.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from posed.daemon.commands import add_config_args, config_from_args, config_path, error_printer
+from posed.commands import add_config_args, config_from_args, config_path, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from posed.daemon.commands.history import history_path
+    from posed.commands.history import history_path
     from posed.daemon.config.paths import EVENTS_FILE
     from posed.daemon.history.plot import angle_series, event_marks
     from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory

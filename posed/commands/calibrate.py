@@ -14,7 +14,7 @@ from pathlib import Path
 
 import yaml
 
-from posed.daemon.commands import add_config_args, config_from_args, error_printer
+from posed.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -20,9 +20,9 @@ def free_endpoint() -> str:
 
 def run_command(settings: Iterable[str], config: str | None = None, source: str | None = None,
                 overrides: Iterable[str] = ()) -> list[str]:
-    """The ``python -m daemon.cli run`` command line: ``--set`` for each of ``settings``, then the user's
+    """The ``python -m posed.cli run`` command line: ``--set`` for each of ``settings``, then the user's
     ``--config``, ``--source`` and ``--set`` ``overrides`` (which win over ``settings``)."""
-    cmd = [sys.executable, "-m", "posed.daemon.cli", "run"]
+    cmd = [sys.executable, "-m", "posed.cli", "run"]
     for item in settings:
         cmd += ["--set", item]
     if config:

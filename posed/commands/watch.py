@@ -8,7 +8,7 @@ import json
 import sys
 import time
 
-from posed.daemon.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -71,9 +71,9 @@ def _subscribe(posed, robot: str, summary) -> list:
 
 def _watch(args: argparse.Namespace) -> int:
     from posed.client import PosedClient
+    from posed.commands._bus import open_client
+    from posed.commands._viewer import Summary
     from posed.daemon.bus.session import daemon_endpoints
-    from posed.daemon.commands._bus import open_client
-    from posed.daemon.commands._viewer import Summary
 
     cfg = config_from_args(args)
     endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg.zenoh)

@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from posed.daemon.commands import add_config_args, config_from_args, error_printer
+from posed.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         _err(f"{exc} (fitting.calibration in the config)")
         return 2
-    from posed.daemon.commands.warmup import warm_fitter
+    from posed.commands.warmup import warm_fitter
 
     warm_fitter(fitter, _err)        # compile before frame 0: its fit_ms must be the fit alone
     intrinsics = header.camera

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from posed.camera_model import Intrinsics
-from posed.daemon.commands import add_config_args, config_from_args, error_printer
+from posed.commands import add_config_args, config_from_args, error_printer
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 READ_TIMEOUT_S = 5.0        # a RealSense recording's next frame (played as fast as it decodes)

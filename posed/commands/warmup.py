@@ -18,7 +18,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from posed.daemon.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args
 
 SAY_AFTER_S = 5.0   # a warm cache loads in 1-4 s even on a busy 2-core machine: say nothing then
 

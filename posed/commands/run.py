@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from posed.commands import add_config_args, config_from_args
 from posed.daemon import logs
-from posed.daemon.commands import add_config_args, config_from_args
 from posed.daemon.config import EX_CONFIG
 
 

@@ -14,8 +14,8 @@ import signal
 import sys
 
 from posed import hal
+from posed.commands import add_config_args, config_from_args
 from posed.daemon import logs
-from posed.daemon.commands import add_config_args, config_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:

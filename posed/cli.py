@@ -1,4 +1,4 @@
-"""The ``posed`` command line. Each subcommand is a module of :mod:`daemon.commands` with a
+"""The ``posed`` command line. Each subcommand is a module of :mod:`posed.commands` with a
 ``register(subparsers)`` function; ``posed bench NAME`` runs ``bench.commands.NAME`` (loaded only then)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import os
 import pkgutil
 import sys
 
-from posed.daemon import commands
+from posed import commands
 from posed.daemon.config import EX_CONFIG
 from posed.daemon.config.load import ConfigError
 from posed.daemon.version import __version__

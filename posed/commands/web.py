@@ -13,7 +13,7 @@ import argparse
 import signal
 import threading
 
-from posed.daemon.commands import add_config_args, config_from_args, error_printer
+from posed.commands import add_config_args, config_from_args, error_printer
 
 
 def register(sub: argparse._SubParsersAction) -> None:

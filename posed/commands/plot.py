@@ -13,8 +13,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from posed.daemon.commands import add_config_args, config_from_args, config_path, read_jsonl
-from posed.daemon.commands.history import add_range_args, history_path, open_history
+from posed.commands import add_config_args, config_from_args, config_path, read_jsonl
+from posed.commands.history import add_range_args, history_path, open_history
 from posed.daemon.config.paths import EVENTS_FILE
 from posed.viz.names import PANELS
 

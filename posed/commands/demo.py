@@ -11,8 +11,8 @@ import sys
 import tempfile
 import time
 
-from posed.daemon.commands import add_config_args
-from posed.daemon.commands._child import free_endpoint, run_command, stop
+from posed.commands import add_config_args
+from posed.commands._child import free_endpoint, run_command, stop
 
 STOP_TIMEOUT_S = 10.0   # for the daemon's clean shutdown after SIGTERM, before SIGKILL
 
@@ -46,8 +46,8 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _run_demo(args: argparse.Namespace, cmd: list[str], endpoint: str, state: str) -> int:
-    from posed.daemon.commands._viewer import Summary, subscribe
-    from posed.daemon.commands.watch import open_viewer
+    from posed.commands._viewer import Summary, subscribe
+    from posed.commands.watch import open_viewer
 
     log_path = os.path.join(state, "daemon.log")
     print(f"posed demo: starting the daemon, listening on {endpoint} (its logs are kept only if it fails)",
