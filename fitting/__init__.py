@@ -7,6 +7,10 @@ Other packages import these names from ``fitting`` itself, never from its module
   the config section ``fitting``.
 * the result of one frame: ``FitResult`` and the names of its fields: ``VARIABLE_NAMES`` (the 19 fitted
   variables), ``JOINT_ANGLE_NAMES`` (23), ``BODY_ANGLE_NAMES`` (3), ``JOINT_3D_NAMES`` (12).
+* what a frame measured, the one rule every view and topic applies (fitting.measured): ``Measured`` (a
+  result's ``measured``), ``measured_landmarks`` (the rule on 33 landmarks), ``ANGLE_NEEDS`` (the landmarks
+  each angle needs), ``FIXED_ANGLE_NAMES`` (never measured); the plain names of the angles,
+  ``ANGLE_PLAIN_NAMES`` (``theta_kn_l`` -> ``left knee flexion``), ``ANGLE_REMARKS`` and ``angle_symbol``.
 * the body: ``BodyDimensions`` (link lengths), the calibration file (``read_calibration``,
   ``write_calibration``, ``CalibrationError``) and ``calibrate`` (per-user lengths from a recording of the
   person standing; ``CalibrationFailed``).
@@ -26,6 +30,9 @@ if TYPE_CHECKING:
     from posed.fitting.calibration import CalibrationFailed, calibrate
     from posed.fitting.config import FitConfig
     from posed.fitting.fitter import Fitter
+    from posed.fitting.angle_names import PLAIN_NAMES as ANGLE_PLAIN_NAMES
+    from posed.fitting.angle_names import REMARKS as ANGLE_REMARKS
+    from posed.fitting.angle_names import symbol as angle_symbol
     from posed.fitting.kinematics import (
         BODY_LANDMARK_NAMES,
         BODY_LANDMARKS,
@@ -33,6 +40,9 @@ if TYPE_CHECKING:
         joints_3d,
         landmarks_camera,
     )
+    from posed.fitting.measured import FIXED as FIXED_ANGLE_NAMES
+    from posed.fitting.measured import NEEDS as ANGLE_NEEDS
+    from posed.fitting.measured import Measured, measured_landmarks
     from posed.fitting.result import (
         BODY_ANGLE_NAMES,
         JOINT_3D_NAMES,
@@ -42,22 +52,29 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
+    "ANGLE_NEEDS",
+    "ANGLE_PLAIN_NAMES",
+    "ANGLE_REMARKS",
     "BODY_ANGLE_NAMES",
     "BODY_LANDMARKS",
     "BODY_LANDMARK_NAMES",
     "JOINT_3D_NAMES",
     "JOINT_ANGLE_NAMES",
+    "Measured",
     "VARIABLE_NAMES",
     "BodyDimensions",
     "CalibrationError",
     "CalibrationFailed",
+    "FIXED_ANGLE_NAMES",
     "FitConfig",
     "FitResult",
     "Fitter",
     "Pose",
+    "angle_symbol",
     "calibrate",
     "joints_3d",
     "landmarks_camera",
+    "measured_landmarks",
     "read_calibration",
     "write_calibration",
 ]
@@ -77,6 +94,13 @@ _ORIGIN = {
     "Pose": ("posed.fitting.kinematics", "Pose"),
     "joints_3d": ("posed.fitting.kinematics", "joints_3d"),
     "landmarks_camera": ("posed.fitting.kinematics", "landmarks_camera"),
+    "ANGLE_PLAIN_NAMES": ("posed.fitting.angle_names", "PLAIN_NAMES"),
+    "ANGLE_REMARKS": ("posed.fitting.angle_names", "REMARKS"),
+    "angle_symbol": ("posed.fitting.angle_names", "symbol"),
+    "ANGLE_NEEDS": ("posed.fitting.measured", "NEEDS"),
+    "FIXED_ANGLE_NAMES": ("posed.fitting.measured", "FIXED"),
+    "Measured": ("posed.fitting.measured", "Measured"),
+    "measured_landmarks": ("posed.fitting.measured", "measured_landmarks"),
     "BODY_ANGLE_NAMES": ("posed.fitting.result", "BODY_ANGLE_NAMES"),
     "JOINT_3D_NAMES": ("posed.fitting.result", "JOINT_3D_NAMES"),
     "JOINT_ANGLE_NAMES": ("posed.fitting.result", "JOINT_ANGLE_NAMES"),

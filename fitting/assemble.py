@@ -8,6 +8,7 @@ import numpy as np
 
 from posed.fitting import problem as P
 from posed.fitting.depth_term import DepthFit
+from posed.fitting.measured import Measured
 from posed.fitting.reported import ANGLES, JOINTS, N_REPORTED, reported_values
 from posed.fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
 
@@ -29,9 +30,10 @@ def unobserved(missing: list[str]) -> list[str]:
 
 def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.ndarray, *, loss: float,
              mp: float, fit_ms: float, mode: str, evals: int, udeas_s: float, missing: list[str], gamma: float,
-             depth: DepthFit | None) -> FitResult:
+             depth: DepthFit | None, measured: Measured | None = None) -> FitResult:
     """The result of solution ``x`` (kernel units) of ``frame``; ``gamma`` the reported size factor, ``depth``
-    the depth term at ``x`` (None without depth)."""
+    the depth term at ``x`` (None without depth), ``measured`` what the frame's landmarks measured
+    (fitting.measured; None: judged from ``missing`` alone)."""
     values = np.empty(N_REPORTED)
     known, *root = reported_values(x, frame.data, fixed_deg, 0.0 if depth is None else depth.root_z,
                                    depth is not None, values)
@@ -52,4 +54,4 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
         extra["missing"] = missing
         extra["unobserved"] = unobserved(missing)
     return FitResult(seq=seq, t=t, ok=True, loss=float(f"{loss:.6g}"), fit_ms=float(f"{fit_ms:.4g}"),
-                     variables=variables, joint_angles_deg=angles, joints_3d=j3, extra=extra)
+                     variables=variables, joint_angles_deg=angles, joints_3d=j3, extra=extra, measured=measured)

@@ -41,6 +41,7 @@ from posed.fitting.depth_rows import depth_fit_at
 from posed.fitting.depth_term import DEPTH_RMS_K, SURFACE_M, DepthFit, usable
 from posed.fitting.hypotheses import best_hypothesis, video_starts
 from posed.fitting.kinematics import BODY_LANDMARKS
+from posed.fitting.measured import Measured, measured_landmarks
 from posed.fitting.projection import image_scale
 from posed.fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
 from posed.fitting.result import FitResult
@@ -230,7 +231,8 @@ class Fitter:
         self._prev_x, self._prev_ppm, self._prev_t = x.copy(), ppm0, t
         depth = self._depth_fit(frame, x)
         result = assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
-                          evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma, depth=depth)
+                          evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma, depth=depth,
+                          measured=Measured.from_landmarks(measured_landmarks(lm, cfg.visibility_drop)))
         if mode == "video" and self._learner is not None:
             result.extra["limb_scale"] = self._learner.scale.to_json()  # the lengths this fit used
             obs = frame.data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from posed.fitting.measured import Measured
 
 # The 19 optimization variables of the paper's eq. (6), in its order; degrees except gamma (unitless).
 VARIABLE_NAMES = (
@@ -42,6 +45,11 @@ class FitResult:
     joint angles; joints_3d: metres, right-handed, camera-aligned, origin at the mid-hip, x image right,
     y image down, z away from the camera. ``ok`` False carries a ``reason`` and may omit the rest.
     ``extra`` keeps additional fields (added freely, never renamed).
+
+    ``measured`` (fitting.measured): which landmarks, angles and joints this frame measured; every value
+    not listed there is the model's guess, never to be shown as a fact. Given by the fit; a result built or
+    read without it gets it from the same rule applied to ``extra.missing`` (nothing when not ``ok``).
+    ``angle(name)``, ``measured_angles()`` and ``measured_joints()`` return only measured values.
     """
 
     seq: int
@@ -54,6 +62,41 @@ class FitResult:
     joint_angles_deg: dict[str, float] = field(default_factory=dict)
     joints_3d: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
+    measured: Measured | None = None
+
+    def __post_init__(self) -> None:
+        if self.measured is None:
+            from posed.fitting.measured import Measured
+
+            object.__setattr__(self, "measured", Measured.of_legacy(self.extra) if self.ok else Measured())
+
+    def angle(self, name: str) -> float | None:
+        """Degrees of one angle on this frame, by its plain name (``left knee flexion``, fitting.angle_names)
+        or its symbol (``theta_kn_l``); None when this frame did not measure it (fitting.measured). Raises
+        KeyError, listing the names, for an unknown one."""
+        from posed.fitting.angle_names import symbol
+
+        sym = symbol(name)
+        if not self.ok or sym not in self.measured.angles:
+            return None
+        v = self.joint_angles_deg.get(sym, self.variables.get(sym))
+        return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else None
+
+    def measured_angles(self, plain: bool = False) -> dict[str, float]:
+        """The joint angles and body angles this frame measured, degrees, by symbol (``plain``: by plain
+        name); the rest are left out."""
+        from posed.fitting.angle_names import PLAIN_NAMES
+
+        out = {}
+        for sym in self.measured.angles if self.ok else ():
+            v = self.joint_angles_deg.get(sym, self.variables.get(sym))
+            if isinstance(v, (int, float)) and math.isfinite(v):
+                out[PLAIN_NAMES[sym] if plain else sym] = float(v)
+        return out
+
+    def measured_joints(self) -> dict[str, tuple[float, float, float]]:
+        """The ``joints_3d`` whose landmarks this frame measured (metres, mid-hip origin); the rest left out."""
+        return {k: v for k, v in self.joints_3d.items() if k in self.measured.joints} if self.ok else {}
 
     @property
     def root_cam_m(self) -> tuple[float, float, float] | None:
@@ -81,6 +124,8 @@ class FitResult:
             out["joint_angles_deg"] = dict(self.joint_angles_deg)
         if self.joints_3d:
             out["joints_3d"] = {k: list(v) for k, v in self.joints_3d.items()}
+        if self.ok:
+            out["measured"] = self.measured.to_json()
         for k, v in self.extra.items():
             out.setdefault(k, v)
         return out
@@ -96,7 +141,13 @@ class FitResult:
         t = obj.get("t")
         if not isinstance(t, (int, float)) or isinstance(t, bool) or not math.isfinite(t):
             raise ValueError(f"t must be a finite number, got {t!r}")
-        known = {"seq", "t", "ok", "reason", "loss", "fit_ms", "variables", "joint_angles_deg", "joints_3d"}
+        known = {"seq", "t", "ok", "reason", "loss", "fit_ms", "variables", "joint_angles_deg", "joints_3d",
+                 "measured"}
+        measured = None
+        if obj.get("measured") is not None:
+            from posed.fitting.measured import Measured
+
+            measured = Measured.from_json(obj["measured"])
         return cls(
             seq=obj["seq"],
             t=float(t),
@@ -108,4 +159,5 @@ class FitResult:
             joint_angles_deg=dict(obj.get("joint_angles_deg") or {}),
             joints_3d={k: tuple(v) for k, v in (obj.get("joints_3d") or {}).items()},
             extra={k: v for k, v in obj.items() if k not in known},
+            measured=measured,
         )
