@@ -258,6 +258,6 @@ class PoseLandmarker:
         world_out[:, :3] = world_s
         world_out[:, 3] = world_vis
         world_out[:, 4] = body[:, 4]
-        frame = LandmarkFrame(seq, t, body_s)
-        return PoseResult(frame, world_out, aux_s, roi, next_roi, out.pose_flag, detection, rotation,
+        frame = LandmarkFrame(seq, t, body_s, world=world_out)
+        return PoseResult(frame, frame.world, aux_s, roi, next_roi, out.pose_flag, detection, rotation,
                           detector_ran, timings)

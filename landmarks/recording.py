@@ -166,6 +166,10 @@ class LandmarkFrame:
     gravity: the direction of gravity (down) in the camera's axes (x right, y down, z forward; any length), from
     the camera's accelerometer (a RealSense D435i/D455, ``hal.imu``), or None. A recording line's ``"gravity"``
     that is not three finite numbers stays in ``extra`` (so the line and its landmarks are kept).
+    world: (33, 5) float64 ``[x, y, z, visibility, presence]``, BlazePose's own 3D world landmarks of the frame:
+    metres, origin at the middle of the hips, MediaPipe's world axes (x to the image's right, y down, z away
+    from the camera, roughly aligned with it), NaN rows where unknown; None when the extractor gave none (or
+    no person). The daemon's landmark stage writes them smoothed, as MediaPipe's own tracker does.
     """
 
     seq: int
@@ -174,6 +178,7 @@ class LandmarkFrame:
     extra: dict = field(default_factory=dict)
     depth_m: np.ndarray | None = None
     gravity: tuple[float, float, float] | None = None
+    world: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.landmarks is not None:
@@ -199,15 +204,28 @@ class LandmarkFrame:
                 raise ValueError(f"gravity must be three finite numbers, not all zero (camera axes), got "
                                  f"{self.gravity!r}")
             object.__setattr__(self, "gravity", g)
+        if self.world is not None:
+            world = np.array(self.world, dtype=np.float64)
+            if world.shape != (NUM_LANDMARKS, 5):
+                raise ValueError(f"world must have shape (33, 5) ([x, y, z] metres, visibility, presence), "
+                                 f"got {world.shape}")
+            partial = np.isnan(world).any(axis=1) & ~np.isnan(world).all(axis=1)
+            if partial.any() or np.isinf(world).any():
+                i = int(np.flatnonzero(partial | np.isinf(world).any(axis=1))[0])
+                raise ValueError(f"world[{i}] ({LANDMARK_NAMES[i]}) must be five finite numbers, or NaN as a "
+                                 f"whole row (unknown), got {world[i].tolist()}")
+            world.setflags(write=False)
+            object.__setattr__(self, "world", world)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LandmarkFrame):
             return NotImplemented
         if (self.seq, self.t, self.extra, self.gravity) != (other.seq, other.t, other.extra, other.gravity):
             return False
-        if (self.depth_m is None) != (other.depth_m is None) or (
-                self.depth_m is not None and not np.array_equal(self.depth_m, other.depth_m, equal_nan=True)):
-            return False
+        for mine, theirs in ((self.depth_m, other.depth_m), (self.world, other.world)):
+            if (mine is None) != (theirs is None) or (
+                    mine is not None and not np.array_equal(mine, theirs, equal_nan=True)):
+                return False
         if self.landmarks is None or other.landmarks is None:
             return self.landmarks is None and other.landmarks is None
         return bool(np.array_equal(self.landmarks, other.landmarks, equal_nan=True))
@@ -215,14 +233,14 @@ class LandmarkFrame:
     __hash__ = None  # type: ignore[assignment]
 
     def to_json(self) -> dict:
-        lms = None
-        if self.landmarks is not None:
-            lms = [None if np.isnan(row).any() else [float(v) for v in row] for row in self.landmarks]
+        lms = None if self.landmarks is None else _rows_json(self.landmarks)
         out: dict[str, Any] = {"seq": self.seq, "t": self.t, "landmarks": lms}
         if self.depth_m is not None:
             out["depth_m"] = [None if np.isnan(v) else float(v) for v in self.depth_m]
         if self.gravity is not None:
             out["gravity"] = list(self.gravity)
+        if self.world is not None:
+            out["world"] = _rows_json(self.world)
         for k, v in self.extra.items():
             out.setdefault(k, v)
         return out
@@ -241,27 +259,38 @@ class LandmarkFrame:
         if "landmarks" not in obj:
             raise ValueError("the key 'landmarks' is missing (use null for no person)")
         raw = obj["landmarks"]
-        arr = None
-        if raw is not None:
-            if not isinstance(raw, list) or len(raw) != NUM_LANDMARKS:
-                n = len(raw) if isinstance(raw, list) else type(raw).__name__
-                raise ValueError(f"landmarks must be a list of 33 entries or null, got {n}")
-            arr = np.full((NUM_LANDMARKS, 5), np.nan)
-            for i, lm in enumerate(raw):
-                if lm is None:
-                    continue
-                if not isinstance(lm, list) or len(lm) != 5 or not all(_is_number(v) for v in lm):
-                    raise ValueError(
-                        f"landmark {i} ({LANDMARK_NAMES[i]}) must be [x, y, z, visibility, presence] finite "
-                        f"numbers or null, got {lm!r}"
-                    )
-                arr[i] = lm
+        arr = _parse_rows(raw, "landmarks", "[x, y, z, visibility, presence]")
         depth = _parse_depth_m(obj.get("depth_m"))
         gravity = _parse_gravity(obj.get("gravity"))
+        world = _parse_rows(obj.get("world"), "world", "[x, y, z, visibility, presence] (metres)")
         known = ("seq", "t", "landmarks") + (("depth_m",) if depth is not None else ()) + (
-            ("gravity",) if gravity is not None else ())
+            ("gravity",) if gravity is not None else ()) + (("world",) if "world" in obj else ())
         extra = {k: v for k, v in obj.items() if k not in known}
-        return cls(seq, float(t), arr, extra, depth, gravity)
+        return cls(seq, float(t), arr, extra, depth, gravity, world)
+
+
+def _rows_json(rows: np.ndarray) -> list:
+    """33 rows of five numbers as JSON: a row with an unknown value is ``null``."""
+    return [None if np.isnan(row).any() else [float(v) for v in row] for row in rows]
+
+
+def _parse_rows(raw: Any, key: str, what: str) -> np.ndarray | None:
+    """A frame's ``landmarks`` or ``world``: 33 entries of five finite numbers or null, as (33, 5) float64 with
+    NaN rows; None when absent/null. Raises ValueError naming the key and the entry."""
+    if raw is None:
+        return None
+    if not isinstance(raw, list) or len(raw) != NUM_LANDMARKS:
+        n = len(raw) if isinstance(raw, list) else type(raw).__name__
+        raise ValueError(f"{key} must be a list of 33 entries or null, got {n}")
+    arr = np.full((NUM_LANDMARKS, 5), np.nan)
+    for i, lm in enumerate(raw):
+        if lm is None:
+            continue
+        if not isinstance(lm, list) or len(lm) != 5 or not all(_is_number(v) for v in lm):
+            label = "landmark" if key == "landmarks" else key
+            raise ValueError(f"{label} {i} ({LANDMARK_NAMES[i]}) must be {what} finite numbers or null, got {lm!r}")
+        arr[i] = lm
+    return arr
 
 
 def _parse_depth_m(raw: Any) -> np.ndarray | None:

@@ -115,6 +115,8 @@ def test_squat_replay_messages_follow_the_schemas(squat):
     assert counts["posed.status"] >= 1
     poses = [v for _, _, v in squat["samples"] if v["format"] == "posed.pose" and v["ok"]]
     assert poses and all(len(p["joint_angles_deg"]) == 23 and len(p["variables"]) == 19 for p in poses)
+    frames = [v for _, _, v in squat["samples"] if v["format"] == "posed.landmarks_frame" and v["landmarks"]]
+    assert frames and all(len(v["world"]) == 33 for v in frames)          # BlazePose's world landmarks go out
     _check_replies(squat)
     assert squat["exit"] == 0
 

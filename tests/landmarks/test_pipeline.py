@@ -275,7 +275,9 @@ def test_result_extras_do_not_change_the_frame_json(landmarker, pose_jpg):
     result = _fresh(landmarker).process_full(image, 1.5, 7)
     assert landmarker.last_result is result
     obj = result.frame.to_json()
-    assert set(obj) == {"seq", "t", "landmarks"} and obj["seq"] == 7 and obj["t"] == 1.5
+    # the ROI, timings and aux landmarks stay out; the world landmarks are the frame's (interfaces.md section 1)
+    assert set(obj) == {"seq", "t", "landmarks", "world"} and obj["seq"] == 7 and obj["t"] == 1.5
+    assert result.world_landmarks is result.frame.world
     assert LandmarkFrame.from_json(json.loads(json.dumps(obj))) == result.frame
     assert result.aux_landmarks.shape == (2, 5) and result.next_roi is not None
     assert set(result.timings_ms) >= {"detector", "crop", "landmark_model", "decode", "smoothing"}
