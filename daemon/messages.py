@@ -38,12 +38,21 @@ class FrameRef:
     t_origin: float | None = None   # latency is measured from here (None: from t_capture); set only for
                                     # unpaced replays: the time the capture stage read the frame
     gravity: tuple[float, float, float] | None = None   # down, unit vector, colour camera axes (hal.Frame)
+    scale: int = 1         # the source's frame was scaled down by this whole factor to width x height (hal.resize)
+    source_size: tuple[int, int] | None = None   # (width, height) as the source delivered it; None: unscaled
+
+    @property
+    def full_size(self) -> tuple[int, int]:
+        """(width, height) of the frame as the source delivered it: the pixels landmarks are reported in."""
+        return self.source_size or (self.width, self.height)
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in ("slot", "seq", "t_capture", "width", "height", "has_depth")}
         out["intrinsics"] = None if self.intrinsics is None else self.intrinsics.to_json()
         out["t_origin"] = self.t_origin
         out["gravity"] = None if self.gravity is None else list(self.gravity)
+        out["scale"] = self.scale
+        out["source_size"] = None if self.source_size is None else list(self.source_size)
         return out
 
     @classmethod
@@ -55,7 +64,9 @@ class FrameRef:
                    has_depth=bool(obj.get("has_depth", False)),
                    intrinsics=None if intr is None else Intrinsics.from_json(intr),
                    t_origin=None if t_origin is None else float(t_origin),
-                   gravity=None if gravity is None else tuple(float(v) for v in gravity))
+                   gravity=None if gravity is None else tuple(float(v) for v in gravity),
+                   scale=int(obj.get("scale", 1)),
+                   source_size=None if obj.get("source_size") is None else tuple(int(v) for v in obj["source_size"]))
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,11 @@ ring), spawns the stage processes (spawn context), and then loops every 0.1 s:
 * status every ``pipeline.status_period_s``: per-stage fps, latency, drops, restarts, CPU and memory, camera
   state -> the publisher (posed/ROBOT/status) and STATUS= for systemd; WATCHDOG=1 while every stage is healthy;
   ``state`` is starting, running, waiting_for_camera (ready, but the camera cannot be opened or was lost:
-  the capture stage retries), degraded (a stage dead or stuck), escalated or stopping;
+  the capture stage retries), blind (the source is open but no frame reaches the landmark stage:
+  :mod:`daemon.proc.blind`; ``blind`` in the status has the reason and the fix, STATUS= says it and one error
+  line per ``logging.stats_period_s`` names them), degraded (a stage dead or stuck), escalated or stopping;
+* a recording replayed with ``pipeline.stop_at_end`` none of whose frames was processed ends the daemon with
+  exit status 65 (EX_DATAERR) and that reason, never 0;
 * a stage reporting a fatal problem (a missing model or input file) stops the daemon with exit status 78.
 
 SIGTERM/SIGINT stop the stages in pipeline order (capture first: it closes the camera), kill what has not
@@ -36,6 +40,7 @@ from dataclasses import dataclass
 from posed.daemon import clock, logs
 from posed.daemon.config import EX_CONFIG, Config
 from posed.daemon.proc import orphans, procstat, shm
+from posed.daemon.proc.blind import BlindWatch, Counts, blind_after_s
 from posed.daemon.proc.control import DOORBELLS, Control
 from posed.daemon.proc.health import CAMERA_STATES
 from posed.daemon.proc.notify import Notifier
@@ -48,6 +53,7 @@ from posed.daemon.version import __version__
 from posed.hal import is_realsense_recording, to_uri
 
 EX_SOFTWARE = 70   # escalated without a systemd watchdog to do the restart
+EX_DATAERR = 65    # a recording ended and none of its frames was processed
 TICK_S = 0.1
 
 
@@ -84,6 +90,11 @@ class Supervisor:
         self._next_stats_log = 0.0
         self._next_ping = 0.0
         self._ended_at: float | None = None
+        self._consumer = next((s.name for s in self.plan if s.input and any(
+            c.name == "capture" and c.output == s.input for c in self.plan)), None)
+        self._blind = BlindWatch(self._consumer or "landmarks", blind_after_s(config.pipeline.target_fps))
+        self._problem: dict | None = None        # the capture stage's last reported problem {error, fix}
+        self._next_blind_log = 0.0
         self.control: Control | None = None
         self.ring: FrameRing | None = None
         self._sem_record = None
@@ -142,7 +153,7 @@ class Supervisor:
         self.control = Control.create(names, doorbells)
         if any(s.uses_ring for s in self.plan):
             src = self.config.source
-            capacity = max(self.config.pipeline.frame_max_pixels, src.width * src.height)
+            capacity = self.config.pipeline.frame_max_pixels   # larger frames are scaled down at capture
             depth = src.type == "realsense" or is_realsense_recording(src.path)
             self.ring = FrameRing.create(self.config.pipeline.ring_slots, capacity, depth)
         self.log.info("daemon_start", robot=self.config.robot_id, stages=list(names),
@@ -183,6 +194,7 @@ class Supervisor:
             self._next_status = now + self.config.pipeline.status_period_s
             self._publish_status(now)
         self._maybe_ping(now)
+        self._watch_blind(now)
         self._check_end(now)
 
     def _read_reports(self) -> None:
@@ -192,6 +204,8 @@ class Supervisor:
                 continue
             if "camera" in info:
                 self._camera_info = dict(info["camera"])
+            if "problem" in info:
+                self._problem = dict(info["problem"])
             if "fatal" in info:
                 self._fatal(slot.spec.name, info["fatal"], info.get("fix", ""))
 
@@ -296,7 +310,44 @@ class Supervisor:
             self._ended_at = now
         busy = any(self.control.mailbox(s.input).pending() for s in self.plan if s.input)
         if not busy and now - self._ended_at > 1.0:
+            if self._consumer is not None and not self._blind.processed_any:
+                self._never_processed(now)
+                return
             self.request_stop("the recording ended (pipeline.stop_at_end)")
+
+    def _never_processed(self, now: float) -> None:
+        """A recording ended with none of its frames processed: say why and exit EX_DATAERR, never 0."""
+        blind = self._blind.update(now, True, "ended", self._counts(), self._problem) or {
+            "reason": "the recording ended and none of its frames was processed", "fix": ""}
+        self.log.error("recording_not_processed", reason=blind["reason"], fix=blind["fix"])
+        with contextlib.suppress(OSError):
+            print(f"posed: {blind['reason']}" + (f"\n  fix: {blind['fix']}" if blind["fix"] else ""), flush=True,
+                  file=sys.stderr)
+        self._exit_code = EX_DATAERR
+        self.request_stop("the recording ended and none of its frames was processed")
+
+    # ------------------------------------------------------------------ blind
+    def _counts(self) -> Counts:
+        cap = self.control.board.row("capture") if "capture" in self._slots else None
+        con = self.control.board.row(self._consumer) if self._consumer else None
+        if cap is None or con is None:
+            return Counts()
+        return Counts(captured=int(cap.get("frames")), bad_frames=int(cap.get("bad_frames")),
+                      timeouts=int(cap.get("errors")), processed=int(con.get("frames")),
+                      consumer_errors=int(con.get("errors")))
+
+    def _watch_blind(self, now: float) -> None:
+        if self._consumer is None:
+            return
+        was = self._blind.blind
+        camera = self.control.board.row("capture").camera
+        blind = self._blind.update(now, self._ready_sent, camera, self._counts(), self._problem)
+        if blind is not None and (was is None or now >= self._next_blind_log):
+            self._next_blind_log = now + self.config.logging.stats_period_s
+            self.log.error("blind", reason=blind["reason"], fix=blind["fix"], since_s=blind["since_s"],
+                           source=to_uri(self.config.source))
+        elif blind is None and was is not None:
+            self.log.info("blind_ended", note="frames reach the landmark stage again")
 
     # ------------------------------------------------------------------ status
     def _publish_status(self, now: float) -> None:
@@ -361,6 +412,8 @@ class Supervisor:
             state = "degraded"
         elif cap_row is not None and cap_row.camera in ("lost", "opening"):
             state = "waiting_for_camera"        # ready, but no camera to read (unplugged, wrong device)
+        elif self._blind.blind is not None:
+            state = "blind"                     # the source is open, but no frame gets through
         else:
             state = "running"
         return {
@@ -376,6 +429,7 @@ class Supervisor:
             "restarts": self.policy.total,
             "camera": {**self._camera_info, "state": cap_row.camera if cap_row else CAMERA_STATES[0],
                        "source": to_uri(self.config.source)},
+            "blind": self._blind.blind,
             "stages": stages,
             "supervisor": sup,
             "memory_mb": round(total_pss, 1),
@@ -426,9 +480,13 @@ def status_text(status: dict) -> str:
         error = f": {cam['error']}" if cam.get("error") else ""
         return (f"waiting_for_camera: {cam['source']} is not available{error}; retrying, restarts "
                 f"{status['restarts']}")
+    what = "recording" if cam.get("kind") == "file" else "camera"
+    if status["state"] == "blind" and status.get("blind"):
+        return (f"blind: {status['blind']['reason']}; fix: {status['blind']['fix']}; {what} {cam['state']}, "
+                f"restarts {status['restarts']}")
     e2e = status["latency_ms"]
     return (f"{status['state']}: {status['fps']:.1f} fps, latency p95 {fmt_ms(e2e['p95'])} ms, drops "
-            f"{status['drops']}, restarts {status['restarts']}, camera {cam['state']}")
+            f"{status['drops']}, restarts {status['restarts']}, {what} {cam['state']}")
 
 
 def _kill(proc: multiprocessing.Process) -> None:

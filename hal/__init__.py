@@ -9,12 +9,15 @@ Sources: ``realsense:[SERIAL]`` (pyrealsense2, imported only then), ``v4l2:/dev/
 Other packages import only the names of ``__all__`` from ``hal`` itself: sources (``open_source``,
 ``register``, ``REGISTRY``, ``Source``, ``Frame``), URIs (``parse_uri``, ``to_uri``, ``SourceConfig``,
 ``is_landmark_recording``, ``is_realsense_recording``), recording (``record``, ``check_output``,
-``RecordSummary``, ``Db3Writer``, loaded on first use) and the errors.
+``RecordSummary``, ``Db3Writer``, loaded on first use), frame sizes (``scale_factor``, ``working_size``,
+``downscale``, ``downscale_depth``, ``MAX_DECODE_PIXELS``: the capture stage's one downscale), the replay
+clock (``ReplayClock``) and the errors.
 docs/hal.md describes timestamps, recovery, fault injection and recording.
 """
 
 from typing import TYPE_CHECKING
 
+from posed.hal.clock import ReplayClock
 from posed.hal.config import SourceConfig
 from posed.hal.errors import (
     EndOfStream,
@@ -28,6 +31,7 @@ from posed.hal.errors import (
 from posed.hal.frame import Frame
 from posed.hal.recorder import RecordSummary, check_output, record
 from posed.hal.registry import REGISTRY, is_landmark_recording, is_realsense_recording, open_source, register
+from posed.hal.resize import MAX_DECODE_PIXELS, downscale, downscale_depth, scale_factor, working_size
 from posed.hal.source import Source
 from posed.hal.uri import parse_uri, to_uri
 
@@ -35,11 +39,13 @@ if TYPE_CHECKING:
     from posed.hal.db3 import Db3Writer
 
 __all__ = [
+    "MAX_DECODE_PIXELS",
     "REGISTRY",
     "Db3Writer",
     "EndOfStream",
     "Frame",
     "RecordSummary",
+    "ReplayClock",
     "Source",
     "SourceConfig",
     "SourceCorrupt",
@@ -49,13 +55,17 @@ __all__ = [
     "SourceTimeout",
     "SourceUnsupported",
     "check_output",
+    "downscale",
+    "downscale_depth",
     "is_landmark_recording",
     "is_realsense_recording",
     "open_source",
     "parse_uri",
     "record",
     "register",
+    "scale_factor",
     "to_uri",
+    "working_size",
 ]
 
 

@@ -448,7 +448,7 @@ class RealSenseSource(Source):
         rs = self._rs
         ts_s = float(colour.get_timestamp()) / 1000.0
         if self.playback is not None:
-            return self._timeline.time_at(self._timeline.since_first(ts_s))
+            return self._timeline.time_at(self._timeline.since_first(ts_s), self._frame_period())
         domain = colour.get_frame_timestamp_domain()
         if domain in (rs.timestamp_domain.global_time, rs.timestamp_domain.system_time):
             return min(wall_to_monotonic(ts_s), arrival)

@@ -10,6 +10,10 @@ handed out as fast as they are read and ``t`` still follows the recording.
 
 Looping: the next pass continues the time line (``rel`` plus the duration of the passes before) and ``seq``
 (plus one more than the last seq of the pass before), so ``t`` and ``seq`` keep increasing.
+
+Clock jumps: the time line goes through :class:`hal.clock.ReplayClock`, so a recorded timestamp that repeats,
+goes back, or leaps more than a minute forward never reaches ``t``: that frame comes one frame period after the
+one before (counted as ``clock_jumps``), paced or not, and the frames after it keep their recorded steps.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from posed.camera_model import Intrinsics
-from posed.hal.clock import wait_until_due
+from posed.hal.clock import ReplayClock, wait_until_due
 from posed.hal.config import SourceConfig
 from posed.hal.errors import EndOfStream
 from posed.hal.frame import Frame
@@ -87,6 +91,7 @@ class Timeline:
         self.pass_frames = 0
         self.pending: Frame | None = None        # produced, not yet handed out (its read timed out waiting)
         self.ended = False
+        self.clock = ReplayClock()               # repeated, backward and leaping timestamps (clock jumps)
 
     def read(self, timeout_s: float, produce: Callable[[float], Frame], realtime: bool) -> Frame:
         """The pending frame, else ``produce(deadline)``; with ``realtime`` held back until its ``t`` (but not
@@ -104,16 +109,18 @@ class Timeline:
         return frame
 
     def since_first(self, stamp_s: float) -> float:
-        """Seconds from the recording's first timestamp to ``stamp_s`` (the first call sets it; never < 0)."""
+        """Seconds from the recording's first timestamp to ``stamp_s`` (the first call sets it; negative for a
+        stamp before it: a clock that went back, which :meth:`time_at` turns into a clock jump)."""
         if self.first_stamp is None:
             self.first_stamp = stamp_s
-        return max(0.0, stamp_s - self.first_stamp)
+        return stamp_s - self.first_stamp
 
-    def time_at(self, rel: float) -> float:
-        """Monotonic ``t`` (seconds) of the frame ``rel`` seconds after the recording's first one, in this pass."""
+    def time_at(self, rel: float, period_s: float = 1.0 / 30.0) -> float:
+        """Monotonic ``t`` (seconds) of the frame ``rel`` seconds after the recording's first one, in this pass;
+        a clock jump (:class:`hal.clock.ReplayClock`) puts it ``period_s`` after the frame before."""
         assert self.t_start is not None
         self.last_rel = rel
-        return self.t_start + self.t_offset + rel
+        return self.clock.map(self.t_start + self.t_offset + rel, period_s)
 
     def add_frame(self, seq_in_pass: int) -> int:
         """Count a frame of this pass; its ``seq`` over all passes."""
@@ -152,7 +159,7 @@ class ReplaySource(Source):
         self.nominal_fps = 0.0
         self.size: tuple[int, int] | None = None
         self.sidecar: Timestamps | None = None
-        self.counters.update(corrupt=0, passes=0)
+        self.counters.update(corrupt=0, passes=0, clock_jumps=0)
 
     # -- subclass hooks -----------------------------------------------------------------------------------
     @abc.abstractmethod
@@ -212,7 +219,8 @@ class ReplaySource(Source):
                 self._rewind()
                 continue
             rel, seq_in_pass = self._timing(index, pts)
-            t, seq = line.time_at(rel), line.add_frame(seq_in_pass)
+            t, seq = line.time_at(rel, self._frame_period()), line.add_frame(seq_in_pass)
+            self.counters["clock_jumps"] = line.clock.jumps
             intr = config_intrinsics(self.config, image.shape[1], image.shape[0])
             if intr is None and self.sidecar is not None and self.sidecar.intrinsics is not None:
                 si = self.sidecar.intrinsics

@@ -47,15 +47,12 @@ class FrameTooLarge(ValueError):
 
 
 def too_large_fix(pixels: int) -> str:
-    """What to do about a frame of ``pixels`` that did not fit: a value of ``pipeline.frame_max_pixels``
-    within the key's own range, or (above its maximum) scaling the image down."""
-    from posed.daemon.config.sections import PipelineConfig
+    """What to do about an image of ``pixels`` that no source decodes (more than ``hal.MAX_DECODE_PIXELS``;
+    anything smaller is scaled down to a ring slot at capture, never skipped for its size)."""
+    from posed.hal import MAX_DECODE_PIXELS
 
-    hi = PipelineConfig.__dataclass_fields__["frame_max_pixels"].metadata["range"][1]
-    if pixels <= hi:
-        return f"raise pipeline.frame_max_pixels to at least {pixels}"
-    return (f"scale the image down: {pixels} pixels is more than the largest ring slot (pipeline.frame_max_pixels "
-            f"at most {hi}, 8192x8192), or remove it")
+    return (f"scale the image down to at most {MAX_DECODE_PIXELS} pixels (7680x4320, 8K UHD), the largest frame "
+            f"posed decodes (it has {pixels}); anything up to that is scaled down to a ring slot at capture")
 
 
 class FrameRing:
@@ -93,16 +90,18 @@ class FrameRing:
 
     def write(self, image: np.ndarray, seq: int, t_capture: float, depth: np.ndarray | None = None,
               depth_scale: float = 0.0, intrinsics: Intrinsics | None = None,
-              t_origin: float | None = None, gravity: tuple[float, float, float] | None = None) -> FrameRef:
+              t_origin: float | None = None, gravity: tuple[float, float, float] | None = None,
+              scale: int = 1, source_size: tuple[int, int] | None = None) -> FrameRef:
         """Copy one frame (H x W x 3 uint8, optional H x W uint16 depth) into the next slot; ``gravity`` (three
-        numbers) and the other small values travel on the FrameRef."""
+        numbers) and the other small values travel on the FrameRef (``scale``, ``source_size``: the frame was
+        scaled down at capture from a ``source_size`` frame by the whole factor ``scale``)."""
         h, w = image.shape[:2]
         if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
             raise ValueError(f"frames must be H x W x 3 uint8 BGR, got {image.shape} {image.dtype}")
         if h * w > self.spec.capacity_px:
             raise FrameTooLarge(
-                f"a {w}x{h} frame does not fit a ring slot of {self.spec.capacity_px} pixels; "
-                f"{too_large_fix(w * h)}")
+                f"a {w}x{h} frame does not fit a ring slot of {self.spec.capacity_px} pixels "
+                "(pipeline.frame_max_pixels): scale it down first by hal.scale_factor, as the capture stage does")
         has_depth = depth is not None and self._depths is not None
         slot = self._next
         self._next = (self._next + 1) % self.spec.slots
@@ -115,7 +114,8 @@ class FrameRing:
             self._depths[slot, : h * w] = np.asarray(depth, np.uint16).reshape(-1)
         hdr[0] += 1                                   # even: stable
         return FrameRef(slot=slot, seq=seq, t_capture=t_capture, width=w, height=h, has_depth=has_depth,
-                        intrinsics=intrinsics, t_origin=t_origin, gravity=gravity)
+                        intrinsics=intrinsics, t_origin=t_origin, gravity=gravity, scale=int(scale),
+                        source_size=None if source_size is None else (int(source_size[0]), int(source_size[1])))
 
     def read(self, ref: FrameRef) -> tuple[np.ndarray, np.ndarray | None, float] | None:
         """Copies of (image, depth or None, depth_scale) of ``ref``, or None if it was overwritten."""

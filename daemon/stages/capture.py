@@ -11,10 +11,18 @@
   of its slowest stage and a benchmark measures throughput without drops.
 * A disconnected or failing camera is closed and opened again with backoff (camera state ``lost``); a
   recording that ended leaves the stage idle (``ended``). A missing file or an unsupported source is fatal.
-* A bad frame (one that does not decode, or one larger than a ring slot: a 10000x10000 image in a folder) is
-  skipped and counted (``bad_frames`` in the status), logged with a rate limit (``frame_skipped``, with the
-  fix), never fatal; the source reads on with the next frame. Image files are measured on their header, so
-  an oversized one is never decoded.
+* Any frame size: a frame with more pixels than a ring slot (``pipeline.frame_max_pixels``, the working size)
+  is scaled down once, here, by the smallest whole factor that fits (``hal.scale_factor``: area interpolation,
+  0.5 ms for 1920x1080); the FrameRef carries the factor and the source's own size, and the landmark stage
+  reports landmarks in the source's pixels, so nothing downstream sees the scaling. ``camera`` in the status
+  has the source's size and the working size (``working_width``, ``working_height``, ``scale``).
+* A bad frame (one that does not decode, or an image above ``hal.MAX_DECODE_PIXELS``, 8K, which is never
+  decoded) is skipped and counted (``bad_frames`` in the status), logged with a rate limit (``frame_skipped``,
+  with the fix), never fatal; the source reads on with the next frame. The last problem (a bad frame, a read
+  timeout, a clock jump) goes to the supervisor with its fix, which says ``blind`` with it when no frame
+  reaches the landmark stage for a while.
+* A recording is a recording, not a camera: its log line is ``recording_open`` (``camera_open`` for a
+  camera) and the status' ``camera.kind`` says ``file``.
 
 ``run_recording`` replaces capture *and* landmarks for a ``*.landmarks.jsonl`` source: it reads the
 recording (``landmarks.recording``) and sends LandmarkMsg straight to the fitting stage, with capture
@@ -23,7 +31,10 @@ timestamps on the recording's time line from the start of the replay (like hal's
 would.
 
 For unpaced replays the capture timestamps follow the recording, not the wall clock, so the FrameRef also
-carries ``t_origin`` (when the frame was read), from which latency is measured.
+carries ``t_origin`` (when the frame was read), from which latency is measured. A landmark recording's time
+line goes through the same :class:`hal.ReplayClock` as hal's replays (a repeated, backward or leaping
+timestamp is a clock jump: one frame period after the frame before), paced or not, and its ``seq`` continues
+over the passes of a loop, as hal's do.
 """
 
 from __future__ import annotations
@@ -67,10 +78,12 @@ def run(rt: StageRuntime) -> None:
     src_cfg = rt.config.source
     paced = not (src_cfg.type == "file" and not src_cfg.realtime)
     thinner = _Thinner(rt.config.pipeline.target_fps)
+    slot_px = rt.ring.spec.capacity_px
     source = None
     failures = 0
     reported_ready = False
     throttle = Throttle()
+    news = _News(rt)
     rt.row.set_camera("opening")
     try:
         while True:
@@ -92,10 +105,9 @@ def run(rt: StageRuntime) -> None:
                         rt.ready()
                     continue
                 failures = 0
-                source.max_pixels = rt.ring.spec.capacity_px
+                source.max_pixels = max(slot_px, hal.MAX_DECODE_PIXELS)   # larger: never decoded
                 rt.row.set_camera("open")
-                rt.report(camera=_info(source))
-                rt.log.info("camera_open", **_info(source))
+                news.opened(source)
                 if not reported_ready:
                     reported_ready = True
                     rt.ready()
@@ -103,27 +115,27 @@ def run(rt: StageRuntime) -> None:
             try:
                 frame = source.read(src_cfg.read_timeout_s)
                 t_origin = None if paced else clock.now()    # unpaced: latency counts from the read
-            except SourceTimeout:
+            except SourceTimeout as exc:
                 rt.error()
+                news.problem(str(exc), _timeout_fix(src_cfg))
                 continue
             except SourceCorrupt as exc:
-                _bad_frame(rt, throttle, str(exc), exc.pixels)
+                _bad_frame(rt, throttle, news, str(exc), exc.pixels, source)
                 continue
             except EndOfStream:
                 rt.row.set_camera("ended")
-                rt.report(camera={"state": "ended"})
-                rt.log.info("recording_ended", frames=int(rt.row.get("frames")))
+                news.ended(source)
                 _close(source)
                 source = None
                 while True:
                     sleep_until(clock.now() + 0.2, rt)
             except SourceError as exc:
                 rt.row.set_camera("lost")
-                rt.report(camera={"state": "lost", "error": str(exc)})
-                rt.log.warning("camera_lost", error=str(exc))
+                news.lost(str(exc))
                 _close(source)
                 source = None
                 continue
+            news.frame(source, frame)
             if not thinner.take(frame.t):
                 rt.skip()
                 continue
@@ -132,13 +144,10 @@ def run(rt: StageRuntime) -> None:
             with rt.step():
                 t0 = clock.now()
                 try:
-                    ref = rt.ring.write(frame.image, frame.seq, frame.t, frame.depth,
-                                        float(getattr(frame, "depth_scale", 0.0) or 0.0),
-                                        getattr(frame, "intrinsics", None), t_origin=t_origin,
-                                        gravity=getattr(frame, "gravity", None))
-                except FrameTooLarge as exc:
+                    ref = _to_ring(rt, frame, slot_px, t_origin)
+                except FrameTooLarge as exc:        # cannot happen after the scaling; kept as a guard
                     ref = None
-                    _bad_frame(rt, throttle, str(exc), None)
+                    _bad_frame(rt, throttle, news, str(exc), None, source)
                 if ref is not None:
                     rt.send(ref)
             if ref is not None:
@@ -148,14 +157,134 @@ def run(rt: StageRuntime) -> None:
         rt.row.set_camera("none")
 
 
-def _bad_frame(rt: StageRuntime, throttle: Throttle, error: str, pixels: int | None) -> None:
-    """Skip and count a frame that cannot be used; log it (at most a few lines a minute)."""
+def _to_ring(rt: StageRuntime, frame, slot_px: int, t_origin: float | None):
+    """Write ``frame`` to the ring, scaled down by a whole factor first when it has more pixels than a slot."""
+    from posed.hal import downscale, downscale_depth, scale_factor
+
+    image, depth = frame.image, frame.depth
+    h, w = image.shape[:2]
+    k = scale_factor(w, h, slot_px)
+    if k > 1:
+        image = downscale(image, k)
+        depth = None if depth is None else downscale_depth(depth, k)
+    return rt.ring.write(image, frame.seq, frame.t, depth, float(getattr(frame, "depth_scale", 0.0) or 0.0),
+                         getattr(frame, "intrinsics", None), t_origin=t_origin,
+                         gravity=getattr(frame, "gravity", None), scale=k,
+                         source_size=(w, h) if k > 1 else None)
+
+
+class _News:
+    """What the capture stage tells the supervisor (``report(camera=..., problem=...)``) and the log: the source
+    it opened (a camera or a recording), its size and the working size once the first frame came, clock jumps,
+    and the last problem (with its fix) at most twice a second. Every report carries the camera info, so a
+    problem never hides it (the report mailbox keeps only the latest message)."""
+
+    def __init__(self, rt: StageRuntime) -> None:
+        self.rt = rt
+        self.camera: dict = {}
+        self.size: tuple[int, int] | None = None
+        self.next_refresh = 0.0
+        self.next_problem = 0.0
+        self.jumps = 0
+
+    def _send(self, **extra) -> None:
+        self.rt.report(camera=dict(self.camera), **extra)
+
+    def opened(self, source) -> None:
+        info = _info(source)
+        self.camera = {**info, "kind": _kind(info)}
+        self.size = None
+        event = "recording_open" if self.camera["kind"] == "file" else "camera_open"
+        self.rt.log.info(event, **self.camera)
+        self._send()
+
+    def frame(self, source, frame) -> None:
+        size = (frame.width, frame.height)
+        now = clock.now()
+        if size != self.size:                       # the first frame: what the source really delivers
+            from posed.hal import scale_factor, working_size
+
+            self.size = size
+            ww, wh = working_size(*size, self.rt.ring.spec.capacity_px)
+            self.camera.update(frame_width=size[0], frame_height=size[1], working_width=ww, working_height=wh,
+                               scale=scale_factor(*size, self.rt.ring.spec.capacity_px))
+            self.rt.log.info("frame_size", source_width=size[0], source_height=size[1], working_width=ww,
+                             working_height=wh, scaled=ww != size[0],
+                             slot_pixels=self.rt.ring.spec.capacity_px)
+            self._send()
+        elif now >= self.next_refresh:              # counters (frames, clock jumps, corrupt ...) once a second
+            self.next_refresh = now + 1.0
+            self.camera.update(_info(source))
+            jumps = int(self.camera.get("clock_jumps", 0) or 0)
+            if jumps > self.jumps:
+                self.jumps = jumps
+                self.problem(f"{self.camera.get('name', 'the source')}: its timestamps jumped ({jumps} clock "
+                             "jumps so far: a repeated or backward timestamp, or a leap of more than a minute); "
+                             "each such frame was placed one frame period after the one before",
+                             "none needed; if the recording's timestamps are wrong, re-record it", warn=True)
+            else:
+                self._send()
+
+    def problem(self, error: str, fix: str, warn: bool = False) -> None:
+        now = clock.now()
+        if warn:
+            self.rt.log.warning("clock_jump", error=error, fix=fix)
+        if now >= self.next_problem or warn:
+            self.next_problem = now + 0.5
+            self._send(problem={"error": error, "fix": fix})
+
+    def ended(self, source) -> None:
+        self.camera.update(_info(source) if source is not None else {})
+        self.camera["state"] = "ended"
+        self.rt.log.info("recording_ended", frames=int(self.rt.row.get("frames")),
+                         bad_frames=int(self.rt.row.get("bad_frames")))
+        self._send()
+
+    def lost(self, error: str) -> None:
+        self.camera.update(state="lost", error=error)
+        self.rt.log.warning("camera_lost", error=error)
+        self._send()
+
+
+def _kind(info: dict) -> str:
+    kind = str(info.get("kind", ""))
+    return kind if kind in ("file", "v4l2", "realsense") else (kind or "source")
+
+
+def _timeout_fix(src_cfg) -> str:
+    if src_cfg.type == "file":
+        return ("none needed if the recording has a gap there (a paced replay waits for each frame's time); "
+                "else check the file, or replay it unpaced (source.realtime=false)")
+    return "check the camera: its cable, power and that no other program holds it (source.read_timeout_s)"
+
+
+def _bad_frame(rt: StageRuntime, throttle: Throttle, news: _News, error: str, pixels: int | None,
+               source=None) -> None:
+    """Skip and count a frame that cannot be used; log it (at most a few lines a minute) with the fix that
+    fits what was wrong, and tell the supervisor."""
     rt.bad_frame()
+    fix = _corrupt_fix(pixels, source)
+    news.problem(error, fix)
     suppressed = throttle.allow("bad_frame")
     if suppressed is not None:
-        fix = too_large_fix(pixels) if pixels else "replace or delete the file"
         rt.log.warning("frame_skipped", error=error, fix=fix, bad_frames=int(rt.row.get("bad_frames")),
                        suppressed=suppressed)
+
+
+def _corrupt_fix(pixels: int | None, source) -> str:
+    from pathlib import Path
+
+    if pixels:
+        return too_large_fix(pixels)
+    kind = getattr(source, "kind", "")
+    path = getattr(getattr(source, "inner", source), "path", "") or ""
+    if kind == "file" and path and (Path(path).is_dir() or Path(path).suffix.lower() in
+                                    (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm")):
+        return "replace or delete the image named in the error"
+    if kind == "file":
+        return ("the video does not decode there: re-encode it (ffmpeg -i IN.mp4 -c:v libx264 OUT.mp4) or "
+                "record it again")
+    return "check the camera's cable and pixel format (source.mjpg); the frames it sends do not decode"
 
 
 def _failed_open(rt: StageRuntime, source, exc: Exception, failures: int):
@@ -185,29 +314,40 @@ def _close(source) -> None:
 
 def run_recording(rt: StageRuntime) -> None:
     """Replay a ``*.landmarks.jsonl`` recording as the landmark stage's output."""
+    from posed.hal import ReplayClock
     from posed.landmarks import RecordingError, RecordingProblem, iter_recording
 
     src = rt.config.source
     thinner = _Thinner(rt.config.pipeline.target_fps)
     problems = 0
     first = True
+    line = ReplayClock()             # the capture clock of every replay (hal.clock): no repeats, no leaps
+    t_offset = 0.0                   # recording seconds of the passes before this one
+    seq_offset = 0                   # seq continues over the passes of a loop
+    last_rel = 0.0
+    last_seq = -1
+    passes = 0
+    info: dict = {}
     while True:
         try:
             header, stream = iter_recording(src.path)
         except RecordingError as exc:
             rt.fatal(str(exc), fix="check source.path (or --source file:PATH.landmarks.jsonl)")
+        period = 1.0 / header.fps if header.fps and header.fps > 0 else 1.0 / src.fps
         if first:
             rt.row.set_camera("open")
-            info = {"kind": "landmark recording", "fps": header.fps,
-                    "image_size": list(header.image_size)}
+            info = {"kind": "file", "what": "landmark recording", "name": f"file:{src.path}",
+                    "fps": header.fps, "image_size": list(header.image_size)}
             rt.report(camera=info)
-            rt.log.info("camera_open", **info)
+            rt.log.info("recording_open", **info)
             rt.ready()
             rt.wait_go()
             first = False
+            t_start = clock.now()
         intrinsics = header.camera
-        t_start = clock.now()
         t_first: float | None = None
+        seq_first: int | None = None
+        pass_frames = 0
         for item in stream:
             rt.beat()
             rt.check_stop()
@@ -216,29 +356,44 @@ def run_recording(rt: StageRuntime) -> None:
                 rt.error()
                 if problems <= 3:
                     rt.log.warning("recording_problem", problem=str(item))
+                rt.report(camera=info, problem={"error": str(item),
+                                                "fix": "repair or re-record the recording (the line named)"})
                 continue
             if t_first is None:
                 t_first = item.t
+            last_rel = item.t - t_first
+            jumps = line.jumps
+            t_capture = line.map(t_start + t_offset + last_rel, period)   # the recording's time line
+            if line.jumps > jumps and line.jumps <= 3:
+                rt.log.warning("clock_jump", seq=item.seq, step_s=round(line.last_jump_s, 3),
+                               note="a repeated, backward or leaping timestamp: placed one frame period after "
+                                    "the frame before")
             if src.realtime:
-                sleep_until(t_start + (item.t - t_first), rt, slice_s=0.05)
-            if not thinner.take(t_start + (item.t - t_first)):
+                sleep_until(t_capture, rt, slice_s=0.05)
+            if seq_first is None:
+                seq_first = item.seq
+            seq = item.seq if passes == 0 else seq_offset + item.seq - seq_first
+            last_seq = seq
+            pass_frames += 1
+            if not thinner.take(t_capture):
                 rt.skip()
                 continue
             if not src.realtime:
                 rt.wait_taken()
             with rt.step():
                 t_in = clock.now()
-                t_capture = t_start + (item.t - t_first)      # the recording's time line
-                frame = replace(item, t=t_capture)   # depth_m, gravity and unknown fields travel on
+                frame = replace(item, t=t_capture, seq=seq)   # depth_m, gravity and unknown fields travel on
                 msg = LandmarkMsg(frame, t_capture, tuple(header.image_size), intrinsics, (),
                                   None if src.realtime else t_in)
                 rt.send(msg)
             rt.done(clock.now() - t_in, origin(msg))
-        if not src.loop:
+        if not src.loop or pass_frames == 0:
             break
-        thinner.last = None
+        t_offset += last_rel + period            # the next pass continues the time line ...
+        seq_offset = last_seq + 1                # ... and seq, as hal's replays do
+        passes += 1
     rt.row.set_camera("ended")
-    rt.report(camera={"state": "ended"})
-    rt.log.info("recording_ended", frames=int(rt.row.get("frames")))
+    rt.report(camera={**info, "state": "ended", "clock_jumps": line.jumps})
+    rt.log.info("recording_ended", frames=int(rt.row.get("frames")), problems=problems, clock_jumps=line.jumps)
     while True:
         sleep_until(clock.now() + 0.2, rt)

@@ -8,6 +8,12 @@ Depth: when the frame came with a depth image aligned to it (``FrameRef.has_dept
 recording), the depth at each landmark (``landmarks.with_depth``, metres) goes to the fitting stage on the
 frame itself, ``LandmarkMsg.frame.depth_m``; otherwise (no depth, or no person) ``depth_m`` is None.
 
+Frame sizes: a frame the capture stage scaled down (``FrameRef.scale`` k > 1, hal.resize) is processed at its
+working size, and its landmarks go on in the source's own pixels: x, y and z (pixels on the x scale) times k,
+``image_size`` the source's size (``FrameRef.full_size``), the intrinsics the source's. So the fit, the fall
+detector, the landmarks topic and a recording are the same as with the frame at full size, and ``posed
+render`` draws them on the original video. The depth at the landmarks is sampled before, on the scaled depth.
+
 Gravity: the camera accelerometer's down direction (``FrameRef.gravity``, hal.imu) goes on the frame too,
 ``LandmarkMsg.frame.gravity``, person or not: the fall detector's camera geometry follows it.
 """
@@ -15,6 +21,8 @@ Gravity: the camera accelerometer's down direction (``FrameRef.gravity``, hal.im
 from __future__ import annotations
 
 from dataclasses import replace
+
+import numpy as np
 
 from posed.daemon import clock
 from posed.daemon.messages import LandmarkMsg, origin
@@ -52,6 +60,8 @@ def run(rt: StageRuntime) -> None:
             last_seq = ref.seq
             try:
                 frame = with_depth(landmarker.process(image, ref.t_capture, ref.seq), depth, depth_scale)
+                if ref.scale != 1:
+                    frame = to_source_pixels(frame, ref.scale)
                 if ref.gravity is not None:
                     frame = replace(frame, gravity=ref.gravity)
             except Exception as exc:  # one bad frame must not stop the pipeline
@@ -62,7 +72,17 @@ def run(rt: StageRuntime) -> None:
                 landmarker.reset()
                 continue
             t_out = clock.now()
-            rt.send(LandmarkMsg(frame, ref.t_capture, (ref.width, ref.height), ref.intrinsics,
+            rt.send(LandmarkMsg(frame, ref.t_capture, ref.full_size, ref.intrinsics,
                                 (("landmarks_in", t_in), ("landmarks_out", t_out)), ref.t_origin),
                     lossless=ref.t_origin is not None)
         rt.done(t_out - t_in, origin(ref), t_out)
+
+
+def to_source_pixels(frame, k: int):
+    """``frame`` (a LandmarkFrame of an image scaled down by the whole factor ``k``) with its landmarks in the
+    pixels of the source's image: x, y and z times ``k`` (visibility and presence as they are)."""
+    if frame.landmarks is None or k == 1:
+        return frame
+    lm = np.array(frame.landmarks, dtype=np.float64, copy=True)
+    lm[:, :3] *= float(k)
+    return replace(frame, landmarks=lm)

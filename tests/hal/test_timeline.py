@@ -69,10 +69,13 @@ def test_realtime_frame_due_after_the_timeout_stays_pending():
     assert (again.seq, again.t, clock.now, len(produced)) == (1, 100.5, pytest.approx(100.5), 2)
 
 
-def test_since_first_is_never_negative():
+def test_a_stamp_before_the_first_is_a_clock_jump_not_a_step_back():
     clock = FakeClock()
     line = Timeline("test", clock, clock.sleep)
-    assert (line.since_first(10.0), line.since_first(10.25), line.since_first(9.0)) == (0.0, 0.25, 0.0)
+    line.t_start = 100.0
+    ts = [line.time_at(line.since_first(s), 0.1) for s in (10.0, 10.25, 9.0, 9.05)]
+    assert ts == pytest.approx([100.0, 100.25, 100.35, 100.40])     # one period after, then the recorded step
+    assert line.clock.jumps == 1
 
 
 @pytest.mark.parametrize(("name", "sink"), [("a.db3", _Db3Sink), ("a.MKV", _VideoSink), ("dir/a.avi", _VideoSink),
