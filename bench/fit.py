@@ -36,7 +36,7 @@ from posed.fitting import BODY_LANDMARK_NAMES, VARIABLE_NAMES, FitConfig, Fitter
 ANGLES = VARIABLE_NAMES[1:]  # the 18 estimated joint and body angles
 HEIGHT_M = 1.60              # the paper's subject: average Korean woman in her twenties
 IMAGE_SIZE = (640, 480)
-PROTOCOLS = ("paper_poses", "floor_poses", "motion", "table3", OOD.PROTOCOL, "squat_video")
+PROTOCOLS = ("paper_poses", "floor_poses", "motion", "table3", OOD.PROTOCOL, "squat_video", "balancing_video")
 IN_DOMAIN = "in-domain"
 NULL_DIRECTION = {"theta_bd": 1.0, "theta_tr": -1.0, "theta_hp_l": 1.0, "theta_hp_r": 1.0}
 
@@ -246,17 +246,17 @@ class Plan:
     table3: bool
     sequences: tuple[str, ...]
     ood: OOD.OodPlan | None = None     # the out-of-domain protocol (None: not run)
-    squat_video: bool = False          # the real squat video, video mode against image mode (bench.squat_video)
+    real_video: bool = False           # the real videos: squat (video mode against image mode), balancing (3D truth)
 
 
 FULL = Plan(paper_yaws=(20.0, 25.0, 30.0, 35.0, 40.0), floor_yaws=(-150.0, -90.0, -30.0, 30.0, 90.0, 150.0),
             motion_yaws=(20.0, 30.0, 40.0, 120.0, -60.0), seeds=(0, 1, 2, 3), motion_seeds=(0,),
             settings=((6, 6), (10, 8), (20, 12)), noises=(0.0, 0.01), table3=True, sequences=S.SEQUENCE_NAMES,
-            ood=OOD.FULL_OOD, squat_video=True)
+            ood=OOD.FULL_OOD, real_video=True)
 QUICK = Plan(paper_yaws=(20.0, 30.0, 40.0), floor_yaws=(-90.0, 30.0, 150.0), motion_yaws=(30.0,),
              seeds=(0,), motion_seeds=(0,), settings=((6, 6),), noises=(0.0, 0.01), table3=False,
              sequences=("stand_to_sit", "fall_forward", "fall_sideways"), ood=OOD.QUICK_OOD,
-             squat_video=True)
+             real_video=True)
 
 
 def protocol_description(plan: Plan) -> dict:
@@ -322,10 +322,16 @@ def run(plan: Plan = FULL, base: FitConfig | None = None, progress: Callable[[st
         ood = OOD.run(plan.ood, base, progress=say)
         description[OOD.PROTOCOL] = {**ood["description"], "cameras": ood["cameras"], "depth_sim": ood["depth_sim"]}
         results.extend(ood["results"])
-    if plan.squat_video and "squat_video" in wanted:
+    if plan.real_video and "squat_video" in wanted:
         from posed.bench import squat_video
         from posed.daemon.preflight import shared_data
         say("squat_video")
         description["squat_video"] = squat_video.__doc__.split("\n\n")[1].replace("\n", " ")
         results.extend(squat_video.run(shared_data(), replace(base, body_height_m=1.65)))
+    if plan.real_video and "balancing_video" in wanted:
+        from posed.bench import balancing_video
+        from posed.daemon.preflight import shared_data
+        say("balancing_video")
+        description["balancing_video"] = balancing_video.__doc__.split("\n\n")[1].replace("\n", " ")
+        results.extend(balancing_video.run(shared_data(), base))
     return {"protocol": description, "machine": machine(speed_ref_before), "results": results}

@@ -21,10 +21,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
                         help="override one config key, e.g. --set fitting.pose_prior=0")
     parser.add_argument("--protocol", action="append", default=[], dest="protocols", metavar="NAME",
-                        choices=("paper_poses", "floor_poses", "motion", "table3", "ood_mocap", "squat_video"),
+                        choices=("paper_poses", "floor_poses", "motion", "table3", "ood_mocap", "squat_video",
+                                 "balancing_video"),
                         help="run only this protocol (repeat for several; default: all): paper_poses, "
                              "floor_poses, motion, table3 (in-domain), ood_mocap (out-of-domain), "
-                             "squat_video (real video: video mode against image mode)")
+                             "squat_video (real video: video mode against image mode), balancing_video (real "
+                             "video from 4 calibrated cameras with 3D truth, beside BlazePose's world landmarks)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,6 +77,13 @@ def markdown(report: dict) -> str:
                          f"{r['knee_diff_max_where_image_better_deg']} | "
                          f"{r['frames_over_8deg_where_image_better'] or '-'} | {k['image']} / {k['video']} | "
                          f"{ms['image']} / {ms['video']} | {met} | {_same_body(r.get('same_body'))} |")
+    bal = [r for r in report["results"] if r["protocol"] == "balancing_video"]
+    if bal:
+        from posed.bench.balancing_video import markdown as balancing_markdown
+
+        lines += ["", "Real video with 3D truth (balancing_video: 4 calibrated views, posed's own landmarks, the "
+                      "cameras' intrinsics; the fit and BlazePose's world landmarks on the same frames):", ""]
+        lines += balancing_markdown(bal)
     t3 = [r for r in report["results"] if r["protocol"] == "table3"]
     if t3:
         lines += ["", "Table 3 (paper's uDEAS alone, Table 1 bounds, noise-free six poses):", "",

@@ -1,0 +1,276 @@
+"""Protocol ``balancing_video`` of ``posed bench fit``: the fit on real video against real 3D, beside the 3D a
+MediaPipe user already has (BlazePose's own world landmarks) on the same frames.
+
+Data (../shared/data/reference/pose2sim_demo, Pose2Sim's demo, BSD-3-Clause): one man balancing on one leg,
+arms moving, filmed by 4 calibrated, synchronised cameras (portrait full HD, 60 fps, 100 frames each); his 3D
+joints triangulated from all four views (markerless: a floor of 2-3 cm, errors shared with a 2D detector).
+Each view goes through posed's own landmark stage (``posed landmarks``: BlazePose full, video mode, the world
+landmarks kept), its pixels are undistorted with the calibration, and the fit gets the camera's true
+intrinsics, the default config otherwise (no height given: video mode learns the proportions), at the
+daemon's 10 fps (every 6th frame) in video and image mode, and at the video's 60 fps in video mode.
+
+Per frame where both the fit and BlazePose answered (the same frames for both), on the 12 body joints
+(shoulders, elbows, wrists, hips, knees, ankles) in the camera frame: PA-MPJPE (similarity-aligned, mm),
+MPJPE with the mid-hips together but no rotation (mm: depth order counts), limb depth flips (limb segments
+whose true depth difference exceeds 5 cm and whose estimate has the other sign), the 8 angles from 3D joint
+positions (the same formula for truth and estimate, ``bench.ood.segment_angles``), and for the fit also the
+mid-hip's position (``root_cam_m``) against the truth and the four views' agreement on it (the spread of the
+four world positions). Baseline: the 2D landmarks with zero depth (PA-MPJPE).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from posed.bench import ood as O
+from posed.bench.mocap_landmarks import BODY12, BODY12_IDX
+from posed.camera_model import Intrinsics
+from posed.fitting import FitConfig, Fitter
+from posed.landmarks import read_recording
+
+PROTOCOL = "balancing_video"
+DOMAIN = "real video"
+DATA = Path("reference") / "pose2sim_demo"
+CAMERAS = ("cam01", "cam02", "cam03", "cam04")
+VIDEO_FPS = 60.0
+RUNS = (("video", 10.0), ("image", 10.0), ("video", 60.0))   # (mode, fps): the daemon's rate, and every frame
+# posed's joint names -> the triangulated markers' names (truth_3d.trc)
+TRC_NAMES = {"left_shoulder": "LShoulder", "right_shoulder": "RShoulder", "left_elbow": "LElbow",
+             "right_elbow": "RElbow", "left_wrist": "LWrist", "right_wrist": "RWrist", "left_hip": "LHip",
+             "right_hip": "RHip", "left_knee": "LKnee", "right_knee": "RKnee", "left_ankle": "LAnkle",
+             "right_ankle": "RAnkle"}
+
+
+@dataclass(frozen=True)
+class Camera:
+    """One calibrated view: ``k`` intrinsics matrix, ``dist`` OpenCV distortion, ``rot`` (3, 3) and ``t`` (3,)
+    taking world points (m) into the camera frame (x right, y down, z forward): p_cam = rot @ p_world + t."""
+
+    name: str
+    k: np.ndarray
+    dist: np.ndarray
+    rot: np.ndarray
+    t: np.ndarray
+
+    def to_camera(self, p_world: np.ndarray) -> np.ndarray:
+        return np.asarray(p_world, float) @ self.rot.T + self.t
+
+    def to_world(self, p_cam: np.ndarray) -> np.ndarray:
+        return (np.asarray(p_cam, float) - self.t) @ self.rot
+
+    def intrinsics(self, image_size: tuple[int, int]) -> Intrinsics:
+        return Intrinsics(float(self.k[0, 0]), float(self.k[1, 1]), float(self.k[0, 2]), float(self.k[1, 2]),
+                          int(image_size[0]), int(image_size[1]))
+
+    def undistort(self, landmarks: np.ndarray) -> np.ndarray:
+        """(33, 5) landmark rows with their pixels moved to where a distortion-free camera sees them."""
+        out = np.array(landmarks, float)
+        ok = np.isfinite(out[:, :2]).all(axis=1)
+        if ok.any():
+            pts = cv2.undistortPoints(out[ok, :2].reshape(-1, 1, 2), self.k, self.dist, P=self.k)
+            out[ok, :2] = pts.reshape(-1, 2)
+        return out
+
+
+def load_cameras(folder: Path) -> dict[str, Camera]:
+    """The four views of calibration.toml (rotation as a Rodrigues vector)."""
+    cal = tomllib.loads((folder / "calibration.toml").read_text())
+    out = {}
+    for name in CAMERAS:
+        c = cal[f"cam_{name[3:]}"]
+        rot, _ = cv2.Rodrigues(np.asarray(c["rotation"], float))
+        out[name] = Camera(name, np.asarray(c["matrix"], float), np.asarray(c["distortions"], float), rot,
+                           np.asarray(c["translation"], float))
+    return out
+
+
+def load_truth(folder: Path) -> np.ndarray:
+    """(frames, 12, 3) the 12 body joints (``BODY12`` order) in the calibration's world frame, metres; a .trc
+    point (X, Y, Z) is the world point (Z, X, Y) (data README)."""
+    lines = (folder / "balancing" / "truth_3d.trc").read_text().splitlines()
+    names = [n for n in lines[3].split("\t")[2:] if n]
+    rows = [ln.split("\t") for ln in lines[5:] if ln.strip()]
+    data = np.array([[float(v) for v in r[2:2 + 3 * len(names)]] for r in rows]).reshape(len(rows), len(names), 3)
+    idx = [names.index(TRC_NAMES[n]) for n in BODY12]
+    return data[:, idx][:, :, [2, 0, 1]]
+
+
+def landmark_recording(video: Path, cache: Path) -> Path:
+    """posed's own landmark stage on one view (``posed landmarks``), cached beside the other bench inputs."""
+    out = cache / f"{video.stem}.landmarks.jsonl"
+    if not out.is_file() or out.stat().st_mtime < video.stat().st_mtime:
+        from posed.cli import main
+
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with contextlib.redirect_stdout(sys.stderr):
+            if main(["landmarks", str(video), "-o", str(out)]) != 0:
+                raise RuntimeError(f"posed landmarks failed on {video}")
+    return out
+
+
+@dataclass
+class _View:
+    camera: Camera
+    image_size: tuple[int, int]
+    landmarks: list[np.ndarray | None]        # undistorted (33, 5) per frame, None: no person
+    world: list[np.ndarray | None]            # BlazePose's world landmarks (33, 5) per frame
+    truth_cam: np.ndarray                     # (frames, 12, 3) camera frame
+
+
+def _load_view(camera: Camera, recording: Path, truth_world: np.ndarray) -> _View:
+    header, frames, problems = read_recording(recording)
+    if problems:
+        raise RuntimeError(f"{recording}: {problems[0]}")
+    lms = [None if f.landmarks is None else camera.undistort(f.landmarks) for f in frames]
+    world = [f.world for f in frames]
+    return _View(camera, tuple(header.image_size), lms, world, camera.to_camera(truth_world))
+
+
+def _mid_hip(j: np.ndarray) -> np.ndarray:
+    return 0.5 * (j[BODY12.index("left_hip")] + j[BODY12.index("right_hip")])
+
+
+class _Scores:
+    """Per-frame errors of one estimate (mm, degrees, flips)."""
+
+    def __init__(self) -> None:
+        self.pa: list[float] = []
+        self.rel: list[float] = []
+        self.angle: list[float] = []
+        self.flips = [0, 0]
+        self.per_joint: list[np.ndarray] = []
+
+    def add(self, est: np.ndarray, truth: np.ndarray) -> None:
+        aligned = O.procrustes_align(est, truth)
+        self.per_joint.append(np.linalg.norm(aligned - truth, axis=1) * 1e3)
+        self.pa.append(float(self.per_joint[-1].mean()))
+        self.rel.append(O.mpjpe(est - _mid_hip(est), truth - _mid_hip(truth)) * 1e3)
+        self.angle.append(float(np.abs(O.segment_angles(est) - O.segment_angles(truth)).mean()))
+        f, c = O.depth_flips(est, truth)
+        self.flips[0] += f
+        self.flips[1] += c
+
+    def summary(self) -> dict:
+        if not self.pa:
+            return {}
+        joints = np.mean(self.per_joint, axis=0)
+        return {"pa_mpjpe_mm": round(float(np.mean(self.pa)), 1), "pa_mpjpe_median_mm": round(float(np.median(self.pa)), 1),
+                "mpjpe_hip_aligned_mm": round(float(np.mean(self.rel)), 1),
+                "angle_err_deg": round(float(np.mean(self.angle)), 2),
+                "depth_flips": round(self.flips[0] / max(self.flips[1], 1), 3),
+                "per_joint_pa_mm": {n: round(float(v), 1) for n, v in zip(BODY12, joints, strict=True)}}
+
+
+def _fit_view(view: _View, mode: str, fps: float, base: FitConfig) -> dict:
+    step = round(VIDEO_FPS / fps)
+    fitter = Fitter(base)
+    k = view.camera.intrinsics(view.image_size)
+    fit, world, flat = _Scores(), _Scores(), _Scores()
+    frames = answered = 0
+    root_err: list[float] = []
+    roots: dict[int, np.ndarray] = {}
+    for i in range(0, len(view.landmarks), step):
+        frames += 1
+        lm = view.landmarks[i]
+        r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k)
+        w = view.world[i]
+        if not r.ok or w is None or lm is None:
+            continue
+        est_w = w[BODY12_IDX, :3]
+        if not np.isfinite(est_w).all():
+            continue
+        answered += 1
+        truth = view.truth_cam[i]
+        fit.add(O.fitted_joints(r), truth)
+        world.add(est_w, truth)
+        flat.add(np.column_stack([lm[BODY12_IDX, :2], np.zeros(12)]), truth)
+        root = O.root_cam(r)
+        if root is not None:
+            root_err.append(float(np.linalg.norm(root - _mid_hip(truth))) * 1e3)
+            roots[i] = view.camera.to_world(root)
+    return {"frames": frames, "answered": answered, "fit": fit.summary(), "blazepose_world": world.summary(),
+            "flat_2d": {"pa_mpjpe_mm": flat.summary().get("pa_mpjpe_mm")},
+            "root_err_mm": round(float(np.median(root_err)), 1) if root_err else None, "_roots": roots}
+
+
+def run(shared_data: Path, base: FitConfig | None = None, cache: Path | None = None) -> list[dict]:
+    """One row per (view, mode, fps) and one row per (mode, fps) over the four views (see the module
+    docstring)."""
+    from posed.daemon.preflight import cache_dir
+
+    base = base or FitConfig()
+    folder = shared_data / DATA
+    cameras = load_cameras(folder)
+    truth = load_truth(folder)
+    cache = cache or cache_dir() / "bench" / PROTOCOL
+    views = {n: _load_view(cameras[n], landmark_recording(folder / "balancing" / f"{n}.mp4", cache), truth)
+             for n in CAMERAS}
+    Fitter(base).warmup()
+    rows = []
+    for mode, fps in RUNS:
+        per_view = {n: _fit_view(v, mode, fps, base) for n, v in views.items()}
+        for n, res in per_view.items():
+            rows.append({"protocol": PROTOCOL, "domain": DOMAIN, "view": n, "mode": mode, "fps": fps,
+                         **{k: v for k, v in res.items() if not k.startswith("_")}})
+        rows.append(_overall(per_view, mode, fps))
+    return rows
+
+
+def _overall(per_view: dict[str, dict], mode: str, fps: float) -> dict:
+    """The four views together: frame-weighted means, and the spread of the four views' mid-hip positions in
+    the world (mm, median over frames every view answered)."""
+    def mean(key: str, sub: str) -> float | None:
+        vals = [(r[sub][key], r["answered"]) for r in per_view.values() if r[sub].get(key) is not None]
+        n = sum(w for _, w in vals)
+        return round(sum(v * w for v, w in vals) / n, 3 if key == "depth_flips" else 1) if n else None
+
+    common = set.intersection(*(set(r["_roots"]) for r in per_view.values()))
+    spread = [float(np.mean(np.linalg.norm(np.stack([r["_roots"][i] for r in per_view.values()]) -
+                                           np.mean([r["_roots"][i] for r in per_view.values()], axis=0), axis=1)))
+              * 1e3 for i in sorted(common)]
+    keys = ("pa_mpjpe_mm", "mpjpe_hip_aligned_mm", "angle_err_deg", "depth_flips")
+    frames = sum(r["frames"] for r in per_view.values())
+    answered = sum(r["answered"] for r in per_view.values())
+    roots = [r["root_err_mm"] for r in per_view.values() if r["root_err_mm"] is not None]
+    fit = {k: mean(k, "fit") for k in keys}
+    world = {k: mean(k, "blazepose_world") for k in keys}
+    return {"protocol": PROTOCOL, "domain": DOMAIN, "view": "all", "mode": mode, "fps": fps, "frames": frames,
+            "answered": answered, "fit": fit, "blazepose_world": world,
+            "flat_2d": {"pa_mpjpe_mm": mean("pa_mpjpe_mm", "flat_2d")},
+            "fit_over_blazepose_pa": round(fit["pa_mpjpe_mm"] / world["pa_mpjpe_mm"], 3)
+            if fit["pa_mpjpe_mm"] and world["pa_mpjpe_mm"] else None,
+            "root_err_mm": round(float(np.median(roots)), 1) if roots else None,
+            "views_root_spread_mm": round(float(np.median(spread)), 1) if spread else None}
+
+
+def markdown(rows: list[dict]) -> list[str]:
+    """The four-view rows as a Markdown table (docs/bench/fit.md)."""
+    out = ["| mode | fps | answered | PA-MPJPE mm fit / BlazePose world (ratio) / 2D flat | hip-aligned MPJPE mm "
+           "fit / world | angle err deg fit / world | depth flips fit / world | root err mm | views' root spread mm |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r["view"] != "all":
+            continue
+        f, w = r["fit"], r["blazepose_world"]
+        out.append(f"| {r['mode']} | {r['fps']:g} | {r['answered']}/{r['frames']} | {f['pa_mpjpe_mm']} / "
+                   f"{w['pa_mpjpe_mm']} ({r['fit_over_blazepose_pa']}) / {r['flat_2d']['pa_mpjpe_mm']} | "
+                   f"{f['mpjpe_hip_aligned_mm']} / {w['mpjpe_hip_aligned_mm']} | {f['angle_err_deg']} / "
+                   f"{w['angle_err_deg']} | {f['depth_flips']} / {w['depth_flips']} | {r['root_err_mm']} | "
+                   f"{r['views_root_spread_mm']} |")
+    return out
+
+
+if __name__ == "__main__":        # a quick look: python -m posed.bench.balancing_video
+    from posed.daemon.preflight import shared_data
+
+    rows = run(shared_data())
+    print("\n".join(markdown(rows)))
+    print(json.dumps([r for r in rows if r["view"] == "all"], indent=1))
