@@ -26,13 +26,13 @@ import importlib
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from posed.fitting.angle_names import PLAIN_NAMES as ANGLE_PLAIN_NAMES
+    from posed.fitting.angle_names import REMARKS as ANGLE_REMARKS
+    from posed.fitting.angle_names import symbol as angle_symbol
     from posed.fitting.body import BodyDimensions, CalibrationError, read_calibration, write_calibration
     from posed.fitting.calibration import CalibrationFailed, calibrate
     from posed.fitting.config import FitConfig
     from posed.fitting.fitter import Fitter
-    from posed.fitting.angle_names import PLAIN_NAMES as ANGLE_PLAIN_NAMES
-    from posed.fitting.angle_names import REMARKS as ANGLE_REMARKS
-    from posed.fitting.angle_names import symbol as angle_symbol
     from posed.fitting.kinematics import (
         BODY_LANDMARK_NAMES,
         BODY_LANDMARKS,

@@ -1,44 +1,23 @@
-"""Plain names of the fitted angles (what a caregiver reads), next to the model's symbols (fitting.result).
+"""Plain names of the fitted angles (what a caregiver reads), next to the model's symbols (fitting.result),
+and how the pictures group them. The names themselves are fitting's (``fitting.ANGLE_PLAIN_NAMES``: the client
+and every view use the same).
 
 The model holds some of its 23 joint angles fixed (head, hip rotation, ankles: no landmark the fit uses
 observes them); they are not measurements and are never drawn. ``MEASURED_ANGLES`` are the ones the fit
-estimates. Sign convention (docs/body-model.md): flexion, adduction and internal rotation positive.
+estimates; whether a frame measured one is ``FitResult.measured`` (fitting.measured). Sign convention
+(docs/body-model.md): flexion, adduction and internal rotation positive.
 """
 
 from __future__ import annotations
 
-ANGLE_LABELS: dict[str, str] = {
-    "theta_tr": "trunk flexion (forward bend)",
-    "phi_tr": "trunk side bend (to the left +)",
-    "psi_tr": "trunk twist (to the left +)",
-    "theta_sh_l": "left shoulder flexion",
-    "theta_sh_r": "right shoulder flexion",
-    "phi_sh_l": "left shoulder adduction",
-    "phi_sh_r": "right shoulder adduction",
-    "theta_el_l": "left elbow flexion",
-    "theta_el_r": "right elbow flexion",
-    "theta_hp_l": "left hip flexion",
-    "theta_hp_r": "right hip flexion",
-    "phi_hp_l": "left hip adduction",
-    "phi_hp_r": "right hip adduction",
-    "theta_kn_l": "left knee flexion",
-    "theta_kn_r": "right knee flexion",
-    "theta_bd": "body pitch (forward tilt)",
-    "phi_bd": "body roll (tilt to its left +)",
-    "psi_bd": "body turn (to its left +)",
-    # held fixed by the model (not measured): named for completeness, never drawn
-    "theta_hd": "head flexion (not measured)",
-    "psi_hd": "head turn (not measured)",
-    "psi_hp_l": "left hip rotation (not measured)",
-    "psi_hp_r": "right hip rotation (not measured)",
-    "theta_an_l": "left ankle dorsiflexion (not measured)",
-    "phi_an_l": "left ankle inversion (not measured)",
-    "theta_an_r": "right ankle dorsiflexion (not measured)",
-    "phi_an_r": "right ankle inversion (not measured)",
-}
+from posed.fitting import ANGLE_PLAIN_NAMES, ANGLE_REMARKS, FIXED_ANGLE_NAMES
 
-# the angles the fit holds fixed (fitting/reported.py FIXED_NAMES): no landmark observes them
-FIXED_ANGLES = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
+# plain name (remark): "trunk flexion (forward bend, relative to the pelvis)" (fitting.angle_names)
+ANGLE_LABELS: dict[str, str] = {k: f"{v} ({ANGLE_REMARKS[k]})" if k in ANGLE_REMARKS else v
+                                for k, v in ANGLE_PLAIN_NAMES.items()}
+
+# the angles the fit holds fixed (fitting.measured.FIXED): no landmark observes them
+FIXED_ANGLES = FIXED_ANGLE_NAMES
 MEASURED_ANGLES = tuple(n for n in ANGLE_LABELS if n not in FIXED_ANGLES)
 
 # the angles shown on the overlay video, in reading order
@@ -60,8 +39,8 @@ def label(name: str) -> str:
 
 
 def short_label(name: str) -> str:
-    """The plain name without the parenthesised remark: ``left knee flexion``."""
-    return label(name).split(" (")[0]
+    """The plain name without the remark: ``left knee flexion``."""
+    return ANGLE_PLAIN_NAMES.get(name, name)
 
 
 def side(name: str) -> str:

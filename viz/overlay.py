@@ -29,6 +29,7 @@ class FrameInfo:
     fall_state: str | None = None  # the detector's state (None: no detector ran)
     fall_event: str | None = None  # the last event message's state, e.g. "on_floor"
     how: str = ""                  # how the skeleton was reprojected
+    trunk_lean: float | None = None  # the trunk's lean from the vertical, degrees (None: not measured)
 
 
 def scale_of(img: np.ndarray) -> float:
@@ -58,7 +59,8 @@ def draw_landmarks(img: np.ndarray, landmarks: np.ndarray | None) -> None:
 
 
 def draw_model(img: np.ndarray, reproj: Reprojection | None) -> None:
-    """The fitted skeleton (thick; left orange solid, right blue dashed, centre green)."""
+    """The fitted skeleton (thick; left orange solid, right blue dashed, centre green): the joints in
+    ``reproj`` only (the caller passes the measured ones), a bone where both its ends are there."""
     if reproj is None:
         return
     s = scale_of(img)
@@ -82,9 +84,12 @@ def draw_info(img: np.ndarray, info: FrameInfo) -> None:
         y += draw.text(img, f"no fit: {info.fit_note[:48]}", (x, y), fs, (120, 200, 255), th)
     for name in MAIN_ANGLES:
         v = info.angles.get(name)
-        shown = "-" if v is None or not math.isfinite(v) else f"{v:5.0f} deg"
+        shown = "not seen" if v is None or not math.isfinite(v) else f"{v:5.0f} deg"
         colour = {"left": draw.LEFT, "right": draw.RIGHT}.get(short_label(name).split()[0], (255, 255, 255))
         y += draw.text(img, f"{short_label(name):<22}{shown}", (x, y), fs, colour, th)
+    if not info.fit_note:
+        lean = "not seen" if info.trunk_lean is None else f"{info.trunk_lean:5.0f} deg"
+        y += draw.text(img, f"{'trunk from vertical':<22}{lean}", (x, y), fs, thickness=th)
     if info.fall_state is not None:
         state = info.fall_event if info.fall_event and info.fall_state != "up" else info.fall_state
         words = {"up": "no fall", "down": "FALL detected", "alarm": "FALL: ALARM"}.get(info.fall_state,

@@ -12,7 +12,7 @@ from posed.camera_model import Intrinsics
 from posed.viz import overlay
 from posed.viz.overlay import FrameInfo
 from posed.viz.reproject import camera_joints, reproject
-from posed.viz.side_view import SideFrame, render_side
+from posed.viz.side_view import SideFrame, panel_width, render_side
 
 BLANK = (90, 90, 90)   # the background when there is no source video (a landmark recording alone)
 
@@ -30,15 +30,33 @@ class FrameInput:
 
 
 def joints_for_side(result, absolute: bool) -> dict[str, np.ndarray] | None:
-    """The joints the side view draws: camera-frame when ``absolute`` (root known), else mid-hip relative."""
-    if result is None or not result.ok or not result.joints_3d:
+    """The measured joints the side view draws (``FitResult.measured_joints``: a joint whose landmark the
+    frame did not see is left out): camera-frame when ``absolute`` (root known), else mid-hip relative."""
+    if result is None or not result.ok or not result.measured_joints():
         return None
+    measured = result.measured_joints()
     root = result.root_cam_m
     if absolute and root is not None:
-        return camera_joints(result.joints_3d, root)
-    joints = {k: np.asarray(v, float) for k, v in result.joints_3d.items()}
+        return camera_joints(measured, root)
+    joints = {k: np.asarray(v, float) for k, v in measured.items()}
     lowest = max(float(v[1]) for v in joints.values())     # y is down: stand the lowest joint on y = 0
     return {k: v - np.array([0.0, lowest, 0.0]) for k, v in joints.items()}
+
+
+def trunk_lean_deg(result) -> float | None:
+    """How far the trunk (mid-hip to mid-shoulder) leans from the vertical, degrees, the camera taken as level
+    (its y axis vertical); None when the frame did not measure the torso. Trunk flexion is measured against
+    the pelvis, so a person lying straight on the floor has none: this says they are lying."""
+    if "theta_tr" not in result.measured.angles:
+        return None
+    j = result.joints_3d
+    try:
+        up = (np.asarray(j["left_shoulder"], float) + np.asarray(j["right_shoulder"], float)) / 2 \
+            - np.asarray(j["mid_hip"], float)
+    except KeyError:
+        return None
+    n = float(np.linalg.norm(up))
+    return float(np.degrees(np.arccos(np.clip(-up[1] / n, -1.0, 1.0)))) if n > 0 else None
 
 
 class ClipRenderer:
@@ -53,7 +71,7 @@ class ClipRenderer:
         self.side = SideFrame.for_clip([joints_for_side(r, self.absolute) or {} for r in ok], self.absolute,
                                        camera_height_m)
         h = self.image_size[1]
-        self.side_width = side_width or max(400, int(round(h * 0.6)))
+        self.side_width = side_width or panel_width(self.side, h)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -66,10 +84,12 @@ class ClipRenderer:
         reproj = None
         angles: dict[str, float] = {}
         note = ""
+        lean = None
         if result is not None and result.ok:
-            reproj = reproject(result.joints_3d, result.root_cam_m, self.intrinsics, item.landmarks)
-            unobserved = set(result.extra.get("unobserved") or ())
-            angles = {k: v for k, v in result.joint_angles_deg.items() if k not in unobserved}
+            # only what the frame measured (fitting.measured): an unseen limb is the model's guess
+            reproj = reproject(result.measured_joints(), result.root_cam_m, self.intrinsics, item.landmarks)
+            angles = result.measured_angles()
+            lean = trunk_lean_deg(result)
         elif result is not None:
             note = result.reason or "fit failed"
         elif item.landmarks is None:
@@ -77,7 +97,7 @@ class ClipRenderer:
         overlay.draw_landmarks(canvas, item.landmarks)
         overlay.draw_model(canvas, reproj)
         overlay.draw_info(canvas, FrameInfo(item.t, angles, note, item.fall_state, item.fall_event,
-                                            reproj.how if reproj else ""))
+                                            reproj.how if reproj else "", lean))
         overlay.legend(canvas)
         side = render_side(joints_for_side(result, self.absolute), self.side, (self.side_width, h),
                            "" if self.absolute else "depth relative to the hips (no camera intrinsics)")

@@ -1,8 +1,8 @@
 """Joint-angle time series and fall episodes, as the plots and the report take them (plain values, no I/O).
 
 Time is either a clock (unix seconds, shown in the robot's local time zone) or seconds from a recording's
-first frame (a fit file carries only capture times). Angles are degrees; NaN means not measured (no fit, or a
-variable no landmark observed in that frame, ``extra.unobserved``) and is never drawn as 0.
+first frame (a fit file carries only capture times). Angles are degrees; NaN means not measured (no fit, or
+not measured in that frame by fitting's rule, ``FitResult.measured``) and is never drawn as 0.
 """
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ class AngleSeries:
     @classmethod
     def from_fits(cls, results: Iterable, start_unix: float | None = None) -> AngleSeries:
         """Fit results (``fitting.FitResult``) of a recording: ``t`` from its first frame, or clock times
-        ``start_unix + t`` when the recording's start is known. A failed fit is NaN for every angle; a
-        variable listed in ``extra.unobserved`` is NaN in that frame."""
+        ``start_unix + t`` when the recording's start is known. A failed fit is NaN for every angle, and so
+        is an angle that frame did not measure (``FitResult.measured``)."""
         results = list(results)
         if not results:
             return cls(np.zeros(0), {}, clock=start_unix is not None)
@@ -50,13 +50,10 @@ class AngleSeries:
         for i, r in enumerate(results):
             if not r.ok:
                 continue
-            hidden = set(r.extra.get("unobserved") or ())
-            values = {**r.joint_angles_deg, **{k: r.variables[k] for k in ("theta_bd", "phi_bd", "psi_bd")
-                                               if k in r.variables}}
+            values = r.measured_angles()   # fitting.measured: the rest of the frame is the model's guess
             for n in names:
-                v = values.get(n)
-                if v is not None and n not in hidden:
-                    angles[n][i] = float(v)
+                if n in values:
+                    angles[n][i] = values[n]
         if start_unix is not None:
             return cls(start_unix + (t - t[0]), angles, clock=True)
         return cls(t - t[0], angles, clock=False)

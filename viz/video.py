@@ -8,9 +8,13 @@ H.264 only when ``ffmpeg`` is installed — frames are piped to it — and refus
 
 from __future__ import annotations
 
+import contextlib
+import os
+import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import TextIO
@@ -19,6 +23,38 @@ import cv2
 import numpy as np
 
 SUFFIXES = (".webm", ".mp4", ".avi")
+
+
+# What OpenCV's FFmpeg writer prints (with C's fprintf, past Python and OpenCV's log level) for every WebM file:
+# the WebM muxer has no table of codec tags, so the VP8 tag it was given "is not supported" and it goes on with
+# the codec id, writing a correct VP8 WebM. No fourcc avoids it. Only these lines are dropped, only while the
+# writer opens; anything else it prints passes through.
+_KNOWN_NOTES = re.compile(rb"^OpenCV: FFMPEG: (tag 0x[0-9a-f]{8}/'.{4}' is not supported with codec id \d+ and "
+                          rb"format 'webm / WebM'|fallback to use tag 0x[0-9a-f]{8}/'.{4}')$")
+
+
+@contextlib.contextmanager
+def _known_notes_filtered():
+    """Standard error (the file descriptor, where C code writes) captured while the block runs, then written
+    back without the lines ``_KNOWN_NOTES`` matches."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):   # no usable descriptor 2: nothing to filter
+        yield
+        return
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            rest = [line for line in tmp.read().splitlines(keepends=True)
+                    if not _KNOWN_NOTES.match(line.rstrip(b"\r\n"))]
+            if rest:
+                os.write(2, b"".join(rest))
 
 
 class VideoError(Exception):
@@ -51,7 +87,8 @@ class VideoOut:
                  "-pix_fmt", "yuv420p", "-movflags", "+faststart", str(self.path)], stdin=subprocess.PIPE)
         else:
             fourcc = cv2.VideoWriter_fourcc(*("VP80" if suffix == ".webm" else "MJPG"))
-            self._writer = cv2.VideoWriter(str(self.path), fourcc, float(fps), self.size)
+            with _known_notes_filtered():
+                self._writer = cv2.VideoWriter(str(self.path), fourcc, float(fps), self.size)
             if not self._writer.isOpened():
                 raise VideoError(f"{self.path}: OpenCV cannot open a {suffix} writer here; try another of "
                                  f"{', '.join(SUFFIXES)}")

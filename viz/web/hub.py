@@ -1,10 +1,11 @@
 """What the browsers are sent: the robot's messages reduced to what the page draws, fanned out to every open
 page (one queue per page; a page that does not keep up loses its oldest messages, never blocks the others).
 
-Messages (JSON objects with ``type``): ``pose`` (at most ``pose_rate_hz`` per second: the 13 joints in metres,
-camera axes — x image right, y image down, z away from the camera — relative to the mid-hip, the mid-hip's
-camera position when known, and the main joint angles, null when not measured), ``status``, ``event`` (each
-fall-event message once per (id, state)), ``acked``, ``alive``. ``snapshot()`` is what a page that opens
+Messages (JSON objects with ``type``): ``pose`` (at most ``pose_rate_hz`` per second: the joints the frame
+measured — fitting.measured; an unseen one is absent — in metres, camera axes — x image right, y image down,
+z away from the camera — relative to the mid-hip, the mid-hip's camera position when known, and the main joint
+angles, null when not measured), ``status`` (with ``floor``: the fall detector's gravity and floor),
+``event`` (each fall-event message once per (id, state)), ``acked``, ``alive``. ``snapshot()`` is what a page that opens
 now needs first: the last status, the last minute of angles, the events seen, whether the robot is up.
 """
 
@@ -29,6 +30,24 @@ def _num(v) -> float | None:
     except (TypeError, ValueError):
         return None
     return f if math.isfinite(f) else None
+
+
+def floor_of(status_raw: dict) -> dict | None:
+    """The floor as the robot's fall detector has it (its status's ``falls.geometry``): ``down``, the unit
+    direction of gravity in camera axes (x image right, y down, z away), ``below_camera_m``, the floor's
+    distance below the camera along it (None: not known yet), and where each comes from; None without a
+    fall detector. ``down`` is falls' ``gravity_from_tilt`` of the tilt and roll it reports (a test holds
+    the two formulas together)."""
+    geo = ((status_raw or {}).get("falls") or {}).get("geometry")
+    if not isinstance(geo, dict):
+        return None
+    tilt, roll = _num(geo.get("tilt_deg")), _num(geo.get("roll_deg"))
+    if tilt is None or roll is None:
+        return None
+    a, b = math.radians(tilt), math.radians(roll)
+    return {"down": [math.sin(b) * math.cos(a), math.cos(b) * math.cos(a), math.sin(a)],
+            "below_camera_m": _num(geo.get("floor_below_camera_m")), "tilt_deg": tilt, "roll_deg": roll,
+            "tilt_from": geo.get("tilt_from"), "height_from": geo.get("height_from")}
 
 
 class Hub:
@@ -91,11 +110,11 @@ class Hub:
             return
         self._last_pose_at = now
         t_unix = _num(result.extra.get("time_unix")) or time.time()
-        hidden = set(result.extra.get("unobserved") or ())
-        angles = {n: (None if n in hidden or not result.ok else _num(result.joint_angles_deg.get(n)))
-                  for n in dict.fromkeys((*MAIN_ANGLES, *CHART_ANGLES))}
+        # only what this frame measured (fitting.measured): null angles, absent joints otherwise
+        angles = {n: _num(result.angle(n)) for n in dict.fromkeys((*MAIN_ANGLES, *CHART_ANGLES))}
+        joints = result.measured_joints()
         msg = {"type": "pose", "seq": result.seq, "t": result.t, "time_unix": t_unix, "ok": result.ok,
-               "reason": result.reason, "joints": {k: [_num(c) for c in v] for k, v in result.joints_3d.items()},
+               "reason": result.reason, "joints": {k: [_num(c) for c in v] for k, v in joints.items()},
                "root": list(result.root_cam_m) if result.root_cam_m is not None else None, "angles": angles,
                "latency_ms": _num((result.extra.get("timing_ms") or {}).get("total"))}
         with self._lock:
@@ -110,7 +129,7 @@ class Hub:
         msg = {"type": "status", "state": status.state, "fps": _num(status.fps),
                "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
-               "time_unix": _num(status.time_unix)}
+               "time_unix": _num(status.time_unix), "floor": floor_of(status.raw)}
         with self._lock:
             self._status = msg
         self._send(msg)

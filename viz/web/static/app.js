@@ -21,29 +21,43 @@ const ANKLE_HEIGHT = 0.08, WINDOW_S = 60;
 
 const view = window.posedView = {
   connected: false, poses: 0, drawn: 0, lastPose: null, status: null, fpsText: "",
-  events: {}, acked: {}, history: [], labels: {}, yaw: -35, pitch: 20, zoom: 1.0, floorY: null, lastGood: null};
+  events: {}, acked: {}, history: [], labels: {}, yaw: -35, pitch: 20, zoom: 1.0, lastGood: null, floorNote: "",
+  showAllEvents: false, showAllHistory: false};
 const angleLog = []; // {time_unix, angles}
 
 // ------------------------------------------------------------------ 3D skeleton
 const sk = document.getElementById("skeleton"), g = sk.getContext("2d");
 
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const unit = (a) => { const n = Math.hypot(a[0], a[1], a[2]) || 1; return a.map((v) => v / n); };
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+
 function worldPoints(pose) {
-  // camera frame (x right, y down, z away) -> world (x right, up, z away), feet on the floor at height 0
+  // camera frame (x right, y down, z away) -> world (x right, up, z away from the camera, level with the floor):
+  // gravity and the floor are the robot's fall detector's (status.floor) when it has them; a level camera and
+  // a floor under the lowest joint otherwise (said on the canvas)
   const j = Object.assign({}, pose.joints);
   if (j.left_shoulder && j.right_shoulder)
     j.mid_shoulder = j.left_shoulder.map((v, i) => (v + j.right_shoulder[i]) / 2);
-  let lowest = -Infinity;
-  for (const p of Object.values(j)) lowest = Math.max(lowest, p[1]);
-  let floor;
-  if (pose.root) {  // the mid-hip's camera position is known: the floor is where the lowest joint has been
-    const abs = lowest + pose.root[1] + ANKLE_HEIGHT;
-    view.floorY = view.floorY === null ? abs : Math.max(view.floorY, abs);
-    floor = view.floorY - pose.root[1];
-  } else {
-    floor = lowest + ANKLE_HEIGHT;
-  }
+  const fl = view.status && view.status.floor;
+  const down = fl ? unit(fl.down) : [0, 1, 0];
+  const ez = unit([-down[2] * down[0], -down[2] * down[1], 1 - down[2] * down[2]]);  // camera z, level
+  const ex = cross(down, ez);
   const out = {};
-  for (const [k, p] of Object.entries(j)) out[k] = [p[0], floor - p[1], p[2]];
+  if (fl && fl.below_camera_m !== null && pose.root) {
+    for (const [k, p] of Object.entries(j)) {
+      const abs = p.map((v, i) => v + pose.root[i]);
+      out[k] = [dot(ex, p), fl.below_camera_m - dot(down, abs), dot(ez, p)];
+    }
+    view.floorNote = `floor: the fall detector's, ${fl.below_camera_m.toFixed(2)} m below the camera` +
+      ` (${fl.height_from || "?"}); camera tilt ${Math.round(fl.tilt_deg)}° (${fl.tilt_from || "?"})`;
+  } else {
+    let lowest = Infinity;
+    for (const p of Object.values(j)) lowest = Math.min(lowest, -dot(down, p));
+    for (const [k, p] of Object.entries(j)) out[k] = [dot(ex, p), -dot(down, p) - lowest + ANKLE_HEIGHT, dot(ez, p)];
+    view.floorNote = "floor: under the lowest joint (" + (!fl ? "no fall detector geometry" :
+      fl.below_camera_m === null ? "the fall detector has not learned it yet" : "the person's position is unknown") + ")";
+  }
   return out;
 }
 
@@ -89,9 +103,11 @@ function drawSkeleton() {
     if (k === "mid_shoulder") continue;
     const [u, v] = project(p, w, h); g.beginPath(); g.arc(u, v, 4, 0, 2 * Math.PI); g.fill();
   }
+  g.fillStyle = "#999"; g.font = "12px sans-serif"; g.fillText(view.floorNote, 16, h - 12);
   if (!fitted) return;
   view.drawn += 1;
-  note.textContent = `turned ${Math.round(view.yaw)}°, tilted ${Math.round(view.pitch)}°`;
+  note.textContent = `turned ${Math.round(view.yaw)}°, tilted ${Math.round(view.pitch)}°; joints the camera did ` +
+    "not see this frame are left out";
 }
 
 function line(a, b) { g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke(); }
@@ -114,7 +130,7 @@ for (const b of document.querySelectorAll("[data-view]")) b.addEventListener("cl
 
 // ------------------------------------------------------------------ angles
 const ch = document.getElementById("chart"), c2 = ch.getContext("2d");
-const label = (n) => view.labels[n] || n;
+const label = (n) => view.labels[n] || "";   // plain names come with the first message; never a symbol
 
 function drawChart() {
   const w = ch.width, h = ch.height, L = 46, R = 190, T = 10, B = 28;
@@ -130,6 +146,7 @@ function drawChart() {
     c2.beginPath(); c2.moveTo(L, Y(v)); c2.lineTo(w - R, Y(v)); c2.stroke(); c2.fillText(v + "°", 8, Y(v) + 4);
   }
   for (let s = 0; s <= WINDOW_S; s += 10) c2.fillText(s ? `-${s} s` : "now", X(now - s) - 12, h - 8);
+  view.legend = CHART.map(([n]) => label(n)).filter((t) => t);   // what the legend says (for tests and users)
   CHART.forEach(([n, colour, dash], i) => {
     c2.strokeStyle = colour; c2.setLineDash(dash); c2.lineWidth = 2; c2.beginPath();
     let pen = false;
@@ -140,26 +157,39 @@ function drawChart() {
       pen = true;
     }
     c2.stroke();
-    const ly = T + 14 + 20 * i;  // legend: plain names, same line style
-    c2.beginPath(); c2.moveTo(w - R + 10, ly); c2.lineTo(w - R + 40, ly); c2.stroke();
-    c2.setLineDash([]); c2.fillStyle = "#222"; c2.fillText(label(n), w - R + 46, ly + 4);
+    const ly = T + 14 + 20 * i;  // legend: plain names, same line style (none until the names arrived)
+    if (label(n)) {
+      c2.beginPath(); c2.moveTo(w - R + 10, ly); c2.lineTo(w - R + 40, ly); c2.stroke();
+      c2.setLineDash([]); c2.fillStyle = "#222"; c2.fillText(label(n), w - R + 46, ly + 4);
+    }
   });
   c2.setLineDash([]);
 }
 
 function showAnglesNow(pose) {
   const rows = Object.entries(pose.angles).map(([n, v]) =>
-    `<tr><th>${label(n)}</th><td>${v === null ? "not measured" : Math.round(v) + "°"}</td></tr>`);
+    `<tr><th>${label(n)}</th><td>${v === null ? "not seen" : Math.round(v) + "°"}</td></tr>`);
   document.getElementById("angles-now").innerHTML = rows.join("");
 }
 
 // ------------------------------------------------------------------ status, events, history
 const ZONE = Intl.DateTimeFormat().resolvedOptions().timeZone;
+const pad = (n) => String(n).padStart(2, "0");
+function zoneText() {  // "Europe/Berlin, UTC+01:00": this browser's zone, where every time on the page is shown
+  const off = -new Date().getTimezoneOffset();
+  return `${ZONE}, UTC${off < 0 ? "-" : "+"}${pad(Math.floor(Math.abs(off) / 60))}:${pad(Math.abs(off) % 60)}`;
+}
 
-function localTime(t) {  // an ISO time (UTC unless it says otherwise) or ms since 1970, in this browser's zone
-  if (t === null || t === undefined || t === "") return "–";
-  const d = typeof t === "number" ? new Date(t) : new Date(/[zZ]|[+-]\d\d:?\d\d$/.test(t) ? t : t + "Z");
-  return isNaN(d) ? String(t) : d.toLocaleString(undefined, {hour12: false});
+function toDate(t) {  // an ISO time (UTC unless it says otherwise), or unix seconds
+  if (t === null || t === undefined || t === "") return null;
+  const d = typeof t === "number" ? new Date(t * 1000) : new Date(/[zZ]|[+-]\d\d:?\d\d$/.test(t) ? t : t + "Z");
+  return isNaN(d) ? null : d;
+}
+
+function localTime(t) {  // ISO 8601 in this browser's zone, as every other posed view writes times: 2026-12-02 19:42:47
+  const d = toDate(t);
+  if (!d) return t === null || t === undefined || t === "" ? "–" : String(t);
+  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())} ${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}`;
 }
 
 function setText(id, text) { document.getElementById(id).textContent = text; }
@@ -178,34 +208,50 @@ function showAlive(alive) {
   el.className = "pill" + (alive ? "" : " off");
 }
 
-function fallsById() {
+const EVENTS_SHOWN = 6, HISTORY_SHOWN = 15;   // the newest; the rest behind "show all", always counted
+
+function fallsById() {  // [{id, msgs (in order), first, last (unix s)}], the newest event first
   const by = {};
   for (const e of Object.values(view.events)) (by[e.id] = by[e.id] || []).push(e);
-  return by;
+  const when = (m) => { const d = toDate(m.wall_time); return d ? d.getTime() / 1000 : 0; };
+  return Object.entries(by).map(([id, msgs]) => {
+    msgs.sort((a, b) => a.t_detect - b.t_detect);
+    return {id, msgs, first: when(msgs[0]), last: when(msgs[msgs.length - 1])};
+  }).sort((a, b) => b.first - a.first);
 }
 
 function showEvents() {
-  const by = fallsById(), ul = document.getElementById("events");
-  const ids = Object.keys(by);
-  if (!ids.length) return;
+  const falls = fallsById(), ul = document.getElementById("events");
+  view.shownEvents = falls.map((f) => f.id);
+  if (!falls.length) return;
   ul.innerHTML = "";
-  let open = 0;
-  for (const id of ids) {
-    const msgs = by[id].sort((a, b) => a.t_detect - b.t_detect);
+  const open = falls.filter((f) => !view.acked[f.id]).length;
+  const shown = view.showAllEvents ? falls : falls.slice(0, EVENTS_SHOWN);
+  for (const f of shown) {
     const li = document.createElement("li");
-    li.innerHTML = `<span class="fall">${msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → ")}</span>
-      <span class="note">${localTime(msgs[0].wall_time)} · ${id.slice(0, 8)}</span> `;
-    li.dataset.eventId = id;
-    if (view.acked[id]) {
+    li.innerHTML = `<span class="fall">${f.msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → ")}</span>
+      <span class="note">${localTime(f.msgs[0].wall_time)} · ${f.id.slice(0, 8)}</span> `;
+    li.dataset.eventId = f.id;
+    if (view.acked[f.id]) {
       li.insertAdjacentHTML("beforeend", '<span class="ok">acknowledged ✓</span>');
     } else {
-      open += 1;
       const b = document.createElement("button");
-      b.className = "ack"; b.textContent = "Acknowledge"; b.dataset.eventId = id;
-      b.addEventListener("click", () => acknowledge(id, b));
+      b.className = "ack"; b.textContent = "Acknowledge"; b.dataset.eventId = f.id;
+      b.addEventListener("click", () => acknowledge(f.id, b));
       li.appendChild(b);
     }
     ul.appendChild(li);
+  }
+  const hidden = falls.slice(shown.length);
+  if (hidden.length || view.showAllEvents && falls.length > EVENTS_SHOWN) {
+    const li = document.createElement("li");
+    li.className = "note more";
+    const openHidden = hidden.filter((f) => !view.acked[f.id]).length;
+    li.textContent = hidden.length ? `${hidden.length} earlier event(s)` + (openHidden ? `, ${openHidden} not acknowledged` : "") + " " : "";
+    const b = document.createElement("button");
+    b.textContent = view.showAllEvents ? "show the newest only" : "show all";
+    b.addEventListener("click", () => { view.showAllEvents = !view.showAllEvents; showEvents(); });
+    li.appendChild(b); ul.appendChild(li);
   }
   const alarm = document.getElementById("alarm");
   alarm.hidden = open === 0;
@@ -225,6 +271,18 @@ async function acknowledge(id, button) {
   }
 }
 
+function historyRows(events) {  // the robot's stored messages, one row per event, the newest first
+  const by = {};
+  for (const e of events) (by[e.id] = by[e.id] || []).push(e);
+  return Object.entries(by).map(([id, msgs]) => {
+    const first = toDate(msgs[0].wall_time), acked = msgs.map((m) => m.acked_at);
+    return {id, time: msgs[0].wall_time, at: first ? first.getTime() : 0,
+            states: msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → "),
+            acked: acked.every((a) => a) ? Math.max(...acked) : null,
+            open: acked.filter((a) => !a).length, count: msgs.length};
+  }).sort((a, b) => b.at - a.at);
+}
+
 let historyAsked = 0;
 async function loadHistory() {
   const mine = ++historyAsked;  // answers can come back out of order: only the newest request's is shown
@@ -232,16 +290,32 @@ async function loadHistory() {
     const r = await fetch(withToken("/api/history"));
     const body = await r.json();
     if (mine !== historyAsked) return;
-    const t = document.getElementById("history");
-    if (!r.ok) { t.innerHTML = `<tr><td class="note">${body.error || r.status}</td></tr>`; return; }
-    view.history = body.events;
-    if (!body.events.length) { t.innerHTML = '<tr><td class="note">no fall events stored</td></tr>'; return; }
-    t.innerHTML = `<tr><th>time (${ZONE})</th><th>event</th><th>state</th><th>acknowledged</th></tr>` +
-      body.events.slice().reverse().map((e) => `<tr><td>${localTime(e.wall_time)}</td>
-        <td>${e.id.slice(0, 8)}</td><td>${STATE_WORDS[e.state] || e.state}</td>
-        <td>${e.acked_at ? localTime(e.acked_at * 1000) : "no"}</td></tr>`).join("");
+    view.history = body.events || [];
+    showHistory(r.ok ? null : body.error || r.status);
     showEvents();
   } catch (err) { /* the next refresh tries again */ }
+}
+
+function showHistory(error) {
+  const t = document.getElementById("history"), more = document.getElementById("history-more");
+  more.innerHTML = "";
+  if (error) { t.innerHTML = `<tr><td class="note">${error}</td></tr>`; return; }
+  if (!view.history.length) { t.innerHTML = '<tr><td class="note">no fall events stored</td></tr>'; return; }
+  const rows = historyRows(view.history);
+  view.historyRows = rows.map((x) => x.id);
+  const shown = view.showAllHistory ? rows : rows.slice(0, HISTORY_SHOWN);
+  t.innerHTML = `<tr><th>started (${zoneText()})</th><th>event</th><th>what happened</th><th>acknowledged</th></tr>` +
+    shown.map((e) => `<tr><td>${localTime(e.time)}</td><td>${e.id.slice(0, 8)}</td><td>${e.states}</td>
+      <td>${e.acked ? localTime(e.acked) : e.open < e.count ? `partly (${e.open} message(s) not)` : "no"}</td></tr>`).join("");
+  if (rows.length > HISTORY_SHOWN) {
+    const open = rows.slice(shown.length).filter((e) => !e.acked).length;
+    more.textContent = view.showAllHistory ? "" : `${rows.length - shown.length} earlier event(s)` +
+      (open ? `, ${open} not acknowledged ` : " ");
+    const b = document.createElement("button");
+    b.textContent = view.showAllHistory ? "show the newest only" : "show all";
+    b.addEventListener("click", () => { view.showAllHistory = !view.showAllHistory; showHistory(null); });
+    more.appendChild(b);
+  }
 }
 
 // ------------------------------------------------------------------ the stream
