@@ -1,8 +1,10 @@
 """posed's messages as standard ROS 2 messages, CDR-encoded by ``rosbags`` (its Jazzy type store: the message
 definitions, the REP-2016 type hashes and the CDR serializer; nothing here encodes CDR by hand).
 
-* ``sensor_msgs/msg/JointState``: the 23 joint angles (posed's names, e.g. ``theta_kn_l``), radians;
-* ``visualization_msgs/msg/MarkerArray``: the skeleton — a LINE_LIST of bones and a SPHERE_LIST of joints — in
+* ``sensor_msgs/msg/JointState``: the joint angles the frame measured (fitting.measured; the others left
+  out), by URDF-style names (``left_knee_joint``, ``URDF_JOINT_NAMES``), radians;
+* ``visualization_msgs/msg/MarkerArray``: the measured skeleton — a LINE_LIST of bones and a SPHERE_LIST of
+  joints — in
   the camera's optical frame (x right, y down, z forward: posed's camera frame), metres, at ``root_cam_m``; in
   the body frame (origin at the mid-hip, camera-aligned axes) when the position is unknown; one DELETEALL
   marker when the person is lost;
@@ -33,6 +35,20 @@ BONES = (("left_shoulder", "right_shoulder"), ("left_hip", "right_hip"),
          ("left_shoulder", "left_hip"), ("right_shoulder", "right_hip"),
          ("left_hip", "left_knee"), ("left_knee", "left_ankle"),
          ("right_hip", "right_knee"), ("right_knee", "right_ankle"))
+# posed's joint angle -> the name a humanoid URDF gives that joint: <side>_<joint>_<pitch|roll|yaw>_joint, the
+# scheme of common humanoid URDFs (Unitree G1's joints are named so: left_hip_pitch_joint, waist_yaw_joint,
+# left_elbow_joint, ...). theta (flexion, about the body's left-right axis) is pitch, phi (adduction, side
+# bend) roll, psi (rotation) yaw. Values keep posed's sign convention (docs/ros2.md).
+URDF_JOINT_NAMES = {
+    "theta_hd": "head_pitch_joint", "psi_hd": "head_yaw_joint",
+    "theta_tr": "waist_pitch_joint", "phi_tr": "waist_roll_joint", "psi_tr": "waist_yaw_joint",
+    **{f"{axis}_{joint}_{s}": f"{side}_{name}_joint"
+       for s, side in (("l", "left"), ("r", "right"))
+       for axis, joint, name in (("theta", "sh", "shoulder_pitch"), ("phi", "sh", "shoulder_roll"),
+                                 ("theta", "el", "elbow"), ("theta", "hp", "hip_pitch"), ("phi", "hp", "hip_roll"),
+                                 ("psi", "hp", "hip_yaw"), ("theta", "kn", "knee"), ("theta", "an", "ankle_pitch"),
+                                 ("phi", "an", "ankle_roll"))},
+}
 MARKER_NS = "posed_skeleton"
 MARKER_LIFETIME_S = 1.0           # a skeleton not refreshed for this long disappears from RViz
 DIAGNOSTIC_LEVEL = {"falling": 1, "on_floor": 2, "alarm": 2, "recovered": 0}   # WARN, ERROR, ERROR, OK
@@ -80,12 +96,24 @@ def header(time_unix: float, frame_id: str):
     return _t("std_msgs/msg/Header")(stamp=stamp(time_unix), frame_id=frame_id)
 
 
+def measured_pose(pose: dict):
+    """The pose message as a ``fitting.FitResult``: what it measured (``measured``, fitting.measured) decides
+    what goes out."""
+    from posed.fitting import FitResult
+
+    return FitResult.from_json(pose)
+
+
 def joint_state(pose: dict, frame_id: str):
-    """JointState of an ok pose: names and positions (radians); velocity and effort empty."""
-    angles = pose.get("joint_angles_deg") or {}
-    names = [k for k, v in angles.items() if isinstance(v, (int, float))]
-    return _t(JOINT_STATE)(header=header(pose["time_unix"], frame_id), name=names,
-                           position=np.radians(np.array([angles[k] for k in names], dtype=np.float64)),
+    """JointState of an ok pose: the joint angles this frame measured (fitting.measured; the others are left
+    out, so a message may name fewer joints than the last), by their URDF-style names (``URDF_JOINT_NAMES``),
+    positions in radians in posed's sign convention; velocity and effort empty."""
+    from posed.fitting import JOINT_ANGLE_NAMES
+
+    angles = measured_pose(pose).measured_angles()
+    names = [n for n in JOINT_ANGLE_NAMES if n in angles]
+    return _t(JOINT_STATE)(header=header(pose["time_unix"], frame_id), name=[URDF_JOINT_NAMES[n] for n in names],
+                           position=np.radians(np.array([angles[n] for n in names], dtype=np.float64)),
                            velocity=np.zeros(0), effort=np.zeros(0))
 
 
@@ -111,9 +139,10 @@ def _marker(hdr, marker_id: int, kind: int, action: int, points, scale: float, r
 
 
 def skeleton(pose: dict, frame_id: str, body_frame_id: str):
-    """MarkerArray of an ok pose: bones (LINE_LIST, id 0) and joints (SPHERE_LIST, id 1), metres, in
-    ``frame_id`` at ``root_cam_m``, or in ``body_frame_id`` (mid-hip origin) when the position is unknown."""
-    j3 = {k: v for k, v in (pose.get("joints_3d") or {}).items()
+    """MarkerArray of an ok pose: bones (LINE_LIST, id 0) and joints (SPHERE_LIST, id 1) of the joints this
+    frame measured (fitting.measured; a bone when both its ends were), metres, in ``frame_id`` at
+    ``root_cam_m``, or in ``body_frame_id`` (mid-hip origin) when the position is unknown."""
+    j3 = {k: v for k, v in measured_pose(pose).measured_joints().items()
           if v is not None and all(isinstance(c, (int, float)) for c in v)}
     root = pose.get("root_cam_m")
     known = root is not None and all(isinstance(c, (int, float)) for c in root)
