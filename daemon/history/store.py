@@ -1,7 +1,8 @@
 """Per-frame joint angles kept for caregivers: SQLite, rate-limited, downsampled when old, deleted when older.
 
 One row per kept frame: wall time (unix seconds; what ``--since/--until`` select on), the capture time ``t``
-and ``seq``, and the 23 joint angles plus the body angles (degrees, interfaces.md section 2). Rows are
+and ``seq``, and the 23 joint angles plus the body angles (degrees, interfaces.md section 2) — those the frame
+measured (``FitResult.measured``, fitting.measured); the rest are NULL, never the model's guess. Rows are
 buffered and committed every ``falls.history_commit_every_s`` of capture time (WAL, ``synchronous=NORMAL``: a power loss
 may drop the last uncommitted seconds, never corrupts the file — the angles are a record, not an alarm).
 
@@ -73,8 +74,8 @@ class AngleHistory:
                     and result.t >= self._last_kept_t:
                 return False
             self._last_kept_t = result.t
-            values = [_num(result.joint_angles_deg.get(n)) for n in JOINT_ANGLE_NAMES]
-            values += [_num(result.variables.get(n)) for n in BODY_ANGLE_NAMES]
+            measured = result.measured_angles()   # fitting.measured: an angle this frame did not see is NULL
+            values = [_num(measured.get(n)) for n in ANGLE_COLUMNS]
             self._buffer.append((self._clock() if wall is None else wall, result.t, result.seq, 0, *values))
             if self._last_commit_t is None:
                 self._last_commit_t = result.t
