@@ -480,7 +480,7 @@ def status_text(status: dict) -> str:
         error = f": {cam['error']}" if cam.get("error") else ""
         return (f"waiting_for_camera: {cam['source']} is not available{error}; retrying, restarts "
                 f"{status['restarts']}")
-    what = "recording" if cam.get("kind") == "file" else "camera"
+    what = "recording" if cam.get("kind") == "file" or str(cam.get("source") or "").startswith("file:") else "camera"
     if status["state"] == "blind" and status.get("blind"):
         return (f"blind: {status['blind']['reason']}; fix: {status['blind']['fix']}; {what} {cam['state']}, "
                 f"restarts {status['restarts']}")

@@ -28,7 +28,7 @@ import numpy as np
 from posed.camera_model import Intrinsics
 from posed.hal.clock import ReplayClock, wait_until_due
 from posed.hal.config import SourceConfig
-from posed.hal.errors import EndOfStream
+from posed.hal.errors import EndOfStream, SourceCorrupt
 from posed.hal.frame import Frame
 from posed.hal.sidecar import Timestamps, read_sidecar, sidecar_path
 from posed.hal.source import Source
@@ -92,16 +92,28 @@ class Timeline:
         self.pending: Frame | None = None        # produced, not yet handed out (its read timed out waiting)
         self.ended = False
         self.clock = ReplayClock()               # repeated, backward and leaping timestamps (clock jumps)
+        self.bad_due: float | None = None        # when the last frame that did not decode was due
 
-    def read(self, timeout_s: float, produce: Callable[[float], Frame], realtime: bool) -> Frame:
+    def read(self, timeout_s: float, produce: Callable[[float], Frame], realtime: bool,
+             period_s: float | None = None) -> Frame:
         """The pending frame, else ``produce(deadline)``; with ``realtime`` held back until its ``t`` (but not
-        past ``timeout_s``: then SourceTimeout and the frame stays pending). The first call starts the line."""
+        past ``timeout_s``: then SourceTimeout and the frame stays pending). The first call starts the line.
+        With ``realtime`` and ``period_s``, a frame that cannot be decoded (SourceCorrupt from ``produce``) takes
+        its frame period too, as a camera's bad frame would: the error is raised one period after the frame
+        before (or the bad one before), not at once, so a replay of bad frames lasts as long as the recording."""
         now = self._clock()
         deadline = now + timeout_s
         if self.t_start is None:
             self.t_start = now
         if self.pending is None:
-            self.pending = produce(deadline)
+            try:
+                self.pending = produce(deadline)
+            except SourceCorrupt:
+                if realtime and period_s:
+                    last = self.clock.last if self.clock.last is not None else self.t_start - period_s
+                    self.bad_due = max(last, self.bad_due if self.bad_due is not None else last) + period_s
+                    self._sleep(max(0.0, min(self.bad_due, deadline) - self._clock()))
+                raise
         frame = self.pending
         if realtime:
             wait_until_due(frame.t, deadline, timeout_s, self.name, self._clock, self._sleep)
@@ -193,7 +205,7 @@ class ReplaySource(Source):
                 "sidecar": self.sidecar.path if self.sidecar else None}
 
     def _read(self, timeout_s: float) -> Frame:
-        return self._timeline.read(timeout_s, self._produce, self.config.realtime)
+        return self._timeline.read(timeout_s, self._produce, self.config.realtime, self._frame_period())
 
     # -- internals ----------------------------------------------------------------------------------------
     def _frame_period(self) -> float:

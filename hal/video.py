@@ -5,6 +5,10 @@ SourceCorrupt at ``open()``. A decode failure before the container's last frame 
 the read raises SourceCorrupt naming the file and the frames lost, and the next read goes on with the first
 frame the decoder recovers (FFmpeg resynchronises at the next key frame); when nothing more decodes the
 error says so and the following read raises EndOfStream (or starts the next pass with ``loop``).
+
+A rotation tag (a phone held upright records landscape pixels and a display matrix saying "turn by 90"):
+OpenCV's FFmpeg backend applies it (``CAP_PROP_ORIENTATION_AUTO``), so frames come upright and ``info``'s
+size is the upright size; ``info["rotation"]`` says by how many degrees the pixels were turned.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ class VideoFileSource(ReplaySource):
         self._cap: cv2.VideoCapture | None = None
         self.frame_count = 0
         self.codec = ""
+        self.rotation = 0
 
     def _open_media(self) -> None:
         if not os.path.isfile(self.path):
@@ -48,6 +53,10 @@ class VideoFileSource(ReplaySource):
         self.nominal_fps = float(fps) if fps and fps > 0 and np.isfinite(fps) else 0.0
         self.size = (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
         self.codec = fourcc_text(cap.get(cv2.CAP_PROP_FOURCC))
+        # a phone video's rotation tag (the container's display matrix): OpenCV turns the frames upright itself
+        # (CAP_PROP_ORIENTATION_AUTO, on by default), and the size above is already the upright one
+        rot = cap.get(cv2.CAP_PROP_ORIENTATION_META)
+        self.rotation = int(rot) % 360 if rot and np.isfinite(rot) else 0
         self._skip = 0           # frames the decoder lost so far (file index = decoded position + skip)
         self._bad_from: int | None = None
         self._bad_reads = 0
@@ -71,7 +80,7 @@ class VideoFileSource(ReplaySource):
 
     def _describe(self) -> dict:
         out = super()._describe()
-        out.update(frame_count=self.frame_count, codec=self.codec)
+        out.update(frame_count=self.frame_count, codec=self.codec, rotation=self.rotation)
         return out
 
     def _pts(self) -> float | None:

@@ -3,8 +3,9 @@
 * Frames come from ``hal.open_source(config.source)``; the capture timestamp is the frame's ``t``
   (monotonic clock), and it travels with the frame to the publisher. Reading starts once every stage is
   ready (the supervisor's ``go``), so warm-up neither drops frames nor delays a replay's first ones.
-* ``pipeline.target_fps`` thins the camera's rate: a frame is taken when at least 0.75 of the target period
-  has passed since the last one taken (the others count as ``skipped``, not dropped).
+* ``pipeline.target_fps`` thins the camera's rate: a frame is taken when it is at most a quarter of the
+  target period early for the next due time, due times a target period apart (the others count as
+  ``skipped``, not dropped), so 30, 60 or 25 fps all give the target rate; a slower source gives every frame.
 * Live cameras and paced replays never wait: a FrameRef the landmark stage has not taken yet is replaced
   (a drop; the newest frame wins). An unpaced file replay (``source.realtime: false``) is lossless instead:
   every stage waits until the next one has taken its previous message, so the pipeline runs at the pace
@@ -51,15 +52,25 @@ REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
 
 
 class _Thinner:
-    """Takes frames at no more than ``target_fps`` (by capture time)."""
+    """Takes frames at no more than ``target_fps`` (by capture time), on a schedule: the frames due every
+    target period, each taken from a quarter of a period early (a camera's jitter), the schedule kept from
+    due time to due time so that a 60 fps or 25 fps source gives the target rate on average (10 fps, not the
+    12 or 12.5 that a minimum gap between frames gives). A source slower than the target gives every frame;
+    a gap or a time line that went back starts the schedule again."""
 
     def __init__(self, target_fps: float) -> None:
-        self.min_gap = 0.75 / target_fps
+        self.period = 1.0 / target_fps
+        self.min_gap = 0.75 * self.period
         self.last: float | None = None
+        self.due: float | None = None
 
     def take(self, t: float) -> bool:
-        if self.last is not None and self.last <= t < self.last + self.min_gap:
+        if self.last is not None and self.last <= t < self.due - 0.25 * self.period:
             return False
+        if self.due is None or t < (self.last or t) or t > self.due + self.period:
+            self.due = t + self.period            # start (again): from this frame
+        else:
+            self.due += self.period
         self.last = t
         return True
 
@@ -96,8 +107,9 @@ def run(rt: StageRuntime) -> None:
                 except SourceUnsupported as exc:
                     rt.fatal(str(exc), fix="check the source section (source.type, source.path, source.device)")
                 except SourceError as exc:
-                    if isinstance(exc, SourceNotFound) and src_cfg.type == "file":
-                        rt.fatal(str(exc), fix="check source.path (or --source file:PATH)")
+                    if isinstance(exc, (SourceNotFound, SourceCorrupt)) and src_cfg.type == "file":
+                        rt.fatal(str(exc), fix="check source.path (or --source file:PATH); posed config check "
+                                               "--source file:PATH probes it")
                     source = _failed_open(rt, source, exc, failures)
                     failures += 1
                     if not reported_ready:
@@ -186,8 +198,10 @@ class _News:
         self.next_refresh = 0.0
         self.next_problem = 0.0
         self.jumps = 0
+        self.last_problem: dict | None = None
 
-    def _send(self, **extra) -> None:
+    def _send(self) -> None:
+        extra = {"problem": self.last_problem} if self.last_problem else {}
         self.rt.report(camera=dict(self.camera), **extra)
 
     def opened(self, source) -> None:
@@ -229,9 +243,10 @@ class _News:
         now = clock.now()
         if warn:
             self.rt.log.warning("clock_jump", error=error, fix=fix)
+        self.last_problem = {"error": error, "fix": fix}
         if now >= self.next_problem or warn:
             self.next_problem = now + 0.5
-            self._send(problem={"error": error, "fix": fix})
+            self._send()
 
     def ended(self, source) -> None:
         self.camera.update(_info(source) if source is not None else {})

@@ -1,6 +1,6 @@
 """Bad frames in a ``file:`` image folder, through the real ``posed run`` (real model, real fit, real Zenoh on
-127.0.0.1): a 10000x10000 image and an image that does not decode are skipped and counted, never fatal; the
-fix the daemon suggests for a frame too large for the ring stays within pipeline.frame_max_pixels' range."""
+127.0.0.1): a 10000x10000 image (above the 8K that posed decodes at all) and an image that does not decode are
+skipped and counted, never fatal, each with the fix that fits it."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from posed.daemon.config.sections import PipelineConfig
+from posed.hal import MAX_DECODE_PIXELS
 from tests.daemon.zenoh_util import client, free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -55,16 +55,18 @@ def test_oversized_and_corrupt_images_are_skipped_and_counted(tmp_path, squat_fr
     assert cap and max(c["restarts"] for c in cap) == 0
     assert max(c["bad_frames"] for c in cap) == 2, cap[-1]
     assert max(c["frames"] for c in cap) == 4, cap[-3:]
-    too_large = next(x for x in skipped if "frame_max_pixels" in x.get("error", "") + x.get("fix", ""))
-    hi = PipelineConfig.__dataclass_fields__["frame_max_pixels"].metadata["range"][1]
+    too_large = next(x for x in skipped if "img_04" in x.get("error", ""))
     text = too_large["error"] + " " + too_large.get("fix", "")
-    for number in [int(w) for w in text.replace(",", " ").split() if w.isdigit()]:
-        if "at least" in text and number == 10000 * 10000:
-            raise AssertionError(f"the suggested fix is above frame_max_pixels' maximum {hi}: {text}")
-    assert "scale" in text and str(hi) in text, text
+    # not "raise pipeline.frame_max_pixels" (frames up to 8K are scaled down at capture, never skipped for their
+    # size): the image is above what posed decodes at all, and the fix says to scale it below that
+    assert "frame_max_pixels to" not in text, text
+    assert f"scale the image down to at most {MAX_DECODE_PIXELS} pixels" in too_large["fix"], text
+    assert "replace or delete" not in too_large["fix"], text
+    corrupt = next(x for x in skipped if "img_07" in x.get("error", ""))
+    assert "replace or delete the image" in corrupt["fix"], corrupt
 
 
-def test_ring_message_for_a_frame_that_fits_the_range(tmp_path):
+def test_ring_message_for_a_frame_written_unscaled(tmp_path):
     from posed.daemon.proc.ring import FrameRing, FrameTooLarge
 
     ring = FrameRing.create(2, 640 * 480, False)
@@ -72,7 +74,7 @@ def test_ring_message_for_a_frame_that_fits_the_range(tmp_path):
         try:
             ring.write(np.zeros((720, 1280, 3), np.uint8), 0, time.monotonic())
         except FrameTooLarge as exc:
-            assert f"pipeline.frame_max_pixels to at least {1280 * 720}" in str(exc)
+            assert "(pipeline.frame_max_pixels): scale it down first by hal.scale_factor" in str(exc)
         else:
             raise AssertionError("a 1280x720 frame fitted a 640x480 slot")
     finally:
