@@ -1,8 +1,10 @@
-"""``posed config check FILE`` and ``posed config show``.
+"""``posed config check [FILE] [--source URI]`` and ``posed config show``.
 
 ``check`` validates the file (every key, with its path) and then runs every check ``posed run`` makes before it
 starts anything (:func:`daemon.preflight.check`: models present and verified, the native Zenoh config, the
-calibration file, hook commands, the fit's row lengths): exit 0, or every problem listed and exit 78."""
+calibration file, hook commands, the fit's row lengths): exit 0, or every problem listed and exit 78. With
+``--source URI`` it also opens that source, reads its first frame and prints its size, orientation and rate
+and what the daemon will do with it (``posed.commands._probe``); a source that gives no frame is a problem."""
 
 from __future__ import annotations
 
@@ -20,7 +22,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("config", help="check or show a configuration")
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     check = actions.add_parser("check", help="validate a config file: exit 0, or list every problem and exit 78")
-    check.add_argument("file", help="the config file to check")
+    check.add_argument("file", nargs="?", help="the config file to check (default: $POSED_CONFIG, else "
+                                                "/etc/posed/config.yaml when it exists, else the embedded default)")
+    check.add_argument("--source", metavar="URI",
+                       help="also probe this camera or recording (realsense:[SERIAL], v4l2:/dev/videoN, file:PATH): "
+                            "print its size, rate and orientation and what the daemon will do with it")
     check.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
                        help="check the file with this override applied (repeatable), e.g. --set robot_id=kitchen")
     check.set_defaults(func=_check)
@@ -34,15 +40,28 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _check(args: argparse.Namespace) -> int:
+    from posed.daemon.config.paths import config_file
     from posed.daemon.preflight import check
 
-    problems = check(load_config(args.file, overrides=args.overrides))
+    path = args.file if args.file else config_file(None)
+    name = str(path) if path else "(the embedded default config)"
+    cfg = load_config(path, overrides=args.overrides, source=args.source)
+    problems = check(cfg)
+    lines: list[str] = []
+    if args.source and not problems:
+        from posed.commands._probe import probe
+        from posed.daemon.preflight import resolve_source
+
+        lines, more = probe(resolve_source(cfg, lambda p: p))
+        problems += more
     if problems:
         for p in problems:
-            print(f"{args.file}: {p}", file=sys.stderr)
+            print(f"{name}: {p}", file=sys.stderr)
         print(f"posed: {len(problems)} problem(s); `posed run` would not start", file=sys.stderr)
         return EX_CONFIG
-    print(f"{args.file}: OK")
+    for line in lines:
+        print(line)
+    print(f"{name}: OK")
     return 0
 
 
