@@ -1,4 +1,5 @@
-"""hal throughput: squat-video decode, RGB-D .db3 write/playback, recording, real-time pacing.
+"""hal throughput: squat-video decode, RGB-D .db3 write/playback, recording, real-time pacing, and the capture
+stage's one downscale of a frame above the working size (target: at most 2 ms for 1920x1080).
 
 Run: ``posed bench hal [--json] [--video PATH]``.
 """
@@ -97,14 +98,78 @@ def measure(video: Path | None = None, repeats: int = 5) -> dict[str, float]:
             late.append((time.monotonic() - f.t) * 1000.0)
     out["realtime_lateness_ms_median"] = round(statistics.median(late), 2)
     out["realtime_lateness_ms_max"] = round(max(late), 2)
+    out.update(measure_downscale())
+    return out
+
+
+DOWNSCALE_TARGET_MS = 2.0
+
+
+def measure_downscale(frames_n: int = 30, repeats: int = 5) -> dict[str, float | bool]:
+    """The capture stage's downscale (``hal.downscale`` by ``hal.scale_factor`` at the default working size,
+    pipeline.frame_max_pixels 1280x720) of real frames: the s2d_enter clip brought to 1920x1080 as a 1080p camera
+    gives it, and pose2sim's 1080x1920 portrait cam01 as it is; milliseconds per frame, median and p95 over
+    ``repeats`` passes of ``frames_n`` frames; and, for comparison, OpenCV's fractional area resize to 1280x720
+    that a whole factor avoids."""
+    from posed.daemon.config.sections import PipelineConfig
+
+    slot = PipelineConfig().frame_max_pixels
+    ref = shared_data() / "reference"
+
+    def frames(path: Path, size: tuple[int, int] | None) -> list[np.ndarray]:
+        cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+        got = []
+        while len(got) < frames_n:
+            ok, im = cap.read()
+            if not ok:
+                break
+            got.append(np.ascontiguousarray(cv2.resize(im, size, interpolation=cv2.INTER_CUBIC) if size else im))
+        cap.release()
+        return got
+
+    def timed(images: list[np.ndarray], fn) -> list[float]:
+        fn(images[0])
+        ms = []
+        for _ in range(repeats):
+            for im in images:
+                t = time.perf_counter()
+                fn(im)
+                ms.append((time.perf_counter() - t) * 1000.0)
+        return ms
+
+    out: dict[str, float | bool] = {}
+    for name, path, size in (("1920x1080", ref / "multi_person" / "s2d_enter.mp4", (1920, 1080)),
+                             ("1080x1920", ref / "pose2sim_demo" / "balancing" / "cam01.mp4", None)):
+        images = frames(path, size)
+        h, w = images[0].shape[:2]
+        k = hal.scale_factor(w, h, slot)
+        ms = timed(images, lambda im, k=k: hal.downscale(im, k))
+        out[f"downscale_{name}_by_{k}_ms_median"] = round(statistics.median(ms), 3)
+        out[f"downscale_{name}_by_{k}_ms_p95"] = round(float(np.percentile(ms, 95)), 3)
+        if name == "1920x1080":
+            out["downscale_1920x1080_target_ms"] = DOWNSCALE_TARGET_MS
+            out["downscale_1920x1080_target_met"] = bool(np.percentile(ms, 95) <= DOWNSCALE_TARGET_MS)
+            frac = timed(images, lambda im: cv2.resize(im, (1280, 720), interpolation=cv2.INTER_AREA))
+            out["fractional_area_1920x1080_to_1280x720_ms_median"] = round(statistics.median(frac), 3)
     return out
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--video", type=Path, default=None, help="video to decode (default: the squat video)")
+    parser.add_argument("--sizes", action="store_true",
+                        help="instead: the working-size measurement (landmark agreement on real clips at their "
+                             "full size and scaled down by 2, 3, 4 vs what each costs; bench/frame_sizes.py)")
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "sizes", False):
+        from posed.bench.frame_sizes import measure as measure_sizes
+
+        rows = measure_sizes(shared_data())
+        for row in rows:
+            print(json.dumps(row) if getattr(args, "json", False) else
+                  "  ".join(f"{k} {v}" for k, v in row.items()))
+        return 0
     result = measure(args.video)
     if getattr(args, "json", False):
         print(json.dumps(result))

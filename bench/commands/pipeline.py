@@ -3,7 +3,9 @@ CPU and memory per process.
 
 Input: the real squat video of the shared test data, letterboxed to 640x480 at 10 fps (written once to the
 cache dir), replayed in a loop by ``posed run`` in a subprocess; a separate Zenoh session takes the pose and
-status topics. Phases (``--phase``): ``paced`` (real-time replay at 10 fps: published fraction and latency
+status topics. ``--input 1080p``: a full-HD camera instead, the real s2d_enter clip (two people outdoors)
+brought to 1920x1080 at its own 30 fps (written once to the cache dir), which the capture stage scales down to
+960x540 and thins to 10 fps: the frame budget with a 1080p source (issue 39). Phases (``--phase``): ``paced`` (real-time replay at 10 fps: published fraction and latency
 targets), ``unpaced`` (replay as fast as the pipeline takes it: throughput target), or ``both``.
 
 Targets (issue): paced 10 fps -> >= 99 % of frames published, capture->publish latency p95 <= 80 ms;
@@ -41,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="paced: real-time replay (published fraction, latency); unpaced: as fast as it "
                              "goes (throughput); both (default)")
     parser.add_argument("--source", metavar="PATH", help="a video to replay instead of the squat video (used as is)")
+    parser.add_argument("--input", choices=("squat", "1080p"), default="squat",
+                        help="squat: the squat video at 640x480, 10 fps (default); 1080p: a real clip at 1920x1080, "
+                             "30 fps, as a full-HD camera gives it")
     parser.add_argument("--warmup", type=float, default=3.0, help="seconds after the first pose before measuring")
     add_config_args(parser, source=False)
 
@@ -80,6 +85,39 @@ def bench_video() -> Path:
         for _ in range(repeat):
             writer.write(canvas)
             n += 1
+    writer.release()
+    cap.release()
+    if n == 0:
+        raise RuntimeError(f"no frame could be read from {src}")
+    tmp.replace(out)
+    return out
+
+
+def bench_video_1080p() -> Path:
+    """The real s2d_enter clip (1768x994, 30 fps, 230 frames) brought to 1920x1080 at 30 fps, as a 1080p camera."""
+    import cv2
+
+    from posed.daemon.preflight import cache_dir, shared_data
+
+    out = cache_dir() / "bench" / "s2d_enter_1920x1080_30fps.avi"
+    if out.is_file():
+        return out
+    src = shared_data() / "reference" / "multi_person" / "s2d_enter.mp4"
+    if not src.is_file():
+        raise FileNotFoundError(f"the bench input {src} is missing: the shared test data must sit at "
+                                f"{shared_data()} (set POSED_SHARED_DATA)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cap = cv2.VideoCapture(str(src))
+    tmp = out.with_name(out.stem + ".tmp.avi")
+    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"MJPG"), cap.get(cv2.CAP_PROP_FPS) or 30.0,
+                             (1920, 1080))
+    n = 0
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        writer.write(cv2.resize(frame, (1920, 1080), interpolation=cv2.INTER_CUBIC))
+        n += 1
     writer.release()
     cap.release()
     if n == 0:
@@ -221,7 +259,8 @@ def summarize(name: str, poses: list[dict], status0: dict | None, statuses: list
 
 
 def run(args: argparse.Namespace) -> int:
-    video = Path(args.source) if args.source else bench_video()
+    video = Path(args.source) if args.source else (bench_video_1080p() if getattr(args, "input", "squat") == "1080p"
+                                                   else bench_video())
     phases = ("paced", "unpaced") if args.phase == "both" else (args.phase,)
     results = []
     for phase in phases:
