@@ -50,8 +50,10 @@ class PipelineConfig:
                                "unit": "s", "range": (0.5, 60.0)}
     )
     frame_max_pixels: int = field(
-        default=1280 * 720, metadata={"doc": "largest frame (width x height) a ring slot holds; the camera's "
-                                             "configured size is always allowed", "unit": "px",
+        default=1280 * 720, metadata={"doc": "the working size: largest frame (width x height) a ring slot "
+                                             "holds; a larger frame is scaled down at capture by the smallest "
+                                             "whole factor that fits (landmarks stay in the source's pixels)",
+                                      "unit": "px",
                                       "range": (160 * 120, 8192 * 8192)}
     )
     stop_at_end: bool = field(
