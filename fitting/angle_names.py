@@ -39,7 +39,7 @@ PLAIN_NAMES: dict[str, str] = {
 }
 
 REMARKS: dict[str, str] = {
-    "theta_tr": "forward bend, relative to the pelvis",
+    "theta_tr": "forward bend",
     "phi_tr": "to the left +",
     "psi_tr": "to the left +",
     "theta_bd": "the pelvis's forward tilt to the camera",

@@ -22,7 +22,7 @@ import numpy as np
 from matplotlib import dates as mdates
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter
+from matplotlib.ticker import FuncFormatter, MultipleLocator
 
 from posed.viz.names import PANEL_TITLES, label, side
 from posed.viz.series import AngleSeries, Episode
@@ -32,6 +32,8 @@ FAMILY_COLOURS = {"hp": "#1f5fa8", "kn": "#7b3294", "sh": "#2e8b57", "el": "#b88
                   "bd": "#7f6000"}
 AXIS_STYLES = {"theta": "-", "phi": "-.", "psi": ":"}
 FALL_COLOUR = "#d62728"
+LABEL_LIFT_PT = 17.0   # fall numbers this far above the top panel: over its title, never on it
+TIME_STEPS_S = (0.5, 1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200)
 
 
 def local_zone(name: str | None = None) -> dt.tzinfo:
@@ -149,7 +151,10 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
         at = float(s.time[0]) if len(s.time) else 0.0
         bottom_ax.set_xlabel(f"clock time of the robot ({zone_text(tz, at)})")
     else:
-        bottom_ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{int(v // 60)}:{int(v % 60):02d}"))
+        lo, hi = axes[0].get_xlim()
+        step = recording_time_step(hi - lo)
+        bottom_ax.xaxis.set_major_locator(MultipleLocator(step))
+        bottom_ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: recording_time(v, step)))
         bottom_ax.set_xlabel("time in the recording (minutes:seconds from its first frame; a fit file has no "
                              "clock time)")
     fig.suptitle(title, x=0.07, ha="left", fontsize=12)
@@ -157,6 +162,23 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
         fig.text(0.07, (0.12 + 0.22 * (notes - i)) / height_in, f"fall {i}: {ep.describe(fmt, acks)}",
                  fontsize=9, color=FALL_COLOUR)
     return fig
+
+
+def recording_time_step(span_s: float, max_ticks: int = 10) -> float:
+    """The tick step for ``span_s`` seconds of recording time: the smallest of ``TIME_STEPS_S`` giving at most
+    ``max_ticks`` ticks (a step the labels can tell apart: ``recording_time`` shows tenths below 1 s)."""
+    return next((s for s in TIME_STEPS_S if span_s / s <= max_ticks), TIME_STEPS_S[-1])
+
+
+def recording_time(t: float, step: float) -> str:
+    """``m:ss`` (``m:ss.s`` when the ticks are less than a second apart) of ``t`` seconds."""
+    sign = "-" if t < -1e-9 else ""
+    t = abs(t)
+    if step < 1:
+        t = round(t, 1)
+        return f"{sign}{int(t // 60)}:{t % 60:04.1f}"
+    t = round(t)
+    return f"{sign}{int(t // 60)}:{int(t % 60):02d}"
 
 
 def _number_falls(ax, s: AngleSeries, falls: Sequence[Episode]) -> None:
@@ -182,5 +204,7 @@ def _number_falls(ax, s: AngleSeries, falls: Sequence[Episode]) -> None:
         first, last = members[0] + 1, members[-1] + 1
         text = f"fall {first}" if first == last else f"falls {first}-{last}"
         xc = float(np.mean([xs[i] for i in members]))
-        ax.text(xc, 1.0, text, transform=ax.transAxes, ha="center", va="bottom", fontsize=fontsize,
-                color="white", bbox={"boxstyle": "round,pad=0.2", "fc": FALL_COLOUR, "ec": "none"})
+        # in a band of their own above the panel's title (which is at the left, at the axes' top)
+        ax.annotate(text, (xc, 1.0), xycoords="axes fraction", xytext=(0, LABEL_LIFT_PT), textcoords="offset points",
+                    ha="center", va="bottom", fontsize=fontsize, color="white",
+                    bbox={"boxstyle": "round,pad=0.2", "fc": FALL_COLOUR, "ec": "none"})

@@ -13,8 +13,10 @@ and the sample is classified as
   roughly horizontal: on a chair, a bed's edge, squatting, kneeling);
 * **standing** — trunk and thighs near vertical (standing and walking).
 
-Each sample counts for the time until the next one, at most ``max_step_s``; the rest of the day is **not
-seen** (nobody in view, or the daemon not running: the history cannot tell which).
+Each sample counts for the time until the next one, at most ``max_step_s``. A sample whose torso was not
+measured (fitting.measured), or whose trunk is up while neither thigh was measured, has no posture. The rest
+of the day is told apart by the minutes posed watched (``daemon.history.watched``, ``viz.report``): a person
+in view without a measured posture, nobody in view, posed not watching, or not yet.
 
 Limits, said plainly: the classification trusts the fit, so a fit with a wrong depth mirror (a thigh flipped
 toward the camera) can turn standing into sitting for a moment; a deep squat or kneeling counts as sitting;
@@ -66,8 +68,9 @@ def method_text() -> list[str]:
         f"Lying: the trunk more than {LYING_TRUNK_DEG:.0f} degrees from vertical. Sitting: the trunk within "
         f"that and a thigh more than {SITTING_THIGH_DEG:.0f} degrees from vertical (on a chair, a bed's edge, "
         "squatting, kneeling). Standing: trunk and thighs near vertical (standing and walking).",
-        "Each sample counts for the time until the next one (at most a few sampling periods); the rest of "
-        "the day is 'not seen': nobody in view, or the daemon not running; the history cannot tell which.",
+        "Each sample counts for the time until the next one (at most a few sampling periods). A sample has no "
+        "posture when the camera did not see both shoulders and both hips, or when the trunk is up and neither "
+        "thigh was seen (sitting and standing then look alike).",
         f"A sit-to-stand transition: at least {MIN_RUN_S:.0f} s sitting followed within {MAX_SWITCH_S:.0f} s by "
         f"at least {MIN_RUN_S:.0f} s standing. A walking bout: at least {WALK_MIN_S:.0f} s standing in which "
         f"the two hip flexions swap which is ahead at least {WALK_MIN_SWAPS} times by more than "
@@ -92,12 +95,16 @@ def inclinations(angles: Mapping[str, float]) -> tuple[float, float]:
 
 
 def classify(angles: Mapping[str, float]) -> str | None:
-    """``standing``, ``sitting`` or ``lying`` for one sample; None when the body angles are unknown."""
+    """``standing``, ``sitting`` or ``lying`` for one sample; None when the body angles are unknown (the
+    torso not measured), or when the trunk is up and neither thigh was measured (sitting and standing then
+    look the same)."""
     if any(not np.isfinite(angles.get(k, np.nan)) for k in ("theta_bd", "phi_bd", "psi_bd")):
         return None
     trunk, thigh = inclinations(angles)
     if trunk > LYING_TRUNK_DEG:
         return "lying"
+    if not any(np.isfinite(angles.get(k, np.nan)) for k in ("theta_hp_l", "theta_hp_r")):
+        return None
     return "sitting" if thigh > SITTING_THIGH_DEG else "standing"
 
 

@@ -1,9 +1,12 @@
 """The daily summary for a caregiver: one self-contained HTML file (tables, and PNG pictures inlined as
 base64: it opens offline, can be mailed, and loads nothing from anywhere).
 
-What it holds: time spent standing, sitting, lying and not seen (``viz.posture``, whose rules and limits
-are printed in the report), sit-to-stand transitions, walking bouts, the falls and how each ended
-(recovered, alarm, acknowledged), the day's joint-angle ranges, a posture timeline and the angle plot.
+What it holds: whether posed was watching (the minutes it received frames, ``watched``: none means off or
+no camera), time spent standing, sitting, lying, in view without a measured posture, and with nobody in view
+(``viz.posture``, whose rules and limits are printed in the report), never counting the rest of a day not
+over; sit-to-stand transitions, walking bouts, the falls and how each ended (recovered, alarm,
+acknowledged) said against the time posed watched; the day's joint-angle ranges; the day hour by hour
+(one bar per hour, a cell per minute); the angle plot.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import datetime as dt
 import html
 import io
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -26,9 +30,6 @@ from posed.viz.series import AngleSeries, Episode
 
 BODY_ANGLES = ("theta_bd", "phi_bd", "psi_bd")
 
-MIN_BAR_S = 120.0   # a stretch is drawn at least this wide on the day's bar, so a short one still shows
-POSTURE_STYLE = {"standing": ("#4c9f70", ""), "sitting": ("#e0a030", "//"), "lying": ("#c0392b", "xx")}
-
 
 def _png_tag(png: bytes, alt: str) -> str:
     return (f'<img alt="{html.escape(alt)}" style="max-width:100%" '
@@ -40,36 +41,149 @@ def _hm(seconds: float) -> str:
     return f"{m // 60} h {m % 60:02d} min" if m >= 60 else (f"{m} min" if m else f"{seconds:.0f} s")
 
 
-def timeline_png(summary: posture.DaySummary, falls: Sequence[Episode], span: tuple[float, float],
-                 tz: dt.tzinfo, width_px: int = 1200, dpi: int = 110) -> bytes:
-    """The day as one bar: each posture a colour and a hatch (readable without colour), fall starts as red
-    numbered lines, hours on the x axis."""
-    from matplotlib import dates as mdates
+# what a minute of the day was: the posture seen most in it, else why there is none
+POSTURE_STYLE = {"standing": ("#4c9f70", ""), "sitting": ("#e0a030", "//"), "lying": ("#c0392b", "xx")}
+OTHER_STYLE = {"in view, posture not measured": ("#9fb7d0", ".."),
+               "watching, nobody in view": ("#dedede", ""),
+               "not watching (posed off or no camera)": ("#ffffff", "---"),
+               "not seen (posed's history does not say whether it watched)": ("#ffffff", ""),
+               "not yet": ("#f4f4f4", "")}
+MINUTE_STYLE = {**POSTURE_STYLE, **OTHER_STYLE}
+IN_VIEW, NOBODY, OFF, UNKNOWN, NOT_YET = OTHER_STYLE
 
-    fig = Figure(figsize=(width_px / dpi, 1.9), dpi=dpi)
-    FigureCanvasAgg(fig)
-    ax = fig.add_axes((0.04, 0.36, 0.8, 0.36))
+
+@dataclass(frozen=True)
+class DayTime:
+    """Where a day's time went, seconds, the future never counted: ``elapsed`` (midnight to now, or the
+    whole day), ``postures`` (standing, sitting, lying: from the angle history), ``watching`` (posed received
+    frames), ``person`` (of them with a person in view), ``future`` (the rest of today); ``known`` False when
+    the history has no record of when posed watched (then ``watching`` and ``person`` are None)."""
+
+    elapsed: float
+    postures: dict[str, float]
+    watching: float | None
+    person: float | None
+    future: float
+
+    @property
+    def known(self) -> bool:
+        return self.watching is not None
+
+    def rows(self) -> list[tuple[str, float]]:
+        """(what, seconds) rows of the report's table, in reading order; together they make ``elapsed``."""
+        seen = sum(self.postures.values())
+        out = [(p, self.postures[p]) for p in posture.POSTURES]
+        if self.known:
+            out += [(IN_VIEW, max(0.0, self.person - seen)), (NOBODY, max(0.0, self.watching - max(self.person, seen))),
+                    (OFF, max(0.0, self.elapsed - max(self.watching, seen)))]
+        else:
+            out.append((UNKNOWN, max(0.0, self.elapsed - seen)))
+        return out
+
+
+def day_time(summary: posture.DaySummary, watched: Sequence[tuple] | None, span: tuple[float, float],
+             now: float) -> DayTime:
+    """The day's accounting from the posture summary and the watched minutes (``WatchLog.minutes`` rows:
+    minute, frames, person, fitted, watched_s, person_s; None: not recorded) up to ``now``."""
+    until = min(span[1], now)
+    elapsed = max(0.0, until - span[0])
+    postures = {p: summary.seconds[p] for p in posture.POSTURES}
+    if watched is None:
+        return DayTime(elapsed, postures, None, None, span[1] - span[0] - elapsed)
+    rows = [r for r in watched if span[0] <= r[0] < until]
+    watching = min(elapsed, float(sum(r[4] for r in rows)))
+    person = min(watching, float(sum(r[5] for r in rows)))
+    return DayTime(elapsed, postures, watching, person, span[1] - span[0] - elapsed)
+
+
+def minute_states(summary: posture.DaySummary, watched: Sequence[tuple] | None, span: tuple[float, float],
+                  now: float) -> list[str]:
+    """One state per minute of the day (``MINUTE_STYLE``'s keys): the posture seen longest in it, else in
+    view with no posture measured, nobody in view, not watching, not seen (unknown), or not yet."""
+    n = int(round((span[1] - span[0]) / 60.0))
+    seconds = [dict.fromkeys(posture.POSTURES, 0.0) for _ in range(n)]
     for r in summary.runs:
-        colour, hatch = POSTURE_STYLE[r.posture]
-        ax.broken_barh([(r.start / 86400.0, max(r.seconds, MIN_BAR_S) / 86400.0)], (0, 1), facecolors=colour,
-                       hatch=hatch, edgecolor="white", linewidth=0)
+        t = r.start
+        while t < r.end:
+            i = int((t - span[0]) // 60)
+            edge = min(r.end, span[0] + 60.0 * (i + 1))
+            if 0 <= i < n:
+                seconds[i][r.posture] += edge - t
+            t = edge
+    rows = {} if watched is None else {int(r[0]): r for r in watched}
+    out = []
+    for i in range(n):
+        t = span[0] + 60.0 * i
+        best = max(posture.POSTURES, key=lambda p, s=seconds[i]: s[p])
+        row = rows.get(int(t))
+        if seconds[i][best] > 0:
+            out.append(best)
+        elif t >= now:
+            out.append(NOT_YET)
+        elif watched is None:
+            out.append(UNKNOWN)
+        elif row is None or row[4] <= 0:
+            out.append(OFF)
+        else:
+            out.append(IN_VIEW if row[5] > 0 else NOBODY)
+    return out
+
+
+def day_grid_figure(states: Sequence[str], falls: Sequence[Episode], span: tuple[float, float], tz: dt.tzinfo,
+                    width_px: int = 1200, dpi: int = 110) -> Figure:
+    """The day hour by hour: one bar per hour, one cell per minute in the colour (and hatch, for grey print)
+    of what that minute was (``minute_states``); a fall's minute outlined in red, its number at the end of its
+    hour's bar (one text per hour, so numbers never overlap)."""
+    from matplotlib.patches import Rectangle
+
+    hours = (len(states) + 59) // 60
+    height_in = 0.24 * hours + 1.6
+    fig = Figure(figsize=(width_px / dpi, height_in), dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.075, 1.05 / height_in, 0.79, 1 - 1.25 / height_in))
+    for h in range(hours):
+        m = 0
+        cells = states[60 * h: 60 * h + 60]
+        while m < len(cells):
+            e = m
+            while e < len(cells) and cells[e] == cells[m]:
+                e += 1
+            colour, hatch = MINUTE_STYLE[cells[m]]
+            ax.add_patch(Rectangle((m, h + 0.1), e - m, 0.8, facecolor=colour, hatch=hatch, edgecolor="#888888",
+                                   linewidth=0.0))
+            m = e
+        ax.add_patch(Rectangle((0, h + 0.1), len(cells), 0.8, fill=False, edgecolor="#bbbbbb", linewidth=0.5))
+    per_hour: dict[int, list[int]] = {}
     for i, ep in enumerate(falls, 1):
-        x = ep.start / 86400.0
-        ax.axvline(x, color=FALL_COLOUR, linewidth=1.5)
-        ax.text(x, 1.06 + 0.3 * ((i - 1) % 2), f"fall {i}", color=FALL_COLOUR, ha="center", fontsize=8,
-                transform=ax.get_xaxis_transform())
-    ax.set_xlim(span[0] / 86400.0, span[1] / 86400.0)
-    ax.set_ylim(0, 1)
-    ax.set_yticks([])
-    loc = mdates.HourLocator(byhour=range(0, 24, 2), tz=tz)
-    ax.xaxis.set_major_locator(loc)
-    ax.xaxis.set_major_formatter(mdates.DateFormatter("%H:%M", tz=tz))
-    ax.set_xlabel(f"clock time of the robot ({zone_text(tz, span[0])}); white = not seen; stretches shorter "
-                  f"than {MIN_BAR_S / 60:.0f} min are drawn {MIN_BAR_S / 60:.0f} min wide", fontsize=9)
-    handles = [Patch(facecolor=c, hatch=h, edgecolor="white", label=p) for p, (c, h) in POSTURE_STYLE.items()]
-    fig.legend(handles=handles, loc="center left", bbox_to_anchor=(0.85, 0.6), frameon=False, fontsize=9)
+        k = int((ep.start - span[0]) // 60)
+        if 0 <= k < len(states):
+            per_hour.setdefault(k // 60, []).append(i)
+            ax.add_patch(Rectangle((k % 60 - 0.3, k // 60 + 0.02), 1.6, 0.96, fill=False, edgecolor=FALL_COLOUR,
+                                   linewidth=1.6))
+    for h, numbers in per_hour.items():
+        text = (f"fall {numbers[0]}" if len(numbers) == 1 else "falls " + ", ".join(map(str, numbers))
+                if len(numbers) <= 4 else f"falls {numbers[0]}-{numbers[-1]}")
+        ax.text(61, h + 0.5, text, color=FALL_COLOUR, va="center", ha="left", fontsize=8.5)
+    ax.set_xlim(0, 60)
+    ax.set_ylim(hours, 0)
+    labels = [dt.datetime.fromtimestamp(span[0] + 3600 * h, tz).strftime("%H:%M") for h in range(hours)]
+    ax.set_yticks([h + 0.5 for h in range(hours)], labels, fontsize=8)
+    ax.set_xticks([0, 10, 20, 30, 40, 50, 60], [":00", ":10", ":20", ":30", ":40", ":50", ":60"], fontsize=8)
+    ax.tick_params(length=0)
+    for side in ("top", "right", "left", "bottom"):
+        ax.spines[side].set_visible(False)
+    ax.set_xlabel(f"minute of the hour; clock time of the robot ({zone_text(tz, span[0])}); a fall's minute is "
+                  "outlined in red", fontsize=9)
+    handles = [Patch(facecolor=c, hatch=h, edgecolor="#888888", label=k) for k, (c, h) in MINUTE_STYLE.items()
+               if k in set(states)]
+    fig.legend(handles=handles, loc="lower center", ncol=min(4, len(handles)), frameon=False, fontsize=8.5,
+               bbox_to_anchor=(0.5, 0.0))
+    return fig
+
+
+def day_grid_png(states: Sequence[str], falls: Sequence[Episode], span: tuple[float, float], tz: dt.tzinfo) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    day_grid_figure(states, falls, span, tz).savefig(buf, format="png")
     return buf.getvalue()
 
 
@@ -92,31 +206,45 @@ def angle_ranges(series: AngleSeries) -> list[tuple[str, int, float, float, floa
 
 
 def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: dt.tzinfo, *, robot: str,
-               sources: str, max_step_s: float = 1.0) -> str:
+               sources: str, max_step_s: float = 1.0, watched: Sequence[tuple] | None = None,
+               now: float | None = None) -> str:
     """The HTML text of the day's report. ``series`` on the robot's clock (unix seconds), ``falls`` the
-    day's episodes (journal), ``sources`` a line naming the files it was made from."""
+    day's episodes (journal), ``sources`` a line naming the files it was made from, ``watched`` the minutes
+    posed watched (``WatchLog.minutes`` rows; None: this history does not record them), ``now`` the time
+    the report is made (unix; default now): nothing after it is counted."""
+    import time
+
+    now = time.time() if now is None else now
     start = dt.datetime.combine(day, dt.time(0), tz).timestamp()
     end = dt.datetime.combine(day + dt.timedelta(days=1), dt.time(0), tz).timestamp()
     span = (start, end)
     summary = posture.summarise(series.time, series.angles, span, max_step_s)
+    acct = day_time(summary, watched, span, now)
 
     def fmt(t: float) -> str:
         return dt.datetime.fromtimestamp(t, tz).strftime("%H:%M:%S")
 
     esc = html.escape
+    so_far = "the whole day" if acct.future <= 0 else (
+        "the day so far: " + ("it has not begun" if acct.elapsed <= 0 else f"up to {fmt(now)}"))
     parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'><title>posed: {esc(robot)}, "
              f"{day.isoformat()}</title><style>{_CSS}</style></head><body>",
              f"<h1>Daily summary, {day.strftime('%A %d %B %Y')}</h1>",
              f"<p class='meta'>Robot <b>{esc(robot)}</b>; clock: the robot's local time ({esc(zone_text(tz, start))})."
-             f" Made from {esc(sources)}.</p>"]
-    seen = sum(summary.seconds[p] for p in posture.POSTURES)
-    parts.append("<h2>Time by posture</h2><table><tr><th>posture</th><th>time</th><th>share of the time seen"
-                 "</th></tr>")
-    for p in (*posture.POSTURES, "not seen"):
-        share = f"{100 * summary.seconds[p] / seen:.0f} %" if p != "not seen" and seen > 0 else ""
-        parts.append(f"<tr><td>{p}</td><td>{_hm(summary.seconds[p])}</td><td>{share}</td></tr>")
+             f" Covers {esc(so_far)}. Made from {esc(sources)}.</p>"]
+    parts.append(_watching_html(acct, falls))
+    parts.append("<h2>The day</h2><table><tr><th></th><th>time</th><th>share of the day so far</th></tr>")
+    for what, secs in acct.rows():
+        share = "" if acct.elapsed <= 0 else "0 %" if secs <= 0 else (
+            "&lt;1 %" if secs < 0.005 * acct.elapsed else f"{100 * secs / acct.elapsed:.0f} %")
+        cls = " class='warn'" if what == OFF and secs > 0 else ""
+        parts.append(f"<tr><td{cls}>{esc(what)}</td><td>{_hm(secs)}</td><td>{share}</td></tr>")
+    if acct.future > 0:
+        parts.append(f"<tr><td class='small'>{esc(NOT_YET)} (the day is not over)</td><td class='small'>"
+                     f"{_hm(acct.future)}</td><td></td></tr>")
     parts.append("</table>")
-    parts.append(_png_tag(timeline_png(summary, falls, span, tz), "posture over the day"))
+    parts.append(_png_tag(day_grid_png(minute_states(summary, watched, span, now), falls, span, tz),
+                          "the day hour by hour: posture, in view, watching, not watching"))
     walk_s = sum(b.seconds for b in summary.walking_bouts)
     parts.append("<h2>Activity</h2><table>"
                  f"<tr><td>sit-to-stand transitions</td><td>{summary.sit_to_stand}</td></tr>"
@@ -135,10 +263,10 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
             parts.append(f"<tr><td>fall {i}</td><td>{fmt(ep.start)}</td><td>{what}</td><td>{esc(ep.outcome)}"
                          f"</td><td>{ack}</td></tr>")
         parts.append("</table>")
-    else:
-        parts.append("<p>No fall was detected this day.</p>")
-    parts.append("<h2>Joint-angle ranges</h2><p class='small'>Degrees over the day's measured samples "
-                 "(flexion positive; angles the model does not measure are left out).</p>"
+    parts.append(f"<p>{_falls_sentence(acct, len(falls))}</p>")
+    parts.append("<h2>Joint-angle ranges</h2><p class='small'>Degrees over the day's samples in which the camera "
+                 "saw the joint (flexion positive; angles the model does not measure, and a joint in a frame "
+                 "where its landmarks were not seen, are left out).</p>"
                  "<table><tr><th>angle</th><th>samples</th><th>min</th><th>5 %</th><th>median</th>"
                  "<th>95 %</th><th>max</th></tr>")
     for name, n, *vals in angle_ranges(series):
@@ -154,14 +282,55 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
     return "\n".join(parts)
 
 
+def _watching_html(acct: DayTime, falls: Sequence[Episode]) -> str:
+    """The first thing a reader needs: whether posed was watching at all."""
+    if not acct.known:
+        return ("<p class='notice'>This history does not record when posed was watching (it was written by an "
+                "older posed): 'not seen' below means nobody was seen <i>or</i> posed was not running.</p>")
+    if acct.elapsed <= 0:
+        return "<p class='notice'>This day has not begun.</p>"
+    if acct.watching <= 0:
+        return ("<p class='notice warn'><b>posed was not watching at all this day</b> (off, or no camera): "
+                "nothing below says anything about this person.</p>")
+    off = acct.elapsed - acct.watching
+    text = f"posed was watching for <b>{_hm(acct.watching)}</b> of {_hm(acct.elapsed)}"
+    if off >= 60:
+        text += f"; <b class='warn'>not watching for {_hm(off)}</b> (off, or no camera)"
+    return f"<p class='notice'>{text}.</p>"
+
+
+def _falls_sentence(acct: DayTime, n_falls: int) -> str:
+    """Falls said against the time posed was watching, never more."""
+    off = None if not acct.known else acct.elapsed - acct.watching
+    if n_falls:
+        head = f"{n_falls} fall event(s) above."
+        if off is not None and off >= 60:
+            head += f" posed was not watching for {_hm(off)}: a fall then would not be here."
+        return head
+    if not acct.known:
+        return ("No fall was detected while posed was running; this history does not record when that was, so "
+                "a fall while it was off would not be here either.")
+    if acct.watching <= 0:
+        return "<b class='warn'>posed was not watching this day: it cannot say whether anyone fell.</b>"
+    text = f"No fall was detected in the {_hm(acct.watching)} posed was watching"
+    if off >= 60:
+        text += f"; it was not watching for {_hm(off)}, when a fall would not have been seen"
+    return text + "."
+
+
 def _method_html() -> str:
     return "".join(f"<p>{html.escape(p)}</p>" for p in posture.method_text()) + (
-        "<p>Joint-angle ranges: every stored sample with a fit counts. The history stores the fitted angles "
-        "without saying which ones the camera actually saw in that frame, so an arm hidden from view still "
-        "has the model's value; a fit file (posed plot fit) leaves those out.</p>")
+        "<p>Watching: posed counts, minute by minute, the frames that came through it and the seconds with a "
+        "person in view. A minute with no frame is 'not watching': posed was off or had no camera, and nothing "
+        "that happened then is in this report. 'In view, posture not measured': a person was there, but the "
+        "camera did not see enough of the body (both shoulders and both hips) to tell the posture.</p>"
+        "<p>Joint-angle ranges: every stored sample counts in which the camera saw the joint's landmarks; an "
+        "arm hidden from view is left out, not filled with the model's guess (histories written by a posed "
+        "before this rule may still hold such values).</p>")
 
 
 _CSS = """body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1250px;margin:1.5em auto;color:#222}
 h1{font-size:1.5em}h2{font-size:1.15em;margin-top:1.4em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:.25em .7em;text-align:left}
-th{background:#f2f2f2}.meta,.small{color:#555;font-size:.9em}.warn{color:#c0392b}"""
+th{background:#f2f2f2}.meta,.small{color:#555;font-size:.9em}.warn{color:#c0392b}
+.notice{background:#f6f6f6;border-left:4px solid #888;padding:.4em .8em}"""

@@ -1,5 +1,6 @@
 """The publisher's side of the joint-angle history: one ``add`` per fit and the store's maintenance about
-once a minute (:mod:`daemon.history.store` keeps, downsamples and deletes the rows).
+once a minute (:mod:`daemon.history.store` keeps, downsamples and deletes the rows); every frame also counts in
+the minutes posed watched (:mod:`daemon.history.watched`), written at the same time.
 
 The row's wall time is the capture timestamp converted to unix seconds; the schedule runs on the monotonic
 clock. With ``falls.history_enabled`` false there is no store and every call does nothing.
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 from posed.daemon import clock
 from posed.daemon.history.store import AngleHistory
+from posed.daemon.history.watched import WatchLog
 from posed.fitting import FitResult
 
 MAINTAIN_EVERY_S = 60.0
@@ -23,12 +25,21 @@ class HistoryRecorder:
         self.log = log
         self.maintain_every_s = maintain_every_s
         self._next_maintain = (clock.now() if now is None else now) + maintain_every_s
+        self.watched: WatchLog | None = None      # the minutes posed watched, in the same file
+        if store is not None:
+            try:
+                self.watched = WatchLog(store.path, log)
+            except Exception as exc:   # the angles go on without it; the report then says it cannot tell
+                log.error("watched_unavailable", error=repr(exc), path=str(store.path))
 
     def add(self, result: FitResult, t_capture: float) -> None:
         """Offer one fit (``t_capture``: its capture timestamp, monotonic seconds) to the store, which keeps
-        it if the rate allows."""
+        it if the rate allows, and count the frame in its minute (watched: a person in view or not)."""
         if self.store is not None:
-            self.store.add(result, clock.wall_from_monotonic(t_capture))
+            wall = clock.wall_from_monotonic(t_capture)
+            self.store.add(result, wall)
+            if self.watched is not None:
+                self.watched.add(wall, person=result.ok or result.reason != "no person", fitted=result.ok)
 
     def tick(self, now: float) -> None:
         """Downsample and expire old rows every ``maintain_every_s``; a failure is logged, never raised."""
@@ -41,8 +52,13 @@ class HistoryRecorder:
             self.store.maintain()
         except Exception as exc:
             self.log.error("history_maintenance_failed", error=repr(exc))
+        if self.watched is not None:
+            self.watched.flush()
+            self.watched.expire(clock.wall_from_monotonic(now) - self.store.cfg.history_retention_days * 86400.0)
 
     def close(self) -> None:
         """Write the buffered rows and close the store."""
+        if self.watched is not None:
+            self.watched.close()
         if self.store is not None:
             self.store.close()

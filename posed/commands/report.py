@@ -1,9 +1,11 @@
 """``posed report --day YYYY-MM-DD [-o REPORT.html]``: the day's summary for a caregiver (viz.report).
 
-Reads the joint-angle history and the event journal (read-only, like ``posed plot history``) and writes one
-self-contained HTML file: time standing, sitting, lying and not seen, sit-to-stand transitions, walking
-bouts, falls and how they ended, the day's joint-angle ranges, a posture timeline and the angle plot. The
-day runs from local midnight to midnight in the robot's time zone (``--tz`` another).
+Reads the joint-angle history, the minutes posed watched (kept in the same file) and the event journal
+(read-only, like ``posed plot history``) and writes one self-contained HTML file: whether posed was watching,
+time standing, sitting, lying, in view and with nobody in view, sit-to-stand transitions, walking bouts,
+falls and how they ended, the day's joint-angle ranges, the day hour by hour and the angle plot. The day runs
+from local midnight to midnight in the robot's time zone (``--tz`` another); the part of today still to come
+is never counted.
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.daemon.config.paths import EVENTS_FILE
     from posed.daemon.history.plot import angle_series, event_marks
     from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
+    from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError
     from posed.viz.plots import local_zone
     from posed.viz.report import day_report
@@ -82,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         with AngleHistory(db, readonly=True) as hist:
             rows = list(hist.rows(start, end))
+        with WatchLog(db, readonly=True) as watch_log:
+            watched = watch_log.minutes(start, end)
     except FileNotFoundError as exc:
         _err(str(exc))
         return 2
@@ -96,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
             return 1
     step = float(np.median(np.diff(series.time))) if len(series.time) > 1 else 1.0
     text = day_report(series, falls, day, tz, robot=config.robot_id, max_step_s=max(1.0, 3.0 * step),
+                      watched=watched,
                       sources=f"{db} ({len(rows)} samples) and "
                               + (f"{journal_path}" if journal_path.is_file() else "no event journal"))
     try:

@@ -16,6 +16,7 @@ import pytest
 from posed.cli import main
 from posed.daemon.history.plot import angle_series, event_marks
 from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
+from posed.daemon.history.watched import WatchLog
 from posed.daemon.outbox.journal import EventJournal
 from posed.viz import posture
 from posed.viz.names import FIXED_ANGLES, PANELS, label
@@ -110,7 +111,9 @@ def test_plot_commands_write_pngs(day, tmp_path, capsys):
 
 
 def test_posture_rules_on_the_model():
-    assert posture.classify({"theta_bd": 0.0, "phi_bd": 0.0, "psi_bd": 0.0}) == "standing"
+    up = {"theta_bd": 0.0, "phi_bd": 0.0, "psi_bd": 0.0}
+    assert posture.classify({**up, "theta_hp_l": 0.0, "theta_hp_r": 0.0}) == "standing"
+    assert posture.classify(up) is None          # no thigh measured: standing and sitting look alike
     assert posture.classify({"theta_bd": 0.0, "phi_bd": 0.0, "psi_bd": 0.0, "theta_hp_l": 90.0,
                              "theta_hp_r": 90.0, "theta_kn_l": 90.0, "theta_kn_r": 90.0}) == "sitting"
     assert posture.classify({"theta_bd": 90.0, "phi_bd": 0.0, "psi_bd": 0.0}) == "lying"
@@ -131,9 +134,14 @@ def test_report_is_one_self_contained_html_with_the_day(day, tmp_path):
     for p in pngs:
         img = cv2.imdecode(np.frombuffer(base64.b64decode(p), np.uint8), cv2.IMREAD_COLOR)
         assert img is not None and img.shape[0] > 100
-    for word in ("standing", "sitting", "lying", "not seen", "sit-to-stand", "walking bouts",
+    for word in ("standing", "sitting", "lying", "watching, nobody in view", "sit-to-stand", "walking bouts",
                  "left knee flexion", "how it ended"):
         assert word in text
+    # posed was off from 01:00 to 07:00 (tests/viz/day.py): the report says so, and says the falls against it
+    assert "not watching for 6 h 00 min" in text
+    assert re.search(r"<td class='warn'>not watching \(posed off or no camera\)</td><td>6 h 00 min</td>", text)
+    assert "No fall was detected" not in text
+    assert "elbow" not in text.split("Joint-angle ranges")[1].split("</table>")[0]   # never seen: not listed
     first_id, _, first_at = written["events"][0]
     started = dt.datetime.fromtimestamp(first_at, TZ).strftime("%H:%M:%S")
     acked = dt.datetime.fromtimestamp(first_at + 95.0, TZ).strftime("%H:%M:%S")
@@ -160,3 +168,73 @@ def test_plot_fit_takes_the_start_in_the_plot_zone_and_marks_posed_falls_events(
                  "--tz", "America/New_York", "-o", str(png)]) == 0
     assert "1 fall event(s)" in capsys.readouterr().err
     assert cv2.imread(str(png)) is not None
+
+
+def test_a_day_not_over_never_counts_its_future_and_an_empty_day_is_not_a_day_without_falls(day):
+    from posed.viz.report import day_report
+
+    folder, written = day
+    series, falls = _series_and_falls(folder)
+    with WatchLog(folder / "history.sqlite3", readonly=True) as w:
+        watched = w.minutes(0, 4e9)
+    now = dt.datetime.combine(DAY, dt.time(15, 30), TZ).timestamp()     # the report made at 15:30
+    text = day_report(series, [f for f in falls if f.start < now], DAY, TZ, robot="r", sources="s",
+                      watched=[r for r in watched if r[0] < now], now=now)
+    assert "up to 15:30:00" in text
+    assert re.search(r"not yet \(the day is not over\)</td><td class='small'>8 h 30 min</td>", text)
+    # 15 h 30 min so far, 6 h of them off: the table's rows make the 15 h 30 min, nothing after 15:30
+    assert re.search(r"<td class='warn'>not watching \(posed off or no camera\)</td><td>6 h 00 min</td>", text)
+    assert "watching for <b>9 h 30 min</b> of 15 h 30 min" in text
+    # a day with nothing at all: posed was not watching, never "no fall"
+    empty = day_report(AngleSeries(np.zeros(0), {}, True), [], dt.date(2026, 7, 20), TZ, robot="r", sources="s",
+                       watched=[], now=now + 30 * 86400)
+    assert "posed was not watching at all this day" in empty and "No fall was detected" not in empty
+    assert "posed was not watching this day: it cannot say whether anyone fell" in empty
+    # a history written before posed recorded when it watched: it says it cannot tell
+    old = day_report(series, falls, DAY, TZ, robot="r", sources="s", watched=None, now=now + 86400)
+    assert "does not record when posed was watching" in old
+
+
+def test_the_day_grid_has_posture_colours_and_fall_labels_that_never_overlap(day):
+    from matplotlib.colors import to_hex
+
+    from posed.viz.report import MINUTE_STYLE, day_grid_figure, minute_states
+
+    folder, _ = day
+    series, falls = _series_and_falls(folder)
+    start = dt.datetime.combine(DAY, dt.time(0), TZ).timestamp()
+    span = (start, start + 86400.0)
+    with WatchLog(folder / "history.sqlite3", readonly=True) as w:
+        watched = w.minutes(*span)
+    summary = posture.summarise(series.time, series.angles, span, 1.0)
+    states = minute_states(summary, watched, span, span[1] + 1)
+    assert len(states) == 1440 and states[60:420] == ["not watching (posed off or no camera)"] * 360
+    assert {"standing", "watching, nobody in view"} <= set(states)
+    # seven falls in one hour (a looping replay), and two more elsewhere: one label per hour, none overlapping
+    assert [int((f.start - start) // 3600) for f in falls] == [10, 17]
+    many = sorted([Episode(str(i), start + 12 * 3600 + 60 * i, start + 12 * 3600 + 60 * i + 5, ("falling",))
+                   for i in range(7)] + falls, key=lambda f: f.start)
+    fig = day_grid_figure(states, many, span, TZ)
+    fig.canvas.draw()
+    labels = [t for t in fig.axes[0].texts if t.get_text().startswith("fall")]
+    assert sorted(t.get_text() for t in labels) == ["fall 1", "fall 9", "falls 2-8"]
+    boxes = [t.get_window_extent() for t in labels]
+    assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+    colours = {to_hex(p.get_facecolor()) for p in fig.axes[0].patches if p.get_fill()}
+    assert MINUTE_STYLE["standing"][0] in colours and MINUTE_STYLE["sitting"][0] in colours
+    assert MINUTE_STYLE["watching, nobody in view"][0] in colours
+
+
+def test_plot_fit_ticks_are_distinct_and_fall_labels_stay_off_the_headings():
+    for span in (4.5, 65.0, 900.0):
+        t = np.linspace(0, span, 200)
+        series = AngleSeries(t, {"theta_kn_l": np.full(len(t), 20.0)}, clock=False)
+        falls = [Episode("1", 0.02 * span, 0.3 * span, ("falling", "on_floor"))]   # at the left, by the title
+        fig = angle_figure(series, [("legs", PANELS["legs"]), ("trunk", PANELS["trunk"])], falls, title="t",
+                           acks=False)
+        fig.canvas.draw()
+        ticks = [x.get_text() for x in fig.axes[-1].get_xticklabels() if x.get_text()]
+        assert len(ticks) >= 4 and len(set(ticks)) == len(ticks), ticks
+        [mark] = [c for c in fig.axes[0].texts if c.get_text() == "fall 1"]
+        title = fig.axes[0].title if fig.axes[0].title.get_text() else fig.axes[0]._left_title
+        assert not mark.get_window_extent().overlaps(title.get_window_extent())
