@@ -90,8 +90,11 @@ class Summary:
                 parts.append(f"no person ({poses[-1].get('reason', '')})")
             parts.append(f"seq {poses[-1].get('seq')}")
         if status:
-            cam = (status.get("camera") or {}).get("state", "?")
-            parts.append(f"[{status.get('state')}, camera {cam}, drops {status.get('drops')}, "
+            camera = status.get("camera") or {}
+            cam = camera.get("state", "?")
+            what = "recording" if camera.get("kind") == "file" or str(camera.get("source") or "").startswith(
+                "file:") else "camera"
+            parts.append(f"[{status.get('state')}, {what} {cam}, drops {status.get('drops')}, "
                          f"restarts {status.get('restarts')}, {status.get('memory_mb')} MB]")
         out.append("  ".join(parts))
         return out

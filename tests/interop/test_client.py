@@ -81,7 +81,7 @@ def test_posed_watch_reads_through_the_client(fleet_of_one):
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert "posed watch: robot docs1 up" in out.stdout
-    assert re.search(r" fps .*seq \d+ +\[(running|degraded), camera open", out.stdout), out.stdout
+    assert re.search(r" fps .*seq \d+ +\[(running|degraded), recording open", out.stdout), out.stdout
 
 
 def test_subscriptions_queries_and_liveliness(fleet_of_one):
