@@ -26,11 +26,12 @@ class HistoryRecorder:
         self.maintain_every_s = maintain_every_s
         self._next_maintain = (clock.now() if now is None else now) + maintain_every_s
         self.watched: WatchLog | None = None      # the minutes posed watched, in the same file
-        if store is not None:
+        path = getattr(store, "path", None)
+        if path is not None:
             try:
-                self.watched = WatchLog(store.path, log)
+                self.watched = WatchLog(path, log)
             except Exception as exc:   # the angles go on without it; the report then says it cannot tell
-                log.error("watched_unavailable", error=repr(exc), path=str(store.path))
+                log.error("watched_unavailable", error=repr(exc), path=str(path))
 
     def add(self, result: FitResult, t_capture: float) -> None:
         """Offer one fit (``t_capture``: its capture timestamp, monotonic seconds) to the store, which keeps
@@ -54,7 +55,9 @@ class HistoryRecorder:
             self.log.error("history_maintenance_failed", error=repr(exc))
         if self.watched is not None:
             self.watched.flush()
-            self.watched.expire(clock.wall_from_monotonic(now) - self.store.cfg.history_retention_days * 86400.0)
+            days = getattr(getattr(self.store, "cfg", None), "history_retention_days", None)
+            if days is not None:
+                self.watched.expire(clock.wall_from_monotonic(now) - days * 86400.0)
 
     def close(self) -> None:
         """Write the buffered rows and close the store."""
