@@ -55,8 +55,26 @@ def history_path(pipeline: PipelineConfig, config_file: Path | None) -> Path:
     return reading_state_dir(pipeline, config_file, HISTORY_FILE) / HISTORY_FILE
 
 
+def where_from(args: argparse.Namespace, pipeline: PipelineConfig | None = None) -> str:
+    """Which history file a reading command opens, and why that one (said on stderr, so a reader of another
+    daemon's state dir knows to point elsewhere)."""
+    if args.db:
+        return f"{args.db} (--db)"
+    if pipeline is None:
+        pipeline = config_from_args(args).pipeline
+    path = history_path(pipeline, config_path(args))
+    if pipeline.state_dir:
+        why = "pipeline.state_dir"
+    elif str(path.parent) == "/var/lib/posed":
+        why = "the service's state dir"
+    else:
+        why = "this user's default state dir"
+    return f"{path} ({why}; another daemon's history: --db FILE or --set pipeline.state_dir=DIR)"
+
+
 def run(args: argparse.Namespace) -> int:
     try:
+        print(f"posed history: reading {where_from(args)}", file=sys.stderr)
         hist, since, until = open_history(args)
     except (ValueError, FileNotFoundError) as exc:
         print(f"posed history: {exc}", file=sys.stderr)
@@ -80,14 +98,26 @@ def run(args: argparse.Namespace) -> int:
 
 def _summary(hist: AngleHistory, since, until, out) -> None:
     from posed.daemon.history.store import ANGLE_COLUMNS
+    from posed.fitting import ANGLE_PLAIN_NAMES, FIXED_ANGLE_NAMES
 
     rows = list(hist.rows(since, until))
     if not rows:
         print("no joint angles stored for that time range", file=out)
         return
-    print(f"{len(rows)} frames from {iso(rows[0][0])} to {iso(rows[-1][0])} (UTC); --csv exports them", file=out)
-    print(f"{'angle':<12} {'min':>8} {'mean':>8} {'max':>8}", file=out)
+    print(f"{len(rows)} frames from {iso(rows[0][0])} to {iso(rows[-1][0])} (UTC); --csv exports them (columns by "
+          "the model's symbols, docs/body-model.md)", file=out)
+    print("degrees, over the frames in which the camera saw the joint (samples)", file=out)
+    print(f"{'angle':<26} {'samples':>7} {'min':>8} {'mean':>8} {'max':>8}", file=out)
+    unseen = []
     for i, name in enumerate(ANGLE_COLUMNS):
+        if name in FIXED_ANGLE_NAMES:      # held fixed by the model: never a measurement
+            continue
         vals = [r[4 + i] for r in rows if r[4 + i] is not None and math.isfinite(r[4 + i])]
+        plain = ANGLE_PLAIN_NAMES.get(name, name)
         if vals:
-            print(f"{name:<12} {min(vals):8.1f} {sum(vals) / len(vals):8.1f} {max(vals):8.1f}", file=out)
+            print(f"{plain:<26} {len(vals):>7} {min(vals):8.1f} {sum(vals) / len(vals):8.1f} {max(vals):8.1f}",
+                  file=out)
+        else:
+            unseen.append(plain)
+    if unseen:
+        print("not seen in this time range: " + ", ".join(unseen), file=out)

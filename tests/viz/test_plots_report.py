@@ -238,3 +238,15 @@ def test_plot_fit_ticks_are_distinct_and_fall_labels_stay_off_the_headings():
         [mark] = [c for c in fig.axes[0].texts if c.get_text() == "fall 1"]
         title = fig.axes[0].title if fig.axes[0].title.get_text() else fig.axes[0]._left_title
         assert not mark.get_window_extent().overlaps(title.get_window_extent())
+
+
+def test_posed_history_speaks_plain_names_and_names_the_file_it_reads(day, tmp_path, capsys):
+    folder, _ = day
+    assert main(["history", "--db", str(folder / "history.sqlite3")]) == 0
+    out, err = capsys.readouterr()
+    assert f"reading {folder / 'history.sqlite3'} (--db)" in err
+    assert "left knee flexion" in out and "theta" not in out and "head flexion" not in out
+    assert "not seen in this time range: left shoulder flexion" in out      # no elbows in these recordings
+    assert main(["history", "--set", f"pipeline.state_dir={tmp_path}"]) == 2
+    err = capsys.readouterr().err
+    assert f"reading {tmp_path / 'history.sqlite3'} (pipeline.state_dir;" in err
