@@ -180,8 +180,8 @@ def _fit_view(view: _View, mode: str, fps: float, base: FitConfig) -> dict:
     for i in range(0, len(view.landmarks), step):
         frames += 1
         lm = view.landmarks[i]
-        r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k)
         w = view.world[i]
+        r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k, world=w)
         if not r.ok or w is None or lm is None:
             continue
         est_w = w[BODY12_IDX, :3]

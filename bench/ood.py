@@ -49,6 +49,7 @@ import numpy as np
 
 from posed.bench import mocap_landmarks as M
 from posed.bench.depth_sim import DepthSim, simulate_depth
+from posed.bench.world_sim import simulate_world
 from posed.fitting import BodyDimensions, FitConfig, Fitter, write_calibration
 from posed.landmarks import LANDMARK_NAMES
 
@@ -171,10 +172,13 @@ class OodPlan:
     # the noisy levels are also run with 2D noise correlated in time (AR(1) with each of these correlation times,
     # seconds; independent per frame is always run): a landmark extractor's error drifts rather than jumps
     noise_corr_s: tuple[float, ...] = (0.5,)
+    # without depth, also with a simulated stream of BlazePose's world landmarks (bench.world_sim) given to the fit
+    world: tuple[bool, ...] = (False, True)
 
 
 FULL_OOD = OodPlan()
-QUICK_OOD = OodPlan(azimuths=(45.0, 270.0), fps=(10,), noises=(0.0,), depth=(False,), bodies=("height",))
+QUICK_OOD = OodPlan(azimuths=(45.0, 270.0), fps=(10,), noises=(0.0,), depth=(False,), bodies=("height",),
+                    world=(False,))
 BODIES = {"height": "link lengths from the body height (Drillis-Contini ratios: the fit without calibration)",
           "mocap": "the mocap skeleton's own link lengths and widths, given as a calibration file (what a perfect "
                    "`posed calibrate` would measure): the error left when proportions are known",
@@ -216,6 +220,7 @@ class Sequence:
     truth: np.ndarray                    # (F, 12, 3) mid-hip-centred, camera frame
     root: np.ndarray                     # (F, 3) true mid-hip, camera frame
     noise_px: np.ndarray                 # (len(noises),) mean noise sd in px
+    world: np.ndarray                    # (F, 33, 5) simulated BlazePose world landmarks (bench.world_sim)
 
 
 def correlated_noise(rng: np.random.Generator, frames: int, fps: float, corr_s: float) -> np.ndarray:
@@ -256,7 +261,8 @@ def build_sequence(clip: M.MocapClip, azimuth: float, master_fps: int, noises: I
         npx.append(float(sd.mean()))
     drng = np.random.default_rng([seed, 99])
     depth = np.array([simulate_depth(p, k, drng, sim) for p in pc])
-    return Sequence(clip.name, cam, clip.height_m, times, lms, depth, truth, mid, np.array(npx))
+    world = simulate_world(truth, master_fps, np.random.default_rng([seed, 77]))
+    return Sequence(clip.name, cam, clip.height_m, times, lms, depth, truth, mid, np.array(npx), world)
 
 
 class _Acc:
@@ -339,8 +345,11 @@ def _r(v: float, nd: int = 3) -> float:
     return float(round(float(v), nd))
 
 
-def _fit(fitter: Fitter, lm, i: int, t: float, mode: str, k, depth: np.ndarray | None):
+def _fit(fitter: Fitter, lm, i: int, t: float, mode: str, k, depth: np.ndarray | None,
+         world: np.ndarray | None = None):
     kw = {"depth_m": depth} if depth is not None else {}
+    if world is not None:
+        kw["world"] = world
     c0, w0 = time.thread_time(), time.perf_counter()
     r = fitter.fit(lm, i, t, k.size, mode=mode, intrinsics=k, **kw)
     return r, time.thread_time() - c0, time.perf_counter() - w0
@@ -419,29 +428,32 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                        seed=1000 * ci + ai + seed + 500, max_s=plan.max_s)
             for noise, corr, lms in variants:
                 for body, fitter in fitters.items():
-                    for use_depth in plan.depth:
+                    for use_depth, use_world in [(d, w) for d in plan.depth for w in plan.world if not (d and w)]:
                         fit_depth = use_depth and takes_depth
                         if use_depth and not takes_depth:
                             continue   # the rows without depth stand in (flagged), see below
+                        wl = seq.world if use_world else [None] * len(lms)
                         for mode in plan.modes:
                             if body == "seen" and mode != "video":
                                 continue   # image mode learns nothing: the height body's rows
                             say(f"ood {name} az {az:g} noise {noise} (correlated {corr:g} s) body {body} "
-                                f"depth {use_depth} {mode}")
+                                f"depth {use_depth} world {use_world} {mode}")
                             if mode == "image":
                                 wanted = sorted(set().union(*(range(0, len(lms), s) for s in steps.values())))
                                 res = {}
                                 for i in wanted:
                                     fitter.reset()
                                     res[i] = _fit(fitter, lms[i], i, float(seq.times[i]), "image",
-                                                  cam.intrinsics, seq.depth[i] if fit_depth else None)
+                                                  cam.intrinsics, seq.depth[i] if fit_depth else None, wl[i])
                                 for f, s in steps.items():
-                                    acc = accs.setdefault(("image", f, noise, corr, body, use_depth), _Acc())
+                                    acc = accs.setdefault(("image", f, noise, corr, body, use_depth, use_world),
+                                                          _Acc())
                                     for i in range(0, len(lms), s):
                                         acc.add(seq, i, *res[i])
                             else:
                                 for f, s in steps.items():
-                                    acc = accs.setdefault(("video", f, noise, corr, body, use_depth), _Acc())
+                                    acc = accs.setdefault(("video", f, noise, corr, body, use_depth, use_world),
+                                                          _Acc())
                                     fitter.reset()
                                     fitter.forget_body()   # each sequence is a new video of a new person ...
                                     t0 = 0.0
@@ -450,15 +462,16 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                         t0 += base.proportions_forget_s + 30.0
                                     for i in range(0, len(lms), s):
                                         acc.add(seq, i, *_fit(fitter, lms[i], i, t0 + float(seq.times[i]), "video",
-                                                              cam.intrinsics, seq.depth[i] if fit_depth else None))
+                                                              cam.intrinsics, seq.depth[i] if fit_depth else None,
+                                                              wl[i]))
     tmp.cleanup()
     results = []
-    for (mode, f, noise, corr, body, use_depth), acc in accs.items():
+    for (mode, f, noise, corr, body, use_depth, use_world), acc in accs.items():
         row = {"protocol": PROTOCOL, "domain": DOMAIN, "optimizer": "udeas+lm", "body": body,
                "restarts": base.restarts if mode == "image" else base.video_restarts,
                "max_row": base.row_max if mode == "image" else base.video_row_max, "mode": mode, "fps": f,
                "noise_rel": noise, "noise_corr_s": corr, "noise_px": _r(np.mean(noise_px[noise]), 2),
-               "depth": use_depth, "depth_used": bool(use_depth and takes_depth)}
+               "depth": use_depth, "depth_used": bool(use_depth and takes_depth), "world": use_world}
         row.update(acc.summary())
         row["mpjpe3d_mm"] = row["mpjpe_mm"]   # the name the in-domain rows use
         results.append(row)
@@ -467,7 +480,8 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
             results.append({**row, "depth": True, "depth_used": False,
                             "note": "Fitter.fit takes no depth_m: the same fits as without depth"})
     order = {b: k for k, b in enumerate(plan.bodies)}
-    results.sort(key=lambda r: (r["depth"], order[r["body"]], r["noise_rel"], r["noise_corr_s"], r["fps"], r["mode"]))
+    results.sort(key=lambda r: (r["depth"], r["world"], order[r["body"]], r["noise_rel"], r["noise_corr_s"], r["fps"],
+                                r["mode"]))
     return {
         "description": description(plan, takes_depth),
         "cameras": cameras,

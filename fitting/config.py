@@ -100,6 +100,11 @@ class FitConfig:
         default=0.03, metadata={"doc": "video mode: if the 2D error exceeds this fraction of body height the "
                                        "frame is fitted again in image mode", "range": (0.0, 1.0)}
     )
+    world_landmarks: bool = field(
+        default=True, metadata={"doc": "use BlazePose's world landmarks (a recording's or the landmark stage's "
+                                       "'world') as robust evidence of each limb's depth, when there is no "
+                                       "depth camera (fitting.world_term; docs/body-model.md)"}
+    )
     learn_proportions: bool = field(
         default=True, metadata={"doc": "video mode without a calibration file: learn the person's proportions "
                                        "(upper arm, forearm, thigh, shank, trunk, hip width; the configured "

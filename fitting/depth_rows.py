@@ -26,6 +26,7 @@ from posed.fitting.depth_term import (
     DEPTH_RMS_K,
     HIDDEN_MARGIN_M,
     MIN_DEPTHS,
+    SENSOR_DEPTH_CAMERA,
     SURFACE_M,
     SURFACE_SIGMA_M,
     DepthFit,
@@ -83,9 +84,10 @@ def occluder_front_into(pts_c, data, front):
 
 
 @njit(cache=True)
-def depth_term_kernel(x, data, depth, targets, weights):
+def depth_term_kernel(x, data, depth, sensor, targets, weights):
     """:func:`fitting.depth_term.depth_fit` of the landmark depths of solution ``x`` (kernel units) of
-    problem ``data`` against the measured ``depth`` (12, metres, NaN unknown).
+    problem ``data`` against the measured ``depth`` (12, metres, NaN unknown) of the ``sensor``
+    (fitting.depth_term.SENSOR_DEPTH_CAMERA, or fitting.world_term.SENSOR_WORLD).
 
     Writes ``targets`` (12, NaN unknown) and ``weights`` (12, 0 unknown) and returns
     (measured count, cost, root_z, inliers, sigma); with fewer than MIN_DEPTHS measurements only the count
@@ -94,7 +96,10 @@ def depth_term_kernel(x, data, depth, targets, weights):
     pts_c = np.empty((L.N_POINTS, 3))
     FK.model_points(x, data, pts_b, pts_c)
     front = np.empty(L.N_LM)
-    occluder_front_into(pts_c, data, front)
+    if sensor[1] > 0.0:
+        occluder_front_into(pts_c, data, front)
+    else:
+        front[:] = np.inf
     votes = np.empty(L.N_LM)
     n = 0
     for i in range(L.N_LM):
@@ -102,13 +107,13 @@ def depth_term_kernel(x, data, depth, targets, weights):
         targets[i] = np.nan
         weights[i] = 0.0
         if np.isfinite(d) and d > 0.0:
-            votes[n] = d - front[i] if front[i] < np.inf else d + _SURFACE[i] - pts_c[i, 2]
+            votes[n] = d - front[i] if front[i] < np.inf else d + sensor[0] * _SURFACE[i] - pts_c[i, 2]
             n += 1
     if n < MIN_DEPTHS:
         return n, 0.0, np.nan, 0, np.nan
     srt = np.sort(votes[:n])
     root = srt[n // 2] if n % 2 == 1 else (srt[n // 2 - 1] + srt[n // 2]) / 2.0
-    sigma = math.hypot(DEPTH_RMS_K * root * root, SURFACE_SIGMA_M)
+    sigma = math.hypot(DEPTH_RMS_K * root * root, SURFACE_SIGMA_M) if not sensor[2] > 0.0 else sensor[2]
     acc = 0.0
     near = 0
     for j in range(n):
@@ -126,33 +131,36 @@ def depth_term_kernel(x, data, depth, targets, weights):
             u2 = u * u
             cost += u2 / (1.0 + u2)
             if front[i] == np.inf:   # a hidden joint's depth is the occluder's: no row for the joint
-                targets[i] = d + _SURFACE[i] - root
+                targets[i] = d + sensor[0] * _SURFACE[i] - root
                 weights[i] = 1.0 / (1.0 + u2) ** 2
             j += 1
     return n, cost, root, near, sigma
 
 
-def depth_fit_at(x: np.ndarray, data: np.ndarray, depth: np.ndarray) -> DepthFit | None:
+def depth_fit_at(x: np.ndarray, data: np.ndarray, depth: np.ndarray,
+                 sensor: np.ndarray = SENSOR_DEPTH_CAMERA) -> DepthFit | None:
     """The depth term of solution ``x`` (kernel units) of problem ``data`` against the measured ``depth`` at
-    the 12 body landmarks (metres, NaN unknown); None with fewer than MIN_DEPTHS measurements."""
+    the 12 body landmarks (metres, NaN unknown) of the ``sensor``; None with fewer than MIN_DEPTHS
+    measurements."""
     targets = np.empty(L.N_LM)
     weights = np.empty(L.N_LM)
-    n, cost, root, inliers, sigma = depth_term_kernel(x, data, depth, targets, weights)
+    n, cost, root, inliers, sigma = depth_term_kernel(x, data, depth, sensor, targets, weights)
     if n < MIN_DEPTHS:
         return None
     return DepthFit(float(cost), float(root), int(inliers), float(sigma), targets, weights)
 
 
 @njit(cache=True)
-def set_depth_rows_at(x, data, depth, weight):
+def set_depth_rows_at(x, data, depth, sensor, weight):
     """Write the refinement's depth rows into ``data`` from the depth term of solution ``x``
-    (:func:`depth_term_kernel` against the measured ``depth``, 12, metres, NaN unknown): each landmark's target
+    (:func:`depth_term_kernel` against the measured ``depth``, 12, metres, NaN unknown, of the ``sensor``):
+    each landmark's target
     depth relative to the mid-hip and the weight sqrt(weight x robust weight) / sigma, so a depth residual of
     one sigma costs ``weight`` (the refinement's cost units). Rows off (weights 0) with fewer than
     MIN_DEPTHS depths or ``weight`` <= 0."""
     targets = np.empty(L.N_LM)
     weights = np.empty(L.N_LM)
-    n, _, _, _, sigma = depth_term_kernel(x, data, depth, targets, weights)
+    n, _, _, _, sigma = depth_term_kernel(x, data, depth, sensor, targets, weights)
     for i in range(L.N_LM):
         if n < MIN_DEPTHS or not weight > 0.0:
             data[L.D_DEPTH_W + i] = 0.0
@@ -162,10 +170,10 @@ def set_depth_rows_at(x, data, depth, weight):
 
 
 @njit(cache=True)
-def cost_with_depth(x, data, depth, weight):
+def cost_with_depth(x, data, depth, sensor, weight):
     """The refinement's sum of squares at ``x`` without its depth rows (they hold one start's robust weights)
-    plus ``weight`` times the depth term's cost at ``x`` against ``depth`` (none with fewer than MIN_DEPTHS
-    depths): what candidates refined with different robust weights are compared on."""
+    plus ``weight`` times the depth term's cost at ``x`` against ``depth`` of the ``sensor`` (none with fewer
+    than MIN_DEPTHS depths): what candidates refined with different robust weights are compared on."""
     res = np.empty(L.N_RES)
     JAC.residuals_into(x, data, res, JAC.empty_work())
     acc = 0.0
@@ -173,7 +181,7 @@ def cost_with_depth(x, data, depth, weight):
         acc += res[r] * res[r]
     targets = np.empty(L.N_LM)
     weights = np.empty(L.N_LM)
-    n, cost, _, _, _ = depth_term_kernel(x, data, depth, targets, weights)
+    n, cost, _, _, _ = depth_term_kernel(x, data, depth, sensor, targets, weights)
     if n >= MIN_DEPTHS:
         acc += weight * cost
     return acc

@@ -53,6 +53,12 @@ TORSO_HALF_DEPTH_M = 0.10   # the torso's radius: half an adult's chest and wais
 CAPSULE_RADII = (TORSO_HALF_DEPTH_M,) * 3 + (0.04, 0.04, 0.03, 0.03, 0.05, 0.05, 0.04, 0.04)
 HIDDEN_MARGIN_M = 0.03   # hidden: the occluder's front at least this much nearer than the joint's own surface
 
+# What the measured depths are (the term's "sensor", a kernel argument): (surface offsets: 1 on / 0 off,
+# occlusions: 1 seen / 0 not, sigma: 0 = the depth camera's model above, else this fixed spread in metres).
+# A depth camera sees the body's surface and what is in front of a hidden joint. BlazePose's world landmarks
+# (fitting.world_term) are joint centres, hidden or not, with a spread of their own.
+SENSOR_DEPTH_CAMERA = np.array([1.0, 1.0, 0.0])
+
 
 def occluder_front(pts: np.ndarray, slopes: np.ndarray | None = None) -> np.ndarray:
     """For each of the 12 body landmarks at ``pts`` (12 x 3, metres, camera axes: z away from the camera), the
@@ -100,24 +106,27 @@ class DepthFit:
     weights: np.ndarray
 
 
-def depth_fit(z_rel: np.ndarray, depth: np.ndarray, front: np.ndarray | None = None) -> DepthFit | None:
+def depth_fit(z_rel: np.ndarray, depth: np.ndarray, front: np.ndarray | None = None,
+              sensor: np.ndarray = SENSOR_DEPTH_CAMERA) -> DepthFit | None:
     """The depth term for landmark depths ``z_rel`` (12, metres relative to the mid-hip, camera z) against
     the measured ``depth`` (12, metres, NaN unknown); ``front``: :func:`occluder_front` of the hypothesis (None:
-    nothing hidden). None with fewer than MIN_DEPTHS measurements."""
+    nothing hidden; ignored when the ``sensor`` sees no occlusions). None with fewer than MIN_DEPTHS
+    measurements."""
     ok = np.isfinite(depth) & (depth > 0)
     if ok.sum() < MIN_DEPTHS:
         return None
-    hidden = np.isfinite(front) if front is not None else np.zeros(12, dtype=bool)
-    seen = np.where(hidden, front, z_rel - SURFACE_M)   # the surface the camera should see, relative
+    surface = SURFACE_M * sensor[0]
+    hidden = np.isfinite(front) if front is not None and sensor[1] > 0 else np.zeros(12, dtype=bool)
+    seen = np.where(hidden, front, z_rel - surface)   # the surface the camera should see, relative
     votes = depth[ok] - seen[ok]
     root = float(np.median(votes))
-    sigma = math.hypot(DEPTH_RMS_K * root * root, SURFACE_SIGMA_M)
+    sigma = math.hypot(DEPTH_RMS_K * root * root, SURFACE_SIGMA_M) if not sensor[2] > 0 else float(sensor[2])
     near = np.abs(votes - root) < 3.0 * sigma
     if near.sum() >= MIN_DEPTHS:
         root = float(votes[near].mean())
     u2 = ((votes - root) / sigma) ** 2
     targets = np.full(12, np.nan)
-    targets[ok] = depth[ok] + SURFACE_M[ok] - root
+    targets[ok] = depth[ok] + surface[ok] - root
     weights = np.zeros(12)
     weights[ok] = 1.0 / (1.0 + u2) ** 2
     targets[hidden] = np.nan      # a hidden joint's depth is the occluder's: no row for the joint

@@ -38,13 +38,14 @@ from posed.fitting.body import BodyDimensions, dimensions_for
 from posed.fitting.candidates import image_candidates, score_all, score_into
 from posed.fitting.config import FitConfig
 from posed.fitting.depth_rows import depth_fit_at
-from posed.fitting.depth_term import DEPTH_RMS_K, SURFACE_M, DepthFit, usable
+from posed.fitting.depth_term import DEPTH_RMS_K, SENSOR_DEPTH_CAMERA, SURFACE_M, DepthFit, usable
 from posed.fitting.hypotheses import best_hypothesis, video_starts
 from posed.fitting.kinematics import BODY_LANDMARKS
 from posed.fitting.measured import Measured, measured_landmarks
 from posed.fitting.projection import image_scale
 from posed.fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
 from posed.fitting.result import FitResult
+from posed.fitting.world_term import SENSOR_WORLD, WORLD_WEIGHT, world_depths
 
 MODES = ("video", "image")
 _TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
@@ -84,6 +85,9 @@ class Fitter:
         self._work = FK.empty_work()
         self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.reported.FIXED_NAMES), degrees
         self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
+        self._sensor = SENSOR_DEPTH_CAMERA       # ... of this sensor: a depth camera, or the world landmarks
+        self._depth_weight = DEPTH_WEIGHT        # ... and its weight against the 2D landmarks
+        self._world: np.ndarray | None = None    # this frame's world landmarks (33 x 5), when given
         self.reset()
 
     # --- state ---
@@ -131,17 +135,27 @@ class Fitter:
 
     def fit(self, landmarks: np.ndarray | None, seq: int, t: float, image_size: tuple[int, int],
             mode: str = "video", intrinsics: Intrinsics | None = None,
-            depth_m: np.ndarray | None = None) -> FitResult:
+            depth_m: np.ndarray | None = None, world: np.ndarray | None = None) -> FitResult:
         """Fit one frame. ``landmarks``: (33, 5) ``[x_px, y_px, z, visibility, presence]`` or None (no person).
 
         ``intrinsics``: the camera's, in pixels of the landmarks' image, or None (unknown). ``depth_m``: what
         an aligned depth camera measured at each of the 33 landmarks, metres along the camera's z axis, NaN
         where unknown (interfaces.md section 1), or None: used by a robust term (fitting.depth_term) and for
-        ``root_cam_m``.
+        ``root_cam_m``. ``world``: BlazePose's world landmarks of the frame (33 x 5, metres, hip-centred;
+        interfaces.md section 1), or None: without depth, the same robust term's evidence of each limb's depth
+        (fitting.world_term; ``world_landmarks`` in the config).
         """
         t0 = time.perf_counter()
         self._depth = None
+        self._world = None
         try:
+            if world is not None and self.config.world_landmarks:
+                wl = np.asarray(world, dtype=np.float64)
+                if wl.shape != (33, 5):
+                    return FitResult.failure(seq, float(t) if _finite(t) else 0.0,
+                                             f"world must be 33 x [x, y, z, visibility, presence], got shape "
+                                             f"{wl.shape}")
+                self._world = wl
             if depth_m is not None:
                 d = np.asarray(depth_m, dtype=np.float64)
                 if d.shape != (33,):
@@ -196,6 +210,12 @@ class Fitter:
             return FitResult.failure(seq, t, "projection is 'perspective' but no camera intrinsics were given "
                                              "(add \"camera\" to the recording header or use projection: auto)")
         frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg)
+        # the depth evidence: a depth camera's, else the world landmarks' (fitting.world_term)
+        self._sensor, self._depth_weight = SENSOR_DEPTH_CAMERA, DEPTH_WEIGHT
+        if self._depth is None and self._world is not None:
+            self._depth = world_depths(self._world, self.dims, cfg.visibility_drop)
+            self._sensor, self._depth_weight = SENSOR_WORLD, WORLD_WEIGHT
+        camera_depth = self._sensor is SENSOR_DEPTH_CAMERA
 
         used_mode = "image"
         evals = 0
@@ -229,10 +249,20 @@ class Fitter:
             return FitResult.failure(seq, t, f"fit rejected: {what}; the landmarks do not fit a person",
                                      loss=float(loss), fit_ms=fit_ms)
         self._prev_x, self._prev_ppm, self._prev_t = x.copy(), ppm0, t
-        depth = self._depth_fit(frame, x)
+        # root_cam_m and the learned lengths take a depth camera's metres only (the world depths are relative)
+        depth = self._depth_fit(frame, x) if camera_depth else None
         result = assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
                           evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma, depth=depth,
                           measured=Measured.from_landmarks(measured_landmarks(lm, cfg.visibility_drop)))
+        # what the fit used: the 2D landmarks always; a depth camera's or the world landmarks' depths when they
+        # were given and not judged garbage (fitting.depth_term.usable)
+        evidence = ["landmarks"]
+        if self._depth is not None:
+            evidence.append("depth" if camera_depth else "world")
+            if not camera_depth:
+                world_fit = self._depth_fit(frame, x)
+                result.extra["world_inliers"] = 0 if world_fit is None else world_fit.inliers
+        result.extra["evidence"] = evidence
         if mode == "video" and self._learner is not None:
             result.extra["limb_scale"] = self._learner.scale.to_json()  # the lengths this fit used
             obs = frame.data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
@@ -311,7 +341,8 @@ class Fitter:
             fits = [self._depth_fit(frame, x) for x in xs]
             if any(usable(d, self._depth) for d in fits):
                 # the 2D loss is a mean distance (normalized units), the refinement's cost a sum of squares
-                total = loss + DEPTH_WEIGHT * math.sqrt(noise2) * np.array([0.0 if d is None else d.cost for d in fits])
+                total = loss + self._depth_weight * math.sqrt(noise2) * np.array(
+                    [0.0 if d is None else d.cost for d in fits])
             else:
                 self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
         b = int(np.argmin(total))   # the first of equal ones
@@ -325,13 +356,14 @@ class Fitter:
         best_x = np.empty(L.N_VAR)
         starts = pool[order[:PRIOR_CANDIDATES]]
         if self._depth is None:  # no depth rows: the refinement's cost is the compared one
-            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, _NO_DEPTH, False, 0.0,
+            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, _NO_DEPTH, self._sensor, False, 0.0,
                             min(TRIAL_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations, FINALISTS, best_x)
         else:
             # with depth: each converged in two passes, the depth rows' robust weights solved from its start and
             # again from the first pass's result (the kernel's trial and its finalist refinement, every start a
             # finalist); compared on the cost without those rows plus the depth term
-            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self._depth, True, DEPTH_WEIGHT * noise2,
+            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self._depth, self._sensor, True,
+                            self._depth_weight * noise2,
                             cfg.refine_iterations, cfg.refine_iterations, len(starts), best_x)
         return self._score(frame, best_x)
 
@@ -353,20 +385,20 @@ class Fitter:
         sig = np.full(L.N_VAR, math.radians(cfg.video_joint_speed_deg_s * max(dt, MIN_DT_S)))
         sig[0] = 0.0
         data = P.with_prior(frame, cfg.video_smoothing * sigma2 / 12.0, prev, sig, -1.0)
-        w_depth = DEPTH_WEIGHT * sigma2
+        w_depth = self._depth_weight * sigma2
         if self._depth is not None and not any(usable(self._depth_fit(frame, x), self._depth) for x in hypotheses):
             self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
 
         best_x = np.empty(L.N_VAR)
         use_depth = self._depth is not None
         best_hypothesis(hypotheses, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self._depth if use_depth else _NO_DEPTH,
-                        use_depth, w_depth, min(HYPOTHESIS_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations,
+                        self._sensor, use_depth, w_depth, min(HYPOTHESIS_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations,
                         FINALISTS, best_x)
         return self._score(frame, best_x)
 
     def _depth_fit(self, frame: P.Frame, x: np.ndarray) -> DepthFit | None:
         """The depth term of solution ``x`` against this frame's measured depth (None without depth)."""
-        return None if self._depth is None else depth_fit_at(x, frame.data, self._depth)
+        return None if self._depth is None else depth_fit_at(x, frame.data, self._depth, self._sensor)
 
     def _analytic(self, frame: P.Frame, seeds: np.ndarray) -> list[np.ndarray]:
         """Starting points from the orientation seeds with every limb solved from its 2D landmarks (each

@@ -24,25 +24,26 @@ from posed.fitting.refine import levenberg_marquardt_into, limb_flip, lm_work
 
 
 @njit(cache=True)
-def _refined(x0, lo, hi, data, depth, use_depth, w_depth, iterations, out, lw):
+def _refined(x0, lo, hi, data, depth, sensor, use_depth, w_depth, iterations, out, lw):
     """``out`` = ``x0`` refined on ``data`` (its depth rows set from ``x0`` when ``use_depth``; ``lw`` the
     refinement's work arrays, fitting.refine.lm_work); returns the cost the candidates are compared on."""
     if use_depth:
-        set_depth_rows_at(x0, data, depth, w_depth)
+        set_depth_rows_at(x0, data, depth, sensor, w_depth)
     cost = levenberg_marquardt_into(x0, lo, hi, data, iterations, out, lw)[0]
     if use_depth:
-        cost = cost_with_depth(out, data, depth, w_depth)
+        cost = cost_with_depth(out, data, depth, sensor, w_depth)
     return cost
 
 
 @njit(cache=True)
-def best_hypothesis(starts, lo, hi, data, depth, use_depth, w_depth, trial_iterations, iterations, finalists,
-                    out):
+def best_hypothesis(starts, lo, hi, data, depth, sensor, use_depth, w_depth, trial_iterations, iterations,
+                    finalists, out):
     """``out`` (19) = the best of the hypotheses ``starts`` (k x 19) on ``data`` (the frame's packed array with
     its prior rows set; its depth rows are overwritten when ``use_depth``): every start refined
     ``trial_iterations``, the ``finalists`` smallest (ties: the earlier start) refined again up to
     ``iterations``, the smallest compared cost (ties: the better-ranked) wins. ``depth``: the measured depth at
-    the 12 body landmarks (metres, NaN unknown), used only when ``use_depth``; ``w_depth``: the depth term's
+    the 12 body landmarks (metres, NaN unknown) of the ``sensor`` (fitting.depth_term), used only when
+    ``use_depth``; ``w_depth``: the depth term's
     weight in the refinement's cost units. Returns the winner's compared cost (without starts: inf, ``out``
     NaN)."""
     k = starts.shape[0]
@@ -54,12 +55,13 @@ def best_hypothesis(starts, lo, hi, data, depth, use_depth, w_depth, trial_itera
     costs = np.empty(k)
     lw = lm_work()
     for i in range(k):
-        costs[i] = _refined(starts[i], lo, hi, data, depth, use_depth, w_depth, trial_iterations, trials[i], lw)
+        costs[i] = _refined(starts[i], lo, hi, data, depth, sensor, use_depth, w_depth, trial_iterations,
+                            trials[i], lw)
     order = np.argsort(costs, kind="mergesort")   # stable: ties keep the starts' order
     best = np.inf
     cand = np.empty(L.N_VAR)
     for r in range(min(finalists, k)):
-        c = _refined(trials[order[r]], lo, hi, data, depth, use_depth, w_depth, iterations, cand, lw)
+        c = _refined(trials[order[r]], lo, hi, data, depth, sensor, use_depth, w_depth, iterations, cand, lw)
         if r == 0 or c < best:
             best = c
             for j in range(L.N_VAR):

@@ -23,7 +23,7 @@ _HERE = Path(__file__).resolve().parent
 # Every module whose source is compiled into a cached kernel: the constants, the kernels and their callers.
 KERNEL_MODULES = ("layout", "rotations", "forward_kinematics", "projection", "penalties", "loss", "jacobian",
                   "udeas", "refine", "analytic", "depth_term", "depth_rows", "root", "hypotheses",
-                  "orientation", "packing", "reported", "result", "candidates")
+                  "orientation", "packing", "reported", "result", "measured", "angle_names", "candidates")
 RETIRED_MODULES = ("kernels",)  # split into the modules above; its cache files are deleted with theirs
 _OURS = KERNEL_MODULES + RETIRED_MODULES
 _done = False

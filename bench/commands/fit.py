@@ -108,12 +108,14 @@ def _out_of_domain(rows: list[dict]) -> list[str]:
     def v(x):
         return "null" if x is None else x
 
-    lines = ["| body | mode | fps | noise px | noise corr s | depth (used) | PA-MPJPE mm | MPJPE mm | depth flips | "
-             "angle err deg | root_cam err m | 2D err px | ms/frame (CPU) | p90 ms | failed |", "|" + "---|" * 15]
+    lines = ["| body | mode | fps | noise px | noise corr s | depth (used) | world | PA-MPJPE mm | MPJPE mm | "
+             "depth flips | angle err deg | root_cam err m | 2D err px | ms/frame (CPU) | p90 ms | failed |",
+             "|" + "---|" * 16]
     for r in rows:
         lines.append(f"| {r.get('body', 'height')} | {r['mode']} | {r['fps']} | {r['noise_px']} | "
                      f"{r.get('noise_corr_s', 0.0):g} | {'yes' if r['depth'] else 'no'}"
                      f"{' (' + ('yes' if r['depth_used'] else 'no') + ')' if r['depth'] else ''} | "
+                     f"{'yes' if r.get('world') else 'no'} | "
                      f"{v(r['pa_mpjpe_mm'])} | {v(r['mpjpe_mm'])} | {v(r['depth_flip_rate'])} | "
                      f"{v(r['angle_err_deg'])} | {v(r['root_cam_err_m'])} | {v(r['err2d_px'])} | "
                      f"{r['ms_per_frame']} | {r['ms_per_frame_p90']} | {r['failed']}/{r['frames']} |")

@@ -30,7 +30,7 @@ class StreamFit:
             self.fitter.reset()
         self.last = (frame.seq, t_capture)
         return self.fitter.fit(frame.landmarks, frame.seq, t_capture, image_size, mode="video",
-                               intrinsics=intrinsics, depth_m=frame.depth_m)
+                               intrinsics=intrinsics, depth_m=frame.depth_m, world=frame.world)
 
 
 def run(rt: StageRuntime) -> None:

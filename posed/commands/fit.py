@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
                 skipped += 1
                 continue
             result = fitter.fit(item.landmarks, item.seq, item.t, header.image_size, mode=args.mode,
-                                intrinsics=intrinsics, depth_m=item.depth_m)
+                                intrinsics=intrinsics, depth_m=item.depth_m, world=item.world)
             try:
                 line = dumps(result.to_json())
             except ValueError as exc:  # a non-finite number must never reach the output

@@ -259,11 +259,12 @@ def test_tiny_end_to_end_run_has_every_metric(shared_data):
     out = [r for r in rows if r["protocol"] == "ood_mocap"]
     assert all(r["domain"] == "out-of-domain" for r in out)
     # 2 bodies x 2 modes, and video mode for a person seen before, x 2 fps x 3 noises (none, independent,
-    # correlated in time) x 2 depth settings
-    assert sorted((r["body"], r["mode"], r["fps"], r["noise_rel"], r["noise_corr_s"], r["depth"]) for r in out) == sorted(
-        (b, m, f, n, c, d) for b, m in (("height", "image"), ("height", "video"), ("mocap", "image"),
-                                        ("mocap", "video"), ("seen", "video")) for f in (15, 30)
-        for n, c in ((0.0, 0.0), (0.01, 0.0), (0.01, 0.5)) for d in (False, True))
+    # correlated in time) x 3 evidence settings (landmarks alone, with world landmarks, with depth)
+    assert sorted((r["body"], r["mode"], r["fps"], r["noise_rel"], r["noise_corr_s"], r["depth"], r["world"])
+                  for r in out) == sorted(
+        (b, m, f, n, c, d, w) for b, m in (("height", "image"), ("height", "video"), ("mocap", "image"),
+                                           ("mocap", "video"), ("seen", "video")) for f in (15, 30)
+        for n, c in ((0.0, 0.0), (0.01, 0.0), (0.01, 0.5)) for d, w in ((False, False), (False, True), (True, False)))
     takes = ood.fitter_takes_depth()
     for r in out:
         assert r["frames"] == (13 if r["fps"] == 30 else 7) and r["failed"] == 0

@@ -9,7 +9,14 @@ import pytest
 from posed.bench import mocap_landmarks as M
 from posed.bench import simulate as S
 from posed.fitting import BODY_LANDMARKS, BodyDimensions, FitConfig, Fitter
-from posed.fitting.depth_term import MIN_DEPTHS, SURFACE_M, SURFACE_SIGMA_M, depth_fit, occluder_front
+from posed.fitting.depth_term import (
+    MIN_DEPTHS,
+    SENSOR_DEPTH_CAMERA,
+    SURFACE_M,
+    SURFACE_SIGMA_M,
+    depth_fit,
+    occluder_front,
+)
 
 SIZE = (640, 480)
 LIMBS = ((0, 2), (2, 4), (1, 3), (3, 5), (6, 8), (8, 10), (7, 9), (9, 11))  # body-landmark index pairs
@@ -99,7 +106,7 @@ def test_kernel_matches_numpy_reference(seed):
     if seed == 5:
         depth[MIN_DEPTHS - 1:] = np.nan    # too few: no term
     targets, weights = np.empty(12), np.empty(12)
-    n, cost, root, inliers, sigma = depth_term_kernel(x, data, depth, targets, weights)
+    n, cost, root, inliers, sigma = depth_term_kernel(x, data, depth, SENSOR_DEPTH_CAMERA, targets, weights)
     ref = depth_fit(z_rel, depth, occluder_front(pts_c[:L.N_LM], slopes))
     assert n == int((np.isfinite(depth) & (depth > 0)).sum())
     if ref is None:
@@ -218,23 +225,23 @@ def test_depth_rows_and_compared_cost_kernels_match_numpy(seed):
     res = np.empty(L.N_RES)
     JAC.residuals_jacobian(x, data, res, np.empty((1, 1)), False)
     expected = float(np.sum(res[:L.R_DEPTH] ** 2)) + weight * ref.cost
-    assert cost_with_depth(x, data, depth, weight) == pytest.approx(expected, rel=1e-12)
-    assert cost_with_depth(x, data, np.full(12, np.nan), weight) == pytest.approx(expected - weight * ref.cost,
+    assert cost_with_depth(x, data, depth, SENSOR_DEPTH_CAMERA, weight) == pytest.approx(expected, rel=1e-12)
+    assert cost_with_depth(x, data, np.full(12, np.nan), SENSOR_DEPTH_CAMERA, weight) == pytest.approx(expected - weight * ref.cost,
                                                                                  rel=1e-12)
 
-    set_depth_rows_at(x, data, depth, weight)
+    set_depth_rows_at(x, data, depth, SENSOR_DEPTH_CAMERA, weight)
     tol = 1e-12
     np.testing.assert_allclose(data[L.D_DEPTH:L.D_DEPTH + L.N_LM], np.where(np.isnan(ref.targets), 0.0, ref.targets),
                                rtol=0, atol=tol)
     np.testing.assert_allclose(data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM], np.sqrt(weight * ref.weights) / ref.sigma,
                                rtol=1e-9, atol=tol)
     assert data[L.D_DEPTH_W + seed] < 0.1 * np.sqrt(weight) / ref.sigma       # the background hit barely counts
-    set_depth_rows_at(x, data, depth, 0.0)
+    set_depth_rows_at(x, data, depth, SENSOR_DEPTH_CAMERA, 0.0)
     assert not data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM].any()
     data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM] = 1.0
     few = np.full(12, np.nan)
     few[:MIN_DEPTHS - 1] = 3.0
-    set_depth_rows_at(x, data, few, weight)
+    set_depth_rows_at(x, data, few, SENSOR_DEPTH_CAMERA, weight)
     assert not data[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM].any()
 
 

@@ -15,6 +15,7 @@ from posed.fitting.analytic import analytic_start
 from posed.fitting.body import BodyDimensions
 from posed.fitting.config import FitConfig
 from posed.fitting.depth_rows import cost_with_depth, set_depth_rows_at
+from posed.fitting.depth_term import SENSOR_DEPTH_CAMERA
 from posed.fitting.hypotheses import best_hypothesis, video_starts
 from posed.fitting.kinematics import BODY_LANDMARKS
 from posed.fitting.warmup import warmup_depth, warmup_landmarks
@@ -52,9 +53,9 @@ def reference_best(starts, data, depth, w_depth, trial_its, its, finalists):
     def refined(x0, n):
         out = np.empty(L.N_VAR)
         if depth is not None:
-            set_depth_rows_at(x0, data, depth, w_depth)
+            set_depth_rows_at(x0, data, depth, SENSOR_DEPTH_CAMERA, w_depth)
         cost = refine.levenberg_marquardt(x0, LO, HI, data, n, out)[0]
-        return out, (cost_with_depth(out, data, depth, w_depth) if depth is not None else float(cost))
+        return out, (cost_with_depth(out, data, depth, SENSOR_DEPTH_CAMERA, w_depth) if depth is not None else float(cost))
     trials = sorted((refined(x, trial_its) for x in starts), key=lambda r: r[1])
     return min((refined(x, its) for x, _ in trials[:finalists]), key=lambda r: r[1])
 
@@ -73,7 +74,7 @@ def test_kernel_matches_the_python_loop(noise_px, seed, with_depth):
         for trial_its, finalists in ((5, 2), (3, 1), (30, 4), (2, 50)):
             want_x, want_c = reference_best(starts, data.copy(), depth, 0.05, trial_its, 30, finalists)
             out = np.empty(L.N_VAR)
-            got_c = best_hypothesis(starts, LO, HI, data.copy(), NO_DEPTH if depth is None else depth,
+            got_c = best_hypothesis(starts, LO, HI, data.copy(), NO_DEPTH if depth is None else depth, SENSOR_DEPTH_CAMERA,
                                     depth is not None, 0.05, trial_its, 30, finalists, out)
             np.testing.assert_array_equal(out, want_x)
             assert got_c == want_c
@@ -86,7 +87,7 @@ def test_the_hypothesis_the_landmarks_support_wins():
     wins = []
     for order in (np.arange(len(starts)), np.arange(len(starts))[::-1]):
         out = np.empty(L.N_VAR)
-        best_hypothesis(starts[order], LO, HI, frame.data.copy(), NO_DEPTH, False, 0.0, 5, 30, 2, out)
+        best_hypothesis(starts[order], LO, HI, frame.data.copy(), NO_DEPTH, SENSOR_DEPTH_CAMERA, False, 0.0, 5, 30, 2, out)
         wins.append(out)
     worst = max(refine.data_mse(x, frame.data) for x in starts)
     for x in wins:
@@ -117,6 +118,6 @@ def test_video_starts_match_the_python_loop(mirrors):
 def test_no_hypotheses_is_no_solution():
     frame, _ = _problem(0.0, 1)
     out = np.zeros(L.N_VAR)
-    assert best_hypothesis(np.zeros((0, L.N_VAR)), LO, HI, frame.data.copy(), NO_DEPTH, False, 0.0, 5, 30, 2,
+    assert best_hypothesis(np.zeros((0, L.N_VAR)), LO, HI, frame.data.copy(), NO_DEPTH, SENSOR_DEPTH_CAMERA, False, 0.0, 5, 30, 2,
                            out) == np.inf
     assert np.all(np.isnan(out))
