@@ -48,20 +48,38 @@ def fleet_of_one(tmp_path_factory, shared_data):
         r.close()
 
 
+def _open_messages(rep) -> dict[tuple[str, str], float | None]:
+    with PosedClient.connect(rep) as c:
+        return {(e.event.id, e.event.state): e.acked_at for e in c.history("docs1", limit=500)}
+
+
 def test_the_documented_example_runs(fleet_of_one):
+    """As written it lists and acknowledges nothing; given one message (ROBOT/ID/STATE, as it prints them) it
+    acknowledges that one and no other."""
     rep, d = fleet_of_one
     code = doc_example().replace("tcp/127.0.0.1:7447", rep)
     assert len(code.strip().splitlines()) <= 11
-    t_run = time.time()
+    # the looping replay's falls: at least two messages open, so that one can stay open
+    wait_for(lambda: sum(a is None for a in _open_messages(rep).values()) >= 2, 180, "two open fall messages", d)
+    before = _open_messages(rep)
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     text = out.stdout                      # the callbacks print from Zenoh's threads: lines may interleave
     assert text.startswith("robots up: ['docs1']\n")
-    assert re.search(r"docs1 \d+ -?\d+\.\d+", text), text[:500]
-    assert re.search(r"falling (open|acknowledged)", text), text[:500]
-    with PosedClient.connect(rep) as c:
-        before = [e for e in c.history("docs1") if e.event.extra["time_unix"] < t_run]
-        assert before and all(e.acked_at is not None for e in before)     # the example acknowledged them
+    assert re.search(r"docs1 \d+ (-?\d+\.\d+|None)\n", text), text[:500]    # the knee by its plain name
+    listed = re.findall(r"^docs1/(\w+)/(\w+) (open|acknowledged)$", text, re.M)
+    assert any(s == "open" for _, _, s in listed), text[:1000]
+    after = _open_messages(rep)
+    assert all(after[k] is None for k, a in before.items() if a is None)   # nothing acknowledged unasked
+    event_id, state = next((i, s) for i, s, o in listed if o == "open" and before.get((i, s), 0) is None)
+    out = subprocess.run([sys.executable, "-c", code, f"docs1/{event_id}/{state}"], cwd=ROOT, capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert f"acknowledged docs1 {event_id} {state}" in out.stdout
+    after = _open_messages(rep)
+    assert after[(event_id, state)] is not None
+    others = [k for k, a in before.items() if a is None and k != (event_id, state)]
+    assert others and all(after[k] is None for k in others)      # the other open messages stay open
 
 
 def test_the_plain_zenoh_example_of_formats_md_runs(fleet_of_one):
