@@ -214,7 +214,7 @@ def test_the_client_and_ros2_examples_run_from_the_installed_wheel(installed, tm
                              env=env, capture_output=True, text=True, timeout=120)
         assert out.returncode == 0, out.stderr[-2000:]
         lines = [x for x in out.stdout.splitlines() if x.strip()]
-        assert lines and "'theta_kn_l':" in lines[-1], out.stdout[-2000:] + out.stderr[-2000:]
+        assert lines and "_joint':" in lines[-1], out.stdout[-2000:] + out.stderr[-2000:]   # URDF-style names
     finally:
         d.stop()
         r.close()

@@ -1,5 +1,9 @@
 """``posed demo [--seconds 20]``: run the whole daemon on the embedded default input, watch what it publishes
-from a separate Zenoh session (one line per second: fps, latency, knee and hip angles), then stop it."""
+from a separate Zenoh session (one line per second: fps, latency, knee and hip angles), then stop it.
+
+The embedded input is the real squat video of the shared test data (``$POSED_SHARED_DATA``, default
+``../shared/data`` beside the checkout) when it is there, else a landmark recording generated from a simulated
+body; the first line says which, and where to point ``POSED_SHARED_DATA`` for the real one."""
 
 from __future__ import annotations
 
@@ -18,14 +22,38 @@ STOP_TIMEOUT_S = 10.0   # for the daemon's clean shutdown after SIGTERM, before 
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("demo", help="run the daemon on the embedded demo input for a while and show its output")
+    parser = sub.add_parser("demo", help="run the daemon on the embedded demo input for a while and show its output",
+                            description="Runs the daemon on the real squat video of the shared test data "
+                                        "($POSED_SHARED_DATA/reference/tfjs_pose_squats/pose_squats.mp4; "
+                                        "POSED_SHARED_DATA defaults to ../shared/data beside the checkout) or, "
+                                        "without it, on a generated landmark recording; it says which.")
     parser.add_argument("--seconds", type=float, default=20.0, help="how long to publish (default 20)")
     add_config_args(parser, source=False, example="fitting.restarts=10")
     parser.add_argument("--source", metavar="URI", help="input instead of the embedded demo video")
     parser.set_defaults(func=_demo)
 
 
+def describe_input(source: str | None) -> str:
+    """What the demo replays, in one line: ``--source``, the real squat video of the shared test data, or the
+    generated recording (and where to put the real data to get the video instead)."""
+    from posed.daemon.preflight import SQUAT_VIDEO, cache_dir, shared_data
+
+    if source:
+        return f"posed demo: replaying {source} (--source), looped"
+    video = shared_data() / SQUAT_VIDEO
+    if video.is_file():
+        return (f"posed demo: replaying real video, {video} (tfjs-models' squat clip: one woman, front view, "
+                "65 frames at 5 fps), looped; the landmark stage and the fit run on every frame")
+    how = ("POSED_SHARED_DATA is set to " + os.environ["POSED_SHARED_DATA"] if os.environ.get("POSED_SHARED_DATA")
+           else "POSED_SHARED_DATA is not set")
+    return (f"posed demo: no real video at {video} ({how}): replaying a GENERATED recording instead, "
+            f"{cache_dir() / 'demo_squats.landmarks.jsonl'} (a simulated body doing three squats, landmarks only: "
+            "the landmark stage does not run). For the real video: POSED_SHARED_DATA=/path/to/shared/data "
+            "(the folder holding reference/tfjs_pose_squats/pose_squats.mp4)")
+
+
 def _demo(args: argparse.Namespace) -> int:
+    print(describe_input(args.source), flush=True)
     endpoint = free_endpoint()
     state = tempfile.mkdtemp(prefix="posed-demo-")
     # the embedded demo input unless --source (never the camera of a config found in /etc/posed)

@@ -181,5 +181,10 @@ def test_demo_runs_and_stops(tmp_path, data, shared_data):
     assert any(" fps " in x and "knee L" in x and "latency p50" in x for x in lines), r.stdout
     summary = lines[-1]
     assert summary.startswith("posed demo:") and "daemon exit status 0" in summary
+    said = lines[0]          # what it replays, first: the real video, or the generated recording and why
+    if data == "real":
+        assert said.startswith("posed demo: replaying real video, ") and "pose_squats.mp4" in said, said
+    else:
+        assert "replaying a GENERATED recording" in said and "POSED_SHARED_DATA is set to" in said, said
     if data == "generated":
         assert (tmp_path / "cache" / "posed" / "demo_squats.landmarks.jsonl").is_file()
