@@ -3,11 +3,20 @@
 from __future__ import annotations
 
 import json
-import math
 import threading
 import time
 
 from posed.daemon.proc.stats import percentile_summary
+
+
+def measured(pose: dict) -> dict[str, float]:
+    """The angles a pose message measured (fitting.measured), by symbol; none for a malformed one."""
+    from posed.fitting import FitResult
+
+    try:
+        return FitResult.from_json(pose).measured_angles()
+    except (ValueError, TypeError, KeyError):
+        return {}
 
 
 class Summary:
@@ -42,11 +51,11 @@ class Summary:
                 self.all_latency_ms.append(float(lat))
             if obj.get("ok"):
                 self.poses_ok += 1
-                ja = obj.get("joint_angles_deg") or {}
+                ja = measured(obj)
                 for key, store in (("theta_kn_l", self.knee), ("theta_kn_r", self.knee),
                                    ("theta_hp_l", self.hip), ("theta_hp_r", self.hip)):
-                    if isinstance(ja.get(key), (int, float)) and math.isfinite(ja[key]):
-                        store.append(float(ja[key]))
+                    if key in ja:
+                        store.append(ja[key])
 
     def on_status(self, sample) -> None:
         obj = json.loads(sample.payload.to_string())
@@ -83,9 +92,10 @@ class Summary:
                 s = percentile_summary(lat, 0)
                 parts.append(f"latency p50 {s['p50']:4.0f} ms p95 {s['p95']:4.0f} ms")
             if ok:
-                ja = ok[-1].get("joint_angles_deg") or {}
-                parts.append("knee L {:5.1f} R {:5.1f}  hip L {:5.1f} R {:5.1f} deg".format(
-                    *(float(ja.get(k, math.nan)) for k in ("theta_kn_l", "theta_kn_r", "theta_hp_l", "theta_hp_r"))))
+                ja = measured(ok[-1])      # "-": not seen in that frame
+                parts.append("knee L {} R {}  hip L {} R {} deg".format(
+                    *(f"{ja[k]:5.1f}" if k in ja else "  -  " for k in ("theta_kn_l", "theta_kn_r", "theta_hp_l",
+                                                                          "theta_hp_r"))))
             else:
                 parts.append(f"no person ({poses[-1].get('reason', '')})")
             parts.append(f"seq {poses[-1].get('seq')}")
