@@ -101,15 +101,16 @@ def run(args: argparse.Namespace) -> int:
     except (RecordingError, OSError) as exc:
         _err(str(exc))
         return 2
-    skipped = 0
+    skipped = read = 0
 
     def frames():
-        nonlocal skipped
+        nonlocal skipped, read
         for item in stream:
             if isinstance(item, RecordingProblem):
                 print(str(item), file=sys.stderr, flush=True)
                 skipped += 1
                 continue
+            read += 1
             yield item
 
     n = events = 0
@@ -127,5 +128,8 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         _err(f"{exc} (fitting.calibration in the config)")
         return 2
-    _err(f"{n} frames, {events} event message(s), {skipped} lines skipped")
+    taken = f"{n} frames" if n == read else (
+        f"{n} of the recording's {read} frames judged (at most pipeline.target_fps = {cfg.pipeline.target_fps:g} "
+        "a second of capture time, as the daemon's capture stage takes them; posed fit fits them all)")
+    _err(f"{taken}, {events} event message(s), {skipped} lines skipped")
     return 1 if skipped else 0
