@@ -96,7 +96,7 @@ def test_a_1920x1080_source_is_worked_on_at_960x540(tmp_path, shared_data):
     """A full-HD landscape recording (the real s2d_enter clip at 1920x1080, as a 1080p camera gives it): poses
     published paced at 10 fps, the ring holds 960x540, landmarks reach below row 540 (the source's pixels)."""
     frames = [cv2.resize(f, (1920, 1080), interpolation=cv2.INTER_CUBIC)
-              for f in read_frames(shared_data / REF / "multi_person/s2d_enter.mp4", 45)]
+              for f in read_frames(shared_data / REF / "multi_person/s2d_enter.mp4", 90)]
     path = write_video(tmp_path / "fullhd.avi", frames, 30.0)
     run = run_to_end(tmp_path, f"file:{path}")
     _check_published(run, 1920, 1080, frames_taken(len(frames), 30.0))
