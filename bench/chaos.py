@@ -299,7 +299,7 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
 
 def _capture_counts(status: dict | None) -> dict:
     cap = (status or {}).get("stages", {}).get("capture", {})
-    return {k: cap.get(k) for k in ("frames", "skipped", "errors", "drops", "restarts") if k in cap}
+    return {k: cap.get(k) for k in ("frames", "skipped", "errors", "bad_frames", "drops", "restarts") if k in cap}
 
 
 def _by_state(keys: set) -> dict:

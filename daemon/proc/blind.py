@@ -72,7 +72,7 @@ class BlindWatch:
 
     def _verdict(self, now: float, c: Counts, problem: dict | None, ended: bool) -> dict:
         base = Counts() if ended else self._at_progress
-        secs = now - (self._since or now)
+        secs = now - (self._since if self._since is not None else now)
         bad = c.bad_frames - base.bad_frames if c.bad_frames >= base.bad_frames else c.bad_frames
         timeouts = c.timeouts - base.timeouts if c.timeouts >= base.timeouts else c.timeouts
         captured = c.captured - base.captured if c.captured >= base.captured else c.captured

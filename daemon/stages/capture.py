@@ -343,6 +343,7 @@ def run_recording(rt: StageRuntime) -> None:
     last_seq = -1
     passes = 0
     info: dict = {}
+    problem: dict | None = None
     while True:
         try:
             header, stream = iter_recording(src.path)
@@ -368,11 +369,11 @@ def run_recording(rt: StageRuntime) -> None:
             rt.check_stop()
             if isinstance(item, RecordingProblem):
                 problems += 1
-                rt.error()
+                rt.bad_frame()                     # a frame line that cannot be used: skipped and counted
                 if problems <= 3:
                     rt.log.warning("recording_problem", problem=str(item))
-                rt.report(camera=info, problem={"error": str(item),
-                                                "fix": "repair or re-record the recording (the line named)"})
+                problem = {"error": str(item), "fix": "repair or re-record the recording (the line named)"}
+                rt.report(camera=info, problem=problem)
                 continue
             if t_first is None:
                 t_first = item.t
@@ -408,7 +409,7 @@ def run_recording(rt: StageRuntime) -> None:
         seq_offset = last_seq + 1                # ... and seq, as hal's replays do
         passes += 1
     rt.row.set_camera("ended")
-    rt.report(camera={**info, "state": "ended", "clock_jumps": line.jumps})
+    rt.report(camera={**info, "state": "ended", "clock_jumps": line.jumps}, **({"problem": problem} if problem else {}))
     rt.log.info("recording_ended", frames=int(rt.row.get("frames")), problems=problems, clock_jumps=line.jumps)
     while True:
         sleep_until(clock.now() + 0.2, rt)

@@ -154,3 +154,15 @@ def test_a_source_whose_frames_all_fail_is_blind_and_exits_non_zero(tmp_path, sh
     lines = run.events("blind")
     assert lines and all(x["level"] == "error" and x["fix"] for x in lines)
     assert len(lines) <= 3, len(lines)           # one per logging.stats_period_s (10 s), not one per frame
+
+
+def test_a_landmark_recording_whose_every_frame_is_broken_exits_non_zero(tmp_path, shared_data):
+    """A real recording's header with every frame line cut in half: nothing reaches the fitting stage, so the run
+    says why and exits 65, never 0."""
+    lines = (shared_data / "falls" / "urfd_dev" / "urfd_16_adl.landmarks.jsonl").read_text().splitlines()
+    rec = tmp_path / "broken.landmarks.jsonl"
+    rec.write_text("\n".join([lines[0]] + [x[: len(x) // 2] for x in lines[1:40]]) + "\n")
+    run = run_to_end(tmp_path, f"file:{rec}", "source.realtime=false")
+    assert run.code == 65, (run.code, run.stderr[-2000:])
+    assert "none of its frames reached the fitting stage" in run.stderr, run.stderr[-2000:]
+    assert "fix: repair or re-record the recording" in run.stderr, run.stderr[-2000:]
