@@ -140,9 +140,10 @@ def render_side(joints: dict[str, np.ndarray] | None, frame: SideFrame, size: tu
 
 def panel_width(frame: SideFrame, height: int) -> int:
     """A side panel width for ``height`` that fits the clip's framing at the height's scale (between 0.45 and
-    1.1 of the height): a wide scene (the camera far from the person) gets a wide panel, not empty rows."""
+    0.8 of the height, and at least 360 px): a deep scene gets a wider panel (and beyond 0.8 a window that
+    follows the person), never empty rows."""
     s = max(height / 720.0, 0.6)
     (z0, z1), (y0, y1) = frame.z_range, frame.y_range
     usable = height - (TOP_PX + FLOOR_PX) * s
     want = usable * (z1 - z0) / (y1 - y0) + 40
-    return int(round(min(max(want, 0.45 * height, 360), 1.1 * height) / 2) * 2)
+    return int(round(max(min(want, 0.8 * height), 0.45 * height, 360) / 2) * 2)

@@ -122,7 +122,7 @@ def test_render_a_recording_with_its_fit_every_frame_perspective(shared_data, tm
     frames = _frames(out)
     lines = rec.read_text().splitlines()
     assert len(frames) == len(lines) - 1                             # one per recorded frame (header excluded)
-    assert frames[0].shape[0] == 480 and 640 + 360 <= frames[0].shape[1] <= 640 + 528   # the side panel: 0.75-1.1 h
+    assert frames[0].shape[0] == 480 and frames[0].shape[1] == 640 + 384   # the side panel: 0.8 h (a deep scene)
 
 
 def test_render_reports_bad_inputs(tmp_path, capsys):
