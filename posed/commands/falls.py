@@ -35,13 +35,22 @@ def register(sub: argparse._SubParsersAction) -> None:
 _err = error_printer("posed falls")
 
 
-def taken_frames(pipeline_config, frames: Iterable) -> Iterator:
-    """The frames the capture stage takes from a recording: at most ``target_fps`` by capture time."""
+def taken_frames(pipeline_config, frames: Iterable, period_s: float = 1.0 / 30.0) -> Iterator:
+    """The frames the capture stage takes from a recording: on its capture clock (``hal.ReplayClock``: a
+    repeated, backward or leaping timestamp is one frame period ``period_s`` after the frame before, as the
+    daemon replays it), at most ``target_fps`` by capture time."""
+    from dataclasses import replace
+
     from posed.daemon.stages.capture import _Thinner
+    from posed.hal import ReplayClock
 
     thinner = _Thinner(pipeline_config.target_fps)
+    line = ReplayClock()
     for frame in frames:
-        if thinner.take(frame.t):
+        t = line.map(frame.t, period_s)
+        if t != frame.t:
+            frame = replace(frame, t=t)
+        if thinner.take(t):
             yield frame
 
 
@@ -116,8 +125,9 @@ def run(args: argparse.Namespace) -> int:
     n = events = 0
     wall0 = time.time()
     try:
+        period = 1.0 / (header.fps if header.fps and header.fps > 0 else cfg.source.fps)
         for _frame, _result, messages in detect(cfg, header, fit_frames(cfg.fitting, header,
-                                                                      taken_frames(cfg.pipeline, frames()))):
+                                                                      taken_frames(cfg.pipeline, frames(), period))):
             n += 1
             for ev in messages:
                 events += 1
