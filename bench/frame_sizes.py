@@ -24,14 +24,16 @@ CLIPS = ("multi_person/s2d_enter.mp4", "multi_person/bend_hand.mp4", "pose2sim_d
 FACTORS = (1, 2, 3, 4)
 
 
-def _frames(path, n: int) -> list[np.ndarray]:
+def read_frames(path, n: int, size: tuple[int, int] | None = None) -> list[np.ndarray]:
+    """The first ``n`` frames of a video (resized to ``size`` = (width, height) with cubic interpolation when
+    given: a clip brought to a camera's size)."""
     cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
     out = []
     while len(out) < n:
         ok, im = cap.read()
         if not ok:
             break
-        out.append(im)
+        out.append(np.ascontiguousarray(cv2.resize(im, size, interpolation=cv2.INTER_CUBIC) if size else im))
     cap.release()
     return out
 
@@ -62,7 +64,7 @@ def measure(shared, frames_per_clip: int = 60, factors=FACTORS) -> list[dict]:
     config = Config().landmarks
     rows = []
     for clip in CLIPS:
-        frames = _frames(shared / "reference" / clip, frames_per_clip)
+        frames = read_frames(shared / "reference" / clip, frames_per_clip)
         h, w = frames[0].shape[:2]
         ref = None
         for k in factors:
