@@ -68,15 +68,28 @@ class Outcome:
                 "min_pelvis_rel_lying": None if self.min_pelvis_rel_lying is None else round(self.min_pelvis_rel_lying, 3)}
 
 
-def scenario_cases(split: str) -> list[Case]:
+def scenario_cases(split: str, mount: str = "robot") -> list[Case]:
     out = []
-    for sc in catalogue(split):
-        out.append(Case(sc.name, sc.kind, split, sc.camera, list(frames(sc)), sc.truth, sc.body.height))
+    prefix = "" if mount == "robot" else f"{mount}/"
+    for sc in catalogue(split, mount):
+        out.append(Case(sc.name, sc.kind, prefix + split, sc.camera, list(frames(sc)), sc.truth, sc.body.height))
     return out
 
 
-def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed: int = 77) -> list[Case]:
-    """The two CMU clips, each seen from the side and at 45 degrees, 4 m from the middle of the path."""
+# The CMU clips' cameras per mount: (distance from the middle of the path (m), height (m), tilt (deg),
+# width, height (px), horizontal field of view (deg)). The wall camera is nearer: at 35 deg down its image
+# starts 11 deg below the horizon, so shoulders further than ~2.8 m are cut off.
+CMU_MOUNTS = {"robot": (4.0, 1.0, 12.0, 640, 480, 69.0), "wall": (2.6, 2.0, 35.0, 320, 240, 62.0)}
+
+
+def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed: int = 77,
+              mount: str = "robot") -> list[Case]:
+    """The two CMU clips, each seen from the side and at 45 degrees (robot: 4 m from the middle of the path,
+    camera 1 m high, 12 deg down; wall: ``CMU_MOUNTS``)."""
+    if mount not in CMU_MOUNTS:
+        raise ValueError(f"mount {mount!r} is not one of: {', '.join(CMU_MOUNTS)}")
+    dist, cam_z, tilt, width, height_px, hfov = CMU_MOUNTS[mount]
+    prefix = "" if mount == "robot" else f"{mount}/"
     out = []
     for clip in ("131_01", "131_02"):
         path = data_dir / f"{clip}.bvh"
@@ -95,23 +108,25 @@ def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed:
         nose = max(p["nose"][2] for p in world[:3])
         height = nose / 0.93
         for view, direction in (("side", side), ("oblique", (side + heading) / math.sqrt(2))):
-            pos = centre + 4.0 * direction
+            pos = centre + dist * direction
             d = centre - pos
-            cam = WorldCamera(x=float(pos[0]), y=float(pos[1]), z=1.0, tilt=12.0,
-                               yaw=math.degrees(math.atan2(-d[0], d[1])))
+            cam = WorldCamera(x=float(pos[0]), y=float(pos[1]), z=cam_z, tilt=tilt,
+                              yaw=math.degrees(math.atan2(-d[0], d[1])), width=width, height=height_px, hfov=hfov)
             rng = np.random.default_rng(seed + len(out))
             body = Body(height)
             fr = [Frame(k, k * step / motion.fps, cam.project(p, body, rng, noise_frac), p)
                   for k, p in enumerate(world)]
-            out.append(Case(f"cmu/{clip}/{view}", "adl", "cmu", cam, fr, Truth("adl"), height))
+            out.append(Case(f"{prefix}cmu/{clip}/{view}", "adl", f"{prefix}cmu", cam, fr, Truth("adl"), height))
     return out
 
 
 IMU_BIAS_DEG = 0.5    # rms error of a calibrated accelerometer's down direction, constant over a scene (per axis)
 IMU_NOISE_DEG = 0.05  # rms frame-to-frame noise of the filtered direction (tests/hal/test_imu.py: ~0.1 at 3 sigma)
 
-# How the detector learns the synthetic camera's tilt and roll (its height is always given):
+# How the detector learns the synthetic camera's tilt and roll (its height is given, except "default"):
 GEOMETRIES = {
+    "default": "the config as it is (tilt and roll 0, camera height 1 m unless set): a freshly started daemon "
+               "that was told nothing about the camera",
     "given": "the scene's true tilt and roll in the config",
     "unknown": "tilt and roll 0 in the config (a mount nobody measured), nothing learned",
     "auto": "tilt and roll 0 in the config, learned from the person (camera_tilt_auto, camera_roll_auto)",
@@ -130,17 +145,20 @@ def _imu_gravity(cam, rng: np.random.Generator, bias_rad: np.ndarray) -> np.ndar
 
 
 def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int, int], Intrinsics], FitResult],
-             cfg: FallsConfig, fit_frame: str, geometry: str = "given") -> Outcome:
+             cfg: FallsConfig, fit_frame: str, geometry: str = "given", intrinsics: bool = True) -> Outcome:
+    """One case through ``fit`` and a fresh detector. ``intrinsics`` False: the detector is given none (a
+    recording without a camera header: it assumes ``camera_hfov_deg``)."""
     cam = case.camera
     image_size = (cam.width, cam.height)
     if geometry not in GEOMETRIES:
         raise ValueError(f"geometry {geometry!r} is not one of: {', '.join(GEOMETRIES)}")
     if geometry == "given":
-        cfg = replace(cfg, camera_tilt_deg=cam.tilt, camera_roll_deg=cam.roll)
-    else:
+        cfg = replace(cfg, camera_tilt_deg=cam.tilt, camera_roll_deg=cam.roll, camera_height_m=cam.z,
+                      camera_geometry="measured")
+    elif geometry != "default":
         cfg = replace(cfg, camera_tilt_deg=0.0, camera_roll_deg=0.0,
-                      camera_tilt_auto=geometry == "auto", camera_roll_auto=geometry == "auto")
-    det = FallDetector(replace(cfg, camera_height_m=cam.z), "bench", fit_frame=fit_frame)
+                      camera_tilt_auto=geometry == "auto", camera_roll_auto=geometry == "auto", camera_height_m=cam.z)
+    det = FallDetector(cfg, "bench", fit_frame=fit_frame)
     imu_rng = np.random.default_rng(zlib.crc32(case.name.encode())) if geometry == "imu" else None
     imu_bias = imu_rng.normal(0.0, math.radians(IMU_BIAS_DEG), 2) if imu_rng is not None else None
     messages = []
@@ -157,7 +175,7 @@ def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int
             fit_ms.append(result.fit_ms)
         if imu_rng is not None:
             det.set_gravity(_imu_gravity(cam, imu_rng, imu_bias))
-        messages += det.update(result, fr.landmarks, image_size, intrinsics=cam.intrinsics)
+        messages += det.update(result, fr.landmarks, image_size, intrinsics=cam.intrinsics if intrinsics else None)
         if det.last_sample is not None:
             recent = (recent + [det.last_sample])[-3:]
             h = float(np.median([x.h_rel for x in recent]))
@@ -247,14 +265,19 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
 def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
               only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
               fit_config=None, with_intrinsics: bool = True, cache: Path | None = None,
-              geometry: str = "given") -> dict:
+              geometry: str = "given", mount: str = "robot") -> dict:
+    """``mount`` "wall": the scenarios and CMU clips seen by ``falls_scenarios.MOUNTS["wall"]``, as a recording
+    without a camera header: neither the fit nor the detector gets intrinsics (the detector assumes
+    ``camera_hfov_deg``)."""
     cfg = cfg or FallsConfig()
     cases: list[Case] = []
+    if mount != "robot":
+        with_intrinsics = False
     for split in splits:
         if split == "cmu":
-            cases += cmu_cases(shared_data / "mocap" / "cmu")
+            cases += cmu_cases(shared_data / "mocap" / "cmu", mount=mount)
         else:
-            cases += scenario_cases(split)
+            cases += scenario_cases(split, mount)
     if only:
         cases = [c for c in cases if only in c.name]
     outcomes = []
@@ -271,7 +294,7 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             def fn(lm, seq, t, size, intr, by_seq=by_seq, cam=case.camera):
                 return truth_result(by_seq[seq], cam)
 
-        outcome = run_case(case, fn, cfg, fit_frame, geometry)
+        outcome = run_case(case, fn, cfg, fit_frame, geometry, intrinsics=mount == "robot")
         outcomes.append(outcome)
         if progress:
             progress(outcome)
@@ -280,5 +303,6 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
     report["fit"] = fit_kind if fit_kind != "real" else ("real, perspective (intrinsics given)" if with_intrinsics
                                                          else "real, orthographic (no intrinsics)")
     report["geometry"] = {"mode": geometry, "meaning": GEOMETRIES[geometry]}
+    report["mount"] = mount
     report["seconds"] = round(time.monotonic() - t0, 1)
     return report

@@ -67,7 +67,7 @@ def with_geometry(cfg: Config, camera: dict, geometry: str) -> Config:
     """``geometry``: "labels" sets the labelled tilt, roll and height; "config" keeps the config's (e.g. auto)."""
     if geometry != "labels":
         return cfg
-    falls = replace(cfg.falls, **{k: camera[k] for k in GEOMETRY_KEYS if k in camera})
+    falls = replace(cfg.falls, camera_geometry="measured", **{k: camera[k] for k in GEOMETRY_KEYS if k in camera})
     return replace(cfg, falls=falls)
 
 

@@ -371,7 +371,8 @@ def walk(path: list[tuple[float, float]], speed: float = 1.1, start_pause: float
 
 def make(name: str, kind: str, motion: tuple[list[Key], Truth], view: float, distance: float, cam_height: float,
          tilt: float, seed: int, facing_offset: float = 0.0, fps: float = 10.0,
-         dropouts=(), start_xy=None, noise_frac: float = 0.01) -> Scenario:
+         dropouts=(), start_xy=None, noise_frac: float = 0.01, image: tuple[int, int, float] = (640, 480, 69.0)
+         ) -> Scenario:
     """Place the person ``distance`` m in front of a camera; ``view`` is the direction the camera sees the
     person from, in degrees around them (0: the person faces the camera, 90: their left side, 180: back)."""
     keys, truth = motion
@@ -380,7 +381,8 @@ def make(name: str, kind: str, motion: tuple[list[Key], Truth], view: float, dis
     if start_xy is None:
         start_xy = (0.0, distance)
     return Scenario(name=name, kind=kind, keys=keys, truth=truth,
-                    camera=WorldCamera(z=cam_height, tilt=tilt), fps=fps, seed=seed, dropouts=tuple(dropouts),
+                    camera=WorldCamera(z=cam_height, tilt=tilt, width=image[0], height=image[1], hfov=image[2]),
+                    fps=fps, seed=seed, dropouts=tuple(dropouts),
                     start_xy=start_xy, noise_frac=noise_frac)
 
 
@@ -392,6 +394,7 @@ class SplitSpec:
     cams: tuple[tuple[float, float], ...]   # (height, tilt)
     seed0: int
     adl_speeds: dict[str, float]
+    image: tuple[int, int, float] = (640, 480, 69.0)   # width, height (px), horizontal field of view (deg)
 
 
 SPLITS = {
@@ -403,18 +406,34 @@ SPLITS = {
 }
 
 
-def catalogue(split: str = "tune") -> list[Scenario]:
-    """Every scenario of one split (names are unique and stable)."""
+# Other mounts: the same motions seen by another camera (``catalogue(split, mount)``). "wall": a camera high on
+# a room's wall tilted down, 320x240 (the low-resolution home and office recordings of public fall datasets),
+# its field of view (62 deg) not the detector's default (69); people stand 1.7-2.4 m from the wall so that the
+# whole body is in view (at 2 m height and 35 deg the image covers 6-64 deg below the horizon).
+MOUNTS = {
+    "robot": None,
+    "wall": {"cams": ((2.0, 35.0),), "distances": (1.7, 2.4), "image": (320, 240, 62.0)},
+}
+
+
+def catalogue(split: str = "tune", mount: str = "robot") -> list[Scenario]:
+    """Every scenario of one split (names are unique and stable), seen from ``mount`` (``MOUNTS``; names of
+    another mount than the robot's start with it, e.g. ``wall/heldout/...``)."""
     if split not in SPLITS:
         raise ValueError(f"split {split!r} is not one of: {', '.join(SPLITS)}")
+    if mount not in MOUNTS:
+        raise ValueError(f"mount {mount!r} is not one of: {', '.join(MOUNTS)}")
     sp = SPLITS[split]
+    if MOUNTS[mount] is not None:
+        sp = replace(sp, **MOUNTS[mount])
+    prefix = "" if mount == "robot" else f"{mount}/"
     out: list[Scenario] = []
     seed = sp.seed0
 
     def add(name, kind, motion, view, dist, cam, **kw):
         nonlocal seed
         seed += 1
-        out.append(make(f"{split}/{name}", kind, motion, view, dist, cam[0], cam[1], seed, **kw))
+        out.append(make(f"{prefix}{split}/{name}", kind, motion, view, dist, cam[0], cam[1], seed, image=sp.image, **kw))
 
     cams, dists, views = sp.cams, sp.distances, sp.views
     # falls: direction x origin x speed x view

@@ -15,6 +15,12 @@ down. Heights are metres along ``g``.
 * **Floor**: its distance below the camera, learned from the ankles of a person standing upright
   (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m`` (0: unknown).
 * **Standing pelvis height**: learned the same way (after ``STAND_MIN_WEIGHT`` observations).
+* **Trust** (``camera_geometry``): configured values that were measured for this mount are used as they are.
+  A guess (a freshly started daemon with the default tilt 0 and height 1 m) is checked: gravity then comes from the
+  person's own standing body once it contradicts the guess (the fit's mid-ankle -> mid-shoulder axis of
+  straight-body frames, averaged over time; ``BODY_REJECT_DEG``), and the configured height is then dropped
+  too: heights above the floor count once the floor was learned from their feet (before that the lowest
+  fitted joint stands in for the floor). :meth:`CameraGeometry.used` says which sources a frame was judged with.
 """
 
 from __future__ import annotations
@@ -31,6 +37,21 @@ GRAVITY_STEP_DEG = 1.0   # a learned gravity is applied when it moved this far f
 FLOOR_MIN_WEIGHT = 5.0   # standing observations before the learned floor replaces the configured one
 STAND_MIN_WEIGHT = 3.0   # ... before the learned standing pelvis height is used
 EMA_MAX_WEIGHT = 30.0    # running means become exponential averages over about this many observations
+# Gravity from the standing body while the configured geometry is a guess. A standing person's body axis is
+# within a few degrees of vertical (postural sway), but the fit's depth component of that axis is poor: on
+# urfd_dev (a level camera) the per-clip mean of the fit's straight-body axis read a tilt of -1 to 20 deg
+# (median 8) and roll -4 to 17 deg. So the guess is kept unless, after BODY_MIN_S of straight-body frames,
+# the body contradicts it by more than BODY_REJECT_DEG (about twice that spread: a level guess on a wall camera
+# 30-45 deg down is rejected, a level camera's own body axis is not); then the body's gravity is used and
+# refined in steps of BODY_STEP_DEG, the floor seen under the feet re-projected.
+BODY_MIN_S = 1.0
+BODY_REJECT_DEG = 20.0
+BODY_MAX_S = 30.0
+BODY_STEP_DEG = 3.0
+SEATED_WEIGHT = 0.5                # a seated trunk leans ~15-20 deg back or forward: half the weight
+BODY_MAX_FROM_CONFIG_DEG = 60.0    # a mount guessed level can be tilted this far (wall cameras: 30-45 deg down)
+BODY_MAX_FROM_CURRENT_DEG = 45.0   # a straight body further than this from the gravity in use is not standing
+DEFAULT_GEOMETRY = (0.0, 0.0, 1.0)   # FallsConfig's camera_tilt_deg, camera_roll_deg, camera_height_m
 
 
 class CameraGeometry:
@@ -48,6 +69,13 @@ class CameraGeometry:
         self._floor_weight = 0.0
         self._stand: float | None = None          # standing pelvis height (m), learned
         self._stand_weight = 0.0
+        mode = cfg.camera_geometry
+        self.measured = mode == "measured" or (mode == "auto" and (cfg.camera_tilt_deg, cfg.camera_roll_deg,
+                                                                   cfg.camera_height_m) != DEFAULT_GEOMETRY)
+        self._floor_point: np.ndarray | None = None   # a point on the learned floor, camera axes
+        self._body_sum = np.zeros(3)               # time-weighted sum of standing body axes (down), camera axes
+        self._body_s = 0.0                         # seconds of straight body behind it
+        self._gravity_from = "config"
 
     # ------------------------------------------------------------------ gravity
 
@@ -76,18 +104,74 @@ class CameraGeometry:
             return False
         return self._learner.add(self.gravity, up_c, axis_plane_c, dt) and self._refresh()
 
+    def observe_body_axis(self, up_c: np.ndarray | None, dt: float) -> bool:
+        """A straight standing body's up axis (unit, camera axes) seen for ``dt`` seconds: gravity while the
+        configured geometry is a guess and neither an IMU nor the learned tilt gives it. True when the gravity
+        in use changed."""
+        if self.measured or up_c is None or not np.all(np.isfinite(up_c)):
+            return False
+        up = -np.asarray(up_c, float)
+        if float(up @ self._gravity_cfg) < math.cos(math.radians(BODY_MAX_FROM_CONFIG_DEG)) \
+                or float(up @ self.gravity) < math.cos(math.radians(BODY_MAX_FROM_CURRENT_DEG)):
+            return False   # not an upright body (lying straight, a fit gone wrong) for any plausible mount
+        w = min(max(dt, 0.0), 0.2)   # a gap in the stream is no extra evidence
+        if self._body_s >= BODY_MAX_S:
+            self._body_sum *= 1.0 - w / BODY_MAX_S
+        self._body_sum = self._body_sum - w * np.asarray(up_c, float)
+        self._body_s = min(self._body_s + w, BODY_MAX_S)
+        if self._gravity_imu is not None:
+            return False
+        return self._refresh()
+
+    def observe_seated_trunk(self, up_c: np.ndarray | None, dt: float) -> bool:
+        """A seated person's trunk axis (unit, camera axes) for ``dt`` seconds: weaker evidence of gravity
+        (people lean back or forward in a chair), counted ``SEATED_WEIGHT`` as much as a standing body and only
+        until a standing body was seen. True when the gravity in use changed."""
+        if self._body_s >= BODY_MIN_S or up_c is None:
+            return False
+        return self.observe_body_axis(up_c, SEATED_WEIGHT * dt)
+
+    def _body_gravity(self) -> np.ndarray | None:
+        """The standing body's gravity once ``BODY_MIN_S`` were seen and it contradicts the configured guess
+        by more than ``BODY_REJECT_DEG`` (None: keep the guess)."""
+        if self.measured or self._body_s < BODY_MIN_S - 1e-9:
+            return None
+        g = self._body_sum / np.linalg.norm(self._body_sum)
+        if self._gravity_from != "body" and float(g @ self._gravity_cfg) > math.cos(math.radians(BODY_REJECT_DEG)):
+            return None
+        return g
+
     def _refresh(self) -> bool:
         cfg = self.cfg
+        step = GRAVITY_STEP_DEG
         if self._gravity_imu is not None:
-            g = self._gravity_imu
+            g, src = self._gravity_imu, "imu"
         else:
             tilt, roll = self._learner.learned() if self._learner is not None else (None, None)
-            g = gravity_from_tilt(tilt if cfg.camera_tilt_auto and tilt is not None else cfg.camera_tilt_deg,
-                                  roll if cfg.camera_roll_auto and roll is not None else cfg.camera_roll_deg)
-        if float(g @ self.gravity) >= math.cos(math.radians(GRAVITY_STEP_DEG)):
+            tilt = tilt if cfg.camera_tilt_auto else None
+            roll = roll if cfg.camera_roll_auto else None
+            body = self._body_gravity()
+            if body is not None and tilt is None:
+                # the configured mount is a guess and nothing better is known: the standing body's own axis
+                # (a learned roll replaces its roll)
+                b_tilt, b_roll = tilt_roll_deg(body)
+                g, src = gravity_from_tilt(b_tilt, roll if roll is not None else b_roll), "body"
+                step = BODY_STEP_DEG
+            else:
+                g = gravity_from_tilt(tilt if tilt is not None else cfg.camera_tilt_deg,
+                                      roll if roll is not None else cfg.camera_roll_deg)
+                src = "learned" if tilt is not None else "config"
+        previous = self._gravity_from
+        self._gravity_from = src
+        if float(g @ self.gravity) >= math.cos(math.radians(step)):
             return False  # the learned estimate drifts by less than a step: keep the gravity in use
-        self._floor_learned, self._floor_weight = None, 0.0
-        self._stand, self._stand_weight = None, 0.0
+        if src == "body" and previous in ("config", "body") and self._floor_point is not None:
+            # the guess rejected or the body's gravity refined: the floor seen under the feet is still a point on
+            # the floor, re-projected along the new gravity; the standing height (metres) is kept
+            self._floor_learned = float(self._floor_point @ g)
+        else:
+            self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
+            self._stand, self._stand_weight = None, 0.0
         self._use(g)
         return True
 
@@ -102,12 +186,22 @@ class CameraGeometry:
         """The floor's distance below the camera along gravity (m), learned or configured; None unknown."""
         if self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT:
             return self._floor_learned
+        if self._gravity_from == "body":
+            return None   # the body contradicted the configured guess: its height is no better (lowest joint)
         return self._floor_cfg
 
-    def observe_floor(self, below_camera_m: float) -> None:
-        """The floor seen below the feet of a person standing upright (m below the camera)."""
+    def observe_floor(self, below_camera_m: float, ankles_c: np.ndarray | None = None,
+                      ankle_height_m: float = 0.0) -> None:
+        """The floor seen below the feet of a person standing upright (m below the camera); ``ankles_c`` (their
+        ankles' point, camera axes) and ``ankle_height_m`` (the ankles' height above the floor) keep it as a
+        point on the floor, so that a refined body gravity re-projects it instead of forgetting it."""
         if self.cfg.learn_floor:
             self._floor_learned, self._floor_weight = _ema(self._floor_learned, self._floor_weight, below_camera_m)
+            if ankles_c is not None and np.all(np.isfinite(ankles_c)):
+                w = min(self._floor_weight, EMA_MAX_WEIGHT)
+                p = np.asarray(ankles_c, float) + ankle_height_m * self.gravity   # on the floor
+                self._floor_point = p if self._floor_point is None or w <= 1.0 else \
+                    self._floor_point + (p - self._floor_point) / w
 
     def observe_standing_pelvis(self, height_m: float) -> None:
         """The pelvis height above the floor of a person standing upright (m)."""
@@ -119,17 +213,33 @@ class CameraGeometry:
 
     # ------------------------------------------------------------------ report
 
+    def used(self) -> dict:
+        """What a frame is judged with: ``gravity`` imu, learned, body (the standing person's axis) or config;
+        ``floor`` learned (from standing feet), config or lowest_joint (unknown: the lowest fitted joint stands
+        in); ``trusted`` whether the configured values were measured (``camera_geometry``)."""
+        learned_floor = self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT
+        floor = "learned" if learned_floor else ("config" if self.floor_below_camera is not None else "lowest_joint")
+        return {"gravity": "imu" if self._gravity_imu is not None else self._gravity_from, "floor": floor,
+                "config": "measured" if self.measured else "guess"}
+
     def summary(self) -> dict:
         """Tilt and roll (deg), floor below the camera (m, None unknown), where each comes from (config,
-        learned, imu; height: learned, config, unknown) and the seconds of standing the learner has seen."""
+        learned, imu, body; height: learned, config, unknown), whether the configured values are trusted
+        (``config``: measured or guess) and the seconds of standing the learner has seen."""
         tilt, roll = tilt_roll_deg(self.gravity)
         l_tilt, l_roll = self._learner.learned() if self._learner is not None else (None, None)
         src = "imu" if self._gravity_imu is not None else None
+        body = self._gravity_from == "body"
         learned_floor = self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT
         return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": self.floor_below_camera,
-                "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto else "config"),
-                "roll_from": src or ("learned" if l_roll is not None and self.cfg.camera_roll_auto else "config"),
-                "height_from": "learned" if learned_floor else ("config" if self._floor_cfg is not None else "unknown"),
+                "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto
+                                     else "body" if body else "config"),
+                "roll_from": src or ("learned" if l_roll is not None and self.cfg.camera_roll_auto
+                                     else "body" if body else "config"),
+                "height_from": "learned" if learned_floor else ("config" if self.floor_below_camera is not None
+                                                                else "unknown"),
+                "config": "measured" if self.measured else "guess",
+                "body_s": round(self._body_s, 2),
                 "standing_s": 0.0 if self._learner is None else round(self._learner.seconds, 2)}
 
 

@@ -27,6 +27,15 @@ class FallsConfig:
         default=0.0, metadata={"doc": "camera roll about its optical axis, clockwise in the image positive",
                                "unit": "deg", "range": (-90.0, 90.0)}
     )
+    camera_geometry: str = field(
+        default="auto", metadata={"doc": "how far the configured camera_tilt_deg, camera_roll_deg and camera_height_m "
+                                         "are trusted: measured (for this mount), guess (checked against the "
+                                         "person's standing body: one that contradicts the tilt and roll by more "
+                                         "than 20 deg replaces them and the height), auto (measured when any of the "
+                                         "three differs from its default 0, 0, 1.0; otherwise guess); see "
+                                         "docs/falls.md",
+                                  "choices": ("auto", "measured", "guess")}
+    )
     camera_tilt_auto: bool = field(
         default=False, metadata={"doc": "learn the tilt from a person standing or walking at several places across "
                                         "the image (camera_tilt_deg is used until then, at least 5 s of standing); "

@@ -72,6 +72,7 @@ class _Event:
     t_impact: float
     features: tuple[str, ...]
     confidence: float
+    geometry: dict = field(default_factory=dict)   # CameraGeometry.used() when the event was raised
     sent: set[str] = field(default_factory=set)
 
 
@@ -149,8 +150,15 @@ class FallDetector:
                         self.cfg.upright_knee_deg, geo.roll_deg, fit_frame, self.cfg.upright_trunk_deg)
         if feats is not None and feats.straight_body:
             dt = t - self._prev_frame_t if self._prev_frame_t is not None else 0.1
-            if geo.learn(feats.body_up_c, feats.axis_plane_c, dt):
+            changed = geo.learn(feats.body_up_c, feats.axis_plane_c, dt)
+            if self.state == "up" and self._descent is None:   # never from a falling or fallen body
+                changed = geo.observe_body_axis(feats.body_up_c, dt) or changed
+            if changed:
                 self._gap()   # heights along the old gravity are not comparable: forget the motion
+        if feats is not None and feats.seated_trunk_up_c is not None and self.state == "up" and self._descent is None:
+            dt = t - self._prev_frame_t if self._prev_frame_t is not None else 0.1
+            if geo.observe_seated_trunk(feats.seated_trunk_up_c, dt):
+                self._gap()
         sample = self._sample(feats) if feats is not None else None
         self.last_sample = sample
         if sample is not None:
@@ -241,7 +249,8 @@ class FallDetector:
         # learn the floor and the standing height from a person standing upright with straight legs
         standing = f.trunk_incl_deg < cfg.upright_trunk_deg and f.upright_legs
         if standing and f.below_camera_ankles is not None:
-            geo.observe_floor(f.below_camera_ankles + ANKLE_OVER_LEG * f.leg_length)
+            geo.observe_floor(f.below_camera_ankles + ANKLE_OVER_LEG * f.leg_length, f.ankles_c,
+                              ANKLE_OVER_LEG * f.leg_length)
         floor = geo.floor_below_camera
         if floor is None:  # no floor known: judge against the lowest fitted joint instead
             floor = f.below_camera_pelvis + max(max(f.offsets_down.values()), 0.0) + ANKLE_OVER_LEG * f.leg_length
@@ -426,7 +435,7 @@ class FallDetector:
     def _raise(self, state: str, t_onset: float | None, t_impact: float, t: float, feats: list[str],
                confidence: float) -> FallEvent:
         self._event = _Event(id=self._new_id(), t_onset=t_onset, t_impact=t_impact, features=tuple(feats),
-                             confidence=round(confidence, 3))
+                             confidence=round(confidence, 3), geometry=self.camera.used())
         self.state = "down"
         self._descent = None
         self._up_start = None
@@ -440,6 +449,7 @@ class FallDetector:
         extra = {}
         if s is not None:
             extra = {"pelvis_height_rel": round(s.h_rel, 3), "trunk_inclination_deg": round(s.incl, 1)}
+        extra["geometry"] = dict(ev.geometry)
         return FallEvent(id=ev.id, robot=self.robot_id, state=state, t_onset=ev.t_onset, t_impact=ev.t_impact,
                          t_detect=t, confidence=round(float(confidence), 3), features=feats,
                          pose=self._last_result.to_json() if self._last_result is not None else None,

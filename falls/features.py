@@ -30,6 +30,9 @@ TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
 # hip joint 0.530 H, knee 0.285 H, ankle 0.039 H above the floor; thigh 0.245 H, shank 0.246 H.
 ANKLE_OVER_LEG = 0.039 / 0.491
 PELVIS_OVER_LEG = 0.530 / 0.491
+# Sitting on a chair: hips and knees flexed about 90 deg (a seat's height is about the lower leg's length); the
+# trunk is then within about 20 deg of vertical (leaning back or forward in the chair)
+SEATED_FLEX_DEG = (60.0, 120.0)
 
 
 def gravity_from_tilt(tilt_deg: float, roll_deg: float = 0.0) -> np.ndarray:
@@ -71,6 +74,9 @@ class FrameFeatures:
     axis_plane_c: np.ndarray | None = None  # unit normal of the plane through the camera centre and the
                                             # image line mid-ankle -> mid-shoulder (normalized coordinates)
     straight_body: bool = False  # standing or walking: legs extended, trunk in line (whatever the gravity)
+    ankles_c: np.ndarray | None = None   # the mean visible ankle's position, camera axes (m)
+    seated_trunk_up_c: np.ndarray | None = None   # sitting (hips and knees flexed 60-120 deg): the trunk's
+                                                  # mid-hip -> mid-shoulder direction, unit, camera axes
 
 
 def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Intrinsics) -> np.ndarray | None:
@@ -147,6 +153,7 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
     leg = float(np.mean(legs)) if legs else 0.8
     ankles = [n for n in ("left_ankle", "right_ankle") if visible.get(n) and n in joints]
     below_ankles = float(pelvis @ d_c + np.mean([offsets[n] for n in ankles])) if ankles else None
+    ankles_c = pelvis + r_fit @ np.mean([joints[n] - mid_hip for n in ankles], axis=0) if ankles else None
     pts = np.array([lm[LANDMARK_INDEX[n], :2] for n, ok in visible.items() if ok])
     if roll_deg:
         b = math.radians(roll_deg)
@@ -187,8 +194,11 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
             n_norm = float(np.linalg.norm(normal))
             if n_norm > 1e-9:
                 axis_plane = normal / n_norm
+    seated = None
+    if len(flex) == 4 and all(SEATED_FLEX_DEG[0] <= abs(v) <= SEATED_FLEX_DEG[1] for v in flex.values()):
+        seated = r_fit @ (trunk / norm)
     unobserved = tuple(n for n, ok in visible.items() if not ok)
-    return FrameFeatures(t=result.t, below_camera_pelvis=float(pelvis @ d_c), below_camera_ankles=below_ankles,
+    return FrameFeatures(seated_trunk_up_c=seated, ankles_c=ankles_c, t=result.t, below_camera_pelvis=float(pelvis @ d_c), below_camera_ankles=below_ankles,
                          offsets_down=offsets, trunk_incl_deg=incl, leg_length=leg, bbox_aspect=aspect, flexion=flex,
                          upright_legs=upright_legs, unobserved=unobserved, body_up_c=body_up,
                          axis_plane_c=axis_plane, straight_body=straight)

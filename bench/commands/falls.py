@@ -24,10 +24,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--geometry", choices=("labels", "config"), default="labels",
                         help="recordings: camera tilt/roll/height from labels.json (default) or from the config "
                              "(e.g. --set falls.camera_tilt_auto=true)")
-    parser.add_argument("--synthetic-geometry", choices=("given", "unknown", "auto", "imu"), default="given",
-                        help="simulated scenarios: the camera's true tilt and roll in the config (given), 0 and "
-                             "nothing learned (unknown), 0 and learned from the person (auto), or 0 with an "
-                             "accelerometer's gravity on every frame (imu)")
+    parser.add_argument("--synthetic-geometry", choices=("given", "unknown", "auto", "imu", "default"),
+                        default="given",
+                        help="simulated scenarios: the camera's true tilt, roll and height in the config (given), "
+                             "tilt and roll 0 and nothing learned (unknown), 0 and learned from the person (auto), "
+                             "0 with an accelerometer's gravity on every frame (imu), or the config as it is "
+                             "(default: tilt 0, height 1 m, a daemon told nothing about the camera)")
+    parser.add_argument("--mount", choices=("robot", "wall"), default="robot",
+                        help="simulated scenarios and CMU clips: the robot's camera (0.9-1.3 m, 8-22 deg down, "
+                             "640x480, intrinsics given) or a wall camera (2 m, 35 deg down, 320x240, 62 deg, no "
+                             "intrinsics given to the fit or the detector)")
     parser.add_argument("--no-cache", action="store_true",
                         help="fit again, do not use the cached fits (~/.cache/posed/falls-fits)")
     parser.add_argument("--only", default="", metavar="TEXT", help="only scenarios whose name contains TEXT")
@@ -65,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     report = run_bench(splits, "truth" if args.truth else "real", cfg.falls, args.only, shared, progress,
                        fit_config=cfg.fitting, with_intrinsics=not args.no_intrinsics,
                        cache=None if args.no_cache else cache_dir() / "falls-fits",
-                       geometry=args.synthetic_geometry)
+                       geometry=args.synthetic_geometry, mount=args.mount)
     if args.markdown:
         Path(args.markdown).write_text(markdown(report))
     if real is not None:
