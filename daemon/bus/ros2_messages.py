@@ -101,7 +101,7 @@ def measured_pose(pose: dict):
     what goes out."""
     from posed.fitting import FitResult
 
-    return FitResult.from_json(pose)
+    return FitResult.from_json({"seq": 0, "t": 0.0, **pose})   # seq and t are not needed here
 
 
 def joint_state(pose: dict, frame_id: str):
