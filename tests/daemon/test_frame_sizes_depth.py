@@ -1,8 +1,7 @@
 """A scaled-down RGB-D frame through ``posed run`` (the .db3 the hal tests make from the real squat video, with a
 working size of a quarter of its pixels so that the capture stage halves colour and depth): the landmarks
-topic reports the source's pixels, and
-the depth at each landmark is exactly what the landmark stage sampled on the halved depth at the halved
-landmark positions."""
+topic reports the source's pixels, and the depth at each landmark is exactly what the landmark stage sampled on
+the halved depth at the halved landmark positions."""
 
 from __future__ import annotations
 
