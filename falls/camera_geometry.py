@@ -73,6 +73,8 @@ class CameraGeometry:
         self.measured = mode == "measured" or (mode == "auto" and (cfg.camera_tilt_deg, cfg.camera_roll_deg,
                                                                    cfg.camera_height_m) != DEFAULT_GEOMETRY)
         self._floor_point: np.ndarray | None = None   # a point on the learned floor, camera axes
+        self._body_floor_sum = np.zeros(3)         # time-weighted sum of floor points under straight bodies
+        self._body_floor_w = 0.0
         self._body_sum = np.zeros(3)               # time-weighted sum of standing body axes (down), camera axes
         self._body_s = 0.0                         # seconds of straight body behind it
         self._gravity_from = "config"
@@ -104,12 +106,19 @@ class CameraGeometry:
             return False
         return self._learner.add(self.gravity, up_c, axis_plane_c, dt) and self._refresh()
 
-    def observe_body_axis(self, up_c: np.ndarray | None, dt: float) -> bool:
+    def observe_body_axis(self, up_c: np.ndarray | None, dt: float, ankles_c: np.ndarray | None = None,
+                          ankle_height_m: float = 0.0) -> bool:
         """A straight standing body's up axis (unit, camera axes) seen for ``dt`` seconds: gravity while the
-        configured geometry is a guess and neither an IMU nor the learned tilt gives it. True when the gravity
-        in use changed."""
+        configured geometry is a guess and neither an IMU nor the learned tilt gives it; its ankles (camera axes)
+        and their height above the floor give a point on the floor along that axis, used if the guess is
+        rejected before the floor was learned. True when the gravity in use changed."""
         if self.measured or up_c is None or not np.all(np.isfinite(up_c)):
             return False
+        if ankles_c is not None and np.all(np.isfinite(ankles_c)):
+            w = min(max(dt, 0.0), 0.2)
+            self._body_floor_sum = self._body_floor_sum + w * (np.asarray(ankles_c, float)
+                                                               - ankle_height_m * np.asarray(up_c, float))
+            self._body_floor_w += w
         up = -np.asarray(up_c, float)
         if float(up @ self._gravity_cfg) < math.cos(math.radians(BODY_MAX_FROM_CONFIG_DEG)) \
                 or float(up @ self.gravity) < math.cos(math.radians(BODY_MAX_FROM_CURRENT_DEG)):
@@ -165,6 +174,11 @@ class CameraGeometry:
         self._gravity_from = src
         if float(g @ self.gravity) >= math.cos(math.radians(step)):
             return False  # the learned estimate drifts by less than a step: keep the gravity in use
+        if src == "body" and previous in ("config", "body") and self._floor_point is None \
+                and self._body_floor_w >= BODY_MIN_S - 1e-9:
+            # the guess rejected before a floor was learned: the floor under the straight bodies seen
+            self._floor_point = self._body_floor_sum / self._body_floor_w
+            self._floor_weight = FLOOR_MIN_WEIGHT
         if src == "body" and previous in ("config", "body") and self._floor_point is not None:
             # the guess rejected or the body's gravity refined: the floor seen under the feet is still a point on
             # the floor, re-projected along the new gravity; the standing height (metres) is kept

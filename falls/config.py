@@ -95,6 +95,14 @@ class FallsConfig:
                                       "over), then the person not seen for this long, is reported as a fall "
                                       "(falling, feature lost_after_descent)", "unit": "s", "range": (0.1, 5.0)}
     )
+    lost_descent_confirm_s: float = field(
+        default=0.2, metadata={"doc": "the same, sooner, judged on the descent itself: when the last frames seen "
+                                      "were already lying-like (trunk past lying_trunk_deg, pelvis below "
+                                      "lying_pelvis_rel) or the descent was twice fall_velocity_rel with the trunk "
+                                      "tipping over and heading for floor level (feature judged_on_descent, lower "
+                                      "confidence); more than one frame period, so one dropped frame never "
+                                      "raises it", "unit": "s", "range": (0.05, 5.0)}
+    )
     on_floor_confirm_s: float = field(
         default=1.0, metadata={"doc": "lying at floor level without a fast descent (slow fall, found lying) "
                                       "this long is reported", "unit": "s", "range": (0.1, 60.0)}

@@ -151,11 +151,12 @@ class FallDetector:
         if feats is not None and feats.straight_body:
             dt = t - self._prev_frame_t if self._prev_frame_t is not None else 0.1
             changed = geo.learn(feats.body_up_c, feats.axis_plane_c, dt)
-            if self.state == "up" and self._descent is None:   # never from a falling or fallen body
-                changed = geo.observe_body_axis(feats.body_up_c, dt) or changed
+            if self.state == "up":   # never from a fallen body (a lying one is too far from the gravity in use)
+                changed = geo.observe_body_axis(feats.body_up_c, dt, feats.ankles_c,
+                                                ANKLE_OVER_LEG * feats.leg_length) or changed
             if changed:
                 self._gap()   # heights along the old gravity are not comparable: forget the motion
-        if feats is not None and feats.seated_trunk_up_c is not None and self.state == "up" and self._descent is None:
+        if feats is not None and feats.seated_trunk_up_c is not None and self.state == "up":
             dt = t - self._prev_frame_t if self._prev_frame_t is not None else 0.1
             if geo.observe_seated_trunk(feats.seated_trunk_up_c, dt):
                 self._gap()
@@ -188,7 +189,8 @@ class FallDetector:
         raw = self._samples[-1] if self._samples else None
         if raw is not None and self._last_v > cfg.fall_velocity_rel and raw.h_rel < s.h_rel:
             s = raw   # still falling fast in the last frame seen: its height is no outlier, the median lags
-        if self._last_valid_t - d.t_fast > cfg.impact_window_s or t - self._last_valid_t < cfg.lost_confirm_s - 1e-9:
+        lost_for = t - self._last_valid_t
+        if self._last_valid_t - d.t_fast > cfg.impact_window_s or lost_for < cfg.lost_descent_confirm_s - 1e-9:
             return []
         tipping = s.incl > cfg.recover_trunk_deg
         # at floor level; or low with the trunk tipping over; or still falling fast with the trunk tipping over
@@ -198,9 +200,19 @@ class FallDetector:
         low = s.h_rel < cfg.floor_pelvis_rel or (tipping and (s.h_rel < cfg.lying_pelvis_rel or heading))
         if not low:
             return []
+        # judged on the descent itself, sooner: the last frames already lying-like, or a descent at twice the fall
+        # speed with the trunk tipping over and heading for the floor (lost within a few frames of the impact)
+        lying_like = s.incl > cfg.lying_trunk_deg and s.h_rel < cfg.lying_pelvis_rel
+        fast = d.v_peak >= 2 * cfg.fall_velocity_rel
+        early = lying_like or (fast and tipping)
+        if lost_for < cfg.lost_confirm_s - 1e-9 and not early:
+            return []
         supporting = self._supporting(s, d.flex_rate)
         feats = ["pelvis_descent_fast", "lost_after_descent"] + supporting
-        conf = min(0.85, 0.6 + 0.05 * len(supporting) + (0.1 if d.v_peak > 2 * cfg.fall_velocity_rel else 0.0))
+        conf = min(0.85, 0.6 + 0.05 * len(supporting) + (0.1 if fast else 0.0))
+        if lost_for < cfg.lost_confirm_s - 1e-9:
+            feats.append("judged_on_descent")   # decided before lost_confirm_s: less sure
+            conf = min(0.75, conf - 0.1)
         return [self._raise("falling", d.t_onset, self._impact_time(d.t_fast), t, feats, conf)]
 
     def _abrupt(self, t_onset: float, t_impact: float) -> bool:
