@@ -43,6 +43,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="paced: real-time replay (published fraction, latency); unpaced: as fast as it "
                              "goes (throughput); both (default)")
     parser.add_argument("--source", metavar="PATH", help="a video to replay instead of the squat video (used as is)")
+    parser.add_argument("--clips", action="store_true",
+                        help="instead: every real clip of the shared data (any size, portrait, GIF, 5-60 fps) through "
+                             "posed run, default config, paced, to its end: poses published vs the frames taken "
+                             "(bench/clips.py; target >= 90 %%)")
     parser.add_argument("--input", choices=("squat", "1080p"), default="squat",
                         help="squat: the squat video at 640x480, 10 fps (default); 1080p: a real clip at 1920x1080, "
                              "30 fps, as a full-HD camera gives it")
@@ -259,6 +263,16 @@ def summarize(name: str, poses: list[dict], status0: dict | None, statuses: list
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "clips", False):
+        from posed.bench.clips import measure as measure_clips
+        from posed.daemon.preflight import shared_data
+
+        rows = measure_clips(shared_data())
+        for row in rows:
+            print(json.dumps(row) if args.json else "  ".join(f"{k} {v}" for k, v in row.items()), flush=True)
+        if not args.json:
+            print("all targets met" if all(r["target_met"] for r in rows) else "some targets MISSED")
+        return 0
     video = Path(args.source) if args.source else (bench_video_1080p() if getattr(args, "input", "squat") == "1080p"
                                                    else bench_video())
     phases = ("paced", "unpaced") if args.phase == "both" else (args.phase,)
