@@ -51,6 +51,10 @@ BODY_STEP_DEG = 3.0
 SEATED_WEIGHT = 0.5                # a seated trunk leans ~15-20 deg back or forward: half the weight
 BODY_MAX_FROM_CONFIG_DEG = 60.0    # a mount guessed level can be tilted this far (wall cameras: 30-45 deg down)
 BODY_MAX_FROM_CURRENT_DEG = 45.0   # a straight body further than this from the gravity in use is not standing
+STATE_VERSION = 1
+# the configured values a kept state was learned under: when one changes, the state is not taken back
+STATE_CONFIG_KEYS = ("camera_tilt_deg", "camera_roll_deg", "camera_height_m", "camera_geometry", "camera_tilt_auto",
+                     "camera_roll_auto", "learn_floor", "camera_hfov_deg")
 DEFAULT_GEOMETRY = (0.0, 0.0, 1.0)   # FallsConfig's camera_tilt_deg, camera_roll_deg, camera_height_m
 
 
@@ -78,6 +82,7 @@ class CameraGeometry:
         self._body_sum = np.zeros(3)               # time-weighted sum of standing body axes (down), camera axes
         self._body_s = 0.0                         # seconds of straight body behind it
         self._gravity_from = "config"
+        self.restored = False                      # taken back from an earlier run (restore)
 
     # ------------------------------------------------------------------ gravity
 
@@ -225,6 +230,54 @@ class CameraGeometry:
         """The learned standing pelvis height (m), or None until it is known."""
         return self._stand if self._stand is not None and self._stand_weight >= STAND_MIN_WEIGHT else None
 
+    # ------------------------------------------------------------------ kept across restarts
+
+    def state(self) -> dict:
+        """What was learned from people (gravity from their bodies or image lines, the floor under their feet,
+        their standing height) with how much evidence stands behind each, as JSON-able numbers; the IMU is
+        live and not kept. ``config`` records the configured values it was learned under."""
+        cfg = self.cfg
+        return {
+            "version": STATE_VERSION,
+            "config": {k: getattr(cfg, k) for k in STATE_CONFIG_KEYS},
+            "gravity": self.gravity.tolist(), "gravity_from": self._gravity_from,
+            "body": {"sum": self._body_sum.tolist(), "seconds": self._body_s,
+                     "floor_sum": self._body_floor_sum.tolist(), "floor_seconds": self._body_floor_w},
+            "learner": self._learner.state() if self._learner is not None else None,
+            "floor": None if self._floor_learned is None else {
+                "below_camera_m": self._floor_learned, "weight": self._floor_weight,
+                "point": None if self._floor_point is None else self._floor_point.tolist()},
+            "standing_pelvis": None if self._stand is None else {"m": self._stand, "weight": self._stand_weight},
+        }
+
+    def restore(self, state: dict) -> str | None:
+        """Take back :meth:`state` from an earlier run of the same camera. Returns None when restored, else why
+        not (another version, learned under other configured values); raises ValueError (KeyError, TypeError)
+        when it is malformed. The IMU, when there is one, still replaces the gravity."""
+        if state.get("version") != STATE_VERSION:
+            return f"version {state.get('version')!r} is not {STATE_VERSION}"
+        stored = state.get("config") or {}
+        changed = [k for k in STATE_CONFIG_KEYS if stored.get(k) != getattr(self.cfg, k)]
+        if changed:
+            return "learned under other configured values (" + ", ".join(changed) + ")"
+        g = _vector(state["gravity"])
+        body = state["body"]
+        self._body_sum, self._body_s = _vector(body["sum"], unit=False), float(body["seconds"])
+        self._body_floor_sum, self._body_floor_w = _vector(body["floor_sum"], unit=False), float(body["floor_seconds"])
+        if self._learner is not None and state.get("learner") is not None:
+            self._learner.restore(state["learner"])
+        self._gravity_from = "config"
+        self._refresh()                      # the gravity these give (forgets floor and standing height)
+        if float(g @ self.gravity) >= math.cos(math.radians(GRAVITY_STEP_DEG)):
+            floor, stand = state.get("floor"), state.get("standing_pelvis")
+            if floor is not None:            # learned along this same gravity: still valid
+                self._floor_learned, self._floor_weight = float(floor["below_camera_m"]), float(floor["weight"])
+                self._floor_point = None if floor.get("point") is None else _vector(floor["point"], unit=False)
+            if stand is not None:
+                self._stand, self._stand_weight = float(stand["m"]), float(stand["weight"])
+        self.restored = True
+        return None
+
     # ------------------------------------------------------------------ report
 
     def used(self) -> dict:
@@ -253,8 +306,16 @@ class CameraGeometry:
                 "height_from": "learned" if learned_floor else ("config" if self.floor_below_camera is not None
                                                                 else "unknown"),
                 "config": "measured" if self.measured else "guess",
-                "body_s": round(self._body_s, 2),
+                "body_s": round(self._body_s, 2), "floor_weight": round(self._floor_weight, 1),
+                "restored": self.restored,
                 "standing_s": 0.0 if self._learner is None else round(self._learner.seconds, 2)}
+
+
+def _vector(value, unit: bool = True) -> np.ndarray:
+    v = np.asarray(value, float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or (unit and not 0.5 < float(np.linalg.norm(v)) < 1.5):
+        raise ValueError(f"expected three finite numbers{' (a unit vector)' if unit else ''}, got {value!r}")
+    return v / np.linalg.norm(v) if unit else v
 
 
 def _ema(value: float | None, weight: float, obs: float, max_weight: float = EMA_MAX_WEIGHT) -> tuple[float, float]:

@@ -105,3 +105,17 @@ class GravityLearner:
         d_roll = np.array([math.cos(b) * math.cos(a), -math.sin(b) * math.cos(a), 0.0])
         info = [float(d @ self._m @ d) / 1.0 for d in (d_tilt, d_roll)]
         return (tilt if info[0] >= INFO_MIN else None), (roll if info[1] >= INFO_MIN else None)
+
+    def state(self) -> dict:
+        """What was learned, as JSON-able numbers (:meth:`restore` takes it back)."""
+        return {"m": self._m.tolist(), "samples": self.samples, "seconds": self.seconds, "weight": self._weight}
+
+    def restore(self, state: dict) -> None:
+        """Take back :meth:`state` (ValueError when it is malformed)."""
+        m = np.asarray(state["m"], float)
+        if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+            raise ValueError("learner matrix must be 3x3 finite numbers")
+        self._m = m
+        self.samples = int(state["samples"])
+        self.seconds = float(state["seconds"])
+        self._weight = float(state["weight"])

@@ -16,7 +16,8 @@ from pathlib import Path
 
 FOLDER_MODE = 0o700
 FILE_MODE = 0o600
-OWN_PREFIXES = ("events.sqlite3", "history.sqlite3")      # with -wal, -shm and *.corrupt-* siblings
+OWN_PREFIXES = ("events.sqlite3", "history.sqlite3",     # with -wal, -shm and *.corrupt-* siblings
+                "falls-geometry")                          # the fall detector's learned geometry per camera
 
 
 def private_folder(folder: Path, log=None) -> None:

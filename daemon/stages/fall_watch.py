@@ -10,41 +10,137 @@ vector in the colour camera's axes, any length: ``LandmarkFrame.gravity``, fille
 recording with an accelerometer through hal.imu, or a ``*.landmarks.jsonl`` line's ``"gravity"``) sets the
 detector's gravity when ``falls.imu_gravity`` is on. A malformed one (kept in the frame's ``extra``) is
 counted and logged, and the gravity in use is kept.
+
+Kept across restarts: what the detector learned from people about the camera (gravity from their bodies or
+image lines, the floor under their feet, their standing height, with the seconds of evidence behind each) is
+written to ``state_file`` (per camera: :func:`geometry_file`) every ``SAVE_EVERY_S`` of capture time when it
+changed and on :meth:`FallWatch.close`, and taken back at start-up unless it was learned under other configured
+values (``falls.camera_*``); an unreadable file is set aside (``.corrupt-<unix time>``) with one warning.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import re
+import time
 from collections.abc import Callable
+from pathlib import Path
 
 from posed.daemon.messages import FitMsg
 from posed.falls import FallDetector, FallEvent, FallsConfig
 
 LOG_FIRST_FAILURES = 3
 LOG_FAILURE_EVERY = 100
+SAVE_EVERY_S = 30.0        # capture seconds between writes of the learned geometry (when it changed)
+GEOMETRY_PREFIX = "falls-geometry"
+
+
+def geometry_file(state_dir: Path, source) -> Path:
+    """The file that keeps what the fall detector learned about one camera (``source``: the ``source`` config
+    section): ``falls-geometry-<type>-<serial, device or path>.json`` in the state dir (a RealSense without a
+    serial: ``realsense-any``)."""
+    kind = getattr(source, "type", "file")
+    ident = {"realsense": getattr(source, "serial", "") or "any", "v4l2": str(getattr(source, "device", "")),
+             "file": str(Path(getattr(source, "path", "") or "demo").expanduser().resolve())}.get(kind, kind)
+    name = re.sub(r"[^A-Za-z0-9._-]+", "_", f"{kind}-{ident}").strip("_")[-120:]
+    return Path(state_dir) / f"{GEOMETRY_PREFIX}-{name}.json"
 
 
 class FallWatch:
     """Wraps a :class:`FallDetector` (None when ``falls.enabled`` is false: no events)."""
 
-    def __init__(self, detector: FallDetector | None, log, on_error: Callable[[], None] = lambda: None) -> None:
+    def __init__(self, detector: FallDetector | None, log, on_error: Callable[[], None] = lambda: None,
+                 state_file: Path | None = None) -> None:
         self.detector = detector
         self.log = log
         self.failures = 0
         self.bad_gravity = 0
         self._on_error = on_error
+        self.state_file = Path(state_file) if state_file is not None and detector is not None else None
+        self._saved: str | None = None
+        self._save_t: float | None = None
+        self.save_error: str | None = None
+        if self.state_file is not None:
+            self._load()
 
     @classmethod
-    def from_config(cls, cfg: FallsConfig, robot_id: str, log,
-                    on_error: Callable[[], None] = lambda: None) -> FallWatch:
-        return cls(FallDetector(cfg, robot_id) if cfg.enabled else None, log, on_error)
+    def from_config(cls, cfg: FallsConfig, robot_id: str, log, on_error: Callable[[], None] = lambda: None,
+                    state_file: Path | None = None) -> FallWatch:
+        """``state_file``: where the geometry learned from people is kept across restarts (:func:`geometry_file`;
+        None: not kept)."""
+        return cls(FallDetector(cfg, robot_id) if cfg.enabled else None, log, on_error, state_file)
 
     def status(self) -> dict:
         """For the status message: whether detection runs, the camera geometry in use (tilt, roll, floor and
-        where each comes from: config, learned or imu), malformed IMU readings and detector failures."""
+        where each comes from: config, learned, body or imu; whether it was restored from the state dir),
+        malformed IMU readings and detector failures."""
         if self.detector is None:
             return {"enabled": False}
         geometry = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in self.detector.geometry.items()}
-        return {"enabled": True, "geometry": geometry, "bad_gravity": self.bad_gravity, "failures": self.failures}
+        out = {"enabled": True, "geometry": geometry, "bad_gravity": self.bad_gravity, "failures": self.failures}
+        if self.save_error is not None:
+            out["geometry_save_error"] = self.save_error
+        return out
+
+    # ------------------------------------------------------------------ the learned geometry, kept
+
+    def _load(self) -> None:
+        path = self.state_file
+        if path is None or not path.exists():
+            return
+        try:
+            state = json.loads(path.read_text())
+            why = self.detector.camera.restore(state)
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            aside = path.with_name(f"{path.name}.corrupt-{int(time.time())}")
+            try:
+                path.replace(aside)
+            except OSError:
+                aside = None
+            self.log.warning("falls_geometry_unreadable", file=str(path), error=str(exc),
+                             kept_as=str(aside) if aside else None,
+                             fix="nothing to do: the geometry is learned again from people; the file was set aside")
+            return
+        if why is not None:
+            self.log.info("falls_geometry_not_restored", file=str(path), reason=why)
+            return
+        self._saved = json.dumps(self.detector.camera.state(), sort_keys=True)
+        self.log.info("falls_geometry_restored", file=str(path), **{
+            k: v for k, v in self.detector.geometry.items() if k in ("tilt_deg", "tilt_from", "height_from",
+                                                                     "body_s", "standing_s", "floor_weight")})
+
+    def save(self) -> bool:
+        """Write the learned geometry when it changed since the last write (atomically, mode 0600). False
+        when it could not be written (the error is in the status and logged once per error text)."""
+        if self.state_file is None:
+            return True
+        text = json.dumps(self.detector.camera.state(), sort_keys=True)
+        if text == self._saved:
+            return True
+        path = self.state_file
+        tmp = path.with_name(path.name + ".tmp")
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+                f.flush()
+                os.fsync(f.fileno())
+            tmp.replace(path)
+        except OSError as exc:
+            if self.save_error != str(exc):
+                self.log.warning("falls_geometry_not_saved", file=str(path), error=str(exc),
+                                 fix="make the state dir writable (pipeline.state_dir); detection goes on")
+            self.save_error = str(exc)
+            return False
+        self._saved, self.save_error = text, None
+        return True
+
+    def close(self) -> None:
+        """Keep what was learned (on shutdown)."""
+        if self.detector is not None:
+            self.save()
 
     def update(self, msg: FitMsg) -> list[FallEvent]:
         """The fall-event messages this frame caused (usually none)."""
@@ -64,7 +160,7 @@ class FallWatch:
                 if self.bad_gravity <= LOG_FIRST_FAILURES or self.bad_gravity % LOG_FAILURE_EVERY == 0:
                     self.log.warning("imu_gravity_bad", error=str(exc), seq=msg.result.seq, count=self.bad_gravity)
         try:
-            return self.detector.update(msg.result, msg.landmarks.landmarks, msg.image_size, msg.intrinsics)
+            events = self.detector.update(msg.result, msg.landmarks.landmarks, msg.image_size, msg.intrinsics)
         except Exception as exc:  # a detector bug must not stop the poses
             self.failures += 1
             self._on_error()
@@ -72,6 +168,11 @@ class FallWatch:
                 self.log.error("fall_detector_failed", error=repr(exc), seq=msg.result.seq,
                                failures=self.failures)
             return []
+        t = float(msg.result.t)
+        if self.state_file is not None and (self._save_t is None or t < self._save_t or t - self._save_t >= SAVE_EVERY_S):
+            self._save_t = t
+            self.save()
+        return events
 
 
 def _vector3(value):

@@ -50,7 +50,7 @@ from posed.daemon.outbox.hooks import HookRunner
 from posed.daemon.outbox.journal import EventJournal
 from posed.daemon.outbox.private import private_file, private_folder
 from posed.daemon.stages.base import StageRuntime
-from posed.daemon.stages.fall_watch import FallWatch
+from posed.daemon.stages.fall_watch import FallWatch, geometry_file
 
 
 class PublisherStage:
@@ -59,7 +59,8 @@ class PublisherStage:
     def __init__(self, rt: StageRuntime, stack: contextlib.ExitStack) -> None:
         self.rt = rt
         cfg = rt.config
-        self.falls = FallWatch.from_config(cfg.falls, cfg.robot_id, rt.log, on_error=rt.error)
+        self.falls = FallWatch.from_config(cfg.falls, cfg.robot_id, rt.log, on_error=rt.error,
+                                           state_file=geometry_file(paths.state_dir(cfg.pipeline), cfg.source))
         self.bus = BusLink(cfg.zenoh, cfg.robot_id, stack, rt.log,
                            history=self._stored_events, on_ack=self._acknowledge)
         private_folder(paths.state_dir(cfg.pipeline), rt.log)         # health data: 0700, files 0600
@@ -120,6 +121,7 @@ class PublisherStage:
         self.bus.forget()
         self.outbox.close(hook_timeout_s=0.5)     # then TERM, KILL: within pipeline.shutdown_timeout_s
         self.history.close()
+        self.falls.close()                         # keep the geometry learned from people
 
     def _send_event(self, obj: dict) -> bool:
         """Publish one fall-event message (and to ROS 2 when enabled); False when there is no session."""
