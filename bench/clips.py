@@ -42,14 +42,6 @@ class Run:
         return [x for x in self.log if x.get("event") == name]
 
 
-def _free_port() -> int:
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
 class _Notify:
     """An AF_UNIX datagram socket read by a thread, as systemd reads $NOTIFY_SOCKET."""
 
@@ -83,8 +75,9 @@ def run_to_end(workdir: Path, source: str, *overrides: str, robot: str = "clip",
     import zenoh
 
     from posed.client import session_config
+    from posed.commands._child import free_endpoint
 
-    rep = f"tcp/127.0.0.1:{_free_port()}"
+    rep = free_endpoint()
     router = zenoh.open(session_config("router", listen=[rep]))
     lock = threading.Lock()
     got: dict[str, list[dict]] = {k: [] for k in keys}
@@ -100,7 +93,7 @@ def run_to_end(workdir: Path, source: str, *overrides: str, robot: str = "clip",
     cmd = [sys.executable, "-m", "posed.cli", "run", "--source", source,
            "--set", f"pipeline.state_dir={workdir / 'state'}", "--set", "logging.format=json",
            "--set", f"robot_id={robot}", "--set", "pipeline.stop_at_end=true",
-           "--set", "pipeline.status_period_s=0.5", "--set", f"zenoh.listen=[tcp/127.0.0.1:{_free_port()}]",
+           "--set", "pipeline.status_period_s=0.5", "--set", f"zenoh.listen=[{free_endpoint()}]",
            "--set", f"zenoh.connect=[{rep}]"]
     for o in overrides:
         cmd += ["--set", o]
