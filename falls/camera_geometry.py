@@ -222,6 +222,10 @@ class CameraGeometry:
                 self._floor_point = p if self._floor_point is None or w <= 1.0 else \
                     self._floor_point + (p - self._floor_point) / w
 
+    def forget_floor(self) -> None:
+        """The learned floor is not under the person any more (another level): learn it again from their feet."""
+        self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
+
     def observe_standing_pelvis(self, height_m: float) -> None:
         """The pelvis height above the floor of a person standing upright (m)."""
         self._stand, self._stand_weight = _ema(self._stand, self._stand_weight, height_m)

@@ -43,6 +43,14 @@ LOST_HORIZON_S = 0.4     # lost while falling: the pelvis would reach floor leve
 PROFILE_WINDOW_S = 0.25  # descent profile: speeds over this window (three frames at 10 fps)
 LYING_HYSTERESIS_REL = 0.1   # a person lying stops lying above lying_pelvis_rel (shoulder_rel) + this
 LYING_HYSTERESIS_DEG = 15.0  # ... or with the trunk this much nearer vertical than lying_trunk_deg
+# A body cannot be under the floor: a pelvis this far below a floor learned from the person's feet (0.5 of its
+# standing height, about 0.45 m: three stair steps) means the person is on another level (came down from a
+# platform or stairs: the floor was learned on a raised surface), not lying on this floor. The fit's error puts
+# a pelvis lying on a learned floor at most ~0.2 below it (the wall camera with a guessed geometry, synthetic);
+# the floor is then forgotten and learned again from the feet, and nothing is decided on that frame's height.
+# Not applied to a configured floor: a configured height off by some 10 cm, and a fit's scale at the impact,
+# put a real fall from a chair 0.7 below it (urfd_14, camera height 0.85 m as labelled).
+BELOW_FLOOR_REL = 0.5
 
 
 @dataclass
@@ -106,6 +114,7 @@ class FallDetector:
         self._event: _Event | None = None
         self._last_result: FitResult | None = None
         self.last_sample: Sample | None = None
+        self.other_level = 0      # frames whose pelvis was far under the floor in use (BELOW_FLOOR_REL)
 
     # ------------------------------------------------------------------ calibration inputs
 
@@ -312,6 +321,11 @@ class FallDetector:
         cfg = self.cfg
         t = raw.t
         s = self._smoothed()
+        if s.h_rel < -BELOW_FLOOR_REL and self.state == "up" and self.camera.used()["floor"] == "learned":
+            self.camera.forget_floor()     # another level: the floor in use is not under this person
+            self._gap()
+            self.other_level += 1
+            return []
         self._last_smoothed = s
         v = self._descent_velocity(t)
         self._last_v = v

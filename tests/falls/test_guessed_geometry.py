@@ -119,3 +119,50 @@ def test_one_dropped_frame_in_a_fall_like_descent_is_not_a_decision():
     last_seen = sc.truth.t_impact + 0.1
     _, events = run(sc, cfg, intrinsics=True, lose_after=last_seen + 0.05, end_after=last_seen + 0.1)
     assert events == []
+
+
+def _jump_down_from_a_platform(height: float = 1.6):
+    """Standing on a platform ``height`` m up for 2 s (the floor is learned there), then jumping down in front
+    of it (0.3 s, a free fall's speed) and standing on the real floor, the legs hidden behind its edge, as the
+    man in the shared data's s2d_enter video jumps off a block."""
+    import math
+
+    import numpy as np
+
+    from posed.bench.falls_body import Body, RestingPlace, WorldCamera, place
+    from posed.bench.falls_scenarios import STAND, Frame
+
+    cam, body, rng = WorldCamera(z=2.0, tilt=10.0), Body(), np.random.default_rng(3)
+    out = []
+    for k in range(51):
+        t = k / 10
+        w = min(max((t - 2.0) / 0.3, 0.0), 1.0)
+        lift = height * (1 - w * w) + (0.05 * math.sin(math.pi * w) if 0 < w < 1 else 0.0)
+        joints = place(STAND, body, RestingPlace(0.0, 5.0 - 0.5 * w, None, lift))
+        lm = cam.project(joints, body, rng, 0.01)
+        if w > 0:
+            lm[25:33, 3] = 0.1                  # behind the platform's edge: knees and feet hidden
+        out.append(Frame(k, t, lm, joints))
+    return cam, out
+
+
+def test_coming_down_to_another_level_is_not_a_fall(monkeypatch):
+    """A pelvis far below the floor learned from the feet (BELOW_FLOOR_REL) is another level, not a fall; with
+    that rule off, the same jump is taken for a fall onto the floor."""
+    import posed.falls.detector as detector
+
+    cam, frs = _jump_down_from_a_platform()
+
+    def events(cfg):
+        det = FallDetector(cfg, "r1", fit_frame="camera")
+        out = []
+        for fr in frs:
+            out += det.update(truth_result(fr, cam), fr.landmarks, (cam.width, cam.height), cam.intrinsics)
+        return det, out
+
+    cfg = FallsConfig(camera_tilt_deg=cam.tilt, camera_height_m=cam.z)
+    det, out = events(cfg)
+    assert out == [] and det.other_level > 0
+    monkeypatch.setattr(detector, "BELOW_FLOOR_REL", 10.0)
+    _, out = events(cfg)
+    assert [e.state for e in out][:1] == ["falling"]
