@@ -221,7 +221,8 @@ def real_fitter(fit_config=None, with_intrinsics: bool = True):
     return fit
 
 
-def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path | None):
+def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path | None,
+               intrinsics: Intrinsics | None = None):
     """``fit`` wrapped with a per-case cache of its results (key: the case's landmarks, the fit config, the
     intrinsics switch and the fitting package's source), so that re-scoring the detector costs no fit."""
     if cache is None:
@@ -237,7 +238,7 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
     for fr in case.frames:
         h.update(b"none" if fr.landmarks is None else np.ascontiguousarray(fr.landmarks, float).tobytes())
     h.update(json.dumps(asdict(fit_config) if fit_config is not None else {}, sort_keys=True).encode())
-    h.update(f"{with_intrinsics}{case.camera.intrinsics}{_fitting_source_hash()}".encode())
+    h.update(f"{with_intrinsics}{intrinsics or case.camera.intrinsics}{_fitting_source_hash()}".encode())
     path = cache / f"{case.name.replace('/', '_')}.{h.hexdigest()[:20]}.fits.jsonl"
     stored = None
     if path.is_file():
@@ -250,7 +251,7 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
     made: list[FitResult] = []
 
     def fn(lm, seq, t, size, intr):
-        r = fit(lm, seq, t, size, intr)
+        r = fit(lm, seq, t, size, intrinsics or intr)
         made.append(r)
         if len(made) == sum(fr.landmarks is not None for fr in case.frames):
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -265,14 +266,15 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
 def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
               only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
               fit_config=None, with_intrinsics: bool = True, cache: Path | None = None,
-              geometry: str = "given", mount: str = "robot") -> dict:
+              geometry: str = "given", mount: str = "robot", assume_fov: bool = False) -> dict:
     """``mount`` "wall": the scenarios and CMU clips seen by ``falls_scenarios.MOUNTS["wall"]``, as a recording
-    without a camera header: neither the fit nor the detector gets intrinsics (the detector assumes
-    ``camera_hfov_deg``)."""
+    without a camera header: the detector gets no intrinsics (it assumes ``camera_hfov_deg``), nor does the fit
+    (orthographic), unless ``assume_fov``: then the fit projects through the pinhole of that assumed field of
+    view (not the camera's true one)."""
     cfg = cfg or FallsConfig()
     cases: list[Case] = []
     if mount != "robot":
-        with_intrinsics = False
+        with_intrinsics = assume_fov
     for split in splits:
         if split == "cmu":
             cases += cmu_cases(shared_data / "mocap" / "cmu", mount=mount)
@@ -287,7 +289,9 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
     for case in cases:
         if fit_kind == "real":
             fit.reset()  # type: ignore[union-attr]
-            fn = cached_fit(case, fit, fit_config, with_intrinsics, cache)
+            assumed = Intrinsics.from_hfov(cfg.camera_hfov_deg, case.camera.width, case.camera.height) \
+                if assume_fov and mount != "robot" else None
+            fn = cached_fit(case, fit, fit_config, with_intrinsics, cache, assumed)
         else:
             by_seq = {fr.seq: fr for fr in case.frames}
 
@@ -300,8 +304,9 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             progress(outcome)
     report = {"scenarios": [o.to_json() for o in outcomes], **summarise(outcomes)}
     report["splits"] = {s: summarise(o for o in outcomes if o.split == s) for s in dict.fromkeys(o.split for o in outcomes)}
-    report["fit"] = fit_kind if fit_kind != "real" else ("real, perspective (intrinsics given)" if with_intrinsics
-                                                         else "real, orthographic (no intrinsics)")
+    report["fit"] = fit_kind if fit_kind != "real" else (
+        f"real, perspective (the assumed {cfg.camera_hfov_deg:g} deg field of view)" if assume_fov and mount != "robot"
+        else "real, perspective (intrinsics given)" if with_intrinsics else "real, orthographic (no intrinsics)")
     report["geometry"] = {"mode": geometry, "meaning": GEOMETRIES[geometry]}
     report["mount"] = mount
     report["seconds"] = round(time.monotonic() - t0, 1)

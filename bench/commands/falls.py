@@ -43,6 +43,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="do not give the fit the camera intrinsics (scaled orthographic fit, as a webcam "
                              "without calibration)")
     parser.add_argument("--markdown", metavar="FILE", help="also write the per-scenario table as Markdown")
+    parser.add_argument("--assume-fov", action="store_true",
+                        help="--mount wall: fit in perspective with the intrinsics of falls.camera_hfov_deg (an "
+                             "assumed lens, not the camera's 62 deg) instead of the orthographic fit a recording "
+                             "without a camera header gets today")
     parser.add_argument("--cross-source", action="store_true",
                         help="the cross-source check: the same detector on every source (synthetic robot and wall "
                              "cameras, CMU, --recordings or shared urfd_dev, real videos through posed landmarks), "
@@ -77,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     report = run_bench(splits, "truth" if args.truth else "real", cfg.falls, args.only, shared, progress,
                        fit_config=cfg.fitting, with_intrinsics=not args.no_intrinsics,
                        cache=None if args.no_cache else cache_dir() / "falls-fits",
-                       geometry=args.synthetic_geometry, mount=args.mount)
+                       geometry=args.synthetic_geometry, mount=args.mount, assume_fov=args.assume_fov)
     if args.markdown:
         Path(args.markdown).write_text(markdown(report))
     if real is not None:
