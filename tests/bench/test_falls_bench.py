@@ -117,3 +117,26 @@ def test_synthetic_camera_geometry_modes(capsys):
         out[mode] = report["recall"]
     assert out["given"] == 1.0 and out["imu"] == 1.0
     assert out["unknown"] < 1.0
+
+
+def test_wall_mount_with_the_default_config(capsys):
+    """--mount wall renders the scenes through the wall camera (2 m, 35 deg, 320x240) and --synthetic-geometry
+    default leaves the config as it is: the body check finds the falls from standing (ground-truth joints)."""
+    code = main(["bench", "falls", "--truth", "--mount", "wall", "--synthetic-geometry", "default", "--split",
+                 "tune", "--only", "fall/standing-sideways/fast", "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert report["mount"] == "wall" and report["geometry"]["mode"] == "default"
+    assert [s["name"] for s in report["scenarios"]] == ["wall/tune/fall/standing-sideways/fast-v30",
+                                                        "wall/tune/fall/standing-sideways/fast-v100"]
+    assert report["recall"] == 1.0 and code == 0
+
+
+def test_cross_source_rows_and_gaps():
+    from posed.bench.falls_cross import Row, table
+
+    ref = Row("tune", "chosen on", "given", 36, 36, 52, 0, 0.7)
+    other = Row("wall", "held out", "default config", 111, 33, 104, 3, 0.8)
+    js = other.to_json(ref)
+    assert js["recall_gap"] == round(33 / 111 - 1.0, 3) and js["false_alarm_rate_gap"] == round(3 / 104, 3)
+    text = table({"rows": [ref.to_json(ref), js]})
+    assert "| wall | held out | default config | 33/111 (29.7 %) | -70.3 | 3/104 | +2.9 | 0.8 |" in text
