@@ -21,7 +21,6 @@ import numpy as np
 
 from posed.camera_model import Intrinsics
 
-
 PARALLEL_DEG = 5.0      # a table top, a bed and the floor are parallel to within this
 LEVEL_GAP_M = 0.15     # ... and a surface this far below the best-supported one is another level (the floor)
 
