@@ -41,6 +41,11 @@ from posed.fitting import FitResult
 
 LOST_HORIZON_S = 0.4     # lost while falling: the pelvis would reach floor level this soon at its last speed
 PROFILE_WINDOW_S = 0.25  # descent profile: speeds over this window (three frames at 10 fps)
+# Heights and angles are judged on their median over this much capture time (three frames at 10 fps, the rate
+# every other window was set at): one wrong fit among three changes nothing, and the median lags a fall by
+# half the window (0.1 s) at any frame rate. Counted in frames instead (the last three), it lagged 0.2 s at
+# 5 fps, the pelvis of a falling person is then some 0.25 of its standing height higher than measured.
+SMOOTH_WINDOW_S = 0.25
 LYING_HYSTERESIS_REL = 0.1   # a person lying stops lying above lying_pelvis_rel (shoulder_rel) + this
 LYING_HYSTERESIS_DEG = 15.0  # ... or with the trunk this much nearer vertical than lying_trunk_deg
 # A body cannot be under the floor: a pelvis this far below a floor learned from the person's feet (0.5 of its
@@ -300,9 +305,10 @@ class FallDetector:
         return 0.0 if den <= 0 else -float(dt @ (hs - hs.mean())) / den
 
     def _smoothed(self) -> Sample:
-        """The median of the last three samples (one bad fit changes nothing)."""
-        last = list(self._samples)[-3:]
-        s = last[-1]
+        """The median of the samples of the last ``SMOOTH_WINDOW_S`` of capture time (three at 10 fps: one bad
+        fit changes nothing; two at 5 fps, eight at 30)."""
+        s = self._samples[-1]
+        last = [x for x in self._samples if x.t >= s.t - SMOOTH_WINDOW_S]
         return Sample(t=s.t, h_rel=float(np.median([x.h_rel for x in last])),
                       shoulders_rel=float(np.median([x.shoulders_rel for x in last])),
                       incl=float(np.median([x.incl for x in last])),
@@ -345,15 +351,16 @@ class FallDetector:
         out: list[FallEvent] = []
 
         if self.state == "up":
+            d = self._descent
+            if d is not None and t - d.t_fast > cfg.impact_window_s and not (
+                    self._floor_start is not None and self._floor_start - d.t_fast <= cfg.impact_window_s):
+                self._descent = None   # expired before this frame's speed is looked at: a new descent starts now
             if v > cfg.fall_velocity_rel:
                 if self._descent is None:
                     self._descent = _Descent(t_fast=t, t_onset=self._onset(t), v_peak=v)
                 self._descent.v_peak = max(self._descent.v_peak, v)
             if self._descent is not None:
                 self._descent.flex_rate = max(self._descent.flex_rate, flex_rate)
-                reached = self._floor_start is not None and self._floor_start - self._descent.t_fast <= cfg.impact_window_s
-                if not reached and t - self._descent.t_fast > cfg.impact_window_s:
-                    self._descent = None
             d = self._descent
             if d is not None and self._floor_start is not None and t - self._floor_start >= cfg.confirm_s - 1e-9:
                 t_impact = self._impact_time(d.t_fast)

@@ -74,3 +74,17 @@ def test_unreadable_recording_is_named(tmp_path, capsys):
     bad.write_text("not json\n")
     assert main(["falls", str(bad)]) == 2
     assert str(bad) in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["urfd_00_fall", "urfd_08_fall"])
+def test_a_real_fall_judged_at_5_fps_with_the_default_config(shared_data, capsys, name):
+    """A 5 fps camera (CCTV) and a daemon told nothing about the camera: the detector's windows are capture
+    time, not frame counts. urfd_00 was missed at 5 fps when heights were the median of the last three
+    frames (0.4 s at 5 fps: the falling pelvis read 0.36 of its standing height, not 0.16, when the person
+    was lost) and a stale descent swallowed the fast frame that began the real one."""
+    code = main(["falls", str(clip(shared_data, name)), "--set", "pipeline.target_fps=5"])
+    out = capsys.readouterr()
+    events = [json.loads(line) for line in out.out.splitlines()]
+    assert code == 0, out.err
+    assert events and events[0]["state"] == "falling", f"{name} at 5 fps: {events}; {out.err}"
+    assert 0.0 <= events[0]["t_detect"] - labels(shared_data)[name]["impact_t"] <= 1.0
