@@ -41,10 +41,10 @@ from posed.fitting import FitResult
 
 LOST_HORIZON_S = 0.4     # lost while falling: the pelvis would reach floor level this soon at its last speed
 PROFILE_WINDOW_S = 0.25  # descent profile: speeds over this window (three frames at 10 fps)
-# Heights and angles are judged on their median over this much capture time (three frames at 10 fps, the rate
-# every other window was set at): one wrong fit among three changes nothing, and the median lags a fall by
-# half the window (0.1 s) at any frame rate. Counted in frames instead (the last three), it lagged 0.2 s at
-# 5 fps, the pelvis of a falling person is then some 0.25 of its standing height higher than measured.
+# Heights and angles are judged on the median of the last three frames within this much capture time (three
+# frames at 10 fps, the rate every other window was set at): one wrong fit among three changes nothing, and
+# the median lags a fall by at most 0.1 s at any frame rate. The last three frames alone lagged 0.2 s at 5 fps:
+# the pelvis of a falling person is then some 0.25 of its standing height higher than measured.
 SMOOTH_WINDOW_S = 0.25
 LYING_HYSTERESIS_REL = 0.1   # a person lying stops lying above lying_pelvis_rel (shoulder_rel) + this
 LYING_HYSTERESIS_DEG = 15.0  # ... or with the trunk this much nearer vertical than lying_trunk_deg
@@ -305,10 +305,10 @@ class FallDetector:
         return 0.0 if den <= 0 else -float(dt @ (hs - hs.mean())) / den
 
     def _smoothed(self) -> Sample:
-        """The median of the samples of the last ``SMOOTH_WINDOW_S`` of capture time (three at 10 fps: one bad
-        fit changes nothing; two at 5 fps, eight at 30)."""
+        """The median of the last three samples within ``SMOOTH_WINDOW_S`` of capture time (three at 10 fps and
+        above: one bad fit changes nothing; two at 5 fps, whose third would be 0.4 s old)."""
         s = self._samples[-1]
-        last = [x for x in self._samples if x.t >= s.t - SMOOTH_WINDOW_S]
+        last = [x for x in list(self._samples)[-3:] if x.t >= s.t - SMOOTH_WINDOW_S]
         return Sample(t=s.t, h_rel=float(np.median([x.h_rel for x in last])),
                       shoulders_rel=float(np.median([x.shoulders_rel for x in last])),
                       incl=float(np.median([x.incl for x in last])),
