@@ -85,11 +85,13 @@ class ClipRenderer:
         angles: dict[str, float] = {}
         note = ""
         lean = None
+        evidence: tuple[str, ...] = ()
         if result is not None and result.ok:
             # only what the frame measured (fitting.measured): an unseen limb is the model's guess
             reproj = reproject(result.measured_joints(), result.root_cam_m, self.intrinsics, item.landmarks)
             angles = result.measured_angles()
             lean = trunk_lean_deg(result)
+            evidence = tuple(result.extra.get("evidence", ()))
         elif result is not None:
             note = result.reason or "fit failed"
         elif item.landmarks is None:
@@ -97,7 +99,7 @@ class ClipRenderer:
         overlay.draw_landmarks(canvas, item.landmarks)
         overlay.draw_model(canvas, reproj)
         overlay.draw_info(canvas, FrameInfo(item.t, angles, note, item.fall_state, item.fall_event,
-                                            reproj.how if reproj else "", lean))
+                                            reproj.how if reproj else "", lean, evidence))
         overlay.legend(canvas)
         side = render_side(joints_for_side(result, self.absolute), self.side, (self.side_width, h),
                            "" if self.absolute else "depth relative to the hips (no camera intrinsics)")

@@ -108,3 +108,26 @@ def test_writing_webm_leaves_no_opencv_note_on_stderr(tmp_path, capfd):
     cap = cv2.VideoCapture(str(out))
     assert cap.read()[0] and int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 5) == 5
     cap.release()
+
+
+def test_the_overlay_says_which_evidence_the_fit_used():
+    """Issue 38 item 5: `posed render` names what the 3D came from (the fit result's `evidence`), and says
+    nothing when the fit did not say (a fit file written before the field existed)."""
+    from posed.viz.overlay import evidence_text
+
+    assert evidence_text(("landmarks", "world")) == "3D from: 2D landmarks + BlazePose 3D"
+    assert evidence_text(["landmarks", "depth"]) == "3D from: 2D landmarks + depth camera"
+    assert evidence_text(()) == ""
+    seen = set(BODY_LANDMARK_NAMES)
+    drawn = {}
+    for ev in ((), ("landmarks", "world"), ("landmarks", "depth")):
+        r = _result(seen)
+        if ev:
+            r.extra["evidence"] = list(ev)
+        renderer = ClipRenderer((640, 480), K, [r])
+        drawn[ev] = renderer.frame(None, FrameInput(0, 0.0, None, r))[:, :640]
+    # the evidence line sits under the angle table: the three frames differ exactly there
+    plain, world, depth = drawn.values()
+    rows = lambda a, b: np.flatnonzero(np.any(a != b, axis=(1, 2)))   # noqa: E731
+    assert rows(plain, world).size and rows(world, depth).size
+    assert rows(plain, world).max() < 240 and rows(world, depth).min() == rows(plain, world).min()
