@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 import tempfile
@@ -19,6 +18,8 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from posed.bench.notify_socket import NotifySocket
 
 CLIPS = ("multi_person/s2d_enter.mp4", "multi_person/bend_hand.mp4", "multi_person/store_aisle.gif",
          "pose2sim_demo/balancing/cam01.mp4", "pose2sim_demo/balancing/cam02.mp4",
@@ -42,31 +43,6 @@ class Run:
         return [x for x in self.log if x.get("event") == name]
 
 
-class _Notify:
-    """An AF_UNIX datagram socket read by a thread, as systemd reads $NOTIFY_SOCKET."""
-
-    def __init__(self, path: str) -> None:
-        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        self.sock.bind(path)
-        self.sock.settimeout(0.1)
-        self.messages: list[str] = []
-        self._stop = False
-        self._thread = threading.Thread(target=self._loop, daemon=True)
-        self._thread.start()
-
-    def _loop(self) -> None:
-        while not self._stop:
-            try:
-                self.messages.append(self.sock.recv(4096).decode())
-            except TimeoutError:
-                continue
-
-    def close(self) -> None:
-        self._stop = True
-        self._thread.join(2)
-        self.sock.close()
-
-
 def run_to_end(workdir: Path, source: str, *overrides: str, robot: str = "clip", timeout_s: float = 150.0,
                keys: tuple[str, ...] = KEYS, cwd: Path | None = None) -> Run:
     """``posed run --source SOURCE`` (paced unless an override says otherwise, stopping at the end) joined to a
@@ -82,7 +58,7 @@ def run_to_end(workdir: Path, source: str, *overrides: str, robot: str = "clip",
     lock = threading.Lock()
     got: dict[str, list[dict]] = {k: [] for k in keys}
     sock = str(workdir / "notify.sock")
-    notify = _Notify(sock)
+    notify = NotifySocket(sock)
 
     def keep(into: list[dict]):
         def on(sample) -> None:
@@ -124,7 +100,7 @@ def run_to_end(workdir: Path, source: str, *overrides: str, robot: str = "clip",
                 pass
     with lock:
         return Run(code, log, err.read_text(), {k: list(v) for k, v in got.items()},
-                   [m for m in notify.messages if m.startswith("STATUS=")])
+                   notify.texts("STATUS="))
 
 
 def frames_taken(n_frames: int, fps: float, target_fps: float = 10.0) -> int:

@@ -29,9 +29,10 @@ import socket
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
+
+from posed.bench.notify_socket import NotifySocket
 
 TARGET_S = 5.0
 
@@ -44,35 +45,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="give up on a start after this long (default 300 s)")
     parser.add_argument("--source", metavar="URI",
                         help="input (default: the real squat video of the shared data, looped in real time)")
-
-
-class _Notify:
-    """A real AF_UNIX datagram socket read by a thread, standing in for systemd's notify socket."""
-
-    def __init__(self, path: str) -> None:
-        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        self.sock.bind(path)
-        self.sock.settimeout(0.1)
-        self.ready_at: float | None = None
-        self._stop = False
-        self._thread = threading.Thread(target=self._loop, daemon=True)
-        self._thread.start()
-
-    def _loop(self) -> None:
-        while not self._stop:
-            try:
-                msg = self.sock.recv(4096).decode(errors="replace")
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            if self.ready_at is None and msg.startswith("READY=1"):
-                self.ready_at = time.monotonic()
-
-    def close(self) -> None:
-        self._stop = True
-        self._thread.join(2)
-        self.sock.close()
 
 
 def _free_port() -> int:
@@ -121,7 +93,7 @@ def time_start(source: str, env: dict, work: Path, timeout_s: float, n: int) -> 
     """One ``posed run`` from spawn to READY=1 and to the first pose (seconds)."""
     router_ep = f"tcp/127.0.0.1:{_free_port()}"
     first: list[float] = []
-    notify = _Notify(str(work / f"notify-{n}.sock"))
+    notify = NotifySocket(str(work / f"notify-{n}.sock"))
     cmd = [sys.executable, "-m", "posed.cli", "run", "--source", source,
            "--set", f"zenoh.listen=[tcp/127.0.0.1:{_free_port()}]", "--set", f"zenoh.connect=[{router_ep}]",
            "--set", f"pipeline.state_dir={work / f'state-{n}'}", "--set", "robot_id=coldstart",
