@@ -4,7 +4,8 @@ Camera axes: x image right, y image down, z away from the camera; gravity ``g`` 
 down. Heights are metres along ``g``.
 
 * **Gravity**, in this order: the IMU's (``set_imu``: a RealSense accelerometer, ``falls.imu_gravity``), else
-  the tilt and roll learned from a standing person where ``camera_tilt_auto``/``camera_roll_auto`` and once
+  the floor plane measured in the depth image (``set_depth_floor``: a RealSense, ``falls.floor_from_depth``,
+  :mod:`falls.floor_plane`), else the tilt and roll learned from a standing person where ``camera_tilt_auto``/``camera_roll_auto`` and once
   learned (:mod:`falls.geometry`), else the configured ``camera_tilt_deg``/``camera_roll_deg``. A new gravity
   is applied only when it moved more than ``GRAVITY_STEP_DEG`` from the one in use; heights measured along
   the old one are then forgotten (the floor and the standing height are learned again) and the caller is
@@ -12,7 +13,8 @@ down. Heights are metres along ``g``.
   the camera's own rotation (a robot turning its head), which moves neither the floor nor the camera's
   height above it, and each frame's heights are measured along that frame's true gravity, so they stay
   comparable: each reading is used as it comes, and nothing is forgotten.
-* **Floor**: its distance below the camera, learned from the ankles of a person standing upright
+* **Floor**: the plane measured in the depth image (its distance along the gravity in use), else its distance
+  below the camera learned from the ankles of a person standing upright
   (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m`` (0: unknown).
 * **Standing pelvis height**: learned the same way (after ``STAND_MIN_WEIGHT`` observations).
 * **Trust** (``camera_geometry``): configured values that were measured for this mount are used as they are.
@@ -21,6 +23,12 @@ down. Heights are metres along ``g``.
   straight-body frames, averaged over time; ``BODY_REJECT_DEG``), and the configured height is then dropped
   too: heights above the floor count once the floor was learned from their feet (before that the lowest
   fitted joint stands in for the floor). :meth:`CameraGeometry.used` says which sources a frame was judged with.
+* **Measured beats guessed**: a floor seen in the depth image is a measurement of this mount, now: it ranks
+  above everything learned from people and above the configured values (even ``measured`` ones: a robot's
+  camera moves). The IMU still gives the gravity when there is one (it follows the camera from frame to frame;
+  the depth floor is refreshed about once a second, with the IMU's gravity as its prior); the depth floor then
+  gives the height. The depth floor is live: it is not kept across restarts, and the caller forgets it
+  (``set_depth_floor(None)``) when it grows old.
 """
 
 from __future__ import annotations
@@ -67,6 +75,7 @@ class CameraGeometry:
         self.gravity = self._gravity_cfg           # down, camera axes, unit
         self.roll_deg = cfg.camera_roll_deg       # of the gravity in use
         self._gravity_imu: np.ndarray | None = None
+        self._depth: tuple[np.ndarray, float, dict] | None = None   # floor plane: down (unit), height, evidence
         self._learner = GravityLearner(self._gravity_cfg) if (cfg.camera_tilt_auto or cfg.camera_roll_auto) else None
         self._floor_cfg = cfg.camera_height_m if cfg.camera_height_m > 0 else None
         self._floor_learned: float | None = None
@@ -103,6 +112,29 @@ class CameraGeometry:
                 return False
             self._gravity_imu = g / n
         return self._refresh()
+
+    def set_depth_floor(self, down_camera: np.ndarray | None, height_m: float = 0.0,
+                        evidence: dict | None = None) -> bool:
+        """The floor plane measured in the depth image (:func:`falls.floor_plane.fit_floor`): its down normal
+        (camera axes, any length) and the camera's distance to it (m), with ``evidence`` (inliers, residual,
+        age, ...: shown in the summary and in each event's geometry). It gives the gravity unless an IMU does,
+        and the floor ahead of anything learned or configured. None forgets it (back to the other sources).
+        Raises ValueError for a broken plane (not finite, a zero normal, a height not above 0), changing
+        nothing. True when the gravity in use changed."""
+        if down_camera is None:
+            if self._depth is None:
+                return False
+            self._depth = None
+            return self._gravity_imu is None and self._refresh()
+        n = np.asarray(down_camera, float)
+        norm = float(np.linalg.norm(n)) if n.shape == (3,) and np.all(np.isfinite(n)) else 0.0
+        h = float(height_m)
+        if norm < 1e-9:
+            raise ValueError(f"the floor's down normal must be three finite numbers, not all 0; got {down_camera!r}")
+        if not (math.isfinite(h) and h > 0.0):
+            raise ValueError(f"the camera's height above the floor must be a positive number of metres, got {height_m!r}")
+        self._depth = (n / norm, h, dict(evidence or {}))
+        return self._gravity_imu is None and self._refresh()
 
     def learn(self, up_c: np.ndarray, axis_plane_c: np.ndarray, dt: float) -> bool:
         """A straight standing body seen for ``dt`` seconds (:meth:`falls.geometry.GravityLearner.add`); ignored
@@ -160,6 +192,8 @@ class CameraGeometry:
         step = GRAVITY_STEP_DEG
         if self._gravity_imu is not None:
             g, src = self._gravity_imu, "imu"
+        elif self._depth is not None:
+            g, src = self._depth[0], "depth"
         else:
             tilt, roll = self._learner.learned() if self._learner is not None else (None, None)
             tilt = tilt if cfg.camera_tilt_auto else None
@@ -202,12 +236,25 @@ class CameraGeometry:
 
     @property
     def floor_below_camera(self) -> float | None:
-        """The floor's distance below the camera along gravity (m), learned or configured; None unknown."""
+        """The floor's distance below the camera along gravity (m): measured in the depth image, learned or
+        configured; None unknown."""
+        depth = self._depth_height()
+        if depth is not None:
+            return depth
         if self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT:
             return self._floor_learned
         if self._gravity_from == "body":
             return None   # the body contradicted the configured guess: its height is no better (lowest joint)
         return self._floor_cfg
+
+    def _depth_height(self) -> float | None:
+        """The depth floor's distance from the camera along the gravity in use (the IMU's may differ from the
+        plane's normal by a degree or two); None without one, or when the two are further apart than 30 deg."""
+        if self._depth is None:
+            return None
+        n, h, _ = self._depth
+        c = float(n @ self.gravity)
+        return h / c if c > math.cos(math.radians(30.0)) else None
 
     def observe_floor(self, below_camera_m: float, ankles_c: np.ndarray | None = None,
                       ankle_height_m: float = 0.0) -> None:
@@ -285,34 +332,46 @@ class CameraGeometry:
     # ------------------------------------------------------------------ report
 
     def used(self) -> dict:
-        """What a frame is judged with: ``gravity`` imu, learned, body (the standing person's axis) or config;
-        ``floor`` learned (from standing feet), config or lowest_joint (unknown: the lowest fitted joint stands
-        in); ``trusted`` whether the configured values were measured (``camera_geometry``)."""
+        """What a frame is judged with: ``gravity`` imu, depth (the floor plane in the depth image), learned, body
+        (the standing person's axis) or config; ``floor`` depth, learned (from standing feet), config or
+        lowest_joint (unknown: the lowest fitted joint stands in); ``config`` whether the configured values
+        were measured (``camera_geometry``); ``depth_floor`` the depth floor's evidence when there is one."""
         learned_floor = self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT
-        floor = "learned" if learned_floor else ("config" if self.floor_below_camera is not None else "lowest_joint")
-        return {"gravity": "imu" if self._gravity_imu is not None else self._gravity_from, "floor": floor,
-                "config": "measured" if self.measured else "guess"}
+        depth = self._depth_height() is not None
+        floor = "depth" if depth else "learned" if learned_floor else \
+            ("config" if self.floor_below_camera is not None else "lowest_joint")
+        out = {"gravity": "imu" if self._gravity_imu is not None else self._gravity_from, "floor": floor,
+               "config": "measured" if self.measured else "guess"}
+        if self._depth is not None:
+            out["depth_floor"] = self._depth_evidence()
+        return out
+
+    def _depth_evidence(self) -> dict:
+        n, h, evidence = self._depth
+        return {"height_m": round(h, 4), **{k: v for k, v in evidence.items() if k != "height_m"}}
 
     def summary(self) -> dict:
         """Tilt and roll (deg), floor below the camera (m, None unknown), where each comes from (config,
-        learned, imu, body; height: learned, config, unknown), whether the configured values are trusted
+        learned, imu, depth, body; height: depth, learned, config, unknown), the depth floor's evidence
+        (``depth_floor``: height, tilt, roll, inliers, residual, age, ... when there is one), whether the configured values are trusted
         (``config``: measured or guess) and the seconds of standing the learner has seen."""
         tilt, roll = tilt_roll_deg(self.gravity)
         l_tilt, l_roll = self._learner.learned() if self._learner is not None else (None, None)
-        src = "imu" if self._gravity_imu is not None else None
+        src = "imu" if self._gravity_imu is not None else "depth" if self._depth is not None else None
         body = self._gravity_from == "body"
         learned_floor = self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT
+        extra = {} if self._depth is None else {"depth_floor": self._depth_evidence()}
         return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": self.floor_below_camera,
                 "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto
                                      else "body" if body else "config"),
                 "roll_from": src or ("learned" if l_roll is not None and self.cfg.camera_roll_auto
                                      else "body" if body else "config"),
-                "height_from": "learned" if learned_floor else ("config" if self.floor_below_camera is not None
-                                                                else "unknown"),
+                "height_from": "depth" if self._depth_height() is not None else "learned" if learned_floor else (
+                    "config" if self.floor_below_camera is not None else "unknown"),
                 "config": "measured" if self.measured else "guess",
                 "body_s": round(self._body_s, 2), "floor_weight": round(self._floor_weight, 1),
                 "restored": self.restored,
-                "standing_s": 0.0 if self._learner is None else round(self._learner.seconds, 2)}
+                "standing_s": 0.0 if self._learner is None else round(self._learner.seconds, 2), **extra}
 
 
 def _vector(value, unit: bool = True) -> np.ndarray:

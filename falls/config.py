@@ -50,6 +50,12 @@ class FallsConfig:
                                        "accelerometer and source.imu, or a recording's \"gravity\"); it "
                                        "replaces the tilt and roll, set or learned"}
     )
+    floor_from_depth: bool = field(
+        default=True, metadata={"doc": "with a depth camera (a RealSense, live or recorded), measure the floor plane "
+                                       "in the depth image about once a second: it gives the camera height, and the "
+                                       "tilt and roll unless an IMU does, ahead of anything configured or learned; "
+                                       "see docs/falls.md"}
+    )
     camera_height_m: float = field(
         default=1.0, metadata={"doc": "camera height above the floor (set it for your robot); 0 = unknown: "
                                       "the floor is then learned from a standing person only",

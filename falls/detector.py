@@ -129,6 +129,13 @@ class FallDetector:
         if self.camera.set_imu(down_camera):
             self._gap()
 
+    def set_floor_plane(self, down_camera: np.ndarray | None, height_m: float = 0.0,
+                        evidence: dict | None = None) -> None:
+        """The floor plane measured in the depth image (:meth:`CameraGeometry.set_depth_floor`; None forgets
+        it); raises ValueError for a broken one. A new gravity forgets the motion."""
+        if self.camera.set_depth_floor(down_camera, height_m, evidence):
+            self._gap()
+
     @property
     def geometry(self) -> dict:
         """The camera geometry in use (:meth:`falls.camera_geometry.CameraGeometry.summary`)."""

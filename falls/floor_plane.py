@@ -51,9 +51,11 @@ class FloorPlane:
         return self.inliers / self.points if self.points else 0.0
 
 
-def points_from_depth(depth_m: np.ndarray, camera: Intrinsics, stride: int = 4, max_depth_m: float = 8.0) -> np.ndarray:
-    """(N, 3) camera-axes points of every ``stride``-th pixel of a depth image (metres; 0 or non-finite = none)."""
-    d = np.asarray(depth_m, float)[::stride, ::stride]
+def points_from_depth(depth_m: np.ndarray, camera: Intrinsics, stride: int = 4, max_depth_m: float = 8.0,
+                      depth_scale: float = 1.0) -> np.ndarray:
+    """(N, 3) camera-axes points of every ``stride``-th pixel of a depth image (metres, or raw units of
+    ``depth_scale`` metres: a RealSense's uint16; 0 or non-finite = none); ``camera``: the image's intrinsics."""
+    d = np.asarray(depth_m)[::stride, ::stride].astype(np.float64) * depth_scale
     v, u = np.mgrid[0:d.shape[0], 0:d.shape[1]] * stride
     ok = np.isfinite(d) & (d > 0.1) & (d < max_depth_m)
     z = d[ok]

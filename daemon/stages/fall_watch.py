@@ -11,6 +11,15 @@ recording with an accelerometer through hal.imu, or a ``*.landmarks.jsonl`` line
 detector's gravity when ``falls.imu_gravity`` is on. A malformed one (kept in the frame's ``extra``) is
 counted and logged, and the gravity in use is kept.
 
+The floor from depth: a frame whose landmark frame carries ``extra["floor"]`` (the landmark stage's plane
+measured in the depth image about once a second, :mod:`daemon.stages.depth_floor`, or a recording line's
+``"floor"``) gives the detector the floor plane (``FallDetector.set_floor_plane``) when ``falls.floor_from_depth``
+is on: the camera height, and the tilt and roll unless an IMU gives them, ahead of anything configured or
+learned. Its evidence (height, tilt, roll, inliers and their fraction, rms residual, age, fit time, tries and
+misses) is in the status (``falls.geometry.depth_floor``) and in each event's ``geometry``. A plane older than
+``depth_floor.KEEP_S`` (30 s of capture time) is forgotten: the geometry goes back to the other sources. A
+malformed one is counted (``bad_floor``) and logged, and the geometry in use is kept.
+
 Kept across restarts: what the detector learned from people about the camera (gravity from their bodies or
 image lines, the floor under their feet, their standing height, with the seconds of evidence behind each) is
 written to ``state_file`` (per camera: :func:`geometry_file`) every ``SAVE_EVERY_S`` of capture time when it
@@ -27,7 +36,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from posed.daemon.messages import FitMsg
+from posed.daemon.stages.depth_floor import KEEP_S as FLOOR_KEEP_S
 from posed.falls import FallDetector, FallEvent, FallsConfig
 
 LOG_FIRST_FAILURES = 3
@@ -56,6 +68,9 @@ class FallWatch:
         self.log = log
         self.failures = 0
         self.bad_gravity = 0
+        self.bad_floor = 0
+        self._floor: tuple[float, list, float, dict] | None = None   # measured at, down, height, evidence
+        self._floor_tries: dict = {}    # the last floor field's fit counters (tries, misses, fit_ms, prior)
         self._on_error = on_error
         self.state_file = Path(state_file) if state_file is not None and detector is not None else None
         self._saved: str | None = None
@@ -78,7 +93,10 @@ class FallWatch:
         if self.detector is None:
             return {"enabled": False}
         geometry = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in self.detector.geometry.items()}
-        out = {"enabled": True, "geometry": geometry, "bad_gravity": self.bad_gravity, "failures": self.failures}
+        if self._floor_tries and "depth_floor" not in geometry:
+            geometry["depth_floor"] = dict(self._floor_tries)   # fitted, no floor found (yet)
+        out = {"enabled": True, "geometry": geometry, "bad_gravity": self.bad_gravity, "bad_floor": self.bad_floor,
+               "failures": self.failures}
         if self.save_error is not None:
             out["geometry_save_error"] = self.save_error
         return out
@@ -159,6 +177,8 @@ class FallWatch:
                 self.bad_gravity += 1
                 if self.bad_gravity <= LOG_FIRST_FAILURES or self.bad_gravity % LOG_FAILURE_EVERY == 0:
                     self.log.warning("imu_gravity_bad", error=str(exc), seq=msg.result.seq, count=self.bad_gravity)
+        if cfg is not None and getattr(cfg, "floor_from_depth", False):
+            self._depth_floor(msg)
         try:
             events = self.detector.update(msg.result, msg.landmarks.landmarks, msg.image_size, msg.intrinsics)
         except Exception as exc:  # a detector bug must not stop the poses
@@ -175,9 +195,42 @@ class FallWatch:
         return events
 
 
-def _vector3(value):
-    import numpy as np
+    def _depth_floor(self, msg: FitMsg) -> None:
+        """Hand the frame's depth floor (or the last one, aged) to the detector; forget it when too old."""
+        t = float(msg.result.t)
+        field = (getattr(msg.landmarks, "extra", None) or {}).get("floor")
+        if field is not None:
+            try:
+                if not isinstance(field, dict):
+                    raise ValueError(f"frame field floor must be an object, got {field!r}")
+                self._floor_tries = {k: field[k] for k in ("tries", "misses", "fit_ms", "prior") if k in field}
+                if field.get("down") is not None:
+                    down = _vector3(field["down"])
+                    height, age = float(field["height_m"]), float(field.get("age_s", 0.0))
+                    if not (age >= 0.0 and height > 0.0 and np.all(np.isfinite(down)) and np.any(down)):
+                        raise ValueError(f"frame field floor needs a finite non-zero down, height_m > 0 and "
+                                         f"age_s >= 0, got {field!r}")
+                    evidence = {k: field[k] for k in FLOOR_EVIDENCE if k in field}
+                    self._floor = (t - age, down, height, evidence)
+            except (TypeError, ValueError, KeyError) as exc:
+                self.bad_floor += 1
+                if self.bad_floor <= LOG_FIRST_FAILURES or self.bad_floor % LOG_FAILURE_EVERY == 0:
+                    self.log.warning("depth_floor_bad", error=str(exc), seq=msg.result.seq, count=self.bad_floor)
+        if self._floor is None:
+            return
+        t_meas, down, height, evidence = self._floor
+        age = t - t_meas
+        if not 0.0 <= age <= FLOOR_KEEP_S:          # too old (or the clock went back): the other sources
+            self._floor = None
+            self.detector.set_floor_plane(None)
+            return
+        self.detector.set_floor_plane(down, height, {**evidence, **self._floor_tries, "age_s": round(age, 3)})
 
+
+FLOOR_EVIDENCE = ("tilt_deg", "roll_deg", "inliers", "points", "fraction", "rms_m")
+
+
+def _vector3(value):
     g = np.asarray(value, dtype=float)
     if g.shape != (3,):
         raise ValueError(f"frame field gravity must be three numbers (camera axes), got {value!r}")

@@ -16,6 +16,11 @@ render`` draws them on the original video. The depth at the landmarks is sampled
 
 Gravity: the camera accelerometer's down direction (``FrameRef.gravity``, hal.imu) goes on the frame too,
 ``LandmarkMsg.frame.gravity``, person or not: the fall detector's camera geometry follows it.
+
+The floor: with a depth image (and ``falls.enabled`` and ``falls.floor_from_depth``), the floor plane is
+measured in it about once a second of capture time (:mod:`daemon.stages.depth_floor`, the gravity as its prior)
+and the latest goes on every frame as ``LandmarkMsg.frame.extra["floor"]``, person or not. A fit that raises
+is counted (``floor_failures`` in the log) and the frame goes on without it.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import numpy as np
 from posed.daemon import clock
 from posed.daemon.messages import LandmarkMsg, origin
 from posed.daemon.stages.base import StageRuntime
+from posed.daemon.stages.depth_floor import DepthFloor
 
 
 def run(rt: StageRuntime) -> None:
@@ -41,6 +47,9 @@ def run(rt: StageRuntime) -> None:
     rt.ready()
     inbox = rt.input
     failures = 0
+    falls_cfg = rt.config.falls
+    floor = DepthFloor() if falls_cfg.enabled and falls_cfg.floor_from_depth else None
+    floor_failures = 0
     last_seq: int | None = None
     while True:
         rt.beat()
@@ -71,6 +80,17 @@ def run(rt: StageRuntime) -> None:
                     rt.log.error("landmarks_failed", error=repr(exc), seq=ref.seq, failures=failures)
                 landmarker.reset()
                 continue
+            try:
+                if floor is not None and depth is not None:
+                    floor.offer(depth, depth_scale, ref.intrinsics, ref.gravity, ref.t_capture)
+                    field = floor.field(ref.t_capture)
+                    if field is not None:
+                        frame = replace(frame, extra={**frame.extra, "floor": field})
+            except Exception as exc:  # the floor is an extra: the frame goes on without it
+                floor_failures += 1
+                rt.error()
+                if floor_failures <= 3 or floor_failures % 100 == 0:
+                    rt.log.error("floor_fit_failed", error=repr(exc), seq=ref.seq, floor_failures=floor_failures)
             t_out = clock.now()
             rt.send(LandmarkMsg(frame, ref.t_capture, ref.full_size, ref.intrinsics,
                                 (("landmarks_in", t_in), ("landmarks_out", t_out)), ref.t_origin),
