@@ -203,7 +203,7 @@ class FallWatch:
             try:
                 if not isinstance(field, dict):
                     raise ValueError(f"frame field floor must be an object, got {field!r}")
-                self._floor_tries = {k: field[k] for k in ("tries", "misses", "fit_ms", "prior") if k in field}
+                tries = {k: field[k] for k in ("tries", "misses", "fit_ms", "prior") if k in field}
                 if field.get("down") is not None:
                     down = _vector3(field["down"])
                     height, age = float(field["height_m"]), float(field.get("age_s", 0.0))
@@ -212,6 +212,7 @@ class FallWatch:
                                          f"age_s >= 0, got {field!r}")
                     evidence = {k: field[k] for k in FLOOR_EVIDENCE if k in field}
                     self._floor = (t - age, down, height, evidence)
+                self._floor_tries = tries
             except (TypeError, ValueError, KeyError) as exc:
                 self.bad_floor += 1
                 if self.bad_floor <= LOG_FIRST_FAILURES or self.bad_floor % LOG_FAILURE_EVERY == 0:
