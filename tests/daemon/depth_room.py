@@ -109,3 +109,38 @@ def write_db3(path: Path, mount: Mount, frames: int, fps: float = 15.0, width: i
             _, colour = render(colour_cam, seed=i, noise=0.0, holes=0.0)
             w.write(colour, depth, t_ms, i)
     return path
+
+
+MOUNTS = (Mount(1.25, 28.0, -2.5), Mount(0.85, 12.0, 3.0), Mount(2.0, 35.0, 0.0), Mount(0.6, 5.0, 1.0),
+          Mount(1.6, 45.0, -4.0), Mount(1.0, 20.0, 0.0))
+
+
+def bench(seeds: int = 5) -> None:
+    """The landmark stage's fit (daemon.stages.depth_floor) on the rendered room: its cost per fit and its
+    errors, over ``MOUNTS`` x (no prior, an IMU prior 1.5 deg off) x ``seeds`` depth images, at two sizes."""
+    import statistics
+
+    from posed.daemon.stages.depth_floor import DepthFloor
+    from posed.falls.features import gravity_from_tilt
+
+    for width, height in ((640, 480), (424, 240)):
+        ms, errs = [], []
+        for m in MOUNTS:
+            cam = m.camera(width, height)
+            for prior in (None, gravity_from_tilt(m.tilt_deg + 1.5, m.roll_deg - 1.0) * 9.8):
+                for seed in range(seeds):
+                    depth, _ = render(cam, seed=seed)
+                    floor = DepthFloor(refresh_s=0.0)
+                    floor.offer(depth, DEPTH_SCALE, cam.intrinsics, prior, 0.0)
+                    ms.append(floor.fit_ms)
+                    f = floor.field(0.0)
+                    errs.append((abs(f["height_m"] - m.height_m), abs(f["tilt_deg"] - m.tilt_deg),
+                                 abs(f["roll_deg"] - m.roll_deg)) if "down" in f else (math.inf,) * 3)
+        e = np.array(errs)
+        print(f"{width}x{height}: {len(ms)} fits (the first cold), fit_ms median {statistics.median(ms):.2f} "
+              f"p95 {np.percentile(ms, 95):.2f} max {max(ms):.2f}; worst error: height {e[:, 0].max() * 100:.2f} cm, "
+              f"tilt {e[:, 1].max():.2f} deg, roll {e[:, 2].max():.2f} deg")
+
+
+if __name__ == "__main__":
+    bench()
