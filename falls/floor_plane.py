@@ -9,12 +9,15 @@ direction (the IMU's gravity when there is one, 10 deg; else a camera pitched an
 down: 45 deg around 30 deg down) — walls and most furniture sides are then never candidates. The floor is the
 best-supported such plane holding at least ``min_fraction`` of the points, unless a plane parallel to it
 lies lower and is supported too: a table top or a bed can hold more points than the visible floor, but lies
-above it. The winner is refined by least squares (the smallest singular vector of its inliers).
+above it. The winner is refined by least squares (the smallest singular vector of its inliers). A winner cut
+across two raised surfaces (a table top and a bed together outnumbering a small visible floor: its normal a few
+degrees off, so the floor under it is no sharp level along it) is stepped down too: a plane within
+``CUT_ACROSS_DEG`` of it among the points under it.
 
 Cost: the candidates are drawn and scored together (NumPy, no Python loop over them), scored on at most
-``SCORE_POINTS`` points in float32: 1.7 ms median, 3.8 ms at most for 4000 points and 400 candidates
-(the daemon's decimated depth image) on the 2-core development machine; the loop over candidates before took
-15 ms.
+``SCORE_POINTS`` points in float32: 2.1 ms median, 7 ms at most (a step down past a cut-across plane) for
+4000 points and 400 candidates (the daemon's decimated depth image) on the 2-core development machine; the loop
+over candidates before took 15 ms.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from posed.camera_model import Intrinsics
 
 PARALLEL_DEG = 5.0      # a table top, a bed and the floor are parallel to within this
 LEVEL_GAP_M = 0.15     # ... and a surface this far below the best-supported one is another level (the floor)
+CUT_ACROSS_DEG = 10.0  # a plane cut across a table top and a bed is this close to the floor's (1.6 m apart: 9 deg)
+LOWER_ITERATIONS = 200  # candidates for a lower level under a plane cut across two
 SCORE_BLOCK = 64       # candidate planes scored together (points x 64 distances at a time)
 SCORE_POINTS = 2000    # candidates are scored on this many of the points (the winner is refined on all)
 
@@ -86,8 +91,29 @@ def fit_floor(points: np.ndarray, prior_down: np.ndarray | None = None, max_angl
     cos_limit = math.cos(math.radians(limit))
     rng = np.random.default_rng(seed)
     need = max(int(min_fraction * len(p)), 30)
-    # every candidate at once: planes through three random points, kept when their normal is within the cone
-    # and the plane lies below the camera; each scored by its inliers (in blocks: a few MB at a time)
+    best = _best_candidate(p, prior, cos_limit, iterations, rng, inlier_m)
+    if best is None or best[2] < need:
+        return None
+    n_c, h_c, _ = best
+    # the best-supported plane, unless a parallel surface lower down (the floor under a table top or a bed that
+    # holds more points) is supported too: the densest level among the points below it, along its normal
+    n_best, h_best, mask_best = _refine(p, np.abs(p @ n_c - h_c) < inlier_m, prior, inlier_m)
+    for _ in range(3):                # a table top above a bed above the floor: step down level by level
+        lower = _lower_level(p, n_best, h_best, need, inlier_m, rng)
+        if lower is None:
+            break
+        n_best, h_best, mask_best = lower
+    n, h, mask = n_best, h_best, mask_best
+    tilt, roll = tilt_roll_deg(n)
+    resid = p[mask] @ n - h
+    return FloorPlane(down=n, height_m=h, tilt_deg=tilt, roll_deg=roll, inliers=int(mask.sum()), points=len(p),
+                      rms_m=float(np.sqrt(np.mean(resid ** 2))))
+
+
+def _best_candidate(p: np.ndarray, prior: np.ndarray, cos_limit: float, iterations: int, rng, inlier_m: float):
+    """RANSAC: planes through three random points, all drawn and scored at once, kept when their normal is
+    within ``cos_limit`` of ``prior`` and they lie below the camera. (n, h, support over all points) of the
+    best-supported, or None."""
     a, b, c = (p[i] for i in rng.integers(0, len(p), size=(3, iterations)))
     n = np.cross(b - a, c - a)
     norm = np.linalg.norm(n, axis=1)
@@ -105,40 +131,36 @@ def fit_floor(points: np.ndarray, prior_down: np.ndarray | None = None, max_angl
     support = np.concatenate([(np.abs(q @ n32[i:i + SCORE_BLOCK].T - h32[i:i + SCORE_BLOCK]) < inlier_m).sum(axis=0)
                               for i in range(0, len(n), SCORE_BLOCK)])
     k = int(np.argmax(support))
-    if int(support[k]) * len(p) < need * len(q):
-        return None
-    # the best-supported plane, unless a parallel surface lower down (the floor under a table top or a bed that
-    # holds more points) is supported too: the densest level among the points below it, along its normal
-    n_best, h_best, mask_best = _refine(p, np.abs(p @ n[k] - h[k]) < inlier_m, prior, inlier_m)
-    for _ in range(3):                # a table top above a bed above the floor: step down level by level
-        lower = _lower_level(p, n_best, h_best, need, inlier_m)
-        if lower is None:
-            break
-        n_best, h_best, mask_best = lower
-    n, h, mask = n_best, h_best, mask_best
-    tilt, roll = tilt_roll_deg(n)
-    resid = p[mask] @ n - h
-    return FloorPlane(down=n, height_m=h, tilt_deg=tilt, roll_deg=roll, inliers=int(mask.sum()), points=len(p),
-                      rms_m=float(np.sqrt(np.mean(resid ** 2))))
+    return n[k], float(h[k]), int(support[k]) * len(p) / len(q)
 
 
-def _lower_level(p: np.ndarray, n: np.ndarray, h: float, need: int, inlier_m: float):
+def _lower_level(p: np.ndarray, n: np.ndarray, h: float, need: int, inlier_m: float, rng):
     """The densest level parallel to the plane (n, h) among the points more than LEVEL_GAP_M below it, refined;
     None when none holds ``need`` points."""
     heights = p @ n
-    low = heights[heights > h + LEVEL_GAP_M]
+    below = heights > h + LEVEL_GAP_M
+    low = heights[below]
     if len(low) < need:
         return None
     edges = np.arange(low.min(), low.max() + 2 * inlier_m, inlier_m)
     counts = np.histogram(low, bins=edges)[0]
-    if len(counts) < 2:
+    if len(counts) >= 2:
+        pair = counts[:-1] + counts[1:]
+        k = int(np.argmax(pair))
+        if int(pair[k]) >= need:
+            n_low, h_low, m_low = _refine(p, np.abs(heights - float(edges[k + 1])) < inlier_m, n, inlier_m)
+            if float(n_low @ n) >= math.cos(math.radians(PARALLEL_DEG)) and int(m_low.sum()) >= need:
+                return n_low, h_low, m_low
+    # the plane above can be one cut across two levels (a table top and a bed: their points together outnumber
+    # the floor's); its normal is then a few degrees off, and the floor under it is smeared over many of those
+    # bins: look for a plane near its normal among the points below it instead
+    best = _best_candidate(p[below], n, math.cos(math.radians(CUT_ACROSS_DEG)), LOWER_ITERATIONS, rng, inlier_m)
+    if best is None:
         return None
-    pair = counts[:-1] + counts[1:]
-    k = int(np.argmax(pair))
-    if int(pair[k]) < need:
-        return None
-    n_low, h_low, m_low = _refine(p, np.abs(heights - float(edges[k + 1])) < inlier_m, n, inlier_m)
-    if float(n_low @ n) < math.cos(math.radians(PARALLEL_DEG)) or int(m_low.sum()) < need:
+    n_c, h_c, _ = best
+    n_low, h_low, m_low = _refine(p, np.abs(p @ n_c - h_c) < inlier_m, n, inlier_m)
+    if float(n_low @ n) < math.cos(math.radians(CUT_ACROSS_DEG)) or int(m_low.sum()) < need \
+            or h_low < h + LEVEL_GAP_M / 2:
         return None
     return n_low, h_low, m_low
 

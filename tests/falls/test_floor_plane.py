@@ -85,3 +85,17 @@ def test_points_from_a_depth_image():
     pts = points_from_depth(depth, k, stride=2)
     plane = fit_floor(pts)
     assert plane is not None and abs(plane.height_m - 0.9) < 0.01 and abs(plane.tilt_deg - 15.0) < 0.5
+
+
+@pytest.mark.parametrize("height,tilt,roll,room_seed,fit_seed", [(2.0, 35.0, 0.0, 0, 0), (2.0, 35.0, 0.0, 1, 0),
+                                                                 (2.0, 35.0, 0.0, 3, 4), (1.5, 45.0, -2.0, 0, 7)])
+def test_a_plane_cut_across_the_table_and_the_bed_steps_down_to_the_floor(height, tilt, roll, room_seed, fit_seed):
+    """A high camera looking steeply down at a small floor: the table top and the bed together hold more points
+    than the floor, and a plane cut across both wins the RANSAC (its normal some 5 deg off, its height the
+    table's); the floor is the plane near its normal among the points under it."""
+    cam = WorldCamera(z=height, tilt=tilt, roll=roll)
+    points = room(cam, seed=room_seed, floor_points=700)
+    points = points[np.random.default_rng(room_seed).choice(len(points), 4000, replace=False)]
+    plane = fit_floor(points, seed=fit_seed)
+    assert plane is not None and abs(plane.height_m - height) < 0.05
+    assert abs(plane.tilt_deg - tilt) < 2.0 and abs(plane.roll_deg - roll) < 2.0
