@@ -41,11 +41,13 @@ if TYPE_CHECKING:
     from posed.landmarks.decode import CROP_SIZE as LANDMARK_INPUT_SIZE
     from posed.landmarks.depth import depth_patch_radius, sample_depth, with_depth
     from posed.landmarks.models import ModelMissingError, default_models_dir, find_models, verify_models
+    from posed.landmarks.people import MultiPoseLandmarker
     from posed.landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points
     from posed.landmarks.recording import (
         LANDMARK_NAMES,
         DepthSource,
         LandmarkFrame,
+        PersonLandmarks,
         RecordingError,
         RecordingHeader,
         RecordingProblem,
@@ -63,6 +65,7 @@ if TYPE_CHECKING:
         OnnxLandmarkModel,
         SessionSettings,
     )
+    from posed.landmarks.tracks import PersonTracker
 
 __all__ = [
     "DETECTOR_INPUT_SIZE",
@@ -76,6 +79,9 @@ __all__ = [
     "ModelMissingError",
     "OnnxDetector",
     "OnnxLandmarkModel",
+    "MultiPoseLandmarker",
+    "PersonLandmarks",
+    "PersonTracker",
     "PoseLandmarker",
     "RecordingError",
     "RecordingHeader",
@@ -114,6 +120,9 @@ _ORIGIN = {
     "find_models": ("posed.landmarks.models", "find_models"),
     "verify_models": ("posed.landmarks.models", "verify_models"),
     "PoseLandmarker": ("posed.landmarks.pipeline", "PoseLandmarker"),
+    "MultiPoseLandmarker": ("posed.landmarks.people", "MultiPoseLandmarker"),
+    "PersonTracker": ("posed.landmarks.tracks", "PersonTracker"),
+    "PersonLandmarks": ("posed.landmarks.recording", "PersonLandmarks"),
     "rotate_image": ("posed.landmarks.pipeline", "rotate_image"),
     "rotate_points": ("posed.landmarks.pipeline", "rotate_points"),
     "LANDMARK_NAMES": ("posed.landmarks.recording", "LANDMARK_NAMES"),

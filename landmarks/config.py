@@ -32,3 +32,7 @@ class LandmarkConfig:
         default=True, metadata={"doc": "when nobody is found, retry the frame rotated by +-90 deg "
                                        "(people lying on the floor)"}
     )
+    max_people: int = field(
+        default=3, metadata={"doc": "people followed at once, each with their own crop and track id (1 = one "
+                                    "person, as MediaPipe's video mode)", "range": (1, 10)}
+    )

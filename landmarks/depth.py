@@ -104,7 +104,11 @@ def with_depth(frame: LandmarkFrame, depth: np.ndarray | None, depth_scale: floa
                radius: int | None = None) -> LandmarkFrame:
     """``frame`` with ``depth_m`` sampled (:func:`sample_depth`) from ``depth`` (H x W uint16 aligned to the
     frame's image, ``depth_scale`` metres per unit); the frame unchanged when there is no depth image, no
-    depth scale (0: unknown) or no person."""
+    depth scale (0: unknown) or no person. Every person of ``frame.people`` gets their own ``depth_m`` too."""
     if depth is None or frame.landmarks is None or not depth_scale > 0:
         return frame
-    return replace(frame, depth_m=sample_depth(depth, depth_scale, frame.landmarks, radius))
+    out = replace(frame, depth_m=sample_depth(depth, depth_scale, frame.landmarks, radius))
+    if frame.people:
+        out = replace(out, people=tuple(replace(p, depth_m=sample_depth(depth, depth_scale, p.landmarks, radius))
+                                        for p in frame.people))
+    return out

@@ -227,7 +227,15 @@ class PoseLandmarker:
             roi = roi_from_alignment(kps[0], kps[1])
         else:
             roi = self._roi
+        return self.landmark_pass(image, roi, t, seq, detection=detection, rotation=rotation,
+                                  detector_ran=detector_ran, timings=timings)
 
+    def landmark_pass(self, image: np.ndarray, roi: Roi, t: float, seq: int, *, detection: Detection | None = None,
+                      rotation: int = 0, detector_ran: bool = False, timings: dict | None = None) -> PoseResult:
+        """One landmark-model pass on ``roi`` of ``image`` (checked H×W×3 uint8): crop, model, decode, smooth;
+        the next frame's ROI is kept (tracking) or forgotten (pose flag below ``min_tracking_confidence``).
+        :class:`~landmarks.people.MultiPoseLandmarker` runs one per person, each on its own landmarker."""
+        timings = {} if timings is None else timings
         t0 = time.perf_counter()
         tensor = landmark_input(image, roi)
         t1 = time.perf_counter()

@@ -11,6 +11,11 @@ float64 array with NaN, see :mod:`landmarks.depth`), and the header then says wh
 ``"depth": {"source": "realsense", "aligned_to": "color"}`` (:class:`DepthSource`). A recording without them
 reads and writes exactly as before.
 
+People (optional): with several people in view a frame also carries ``people``, one :class:`PersonLandmarks`
+per person (``{"id": track id, "landmarks": [...], "world": [...], "depth_m": [...]}``); the frame's own
+``landmarks``/``world``/``depth_m`` stay those of one person (the one followed longest), so a reader that knows
+one person keeps working. A frame without ``people`` reads and writes exactly as before.
+
 Reading never raises on a bad frame line: it yields a :class:`RecordingProblem` naming the file and line and
 goes on. Only a header that cannot be understood raises :class:`RecordingError` (nothing after it can be read).
 No line is read whole beyond ``MAX_LINE_BYTES`` (a frame line is a few kB): a longer header is a
@@ -154,6 +159,76 @@ def _is_number(v: Any) -> bool:
 
 
 @dataclass(frozen=True, eq=False)
+class PersonLandmarks:
+    """One person of a frame's ``people``: ``id`` the track id (stable while the person stays in view,
+    :mod:`landmarks.tracks`), ``landmarks`` (33, 5) as :attr:`LandmarkFrame.landmarks` (never None), ``world``
+    and ``depth_m`` as there (None when unknown)."""
+
+    id: int
+    landmarks: np.ndarray
+    world: np.ndarray | None = None
+    depth_m: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.id, (int, np.integer)) or isinstance(self.id, bool) or self.id < 0:
+            raise ValueError(f"a person's id must be a non-negative integer (a track id), got {self.id!r}")
+        object.__setattr__(self, "id", int(self.id))
+        if self.landmarks is None:
+            raise ValueError("a person of 'people' must have landmarks (33 entries)")
+        # the same checks as a frame's (shape, NaN rows, positive depths)
+        check = LandmarkFrame(0, 0.0, self.landmarks, depth_m=self.depth_m, world=self.world)
+        object.__setattr__(self, "landmarks", check.landmarks)
+        object.__setattr__(self, "world", check.world)
+        object.__setattr__(self, "depth_m", check.depth_m)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, PersonLandmarks):
+            return NotImplemented
+        return self.id == other.id and LandmarkFrame(0, 0.0, self.landmarks, depth_m=self.depth_m,
+                                                     world=self.world) == LandmarkFrame(
+            0, 0.0, other.landmarks, depth_m=other.depth_m, world=other.world)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def to_json(self) -> dict:
+        out: dict[str, Any] = {"id": self.id, "landmarks": _rows_json(self.landmarks)}
+        if self.world is not None:
+            out["world"] = _rows_json(self.world)
+        if self.depth_m is not None:
+            out["depth_m"] = [None if np.isnan(v) else float(v) for v in self.depth_m]
+        return out
+
+    @classmethod
+    def from_json(cls, obj: Any, index: int = 0) -> PersonLandmarks:
+        """Parse one entry of ``people``; raises ValueError naming ``people[index]`` and what is wrong."""
+        where = f"people[{index}]"
+        if not isinstance(obj, dict):
+            raise ValueError(f'{where} must be an object {{"id": N, "landmarks": [...]}}, got {obj!r:.60}')
+        pid = obj.get("id")
+        if not isinstance(pid, int) or isinstance(pid, bool) or pid < 0:
+            raise ValueError(f"{where}.id must be a non-negative integer (a track id), got {pid!r}")
+        try:
+            lms = _parse_rows(obj.get("landmarks"), "landmarks", "[x, y, z, visibility, presence]")
+            if lms is None:
+                raise ValueError("landmarks are missing (33 entries)")
+            world = _parse_rows(obj.get("world"), "world", "[x, y, z, visibility, presence] (metres)")
+            depth = _parse_depth_m(obj.get("depth_m"))
+            return cls(pid, lms, world, depth)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+
+
+def _parse_people(raw: Any) -> tuple[PersonLandmarks, ...]:
+    if not isinstance(raw, list):
+        raise ValueError(f"people must be a list of persons, got {type(raw).__name__}")
+    people = tuple(PersonLandmarks.from_json(p, i) for i, p in enumerate(raw))
+    ids = [p.id for p in people]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"people: every person needs their own id, got ids {ids}")
+    return people
+
+
+@dataclass(frozen=True, eq=False)
 class LandmarkFrame:
     """The 2D landmarks of one frame.
 
@@ -170,6 +245,8 @@ class LandmarkFrame:
     metres, origin at the middle of the hips, MediaPipe's world axes (x to the image's right, y down, z away
     from the camera, roughly aligned with it), NaN rows where unknown; None when the extractor gave none (or
     no person). The daemon's landmark stage writes them smoothed, as MediaPipe's own tracker does.
+    people: every person of the frame (:class:`PersonLandmarks`, track ids) when the extractor followed several,
+    else None (then the frame is written exactly as a one-person frame). ``landmarks`` stays one person's.
     """
 
     seq: int
@@ -179,8 +256,14 @@ class LandmarkFrame:
     depth_m: np.ndarray | None = None
     gravity: tuple[float, float, float] | None = None
     world: np.ndarray | None = None
+    people: tuple[PersonLandmarks, ...] | None = None
 
     def __post_init__(self) -> None:
+        if self.people is not None:
+            people = tuple(self.people)
+            if not all(isinstance(p, PersonLandmarks) for p in people):
+                raise ValueError("people must be PersonLandmarks (id, landmarks, world, depth_m)")
+            object.__setattr__(self, "people", people)
         if self.landmarks is not None:
             arr = np.asarray(self.landmarks, dtype=np.float64)
             if arr.shape != (NUM_LANDMARKS, 5):
@@ -222,6 +305,8 @@ class LandmarkFrame:
             return NotImplemented
         if (self.seq, self.t, self.extra, self.gravity) != (other.seq, other.t, other.extra, other.gravity):
             return False
+        if self.people != other.people:
+            return False
         for mine, theirs in ((self.depth_m, other.depth_m), (self.world, other.world)):
             if (mine is None) != (theirs is None) or (
                     mine is not None and not np.array_equal(mine, theirs, equal_nan=True)):
@@ -241,6 +326,8 @@ class LandmarkFrame:
             out["gravity"] = list(self.gravity)
         if self.world is not None:
             out["world"] = _rows_json(self.world)
+        if self.people is not None:
+            out["people"] = [p.to_json() for p in self.people]
         for k, v in self.extra.items():
             out.setdefault(k, v)
         return out
@@ -263,10 +350,12 @@ class LandmarkFrame:
         depth = _parse_depth_m(obj.get("depth_m"))
         gravity = _parse_gravity(obj.get("gravity"))
         world = _parse_rows(obj.get("world"), "world", "[x, y, z, visibility, presence] (metres)")
+        people = _parse_people(obj["people"]) if obj.get("people") is not None else None
         known = ("seq", "t", "landmarks") + (("depth_m",) if depth is not None else ()) + (
-            ("gravity",) if gravity is not None else ()) + (("world",) if "world" in obj else ())
+            ("gravity",) if gravity is not None else ()) + (("world",) if "world" in obj else ()) + (
+            ("people",) if people is not None else ())
         extra = {k: v for k, v in obj.items() if k not in known}
-        return cls(seq, float(t), arr, extra, depth, gravity, world)
+        return cls(seq, float(t), arr, extra, depth, gravity, world, people)
 
 
 def _rows_json(rows: np.ndarray) -> list:

@@ -7,6 +7,10 @@ each frame its ``depth_m`` (the aligned depth at the landmarks, ``landmarks.with
 ``"depth": {"source": "realsense", "aligned_to": "color"}``; when it has an accelerometer stream (D435i,
 D455, or ``posed record``), each frame its ``gravity`` (hal.imu); the other inputs write none of these.
 
+Several people (up to ``landmarks.max_people``, :class:`landmarks.MultiPoseLandmarker`): each frame's
+``landmarks`` are those of the person followed longest; from the first frame with two people on, every frame
+also carries ``people`` with each person's track id. With one person in view the output is what it was.
+
 Frame times: a video's or RealSense recording's own frame timestamps (seconds from its first frame); images:
 ``seq / fps``. A frame that cannot be decoded is reported on stderr and left out (its ``seq`` is skipped, so
 the gap shows); the rest is still written. Exit status: 0 all frames read, 1 some frames could not be read,
@@ -245,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.landmarks import (
         DepthSource,
         ModelMissingError,
-        PoseLandmarker,
+        MultiPoseLandmarker,
         RecordingHeader,
         dumps,
         with_depth,
@@ -261,7 +265,7 @@ def run(args: argparse.Namespace) -> int:
     mode = args.mode or ("image" if source.kind == "image" else "video")
     lm_config = replace(config.landmarks, tracking=(mode == "video"))
     try:
-        landmarker = PoseLandmarker(lm_config)
+        landmarker = MultiPoseLandmarker(lm_config)
     except ModelMissingError as exc:  # also ModelCorruptError
         _err(str(exc))
         return 2
@@ -269,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
     header = RecordingHeader(source.image_size, source.fps, source=f"posed landmarks {path.name} ({mode} mode)",
                              camera=source.camera, depth=DepthSource("realsense", "color") if source.has_depth
                              else None)
-    problems = written = found = 0
+    problems = written = found = most = 0
     progress = Progress(source.total if source.kind != "image" else 0)
     try:
         out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
@@ -291,6 +295,7 @@ def run(args: argparse.Namespace) -> int:
             out.flush()
             written += 1
             found += result.landmarks is not None
+            most = max(most, len(result.people or ()))
             progress.frame(written + problems, found)
     except OSError as exc:
         _err(f"cannot write {args.output}: {exc.strerror or exc}")
@@ -300,6 +305,8 @@ def run(args: argparse.Namespace) -> int:
             out.close()
     progress.end()
     summary = f"{written} frame(s), person found in {found}"
+    if most > 1:
+        summary += f", up to {most} people at once (frames carry 'people')"
     if problems:
         summary += f", {problems} problem(s) reported above"
     _err(summary + ("" if args.output == "-" else f" -> {args.output}"))

@@ -1,0 +1,253 @@
+"""Several people per frame: :class:`MultiPoseLandmarker`, one BlazePose landmark pass per person.
+
+Up to ``landmarks.max_people`` *slots*, each a :class:`~landmarks.pipeline.PoseLandmarker` of its own (its own
+ROI tracking, one-euro filters and rotated ROI) sharing the two onnxruntime sessions. Per frame:
+
+1. Every slot that follows someone runs its landmark pass on its ROI (MediaPipe's video mode, per person);
+   a slot whose pose flag drops below ``min_tracking_confidence`` lets its person go.
+2. Two slots that ended on the same body (landmark overlap, :func:`landmarks.tracks.oks` > ``SAME_BODY``: the
+   ROI of a person walking behind another slid onto the one in front) are merged: the slot whose landmarks
+   jumped more from its own last frame lets go.
+3. The detector runs when nobody was followed at the start of the frame (exactly as the one-person landmarker)
+   and, while a slot is free and someone is followed this frame, every ``redetect_every`` frames (a person
+   entering). Its detections (MediaPipe's weighted NMS keeps every separate person, best first) that are not
+   the hips of someone already followed start free slots, best first; when it finds nobody new and
+   ``rotate_on_miss`` is on, the frame rotated by +90° then −90° is tried (a person lying on the floor).
+4. :class:`~landmarks.tracks.PersonTracker` gives each person a track id.
+
+The frame's ``landmarks``/``world`` are those of the person followed longest (the oldest track); from the first
+frame with two people on, every frame also carries ``people`` (all persons, by id). With one person in view the
+first slot does exactly what :class:`PoseLandmarker` does, so the output is byte-identical to it (unless the
+detector, run every ``redetect_every`` frames, finds a second person where there is none).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from posed.landmarks.config import LandmarkConfig
+from posed.landmarks.crop import detector_input
+from posed.landmarks.detector import Detection
+from posed.landmarks.pipeline import (
+    FALLBACK_ROTATIONS,
+    PoseLandmarker,
+    PoseResult,
+    check_image,
+    rotate_image,
+    unrotate_points,
+)
+from posed.landmarks.recording import LandmarkFrame, PersonLandmarks
+from posed.landmarks.roi import roi_from_alignment
+from posed.landmarks.runtime import DetectorRunner, LandmarkRunner
+from posed.landmarks.tracks import PersonTracker, TrackerConfig, body_overlap, box_iou, landmark_box
+
+REDETECT_EVERY = 5     # frames between detector runs looking for someone new while a slot is free
+SAME_BODY = 0.5        # landmark overlap above which two slots follow the same body
+NEW_BOX_IOU = 0.4      # a new body sharing more of its box with someone followed is taken for them
+NEW_OVERLAP = 0.25     # ... or more of its landmarks
+SAME_HIPS = 0.15       # a detection whose hip centre is this close (fraction of a followed ROI's side) is them
+
+
+@dataclass(frozen=True, eq=False)
+class PersonResult:
+    """One person of a frame: track ``id``, the ``slot`` that followed them, the slot's :class:`PoseResult`."""
+
+    id: int
+    slot: int
+    result: PoseResult
+
+
+@dataclass(frozen=True, eq=False)
+class MultiPoseResult:
+    """Everything found in one frame: ``frame`` (what ``process`` returns), ``people`` (by track id),
+    ``primary`` (the track id of the frame's own landmarks, None when nobody), whether the detector ran and
+    ``timings_ms`` (milliseconds per step, summed over people; ``landmark_passes`` counts passes)."""
+
+    frame: LandmarkFrame
+    people: tuple[PersonResult, ...] = ()
+    primary: int | None = None
+    detector_ran: bool = False
+    timings_ms: dict = field(default_factory=dict)
+
+
+class MultiPoseLandmarker:
+    """BlazePose full for up to ``config.max_people`` people (see the module doc); same calls as
+    :class:`PoseLandmarker`."""
+
+    def __init__(self, config: LandmarkConfig | None = None, models_dir: Path | None = None, *,
+                 detector: DetectorRunner | None = None, landmark_model: LandmarkRunner | None = None,
+                 tracker: TrackerConfig | None = None, redetect_every: int = REDETECT_EVERY) -> None:
+        first = PoseLandmarker(config, models_dir, detector=detector, landmark_model=landmark_model)
+        self.config = first.config
+        self.detector, self.landmark_model = first.detector, first.landmark_model
+        self.slots = [first] + [PoseLandmarker(self.config, detector=self.detector,
+                                               landmark_model=self.landmark_model)
+                                for _ in range(self.config.max_people - 1)]
+        self.tracker = PersonTracker(tracker)
+        self.redetect_every = max(1, int(redetect_every))
+        self._prev: dict[int, np.ndarray] = {}   # slot -> its landmarks of the last frame
+        self._since_detect = 0
+        self.several_seen = False
+        self.last_result: MultiPoseResult | None = None
+
+    def reset(self) -> None:
+        """Forget everyone (the next frame runs the detector); track ids keep counting up."""
+        for slot in self.slots:
+            slot.reset()
+        self.tracker.reset()
+        self._prev.clear()
+        self._since_detect = 0
+        self.several_seen = False
+        self.last_result = None
+
+    def warmup(self) -> None:
+        self.slots[0].warmup()
+
+    def process(self, image_bgr: np.ndarray, t: float, seq: int) -> LandmarkFrame:
+        """The frame's landmarks (the person followed longest) and, once two people were seen, ``people``."""
+        return self.process_full(image_bgr, t, seq).frame
+
+    def process_full(self, image_bgr: np.ndarray, t: float, seq: int) -> MultiPoseResult:
+        image = check_image(image_bgr)
+        t, seq = float(t), int(seq)
+        if not self.config.tracking:
+            for slot in self.slots:
+                slot.reset()
+            self._prev.clear()
+        timings: dict[str, float] = {"landmark_passes": 0}
+        found: dict[int, PoseResult] = {}
+        followed_at_start = [i for i, s in enumerate(self.slots) if s._roi is not None]
+        for i in followed_at_start:
+            r = self.slots[i].landmark_pass(image, self.slots[i]._roi, t, seq)
+            _add_timings(timings, r.timings_ms)
+            if r.frame.landmarks is not None:
+                found[i] = r
+        self._merge_same_bodies(found)
+
+        detector_ran = False
+        self._since_detect += 1
+        free = [i for i, s in enumerate(self.slots) if s._roi is None and i not in found]
+        if free and (not followed_at_start or (found and self._since_detect >= self.redetect_every)):
+            detector_ran = True
+            self._since_detect = 0
+            self._detect_new(image, t, seq, found, free, timings)
+
+        ordered = sorted(found)
+        ids = self.tracker.update(t, [found[i].frame.landmarks for i in ordered], ordered)
+        people = tuple(sorted((PersonResult(pid, i, found[i]) for pid, i in zip(ids, ordered, strict=True)),
+                              key=lambda p: p.id))
+        for i in list(self._prev):
+            if i not in found:
+                del self._prev[i]
+        for i in ordered:
+            self._prev[i] = found[i].frame.landmarks
+        self.several_seen = self.several_seen or len(people) > 1
+        primary = self.tracker.longest_followed([p.id for p in people])
+        if primary is None:
+            frame = LandmarkFrame(seq, t, None)
+        else:
+            frame = next(p.result.frame for p in people if p.id == primary)
+        if self.several_seen:
+            frame = replace(frame, people=tuple(PersonLandmarks(p.id, p.result.frame.landmarks,
+                                                                p.result.frame.world) for p in people))
+        result = MultiPoseResult(frame, people, primary, detector_ran, timings)
+        self.last_result = result
+        return result
+
+    # -- steps -------------------------------------------------------------------------------------------------
+
+    def _merge_same_bodies(self, found: dict[int, PoseResult]) -> None:
+        """Two slots on one body: the one whose landmarks jumped more from its last frame (or a new one) goes."""
+        for i in sorted(found):
+            for j in sorted(found):
+                if j <= i or i not in found or j not in found:
+                    continue
+                a, b = found[i].frame.landmarks, found[j].frame.landmarks
+                if body_overlap(a, b) <= SAME_BODY:
+                    continue
+                stay = [body_overlap(self._prev[k], found[k].frame.landmarks) if k in self._prev else -1.0
+                        for k in (i, j)]
+                drop = j if stay[0] >= stay[1] else i
+                self.slots[drop].reset()
+                del found[drop]
+
+    @staticmethod
+    def _overlaps_someone(lms: np.ndarray, found: dict[int, PoseResult]) -> bool:
+        """A newly detected body that shares most of its box (IoU > NEW_BOX_IOU) or its landmarks
+        (:func:`landmarks.tracks.body_overlap` > NEW_OVERLAP) with someone already followed is taken for them
+        (a second, worse fit of the same person, or someone hidden behind them: followed again once apart)."""
+        box = landmark_box(lms)
+        for r in found.values():
+            other = r.frame.landmarks
+            if box_iou(box, landmark_box(other)) > NEW_BOX_IOU or body_overlap(lms, other) > NEW_OVERLAP:
+                return True
+        return False
+
+    def _is_followed(self, det: Detection, width: int, height: int, found: dict[int, PoseResult]) -> bool:
+        hips = det.keypoints_px(width, height)[0]
+        for r in found.values():
+            if r.aux_landmarks is None or r.roi is None:
+                continue
+            if np.hypot(*(hips - r.aux_landmarks[0, :2])) < SAME_HIPS * r.roi.size:
+                return True
+        return False
+
+    def _detections(self, image: np.ndarray, degrees: int) -> list[Detection]:
+        """Every detection in ``image`` turned by ``degrees`` (0 = as is), normalized to the unturned frame."""
+        h, w = image.shape[:2]
+        turned = image if degrees == 0 else rotate_image(image, degrees)
+        tensor, padding = detector_input(turned)
+        out = self.detector(tensor)
+        dets = self.slots[0].decoder(out.boxes, out.scores, padding)
+        if degrees == 0:
+            return dets
+        rh, rw = turned.shape[:2]
+        scale = np.array([rw, rh], dtype=np.float64)
+        back = []
+        for det in dets:
+            kps = unrotate_points(det.keypoints * scale, degrees, w, h) / np.array([w, h], dtype=np.float64)
+            x0, y0, x1, y1 = det.box * np.tile(scale, 2)
+            corners = unrotate_points(np.array([[x0, y0], [x1, y1]]), degrees, w, h)
+            box = np.concatenate([corners.min(axis=0), corners.max(axis=0)]) / np.array([w, h, w, h], float)
+            back.append(Detection(det.score, box, kps))
+        return back
+
+    def _detect_new(self, image: np.ndarray, t: float, seq: int, found: dict[int, PoseResult], free: list[int],
+                    timings: dict[str, float]) -> None:
+        h, w = image.shape[:2]
+        rotations = (0,) + (FALLBACK_ROTATIONS if self.config.rotate_on_miss else ())
+        for degrees in rotations:
+            t0 = time.perf_counter()
+            dets = [d for d in self._detections(image, degrees) if not self._is_followed(d, w, h, found)]
+            timings["detector"] = timings.get("detector", 0.0) + (time.perf_counter() - t0) * 1e3
+            if not dets:
+                continue
+            for det in dets:
+                if not free:
+                    break
+                slot = free[0]
+                kps = det.keypoints_px(w, h)
+                r = self.slots[slot].landmark_pass(image, roi_from_alignment(kps[0], kps[1]), t, seq,
+                                                   detection=det, rotation=degrees, detector_ran=True)
+                _add_timings(timings, r.timings_ms)
+                if r.frame.landmarks is None or self._overlaps_someone(r.frame.landmarks, found):
+                    self.slots[slot].reset()
+                    continue
+                found[slot] = r
+                self._merge_same_bodies(found)      # a new slot on someone already followed goes again
+                free[:] = [i for i, s in enumerate(self.slots) if s._roi is None and i not in found]
+            return
+        if not found:
+            for slot in self.slots:
+                slot.smoother.reset()
+
+
+def _add_timings(total: dict[str, float], step: dict) -> None:
+    for k, v in step.items():
+        total[k] = total.get(k, 0.0) + v
+    if "landmark_model" in step:
+        total["landmark_passes"] = total.get("landmark_passes", 0) + 1

@@ -1,0 +1,259 @@
+"""Who is who across frames: :class:`PersonTracker` gives every person a track id (pure numpy, no images).
+
+Each frame the landmark stage hands over the people it found (33 landmarks each, image pixels) and, when it
+has one, the landmark *slot* that followed each of them (the per-person ROI tracker of
+:class:`~landmarks.people.MultiPoseLandmarker`). The tracker matches them to its tracks by
+
+* **box overlap**: IoU of the person's landmark box with the track's box moved by its velocity;
+* **landmark overlap**: an OKS-like score, the mean over the landmarks visible in both of
+  ``exp(-d² / (2 (KAPPA·s)²))`` with ``d`` the distance to the track's landmarks moved by its velocity and ``s``
+  the track's size (square root of its box area), ``s`` growing while the track is lost (it may have walked);
+* **motion**: the velocity (box centre, pixels/s, smoothed) that both predictions above use;
+* **body proportions** (for a track that was lost): the lengths of 10 body segments relative to the torso,
+  learned while the track is seen; a re-found person must have about the same proportions;
+* **slot continuity**: the same slot as in the last frame adds ``slot_bonus`` (the landmark model followed
+  that body from one frame to the next, the strongest evidence there is).
+
+Similarity = ``w_box·IoU + w_landmarks·OKS`` (+ slot bonus), times the proportions' agreement for a lost track;
+pairs below ``min_similarity`` never match, the rest are matched greedily, best pair first (a handful of
+people: greedy equals the optimal assignment but for near ties). An unmatched person gets a new id (ids count
+up from 1 and are never reused); a track not seen for more than ``lost_keep_s`` (default 2 s) is forgotten, so a
+person who leaves and comes back within 2 s, near where they were lost (and as they were going), gets their id
+back, later a new one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+KAPPA = 0.1                 # OKS falloff, as a fraction of the person's size
+VISIBLE = 0.5               # a landmark counts as seen above this visibility
+SEGMENTS = ((11, 12), (23, 24), (11, 13), (13, 15), (12, 14), (14, 16), (23, 25), (25, 27), (24, 26), (26, 28))
+TORSO = ((11, 12), (23, 24))  # mid-shoulder to mid-hip from these pairs' midpoints
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Matching weights and limits (see the module doc)."""
+
+    lost_keep_s: float = 2.0          # a track not seen for longer is forgotten (its id is never reused)
+    min_similarity: float = 0.2       # pairs below never match
+    w_box: float = 0.4
+    w_landmarks: float = 0.6
+    slot_bonus: float = 0.5
+    lost_after_s: float = 0.25        # a track unseen this long counts as lost: proportions are checked
+    size_ratio_max: float = 2.0       # a person cannot change size by more than this between matches
+    max_extrapolate_s: float = 0.5    # the velocity moves a prediction at most this far ahead
+
+
+@dataclass(frozen=True)
+class TrackInfo:
+    """A track as the tracker knows it now: ``id``, ``first_t`` and ``last_t`` (seconds, first and last seen),
+    ``hits`` (frames matched), ``box`` (4,) xmin, ymin, xmax, ymax pixels, ``velocity`` (2,) pixels/s."""
+
+    id: int
+    first_t: float
+    last_t: float
+    hits: int
+    box: np.ndarray
+    velocity: np.ndarray
+
+
+def visible_mask(lms: np.ndarray) -> np.ndarray:
+    """Landmarks with coordinates and visibility above VISIBLE; all with coordinates when fewer than 4 are."""
+    finite = np.isfinite(lms[:, :2]).all(axis=1)
+    if lms.shape[1] < 4:
+        return finite
+    vis = finite & (np.nan_to_num(lms[:, 3]) > VISIBLE)
+    return vis if vis.sum() >= 4 else finite
+
+
+def landmark_box(lms: np.ndarray) -> np.ndarray:
+    """xmin, ymin, xmax, ymax of the visible landmarks (pixels)."""
+    pts = lms[visible_mask(lms), :2]
+    if pts.size == 0:
+        return np.full(4, np.nan)
+    return np.concatenate([pts.min(axis=0), pts.max(axis=0)])
+
+
+def box_size(box: np.ndarray) -> float:
+    """sqrt of the box's area, at least 1 pixel."""
+    return float(max(np.sqrt(max(box[2] - box[0], 0.0) * max(box[3] - box[1], 0.0)), 1.0))
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> float:
+    ix = min(a[2], b[2]) - max(a[0], b[0])
+    iy = min(a[3], b[3]) - max(a[1], b[1])
+    if not (ix > 0 and iy > 0):
+        return 0.0
+    inter = ix * iy
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+    return float(inter / union) if union > 0 else 0.0
+
+
+def oks(a: np.ndarray, b: np.ndarray, size: float, kappa: float = KAPPA) -> float:
+    """Landmark overlap of two (33, ≥2) sets in [0, 1]: mean ``exp(-d²/(2 (kappa·size)²))`` over the landmarks
+    visible in both (all with coordinates in both when fewer than 4 are)."""
+    both = visible_mask(a) & visible_mask(b)
+    if both.sum() < 4:
+        both = np.isfinite(a[:, :2]).all(axis=1) & np.isfinite(b[:, :2]).all(axis=1)
+    if not both.any():
+        return 0.0
+    d2 = ((a[both, :2] - b[both, :2]) ** 2).sum(axis=1)
+    return float(np.exp(-d2 / (2.0 * (kappa * size) ** 2)).mean())
+
+
+# MediaPipe Pose index of each landmark's left/right counterpart (the nose is its own)
+MIRROR = np.array([0, 4, 5, 6, 1, 2, 3, 8, 7, 10, 9] + [i + 1 if i % 2 else i - 1 for i in range(11, 33)])
+
+
+def body_overlap(a: np.ndarray, b: np.ndarray, size: float | None = None) -> float:
+    """How much two landmark sets look like the same body: the larger :func:`oks` of ``b`` as it is and with
+    left and right swapped (a model that saw the person from the wrong side); ``size`` defaults to the
+    smaller of their box sizes."""
+    if size is None:
+        size = min(box_size(landmark_box(a)), box_size(landmark_box(b)))
+    return max(oks(a, b, size), oks(a, b[MIRROR], size))
+
+
+def proportions(lms: np.ndarray) -> np.ndarray:
+    """Lengths of the 10 SEGMENTS over the torso length (NaN where a landmark is not visible)."""
+    vis = visible_mask(lms)
+    xy = np.where(vis[:, None], lms[:, :2], np.nan)
+    mid_sh = (xy[11] + xy[12]) / 2
+    mid_hp = (xy[23] + xy[24]) / 2
+    torso = float(np.hypot(*(mid_sh - mid_hp)))
+    if not torso > 1.0:
+        return np.full(len(SEGMENTS), np.nan)
+    return np.array([np.hypot(*(xy[i] - xy[j])) for i, j in SEGMENTS]) / torso
+
+
+def proportion_agreement(a: np.ndarray, b: np.ndarray) -> float:
+    """1 for the same proportions, falling with the median |log ratio| of the segments known in both (0.25 →
+    about 0.37); 1 when fewer than 3 segments are known in both (no evidence either way)."""
+    ok = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
+    if ok.sum() < 3:
+        return 1.0
+    return float(np.exp(-np.median(np.abs(np.log(a[ok] / b[ok]))) / 0.25))
+
+
+class _Track:
+    __slots__ = ("id", "first_t", "last_t", "hits", "lms", "box", "velocity", "props", "slot")
+
+    def __init__(self, tid: int, t: float, lms: np.ndarray, slot: int | None) -> None:
+        self.id, self.first_t, self.last_t, self.hits = tid, t, t, 1
+        self.lms = lms.copy()
+        self.box = landmark_box(lms)
+        self.velocity = np.zeros(2)
+        self.props = proportions(lms)
+        self.slot = slot
+
+    def info(self) -> TrackInfo:
+        return TrackInfo(self.id, self.first_t, self.last_t, self.hits, self.box.copy(), self.velocity.copy())
+
+
+class PersonTracker:
+    """Track ids for the people of successive frames (see the module doc). Not thread-safe."""
+
+    def __init__(self, config: TrackerConfig | None = None) -> None:
+        self.config = config if config is not None else TrackerConfig()
+        self._tracks: list[_Track] = []
+        self._next_id = 1
+        self._last_t: float | None = None
+
+    def reset(self) -> None:
+        """Forget every track (ids keep counting up)."""
+        self._tracks = []
+        self._last_t = None
+
+    @property
+    def tracks(self) -> list[TrackInfo]:
+        """The tracks kept now (seen or lost for at most ``lost_keep_s``), oldest first."""
+        return [tr.info() for tr in self._tracks]
+
+    def first_seen(self, track_id: int) -> float:
+        """When the track was first seen (seconds); ``inf`` for an unknown id."""
+        return next((tr.first_t for tr in self._tracks if tr.id == track_id), float("inf"))
+
+    def longest_followed(self, ids: list[int]) -> int | None:
+        """Of ``ids``, the one followed longest (first seen earliest; the smaller id on a tie), or None."""
+        return min(ids, key=lambda i: (self.first_seen(i), i)) if ids else None
+
+    def similarity(self, track: _Track, lms: np.ndarray, box: np.ndarray, slot: int | None, t: float) -> float:
+        """How well a person (landmarks ``lms``, their ``box``, found by ``slot``) continues ``track`` at ``t``."""
+        cfg = self.config
+        if not np.isfinite(box).all():
+            return 0.0
+        dt = max(t - track.last_t, 0.0)
+        shift = track.velocity * min(dt, cfg.max_extrapolate_s)
+        size_t, size_o = box_size(track.box), box_size(box)
+        if not (1.0 / cfg.size_ratio_max <= size_o / size_t <= cfg.size_ratio_max):
+            return 0.0
+        lost = dt > cfg.lost_after_s
+        # a lost track's position is less certain the longer it is gone: widen the landmark falloff
+        size = size_t * (1.0 + (dt / cfg.lost_after_s - 1.0 if lost else 0.0) * 0.5)
+        pred = track.lms.copy()
+        pred[:, :2] += shift
+        pred_box = track.box + np.tile(shift, 2)
+        sim = cfg.w_box * box_iou(pred_box, box) + cfg.w_landmarks * oks(pred, lms, size)
+        if lost:
+            sim *= proportion_agreement(track.props, proportions(lms))
+        elif slot is not None and slot == track.slot and track.last_t == self._last_t:
+            sim += cfg.slot_bonus
+        return sim
+
+    def update(self, t: float, people: list[np.ndarray], slots: list[int | None] | None = None) -> list[int]:
+        """Track ids of ``people`` (each (33, ≥4) landmarks: x, y pixels, z, visibility) seen at ``t`` seconds,
+        in their order. ``slots``: the landmark slot that followed each (None: unknown)."""
+        cfg = self.config
+        t = float(t)
+        slots = list(slots) if slots is not None else [None] * len(people)
+        if len(slots) != len(people):
+            raise ValueError(f"{len(people)} people but {len(slots)} slots")
+        self._tracks = [tr for tr in self._tracks if t - tr.last_t <= cfg.lost_keep_s]
+        lms_list = [np.asarray(p, dtype=np.float64) for p in people]
+        boxes = [landmark_box(p) for p in lms_list]
+        pairs = []
+        for ti, tr in enumerate(self._tracks):
+            for pi, (lms, box) in enumerate(zip(lms_list, boxes, strict=True)):
+                s = self.similarity(tr, lms, box, slots[pi], t)
+                if s >= cfg.min_similarity:
+                    pairs.append((s, ti, pi))
+        pairs.sort(key=lambda p: -p[0])
+        ids: list[int | None] = [None] * len(people)
+        used: set[int] = set()
+        for _s, ti, pi in pairs:
+            if ti in used or ids[pi] is not None:
+                continue
+            used.add(ti)
+            tr = self._tracks[ti]
+            self._advance(tr, t, lms_list[pi], boxes[pi], slots[pi])
+            ids[pi] = tr.id
+        for pi, lms in enumerate(lms_list):
+            if ids[pi] is None and np.isfinite(boxes[pi]).all():
+                tr = _Track(self._next_id, t, lms, slots[pi])
+                self._next_id += 1
+                self._tracks.append(tr)
+                ids[pi] = tr.id
+            elif ids[pi] is None:
+                ids[pi] = self._next_id  # no landmark with coordinates: an id of its own, not tracked
+                self._next_id += 1
+        self._last_t = t
+        return [int(i) for i in ids]
+
+    @staticmethod
+    def _advance(tr: _Track, t: float, lms: np.ndarray, box: np.ndarray, slot: int | None) -> None:
+        dt = t - tr.last_t
+        if dt > 0:
+            centre_new = (box[:2] + box[2:]) / 2
+            centre_old = (tr.box[:2] + tr.box[2:]) / 2
+            v = (centre_new - centre_old) / dt
+            tr.velocity = v if tr.hits == 1 else 0.5 * tr.velocity + 0.5 * v
+        new_props = proportions(lms)
+        known = np.isfinite(new_props)
+        mix = np.where(np.isfinite(tr.props), 0.9 * tr.props + 0.1 * new_props, new_props)
+        tr.props = np.where(known, mix, tr.props)
+        tr.lms, tr.box, tr.last_t, tr.slot = lms.copy(), box, t, slot
+        tr.hits += 1
