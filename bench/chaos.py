@@ -9,6 +9,10 @@ frame every N, replayed in a loop at its own rate) the campaign
    random time, then SIGCONT) to a random stage; runs a subscriber to the fall events that comes and goes;
    puts an ack flood of ``ack_flood`` hostile payloads once, at a random time; an observer receives every
    pose, status and fall event and acknowledges a seeded share of the events;
+   with the faults of :mod:`bench.chaos_faults` (issue 34): ``web_idle`` idle connections to the daemon's web
+   stage from 15 % to 45 % of the chaos while the page is probed, and the state directory (a tmpfs of its
+   own) read-only from 30 %, full from 55 % and freed at 80 %; the inputs may carry crafted oversized JPEG
+   headers and clock jumps (:mod:`bench.chaos_inputs`);
 3. lets the daemon settle (every stopped process continued; until every journalled message reached the
    observer, at most ``settle_s``), stops it with SIGTERM and reads its journal and its log.
 
@@ -35,7 +39,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from posed.bench import chaos_bus, chaos_inputs
+from posed.bench import chaos_bus, chaos_faults, chaos_inputs
 
 STAGES = ("capture", "landmarks", "fitting", "publisher")
 
@@ -59,6 +63,34 @@ class ChaosPlan:
     events_before_chaos: int = 0                # wait for this many fall-event messages before the chaos
     stage_faults: bool = True                   # False: no kill -9 / SIGSTOP (a control run)
     startup_timeout_s: float = 300.0
+    crafted_images: bool = True                 # the squat input carries crafted oversized JPEG headers
+    clock_jumps: bool = True                    # the falls input's clock leaps, stands still and goes back
+    web_idle: int = 1000                        # idle connections to the web stage (0: the web stage is off)
+    storage_faults: bool = True                 # the state directory goes read-only, then full (root only)
+    storage_kb: int = 16384                     # the state directory's tmpfs
+
+
+UNIT = Path(__file__).resolve().parents[1] / "deploy" / "posed.service"
+SYSTEMD_NOFILE = 1024           # systemd's default soft limit of open files for a service (DefaultLimitNOFILE)
+
+
+def unit_nofile(unit: Path = UNIT) -> int:
+    """The soft limit of open files the shipped unit gives the daemon: its ``LimitNOFILE=`` (soft[:hard]), else
+    systemd's default; the campaign runs the daemon under it, as the service would."""
+    try:
+        for line in unit.read_text().splitlines():
+            if line.strip().startswith("LimitNOFILE="):
+                return int(line.split("=", 1)[1].split(":")[0].strip())
+    except (OSError, ValueError):
+        pass
+    return SYSTEMD_NOFILE
+
+
+def _limit_nofile(soft: int) -> None:
+    import resource
+
+    _, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (min(soft, hard), hard))
 
 
 def _free_port() -> int:
@@ -146,6 +178,12 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
            "--set", _hooks(token, plan.hook_megabytes, plan.hook_hang_timeout_s)]
     for o in inp.overrides:
         cmd += ["--set", o]
+    web_port = _free_port()
+    if plan.web_idle:
+        cmd += ["--set", "web.enabled=true", "--set", f"web.port={web_port}"]
+    storage = chaos_faults.StorageFaults(state, plan.storage_kb) if plan.storage_faults else None
+    if storage is not None:
+        storage.mount()
     import zenoh
 
     from posed.client import session_config
@@ -158,8 +196,10 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
     with zenoh.open(session_config("router", listen=[router_ep])) as _router, \
             chaos_bus.open_client(router_ep) as session:
         obs = chaos_bus.Observer(session, robot, plan.ack_share, seed)
+        nofile = unit_nofile()
         proc = subprocess.Popen(cmd, stdout=open(out_log, "wb"), stderr=open(work / "daemon.err.log", "wb"),
-                                start_new_session=True)
+                                start_new_session=True, preexec_fn=lambda: _limit_nofile(nofile))
+        report["limit_nofile"] = nofile
         churn = None
         try:
             t_start = time.monotonic()
@@ -185,8 +225,25 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
             next_fault = t0 + rng.uniform(*plan.fault_every_s)
             flood = None
             peak = dict(report["memory_before"])
+            idle = chaos_faults.IdleWeb(web_port, plan.web_idle) if plan.web_idle else None
+            t_idle = t0 + 0.15 * plan.seconds
+            idle_thread = None
+            storage_plan = [(0.3, "read_only"), (0.55, "full"), (0.8, "freed")] if storage and storage.mounted \
+                else []
+            storage_seen: dict[str, int] = {}
             while time.monotonic() < t_end:
                 now = time.monotonic()
+                if idle is not None and idle_thread is None and now >= t_idle:
+                    idle_thread = idle.hold(0.3 * plan.seconds)
+                    progress(f"{inp.name}: t={now - t0:5.1f} s {plan.web_idle} idle web connections")
+                while storage_plan and now >= t0 + storage_plan[0][0] * plan.seconds:
+                    _, what = storage_plan.pop(0)
+                    _storage_fault(storage, what, obs)
+                    progress(f"{inp.name}: t={now - t0:5.1f} s state directory {what}")
+                st_store = (obs.last_status() or {}).get("storage")
+                if isinstance(st_store, dict):
+                    key = str(st_store.get("state"))
+                    storage_seen[key] = storage_seen.get(key, 0) + 1
                 for pid, t_cont in list(stopped.items()):
                     if now >= t_cont:
                         _signal(pid, signal.SIGCONT)
@@ -219,6 +276,12 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                     break
                 time.sleep(0.05)
             t_chaos_end = time.monotonic()
+            if idle_thread is not None:
+                idle_thread.join(60)
+            for what in ("read_only", "full", "freed"):      # a short chaos: every storage fault still runs
+                if storage_plan and storage_plan[0][1] == what:
+                    storage_plan.pop(0)
+                    _storage_fault(storage, what, obs)
             for pid in stopped:
                 _signal(pid, signal.SIGCONT)
             stopped.clear()
@@ -245,6 +308,9 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                 poses=obs.poses_since(t0), longest_publishing_gap_s=round(gap, 2),
                 longest_gap_at_s=round(gap_at, 1) if gap_at is not None else None,
                 memory_after=_mem(after), memory_peak=peak,
+                web=idle.report() if idle is not None else None,
+                storage=dict(storage.report(t0), status_states=storage_seen,
+                             status_after=(after or {}).get("storage")) if storage is not None else None,
                 restarts=(after or {}).get("restarts"), capture=_capture_counts(after),
                 # falls the replay showed while the chaos ran (real time; a stopped capture pauses it): an
                 # upper bound for what the detector could report
@@ -271,6 +337,9 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
         for pid in left:                       # the campaign's own hooks only (their argv holds the token)
             _signal(pid, signal.SIGKILL)
         report["shm_left"] = len(list(Path("/dev/shm").glob(f"posed-{proc.pid}-*")))
+        if storage is not None and storage.mounted:      # the journal is read from a copy of the tmpfs
+            storage.unmount(work / "state-kept")
+            state = work / "state-kept"
         with obs.lock:
             received = set(obs.received)
             receipts = obs.receipts
@@ -295,6 +364,19 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                      "frames_skipped": sum(n == "frame_skipped" for n in names),
                      "bytes": out_log.stat().st_size}
     return report
+
+
+def _storage_fault(storage: chaos_faults.StorageFaults, what: str, obs) -> None:
+    """One state-directory fault; going read-only kills the publisher (it holds the journal open) if needed."""
+    if what != "read_only":
+        getattr(storage, what)()
+        return
+
+    def release() -> None:
+        pid = ((obs.last_status() or {}).get("stages", {}).get("publisher", {})).get("pid")
+        if pid:
+            _signal(pid, signal.SIGKILL)
+    storage.read_only(release)
 
 
 def _capture_counts(status: dict | None) -> dict:
@@ -331,9 +413,10 @@ def run_campaign(plan: ChaosPlan, shared: Path, progress=lambda msg: None, work:
             d = base / name
             d.mkdir(parents=True, exist_ok=True)
             if name == "squat":
-                inp = chaos_inputs.squat_images(shared, d / "frames", plan.corrupt_every)
+                inp = chaos_inputs.squat_images(shared, d / "frames", plan.corrupt_every, plan.crafted_images)
             elif name == "falls":
-                inp = chaos_inputs.fall_recording(shared, d / "falls.landmarks.jsonl", plan.corrupt_every)
+                inp = chaos_inputs.fall_recording(shared, d / "falls.landmarks.jsonl", plan.corrupt_every,
+                                                  plan.clock_jumps)
             else:
                 raise ValueError(f"unknown chaos input {name!r}; valid: squat, falls")
             runs.append(run_input(inp, plan, d, plan.seed * 100 + i, progress))

@@ -1,6 +1,8 @@
 """A small chaos campaign (``posed bench chaos``) against a real daemon on a recording of real falls (UR Fall
 Detection) with corrupt frames: stages killed and stopped, an ack flood, a hanging and a chatty hook, a
-subscriber that comes and goes. No fall-event message may be lost, and the report has its documented shape."""
+subscriber that comes and goes; 1,000 idle connections to the web stage (under the unit's open-file limit), the
+state directory going read-only, then full, then freed, and the recording's clock leaping, standing still and
+going back. No fall-event message may be lost, the page must answer, and the report has its documented shape."""
 
 from __future__ import annotations
 
@@ -46,4 +48,11 @@ def test_small_campaign_loses_no_event(tmp_path):
                 "poses", "startup_s", "shutdown_s"):
         assert key in run, key
     assert run["memory_before"]["memory_mb"] > 0 and run["memory_after"]["memory_mb"] > 0
+    # the web stage answered the page while 1,000 idle connections were held against it
+    web = run["web"]
+    assert web["idle_connections"] + web["refused"] == 1000 and web["probes"] >= 1, web
+    assert web["answered"] == web["probes"] == web["ok_answers"], web
+    assert run["limit_nofile"] > 0 and report["plan"]["clock_jumps"]
+    if os.geteuid() == 0:          # CI runs as root: the state directory is a tmpfs of its own
+        assert [f[0] for f in run["storage"]["faults"]] == ["read_only", "full", "freed"], run["storage"]
     assert r.returncode == 0, r.stderr[-3000:]
