@@ -38,7 +38,8 @@ import traceback
 from dataclasses import dataclass
 
 from posed.daemon import clock, logs
-from posed.daemon.config import EX_CONFIG, Config
+from posed.daemon.config import EX_CONFIG, Config, paths
+from posed.daemon.outbox.fallback import fallback_path
 from posed.daemon.proc import orphans, procstat, shm
 from posed.daemon.proc.blind import BlindWatch, Counts, blind_after_s
 from posed.daemon.proc.control import DOORBELLS, Control
@@ -430,12 +431,36 @@ class Supervisor:
             "camera": {**self._camera_info, "state": cap_row.camera if cap_row else CAMERA_STATES[0],
                        "source": to_uri(self.config.source)},
             "blind": self._blind.blind,
+            "storage": self._storage(),
             "stages": stages,
             "supervisor": sup,
             "memory_mb": round(total_pss, 1),
             "anon_mb": round(total_anon, 1),
             "processes": 1 + sum(1 for s in stages.values() if s["alive"]),
         }
+
+    def _storage(self) -> dict:
+        """The state directory as the publisher last reported it in its health row (the publisher's own status
+        adds the reason and the fix)."""
+        unstored = fault = 0
+        if self.control is not None and "publisher" in self._slots:
+            row = self.control.board.row("publisher")
+            unstored, fault = int(row.get("unstored")), int(row.get("storage_fault"))
+        return {"state": "degraded" if fault or unstored else "ok", "unstored_events": unstored,
+                "fallback": str(fallback_path(paths.state_dir(self.config.pipeline)))}
+
+    def _report_unstored(self) -> None:
+        """At stop: fall-event messages that never reached the disk are said loudly, with where they are."""
+        st = self._storage()
+        if not st["unstored_events"]:
+            return
+        text = (f"{st['unstored_events']} fall-event messages were never written to disk (the state directory "
+                f"{paths.state_dir(self.config.pipeline)} failed); they are in {st['fallback']}, taken back at "
+                "the next start, which survives a restart of posed but not a reboot")
+        self.log.error("events_not_stored", unstored_events=st["unstored_events"], fallback=st["fallback"],
+                       fix="free disk space or make pipeline.state_dir writable, then start posed again")
+        with contextlib.suppress(OSError):
+            print(f"posed: {text}", file=sys.stderr, flush=True)
 
     # ------------------------------------------------------------------ stop
     def _on_signal(self, signum, frame) -> None:
@@ -464,6 +489,7 @@ class Supervisor:
         if self.ring is not None:
             self.ring.close()
             self.ring = None
+        self._report_unstored()
         if self.control is not None:
             self.control.close()
             self.control = None
@@ -485,8 +511,13 @@ def status_text(status: dict) -> str:
         return (f"blind: {status['blind']['reason']}; fix: {status['blind']['fix']}; {what} {cam['state']}, "
                 f"restarts {status['restarts']}")
     e2e = status["latency_ms"]
-    return (f"{status['state']}: {status['fps']:.1f} fps, latency p95 {fmt_ms(e2e['p95'])} ms, drops "
+    text = (f"{status['state']}: {status['fps']:.1f} fps, latency p95 {fmt_ms(e2e['p95'])} ms, drops "
             f"{status['drops']}, restarts {status['restarts']}, {what} {cam['state']}")
+    storage = status.get("storage") or {}
+    if storage.get("state", "ok") != "ok":
+        text += (f"; STORAGE DEGRADED: the state directory fails, {storage.get('unstored_events', 0)} fall-event "
+                 f"messages not on disk (kept in memory and {storage.get('fallback')})")
+    return text
 
 
 def _kill(proc: multiprocessing.Process) -> None:

@@ -9,6 +9,10 @@ may drop the last uncommitted seconds, never corrupts the file — the angles ar
 ``maintain()`` (the publisher calls it about once a minute) averages rows older than
 ``history_downsample_after_h`` into buckets of ``history_downsample_period_s`` (``level`` 1) and deletes rows older than
 ``history_retention_days``.
+
+A state directory that cannot take the file (read-only, full, gone) never stops the daemon: the store then
+keeps no rows (``last_error`` says why, ``dropped`` counts the rows lost, one log line a minute at most) and
+tries to open the file again every ``REOPEN_S``. Fall events do not depend on it (daemon.outbox.journal).
 """
 
 from __future__ import annotations
@@ -39,6 +43,10 @@ _SCHEMA = (
 )
 
 
+REOPEN_S = 30.0          # a history file that could not be opened is tried again this often (monotonic s)
+LOG_EVERY_S = 60.0       # while the same trouble lasts, one log line a minute
+
+
 class AngleHistory:
     """Joint-angle history in one SQLite file; ``add`` is cheap (rate limit + buffer), thread-safe."""
 
@@ -52,17 +60,47 @@ class AngleHistory:
         self._last_kept_t: float | None = None
         self._last_commit_t: float | None = None
         self._log = logs.get("history", path=str(self.path))
+        self._db: sqlite3.Connection | None = None
+        self.last_error = ""
+        self.dropped = 0
+        self._next_open = 0.0
+        self._next_log = 0.0
         if readonly:
             if not self.path.is_file():
                 raise FileNotFoundError(f"no joint-angle history at {self.path}: the daemon writes it while it "
                                         "runs (falls.history_enabled); check pipeline.state_dir")
             self._db = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, check_same_thread=False)
         else:
+            self._open()
+
+    def _open(self) -> None:
+        """Open (create) the file for writing; on failure ``last_error`` is set and the store keeps no rows."""
+        self._next_open = time.monotonic() + REOPEN_S
+        db = None
+        try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False, timeout=5.0)
-            self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=NORMAL")
-            self._db.executescript(_SCHEMA)
+            db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False, timeout=5.0)
+            db.execute("PRAGMA journal_mode=WAL")
+            db.execute("PRAGMA synchronous=NORMAL")
+            db.executescript(_SCHEMA)
+        except (sqlite3.Error, OSError) as exc:
+            if db is not None:
+                db.close()
+            self._trouble("history_unavailable", f"cannot open the joint-angle history {self.path}: {exc}")
+            return
+        self._db = db
+        if self.last_error:
+            self._log.info("history_recovered", previous_error=self.last_error, dropped=self.dropped)
+            self.last_error = ""
+
+    def _trouble(self, event: str, message: str, **kw) -> None:
+        now = time.monotonic()
+        if not self.last_error or now >= self._next_log:
+            self._next_log = now + LOG_EVERY_S
+            self._log.error(event, error=message, dropped=self.dropped,
+                            fix="free disk space or make pipeline.state_dir writable; the joint-angle history "
+                                "misses these rows (fall events are journalled separately)", **kw)
+        self.last_error = message
 
     def add(self, result: FitResult, wall: float | None = None) -> bool:
         """Keep this frame's angles if the rate allows (capture time decides); True when kept."""
@@ -91,16 +129,25 @@ class AngleHistory:
     def _commit(self) -> None:
         if not self._buffer:
             return
+        if self._db is None and time.monotonic() >= self._next_open:
+            self._open()
+        if self._db is None:
+            self.dropped += len(self._buffer)
+            self._buffer.clear()
+            self._last_commit_t = self._last_kept_t
+            return
         marks = ", ".join("?" * len(CSV_HEADER[1:]))
         try:
             with self._db:
                 self._db.execute("BEGIN")
                 self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, {', '.join(ANGLE_COLUMNS)}) "
                                      f"VALUES ({marks})", self._buffer)
+            if self.last_error:
+                self._log.info("history_recovered", previous_error=self.last_error, dropped=self.dropped)
+                self.last_error = ""
         except sqlite3.Error as exc:
-            self._log.error("history_write_failed", error=str(exc), dropped=len(self._buffer),
-                            fix="free disk space or make pipeline.state_dir writable; the joint-angle history "
-                                "misses these rows (fall events are journalled separately)")
+            self.dropped += len(self._buffer)
+            self._trouble("history_write_failed", f"cannot write the joint-angle history {self.path}: {exc}")
         self._buffer.clear()
         self._last_commit_t = self._last_kept_t
 
@@ -109,6 +156,8 @@ class AngleHistory:
         now = self._clock() if now is None else now
         with self._lock:
             self._commit()
+            if self._db is None:
+                return {"deleted": 0, "downsampled": 0}
             cutoff_old = now - self.cfg.history_downsample_after_h * 3600.0
             cutoff_gone = now - self.cfg.history_retention_days * 86400.0
             bucket = self.cfg.history_downsample_period_s
@@ -143,6 +192,8 @@ class AngleHistory:
             raise ValueError(f"unknown angle(s) {', '.join(bad)}; known: {', '.join(ANGLE_COLUMNS)}")
         with self._lock:
             self._commit()
+            if self._db is None:
+                return
             sql = f"SELECT wall, t, seq, level{''.join(', ' + c for c in columns)} FROM angles WHERE 1"
             args: list[float] = []
             if since is not None:
@@ -171,7 +222,9 @@ class AngleHistory:
                 self._commit()
             except sqlite3.Error:
                 pass
-            self._db.close()
+            if self._db is not None:
+                self._db.close()
+                self._db = None
 
     def __enter__(self) -> AngleHistory:
         return self

@@ -8,8 +8,10 @@ Life of a message: ``append`` (stored, unpublished) -> ``mark_published`` -> ``a
 confirmed it). ``unacknowledged()`` is what the publisher republishes after a restart or a reconnect.
 
 When the disk is full, the file is not writable or the database is corrupt, the journal says so in one clear
-log line, keeps the messages in memory (they are still returned by ``unacknowledged`` and ``query``) and
-writes them on the next call, or on ``retry()``. A corrupt file is moved aside (``*.corrupt-<unix time>``)
+log line (then at most one a minute while it lasts), keeps the messages in memory (they are still returned by
+``unacknowledged`` and ``query``) and in the fallback file (:mod:`daemon.outbox.fallback`, a tmpfs that
+survives a restart of the daemon; taken back at the next start) and writes them on the next call, or on
+``retry()``. A corrupt file is moved aside (``*.corrupt-<unix time>``)
 after salvaging the unacknowledged rows that can still be read, and a fresh journal is started.
 
 ``EventJournal(path, readonly=True)`` is for readers other than the daemon (``posed events``, ``posed plot``):
@@ -35,6 +37,7 @@ from posed.daemon import logs
 from posed.daemon.clock import iso
 from posed.daemon.outbox import journal_file as jfile
 from posed.daemon.outbox import journal_rows as rows
+from posed.daemon.outbox.fallback import FallbackStore
 from posed.daemon.outbox.journal_file import JournalError
 from posed.daemon.outbox.journal_rows import Selection, StoredEvent
 from posed.falls.event import FallEvent
@@ -45,13 +48,19 @@ __all__ = ["EventJournal", "JournalError", "StoredEvent"]
 class EventJournal:
     """SQLite journal of fall-event messages; thread-safe (the publisher and Zenoh callbacks share it)."""
 
+    LOG_EVERY_S = 60.0          # while the same trouble lasts, one log line a minute
+
     def __init__(self, path: str | os.PathLike, strict: bool = False, clock=time.time,
-                 connect: Callable[[Path], sqlite3.Connection] | None = None, readonly: bool = False) -> None:
+                 connect: Callable[[Path], sqlite3.Connection] | None = None, readonly: bool = False,
+                 fallback: FallbackStore | None = None) -> None:
         """``connect`` opens the file (default: ``sqlite3.connect`` with a 5 s busy timeout); tests pass one
         that limits the file's size to meet a real SQLITE_FULL. ``clock``: unix seconds.
 
         ``readonly``: only read an existing journal (raises FileNotFoundError when there is none, JournalError
         when it cannot be read); the writing methods then raise JournalError.
+
+        ``fallback``: where messages that cannot be stored wait across a restart; what it holds is taken back
+        first (``restored``).
         """
         self.path = Path(path)
         self._readonly = readonly
@@ -64,11 +73,29 @@ class EventJournal:
         self._pending_marks: list[tuple[str, str | None, str, float]] = []
         self.last_error: str = ""
         self._log = logs.get("journal", path=str(self.path))
+        self._fallback = None if readonly else fallback
+        self._fallback_saved: tuple | None = None
+        self._next_log = 0.0
+        self.suppressed_logs = 0
+        self.restored = 0
         if readonly:
             self._db = jfile.open_readonly(self.path)
             return
         with self._lock:
+            if self._fallback is not None:
+                for item in self._fallback.load():
+                    if item.key not in self._pending:
+                        self._pending[item.key] = item
+                        self.restored += 1
+                if self.restored:
+                    self._log.warning("journal_restored_unstored", restored=self.restored,
+                                      fallback=str(self._fallback.path),
+                                      note="fall-event messages the last run could not store; written to the "
+                                           "journal now if it can take them, and republished until acknowledged")
             self._open()
+            if self._db is not None and self._pending:
+                self._flush()
+            self._sync_fallback()
         if strict and self._db is None:
             raise JournalError(self.last_error)
 
@@ -119,11 +146,45 @@ class EventJournal:
 
     def _fail(self, what: str, exc: BaseException) -> None:
         message = f"{what} {self.path}: {exc}"
-        if message != self.last_error:
+        now = time.monotonic()
+        if (message != self.last_error and not self.last_error) or now >= self._next_log:
+            self._next_log = now + self.LOG_EVERY_S
             self._log.error("journal_unavailable", error=message, fix=jfile.write_hint(exc),
-                            kept_in_memory=len(self._pending))
+                            kept_in_memory=len(self._pending),
+                            fallback=str(self._fallback.path) if self._fallback is not None else None,
+                            suppressed=self.suppressed_logs)
+            self.suppressed_logs = 0
+        else:
+            self.suppressed_logs += 1
         self.last_error = message
         self._close_db()
+
+    def _sync_fallback(self) -> None:
+        """The fallback file holds exactly the messages waiting in memory (none: no file)."""
+        if self._fallback is None:
+            return
+        items = sorted(self._pending.values(), key=lambda s: (s.wall, s.event.t_detect))
+        signature = tuple((i.key, i.published_at, i.acked_at) for i in items)
+        if signature == self._fallback_saved:
+            return
+        if items:
+            ok = self._fallback.save(items)
+            if not ok:
+                self._log.error("fallback_unwritable", error=self._fallback.last_error, kept_in_memory=len(items),
+                                fix="the messages are only in memory: free the state directory's disk or make "
+                                    "it writable; RUNTIME_DIRECTORY or /run must be writable for the fallback")
+        else:
+            self._fallback.clear()
+            ok = True
+        self._fallback_saved = signature if ok else None
+
+    @property
+    def fallback_path(self) -> Path | None:
+        return self._fallback.path if self._fallback is not None else None
+
+    @property
+    def fallback_error(self) -> str:
+        return self._fallback.last_error if self._fallback is not None else ""
 
     def _close_db(self) -> None:
         if self._db is not None:
@@ -156,6 +217,7 @@ class EventJournal:
                 self._open()
             if self._db is not None:
                 self._flush()
+            self._sync_fallback()
             return self._db is not None and not self._pending and not self._pending_marks
 
     def _flush(self) -> None:
@@ -190,6 +252,7 @@ class EventJournal:
             if self._db is None:
                 self._open()
             self._flush()
+            self._sync_fallback()
             return event
 
     def mark_published(self, event_id: str, state: str | None = None) -> None:
@@ -226,6 +289,7 @@ class EventJournal:
                 self._open()
             if self._db is None:
                 self._pending_marks.append((event_id, state, column, now))
+                self._sync_fallback()
                 return
             try:
                 with jfile.Transaction(self._db):
@@ -233,6 +297,7 @@ class EventJournal:
             except (sqlite3.DatabaseError, OSError) as exc:
                 self._pending_marks.append((event_id, state, column, now))
                 self._fail("cannot write to the event journal", exc)
+            self._sync_fallback()
 
     def unacknowledged(self) -> list[FallEvent]:
         """Messages not yet acknowledged, oldest first (on disk and waiting in memory)."""
@@ -279,7 +344,10 @@ class EventJournal:
     def close(self) -> None:
         with self._lock:
             if not self._readonly:
+                if self._db is None:
+                    self._open()
                 self._flush()
+                self._sync_fallback()
             self._close_db()
 
     def __enter__(self) -> EventJournal:

@@ -23,12 +23,18 @@ OWN_PREFIXES = ("events.sqlite3", "history.sqlite3",     # with -wal, -shm and *
 def private_folder(folder: Path, log=None) -> None:
     """Create ``folder`` (0700) or make an existing one of ours 0700 when it holds only the daemon's files."""
     folder = Path(folder)
-    if not folder.exists():
-        folder.parent.mkdir(parents=True, exist_ok=True)
-        try:
+    try:
+        if not folder.exists():
+            folder.parent.mkdir(parents=True, exist_ok=True)
             folder.mkdir(mode=FOLDER_MODE)
-        except FileExistsError:
-            pass
+    except FileExistsError:
+        pass
+    except OSError as exc:      # read-only or full file system: the journal and the history say so and go on
+        if log is not None:
+            log.error("state_folder_unavailable", folder=str(folder), error=str(exc),
+                      fix="make pipeline.state_dir writable (or point it at a writable disk); fall events are "
+                          "kept in memory and in the fallback file meanwhile")
+        return
     try:
         st = folder.stat()
         if st.st_uid != os.geteuid() or stat.S_IMODE(st.st_mode) == FOLDER_MODE:

@@ -18,6 +18,7 @@ FIELDS = (
     "pid", "beat", "step_started", "frames", "drops", "state", "ready", "stop", "fps",
     "step_p50_ms", "step_p95_ms", "step_max_ms", "lat_p50_ms", "lat_p95_ms", "lat_max_ms",
     "camera", "skipped", "errors", "started", "go", "bad_frames",
+    "unstored", "storage_fault",      # publisher: fall-event messages not on disk; 1 while the state dir fails
 )
 F = {name: i for i, name in enumerate(FIELDS)}
 

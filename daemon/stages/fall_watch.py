@@ -147,6 +147,10 @@ class FallWatch:
                 os.fsync(f.fileno())
             tmp.replace(path)
         except OSError as exc:
+            try:
+                tmp.unlink()            # a full disk leaves an empty one behind
+            except OSError:
+                pass
             if self.save_error != str(exc):
                 self.log.warning("falls_geometry_not_saved", file=str(path), error=str(exc),
                                  fix="make the state dir writable (pipeline.state_dir); detection goes on")

@@ -46,6 +46,7 @@ from posed.daemon.history.recorder import HistoryRecorder
 from posed.daemon.history.store import AngleHistory
 from posed.daemon.messages import FitMsg, origin
 from posed.daemon.outbox.delivery import EventOutbox
+from posed.daemon.outbox.fallback import FallbackStore, fallback_path
 from posed.daemon.outbox.hooks import HookRunner
 from posed.daemon.outbox.journal import EventJournal
 from posed.daemon.outbox.private import private_file, private_folder
@@ -66,8 +67,10 @@ class PublisherStage:
         private_folder(paths.state_dir(cfg.pipeline), rt.log)         # health data: 0700, files 0600
         if cfg.falls.history_enabled:
             private_file(paths.history_path(cfg.pipeline))
-        self.outbox = EventOutbox(EventJournal(paths.events_path(cfg.pipeline)), HookRunner(cfg.hooks),
-                                  self._send_event, rt.log, cfg.zenoh.event_republish_s)
+        journal = EventJournal(paths.events_path(cfg.pipeline),
+                               fallback=FallbackStore(fallback_path(paths.state_dir(cfg.pipeline))))
+        self.outbox = EventOutbox(journal, HookRunner(cfg.hooks), self._send_event, rt.log,
+                                  cfg.zenoh.event_republish_s)
         self.ros2 = Ros2Bridge(cfg.ros2, rt.log) if cfg.ros2.enabled else None    # docs/ros2.md
         self._stack = stack
         self.history = HistoryRecorder(
@@ -104,6 +107,27 @@ class PublisherStage:
             self.outbox.subscriber_appeared(now)
         self.outbox.tick(now, self.bus.event_subscribed)
         self.history.tick(now)
+        storage = self.storage()
+        self.rt.row.set("unstored", storage["unstored_events"])
+        self.rt.row.set("storage_fault", 0.0 if storage["state"] == "ok" else 1.0)
+
+    def storage(self) -> dict:
+        """The state directory as the status shows it: ``ok``, or ``degraded`` with the reason and the fix."""
+        journal = self.outbox.journal
+        unstored = journal.pending_in_memory
+        history = self.history.store
+        problems = [p for p in (journal.last_error, getattr(history, "last_error", "")) if p]
+        out = {"state": "degraded" if problems or unstored else "ok", "unstored_events": unstored,
+               "fallback": str(journal.fallback_path) if journal.fallback_path else None}
+        if out["state"] != "ok":
+            out["reason"] = "; ".join(problems) or f"{unstored} fall-event messages wait to be written"
+            out["fix"] = ("free disk space or make pipeline.state_dir writable; meanwhile fall events are kept "
+                          "in memory and in the fallback file, republished until acknowledged")
+            if journal.fallback_error:
+                out["fallback_error"] = journal.fallback_error
+            if getattr(history, "dropped", 0):
+                out["history_rows_dropped"] = history.dropped
+        return out
 
     def publish_status(self, status: dict) -> None:
         """The supervisor's status plus the ``zenoh`` and ``events`` parts."""
@@ -112,6 +136,7 @@ class PublisherStage:
         status["events"] = self.outbox.status()
         status["events"]["acks"]["rejected"] = self.bus.acks_rejected
         status["falls"] = self.falls.status()
+        status["storage"] = self.storage()
         if self.ros2 is not None:
             status["ros2"] = self.ros2.status()
         self.bus.put_status(status_message(status, self.rt.config.robot_id, clock.now()))
@@ -120,6 +145,7 @@ class PublisherStage:
         """Close everything but the session (the ``with`` around the stage closes it)."""
         self.bus.forget()
         self.outbox.close(hook_timeout_s=0.5)     # then TERM, KILL: within pipeline.shutdown_timeout_s
+        self.rt.row.set("unstored", self.outbox.journal.pending_in_memory)   # the supervisor says it at stop
         self.history.close()
         self.falls.close()                         # keep the geometry learned from people
 

@@ -40,24 +40,30 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from posed.daemon.config.paths import config_file
+    from posed.daemon.config.paths import config_file, state_dir
     from posed.daemon.preflight import check
+    from posed.daemon.state_check import state_dir_problems
 
     path = args.file if args.file else config_file(None)
     name = str(path) if path else "(the embedded default config)"
     cfg = load_config(path, overrides=args.overrides, source=args.source)
     problems = check(cfg)
+    stopping = len(problems)            # these stop `posed run`; a failing state dir only degrades it
+    problems += state_dir_problems(state_dir(cfg.pipeline))
     lines: list[str] = []
-    if args.source and not problems:
+    if args.source and not stopping:
         from posed.commands._probe import probe
         from posed.daemon.preflight import resolve_source
 
         lines, more = probe(resolve_source(cfg, lambda p: p))
         problems += more
+        stopping += len(more)
     if problems:
         for p in problems:
             print(f"{name}: {p}", file=sys.stderr)
-        print(f"posed: {len(problems)} problem(s); `posed run` would not start", file=sys.stderr)
+        print(f"posed: {len(problems)} problem(s); `posed run` would " + (
+            "not start" if stopping else "start degraded (fall events kept in memory and the fallback file)"),
+            file=sys.stderr)
         return EX_CONFIG
     for line in lines:
         print(line)

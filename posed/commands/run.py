@@ -17,7 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from posed.daemon.config.paths import state_dir
     from posed.daemon.preflight import check, resolve_source
+    from posed.daemon.state_check import state_dir_problems
     from posed.daemon.supervisor import Supervisor
 
     cfg = resolve_source(config_from_args(args), _demo_recording)
@@ -28,6 +30,9 @@ def _run(args: argparse.Namespace) -> int:
         print(f"posed: {len(problems)} problem(s); nothing was started", file=sys.stderr)
         return EX_CONFIG
     logs.configure(cfg.logging.level, cfg.logging.format, robot=cfg.robot_id)
+    for p in state_dir_problems(state_dir(cfg.pipeline)):     # degraded, not stopped: detection goes on
+        logs.get("supervisor").error("state_dir_unusable", problem=p,
+                                     note="starting anyway: fall events are kept in memory and the fallback file")
     return Supervisor(cfg).run()
 
 
