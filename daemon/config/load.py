@@ -193,7 +193,13 @@ def apply_override(data: dict, assignment: str) -> ConfigProblem | None:
     if not parts:
         return ConfigProblem("--set", f"{assignment!r} has an empty key")
     try:
+        if raw.strip():
+            node = yaml.compose(raw, Loader=yaml.SafeLoader)
+            if node is not None:
+                _check_aliases(node)
         value = yaml.safe_load(raw) if raw.strip() else ""
+    except ConfigError as exc:
+        return ConfigProblem(key, f"value {raw[:80]!r}: {exc.problems[0].message}")
     except (yaml.YAMLError, RecursionError) as exc:
         return ConfigProblem(key, f"value {raw[:80]!r} is not valid YAML: {exc}")
     node = data
@@ -267,6 +273,8 @@ def parse_yaml(raw: bytes) -> tuple[Any, list[ConfigProblem]]:
                                              f"{line}; save it as UTF-8 (e.g. iconv -f latin1 -t utf-8)")]) from None
     try:
         node = yaml.compose(text, Loader=yaml.SafeLoader)
+        if node is not None:
+            _check_aliases(node)               # before anything expands them: nothing may grow without bound
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise ConfigError([ConfigProblem("", f"not valid YAML: {exc}")]) from exc
@@ -274,13 +282,54 @@ def parse_yaml(raw: bytes) -> tuple[Any, list[ConfigProblem]]:
         raise ConfigError([ConfigProblem("", "not a config: lists or mappings nested too deeply")]) from None
     problems: list[ConfigProblem] = []
     if node is not None:
-        _duplicates(node, "", problems)
+        _duplicates(node, "", problems, set())
     return data, problems
 
 
-def _duplicates(node: Any, path: str, problems: list[ConfigProblem]) -> None:
+MAX_EXPANDED_NODES = 100_000    # the whole documented config is ~300 nodes; a "billion laughs" is 10^9
+
+
+def _check_aliases(root: Any) -> None:
+    """Refuse a document whose aliases refer to themselves (``a: &a [*a]``: infinite) or expand to more than
+    MAX_EXPANDED_NODES values (an alias bomb), counted on the composed graph, where an alias is one node
+    shared, in time linear in the text."""
     import yaml
 
+    sizes: dict[int, int] = {}
+    on_path: set[int] = set()
+
+    def size(node) -> int:
+        key = id(node)
+        if key in sizes:
+            return sizes[key]
+        if key in on_path:
+            raise ConfigError([ConfigProblem("", f"a YAML alias at line {node.start_mark.line + 1} refers to the "
+                                                 "list or mapping that holds it (an endless value); write the "
+                                                 "value out instead of the alias")])
+        on_path.add(key)
+        if isinstance(node, yaml.MappingNode):
+            n = 1 + sum(size(k) + size(v) for k, v in node.value)
+        elif isinstance(node, yaml.SequenceNode):
+            n = 1 + sum(size(v) for v in node.value)
+        else:
+            n = 1
+        on_path.discard(key)
+        if n > MAX_EXPANDED_NODES:
+            raise ConfigError([ConfigProblem("", f"the YAML aliases expand to more than {MAX_EXPANDED_NODES} "
+                                                 "values (an alias bomb?); a posed config needs a few hundred: "
+                                                 "write the values out instead of nesting aliases")])
+        sizes[key] = n
+        return n
+
+    size(root)
+
+
+def _duplicates(node: Any, path: str, problems: list[ConfigProblem], seen_nodes: set[int]) -> None:
+    import yaml
+
+    if id(node) in seen_nodes:      # an alias: the node it names was checked where it was defined
+        return
+    seen_nodes.add(id(node))
     if isinstance(node, yaml.MappingNode):
         seen: dict[str, int] = {}
         for key, value in node.value:
@@ -292,7 +341,7 @@ def _duplicates(node: Any, path: str, problems: list[ConfigProblem]) -> None:
                                                      "one would win silently: remove one"))
             else:
                 seen[name] = line
-            _duplicates(value, where, problems)
+            _duplicates(value, where, problems, seen_nodes)
     elif isinstance(node, yaml.SequenceNode):
         for i, item in enumerate(node.value):
-            _duplicates(item, f"{path}[{i}]", problems)
+            _duplicates(item, f"{path}[{i}]", problems, seen_nodes)
