@@ -2,15 +2,15 @@
 
 Times come from the folder's ``timestamps.jsonl`` sidecar, else from ``index / source.fps``. An image that
 does not decode raises SourceCorrupt naming the file; the next read goes on with the next image. So does an
-image larger than ``Source.max_pixels``: PNG, JPEG and BMP sizes are read from the file's header
-(:func:`header_size`), so such an image is never decoded; other formats are checked after decoding.
+image larger than ``Source.max_pixels``, and so does an image whose size cannot be read from its header
+(:func:`hal.image_header.header_size`: PNG, JPEG, BMP, WebP, PNM, TIFF): only an image whose size was read and
+found within the limit is ever decoded, so a crafted header cannot make the decoder allocate gigabytes.
 """
 
 from __future__ import annotations
 
 import os
 import re
-import struct
 from pathlib import Path
 
 import cv2
@@ -18,7 +18,9 @@ import numpy as np
 
 from posed.hal.config import SourceConfig
 from posed.hal.errors import SourceCorrupt, SourceNotFound
+from posed.hal.image_header import header_size
 from posed.hal.replay import MediaEnd, ReplaySource, as_bgr
+from posed.hal.resize import MAX_DECODE_PIXELS
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
 
@@ -31,43 +33,6 @@ def list_images(folder: str | os.PathLike) -> list[Path]:
     """The image files of a folder in natural order."""
     files = [p for p in Path(folder).iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
     return sorted(files, key=lambda p: _natural_key(p.name))
-
-
-def header_size(path: str | os.PathLike) -> tuple[int, int] | None:
-    """(width, height) from a PNG, JPEG or BMP header without decoding the pixels; None for other formats
-    or a header that cannot be read."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(32)
-            if head.startswith(b"\x89PNG\r\n\x1a\n") and head[12:16] == b"IHDR":
-                w, h = struct.unpack(">II", head[16:24])
-                return int(w), int(h)
-            if head.startswith(b"BM") and len(head) >= 26:
-                w, h = struct.unpack("<ii", head[18:26])
-                return abs(int(w)), abs(int(h))
-            if head.startswith(b"\xff\xd8"):
-                return _jpeg_size(fh)
-    except (OSError, struct.error):
-        return None
-    return None
-
-
-def _jpeg_size(fh) -> tuple[int, int] | None:
-    """Walk the JPEG markers up to the first start-of-frame (SOF0..SOF15 but DHT, JPG, DAC)."""
-    fh.seek(2)
-    for _ in range(10000):
-        marker = fh.read(2)
-        if len(marker) < 2 or marker[0] != 0xFF:
-            return None
-        kind = marker[1]
-        if kind in (0xD8, 0x01) or 0xD0 <= kind <= 0xD7:
-            continue
-        length = struct.unpack(">H", fh.read(2))[0]
-        if 0xC0 <= kind <= 0xCF and kind not in (0xC4, 0xC8, 0xCC):
-            h, w = struct.unpack(">xHH", fh.read(5))
-            return int(w), int(h)
-        fh.seek(length - 2, os.SEEK_CUR)
-    return None
 
 
 class ImageFolderSource(ReplaySource):
@@ -116,9 +81,14 @@ class ImageFolderSource(ReplaySource):
         index = self._next
         self._next += 1
         path = self.files[index]
-        size = header_size(path) if self.max_pixels else None
-        if size is not None:
-            self._check_size(path, *size)
+        size = header_size(path)                 # decoded only when known and within the limit
+        if size is None:
+            self.count("corrupt")
+            raise SourceCorrupt(f"{path}: cannot decode this image: its size cannot be read from its header "
+                                "(corrupt, crafted, or not a PNG, JPEG, BMP, WebP, PNM or TIFF image), and an "
+                                "image of unknown size is never decoded; skipping it — replace or delete the "
+                                "file", self.name)
+        self._check_size(path, *size)
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if image is None or image.size == 0:
             self.count("corrupt")
@@ -131,8 +101,9 @@ class ImageFolderSource(ReplaySource):
         return image, index, None
 
     def _check_size(self, path: Path, width: int, height: int) -> None:
-        if self.max_pixels and width * height > self.max_pixels:
+        limit = self.max_pixels or MAX_DECODE_PIXELS
+        if width * height > limit:
             self.count("corrupt")
             raise SourceCorrupt(f"{path}: a {width}x{height} image ({width * height} pixels) is larger than the "
-                                f"{self.max_pixels}-pixel frames this pipeline takes; skipping it", self.name,
+                                f"{limit}-pixel frames this pipeline takes; skipping it", self.name,
                                 pixels=width * height)
