@@ -59,8 +59,21 @@ def parse_history_parameters(params) -> tuple[float | None, float | None, int]:
     raises ValueError naming the bad one."""
     from posed.daemon.timeparse import parse_time
 
-    def get(key):
+    found: dict[str, str] = {}
+    for key in ("since", "until", "limit"):
         v = params.get(key) if params is not None else None
+        if v is None:
+            continue
+        # Zenoh separates parameters with ';'. A URL habit, since=2h&limit=50, reaches us as since="2h&limit=50":
+        # split it too rather than answer that "2h&limit=50" is not a time.
+        head, *rest = str(v).split("&")
+        found.setdefault(key, head)
+        for part in rest:
+            k, _, val = part.partition("=")
+            found.setdefault(k.strip(), val)
+
+    def get(key):
+        v = found.get(key)
         return v if v not in (None, "") else None
 
     since, until = get("since"), get("until")
