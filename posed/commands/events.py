@@ -146,6 +146,12 @@ def run_ack(args: argparse.Namespace) -> int:
             return 2
         elif not ids:
             print(f"posed events ack: {event_id!r} is not in {path}; sending it anyway", file=sys.stderr)
+        states = [s.event.state for s in stored if s.event.id == event_id]
+        if states and args.state and args.state not in states:
+            print(f"posed events ack: event {event_id} has no {args.state!r} message (its messages so far: "
+                  f"{', '.join(dict.fromkeys(states))}); acknowledge one of those with --state, or the whole "
+                  "event without --state", file=sys.stderr)
+            return 2
     robot = args.robot or cfg.robot_id
     endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg.zenoh)
     session = open_client(cfg, endpoints, args.wait, "posed events ack")
@@ -166,7 +172,9 @@ def run_ack(args: argparse.Namespace) -> int:
                 print(f"posed events ack: robot {robot} acknowledged {what} (its event history says so)")
                 return 0
             print(f"posed events ack: robot {robot}'s event history does not show {what} acknowledged after "
-                  f"{args.wait:g} s (is its daemon running, and is the id right?)", file=sys.stderr)
+                  f"{args.wait:g} s (is its daemon running, is the id right" + (
+                      f", and has the event a {args.state!r} message yet" if args.state else "") + "?)",
+                  file=sys.stderr)
             return 1
         # confirm from the journal the daemon writes (readable when it is ours or we may read the service's)
         deadline = time.monotonic() + args.wait

@@ -233,3 +233,22 @@ def test_events_ack_without_a_daemon_says_so(tmp_path, capsys):
                  "--journal", str(tmp_path / "none.sqlite3")])
     assert code == 1
     assert "cannot connect" in capsys.readouterr().err
+
+
+def test_ack_of_a_state_the_event_does_not_have_says_so_at_once(tmp_path, capsys):
+    """issue 34 item 8: `--state alarm` for an event with no alarm message said "is the daemon running?" after
+    the wait; the journal tells at once which messages the event has."""
+    from tests.daemon.zenoh_util import free_port
+
+    path = tmp_path / "events.sqlite3"
+    with EventJournal(path) as journal:
+        first = journal.append(fall("e1", 10.0))
+        journal.append(FallEvent(id=first.id, robot="r", state="on_floor", t_onset=9.0, t_impact=9.7,
+                                 t_detect=11.0, confidence=0.8))
+    t0 = time.monotonic()
+    code = main(["events", "ack", "e1", "--state", "alarm", "--connect", f"tcp/127.0.0.1:{free_port()}",
+                 "--wait", "5", "--journal", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "has no 'alarm' message" in err and "falling, on_floor" in err and "daemon running" not in err
+    assert time.monotonic() - t0 < 4.0
