@@ -14,6 +14,7 @@ from pathlib import Path
 
 from posed.daemon.config import Config
 from posed.hal import is_landmark_recording
+from posed.hal.registry import file_problem
 
 ROOT = Path(__file__).resolve().parent.parent
 SQUAT_VIDEO = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"
@@ -83,6 +84,8 @@ def check(cfg: Config) -> list[str]:
     if src.type == "file" and src.path and not Path(src.path).exists():
         problems.append(f"source.path: {src.path} does not exist; give a video, an image folder, a RealSense "
                         "recording or a .landmarks.jsonl (or --source file:PATH)")
+    elif src.type == "file" and src.path and (problem := file_problem(src.path)):
+        problems.append(f"source.path: {problem}")
     problems += _zenoh_problems(cfg)
     if not (src.type == "file" and src.path and is_landmark_recording(src.path)):
         problems += _model_problems(cfg)
@@ -145,3 +148,26 @@ def _model_problems(cfg: Config) -> list[str]:
             text += "; run: posed models fetch"
         return [f"landmarks: {text}"]
     return []
+
+
+def hook_program_problems(cfg: Config) -> list[str]:
+    """Hooks whose program does not exist or is not executable (as the publisher would start it: an absolute
+    or relative path as given, a bare name through PATH). Not a reason to stop detection: ``posed config check``
+    lists them (exit 78), ``posed run`` logs them and starts; such a hook would fail at the first fall."""
+    import shutil
+
+    problems = []
+    for i, hook in enumerate(cfg.hooks.on_event):
+        if not hook.argv or not hook.argv[0]:
+            continue                                  # check() reports an empty argv
+        prog = hook.argv[0]
+        found = Path(prog) if os.sep in prog else shutil.which(prog)
+        if found is None or not Path(found).is_file():
+            problems.append(f"hooks.on_event[{i}].argv[0]: {prog!r} does not exist"
+                            + ("" if os.sep in prog else " on PATH") + "; give the absolute path of an installed "
+                            "program (the hook would fail at the first fall)")
+        elif not os.access(found, os.X_OK):
+            problems.append(f"hooks.on_event[{i}].argv[0]: {found} is not executable; chmod +x it or give the "
+                            "program that runs it (e.g. argv: [/usr/bin/python3, script.py])")
+    return problems
+

@@ -79,6 +79,36 @@ def open_file(config: SourceConfig) -> Source:
     return _probe_unknown_file(config, path)
 
 
+def file_problem(path: str | os.PathLike) -> str | None:
+    """Why hal could not open the existing file ``path`` as a source (None: it can), checked before anything
+    starts: a known extension is trusted; another file must open as a video. A landmark recording under another
+    name is recognised by its header and told to take the suffix."""
+    p = Path(path)
+    if not p.is_file() or is_landmark_recording(p) or is_realsense_recording(p):
+        return None
+    from posed.hal.images import IMAGE_EXTENSIONS
+
+    if p.suffix.lower() in IMAGE_EXTENSIONS + VIDEO_EXTENSIONS:
+        return None
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(256)
+    except OSError as exc:
+        return f"{p} cannot be read ({exc.strerror or exc})"
+    if head.lstrip().startswith(b"{") and b'"posed.landmarks"' in head:
+        return (f"{p} is a landmark recording without the {LANDMARKS_SUFFIX} suffix: rename it to "
+                f"{p.with_suffix('').name}{LANDMARKS_SUFFIX} (the daemon replays landmark recordings by that name)")
+    import cv2
+
+    cap = cv2.VideoCapture(str(p), cv2.CAP_FFMPEG)
+    ok = cap.isOpened()
+    cap.release()
+    if not ok:
+        return (f"{p}: not a video, image, image folder, RealSense recording (.db3/.bag) or landmark recording "
+                f"({LANDMARKS_SUFFIX}) that posed can read; videos: {' '.join(VIDEO_EXTENSIONS)}")
+    return None
+
+
 def _probe_unknown_file(config: SourceConfig, path: str) -> Source:
     """A file with an unknown extension: accepted only when OpenCV can open it as a video."""
     import cv2

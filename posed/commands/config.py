@@ -41,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     from posed.daemon.config.paths import config_file, state_dir
-    from posed.daemon.preflight import check
+    from posed.daemon.preflight import check, hook_program_problems
     from posed.daemon.state_check import state_dir_problems
 
     path = args.file if args.file else config_file(None)
@@ -49,7 +49,7 @@ def _check(args: argparse.Namespace) -> int:
     cfg = load_config(path, overrides=args.overrides, source=args.source)
     problems = check(cfg)
     stopping = len(problems)            # these stop `posed run`; a failing state dir only degrades it
-    problems += state_dir_problems(state_dir(cfg.pipeline))
+    problems += state_dir_problems(state_dir(cfg.pipeline)) + hook_program_problems(cfg)
     lines: list[str] = []
     if args.source and not stopping:
         from posed.commands._probe import probe
@@ -62,7 +62,7 @@ def _check(args: argparse.Namespace) -> int:
         for p in problems:
             print(f"{name}: {p}", file=sys.stderr)
         print(f"posed: {len(problems)} problem(s); `posed run` would " + (
-            "not start" if stopping else "start degraded (fall events kept in memory and the fallback file)"),
+            "not start" if stopping else "start, degraded as said above"),
             file=sys.stderr)
         return EX_CONFIG
     for line in lines:

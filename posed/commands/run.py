@@ -18,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from posed.daemon.config.paths import state_dir
-    from posed.daemon.preflight import check, resolve_source
+    from posed.daemon.preflight import check, hook_program_problems, resolve_source
     from posed.daemon.state_check import state_dir_problems
     from posed.daemon.supervisor import Supervisor
 
@@ -33,6 +33,9 @@ def _run(args: argparse.Namespace) -> int:
     for p in state_dir_problems(state_dir(cfg.pipeline)):     # degraded, not stopped: detection goes on
         logs.get("supervisor").error("state_dir_unusable", problem=p,
                                      note="starting anyway: fall events are kept in memory and the fallback file")
+    for p in hook_program_problems(cfg):
+        logs.get("supervisor").error("hook_unusable", problem=p,
+                                     note="starting anyway: fall events are still published and journalled")
     return Supervisor(cfg).run()
 
 

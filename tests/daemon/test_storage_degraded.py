@@ -100,7 +100,7 @@ def test_config_check_flags_a_state_directory_it_cannot_write(tmp_path):
     r = subprocess.run([sys.executable, "-m", "posed.cli", "config", "check", "--set",
                         f"pipeline.state_dir={state}"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 78, (r.stdout, r.stderr)
-    assert "pipeline.state_dir" in r.stderr and "would start degraded" in r.stderr
+    assert "pipeline.state_dir" in r.stderr and "would start, degraded" in r.stderr
 
 
 def test_status_text_says_storage_is_degraded():
