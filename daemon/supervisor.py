@@ -390,6 +390,8 @@ class Supervisor:
                 "latency_ms": {"p50": rounded(r["lat_p50_ms"]), "p95": rounded(r["lat_p95_ms"]),
                                "max": rounded(r["lat_max_ms"])},
             }
+            if name == "web":
+                entry["bus_connected"] = not r["bus_down"]
             total_drops += int(r["drops"])
             if alive:
                 s = procstat.sample(proc.pid)

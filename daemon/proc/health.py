@@ -19,6 +19,7 @@ FIELDS = (
     "step_p50_ms", "step_p95_ms", "step_max_ms", "lat_p50_ms", "lat_p95_ms", "lat_max_ms",
     "camera", "skipped", "errors", "started", "go", "bad_frames",
     "unstored", "storage_fault",      # publisher: fall-event messages not on disk; 1 while the state dir fails
+    "bus_down",                       # web: 1 while it cannot reach the bus
 )
 F = {name: i for i, name in enumerate(FIELDS)}
 

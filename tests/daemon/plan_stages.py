@@ -108,3 +108,8 @@ PUBLISHER_PLAN = (
     StageSpec("capture", "tests.daemon.plan_stages:fall_fits", None, "fits"),
     StageSpec("publisher", "posed.daemon.stages.publish:run", "fits", None),
 )
+# the web stage beside a stage of scripted fits, with no publisher: nobody on its bus (tests/viz/test_web_bus.py)
+WEB_PLAN = (
+    StageSpec("capture", "tests.daemon.plan_stages:fall_fits", None, "fits"),
+    StageSpec("web", "posed.daemon.stages.web:run", None, None),
+)

@@ -11,7 +11,7 @@ import sys
 from posed.daemon import logs
 from posed.daemon.config import load_config
 from posed.daemon.supervisor import Supervisor
-from tests.daemon.plan_stages import FATAL_PLAN, PLAN, PUBLISHER_PLAN
+from tests.daemon.plan_stages import FATAL_PLAN, PLAN, PUBLISHER_PLAN, WEB_PLAN
 
 
 class RecordingSupervisor(Supervisor):
@@ -30,11 +30,12 @@ def main() -> int:
     parser.add_argument("status_file")
     parser.add_argument("--fatal", action="store_true")
     parser.add_argument("--publisher", action="store_true", help="scripted fall fits -> the real publisher")
+    parser.add_argument("--web", action="store_true", help="scripted fits and the web stage, no publisher")
     parser.add_argument("--set", action="append", default=[], dest="overrides")
     args = parser.parse_args()
     cfg = load_config(None, overrides=args.overrides)
     logs.configure("info", "json")
-    plan = FATAL_PLAN if args.fatal else PUBLISHER_PLAN if args.publisher else PLAN
+    plan = FATAL_PLAN if args.fatal else PUBLISHER_PLAN if args.publisher else WEB_PLAN if args.web else PLAN
     sup = RecordingSupervisor(cfg, plan, status_file=args.status_file)
     return sup.run()
 

@@ -66,6 +66,7 @@ class Hub:
         self._events: dict[tuple[str, str], dict] = {}
         self._acked: set[str] = set()
         self._alive: bool | None = None
+        self._bus: dict = {"connected": None, "reason": None, "fix": None}   # None: not known yet
         self.poses_in = 0
 
     # ------------------------------------------------------------------ browsers
@@ -99,6 +100,7 @@ class Hub:
             return {"type": "snapshot", "robot": self.robot, "status": self._status, "pose": self._pose,
                     "angles": [{"time_unix": t, "angles": a} for t, a in self._angles],
                     "events": list(self._events.values()), "acked": sorted(self._acked), "alive": self._alive,
+                    "bus": dict(self._bus),
                     "labels": {n: short_label(n) for n in (*MAIN_ANGLES, *CHART_ANGLES)}}
 
     # ------------------------------------------------------------------ robot
@@ -157,3 +159,13 @@ class Hub:
         with self._lock:
             self._alive = alive
         self._send({"type": "alive", "alive": alive})
+
+    def on_bus(self, connected: bool, reason: str | None, fix: str | None) -> None:
+        """Whether the page's side reaches the robot's bus at all (a page that cannot must say so, never show
+        an empty history as if nothing happened); sent to the browsers when it changes."""
+        bus = {"connected": connected, "reason": reason, "fix": fix}
+        with self._lock:
+            if bus == self._bus:
+                return
+            self._bus = bus
+        self._send({"type": "bus", **bus})

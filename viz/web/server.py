@@ -1,6 +1,13 @@
 """The HTTP side of the live view: the page, a Server-Sent Events stream, the event history and the
 acknowledge action (standard library ``http.server``, one thread per connection).
 
+Hostile local clients (any process on the robot can connect): at most ``MAX_CONNECTIONS`` connections are
+served at once (one more is answered ``503`` and closed at once, never queued), a request must arrive within
+``REQUEST_TIMEOUT_S`` and an idle kept-alive connection is closed after as long; a malformed request (a
+``Content-Length`` that is not a number, a body nested too deeply) is answered ``400``; every refusal and
+every handler failure is counted in ``WebServer.counters`` (the web stage logs them once per stats period),
+never printed as a traceback.
+
 Routes: ``GET /`` the page, ``GET /static/NAME`` its files, ``GET /stream`` the events (``text/event-stream``:
 first a ``snapshot``, then the hub's messages, a comment every ``KEEPALIVE_S`` so proxies keep it open),
 ``GET /api/history`` the robot's stored event messages, ``POST /api/ack`` ``{"id": ...}``.
@@ -18,7 +25,9 @@ from __future__ import annotations
 import hmac
 import json
 import queue
+import selectors
 import threading
+import time
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -32,6 +41,11 @@ TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=u
 KEEPALIVE_S = 15.0
 LOOPBACK_HOSTS = {"127.0.0.1", "localhost", "::1", "[::1]"}
 MAX_BODY = 4096
+MAX_CONNECTIONS = 64            # browsers open a handful each (the page, its files, the stream)
+REQUEST_TIMEOUT_S = 10.0        # to send a request, or between two on a kept-alive connection
+_BUSY_BODY = b'{"error": "too many connections to this page; try again in a moment"}\n'
+BUSY = (b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\nConnection: close\r\n"
+        b"Content-Length: " + str(len(_BUSY_BODY)).encode() + b"\r\n\r\n" + _BUSY_BODY)
 
 
 class WebServer(ThreadingHTTPServer):
@@ -39,11 +53,66 @@ class WebServer(ThreadingHTTPServer):
     ``history()``). ``port`` 0 picks a free one (``server_address`` tells which)."""
 
     daemon_threads = True
+    request_queue_size = 128
 
-    def __init__(self, hub: Hub, link, host: str = "127.0.0.1", port: int = 8780, token: str = "") -> None:
+    def __init__(self, hub: Hub, link, host: str = "127.0.0.1", port: int = 8780, token: str = "",
+                 max_connections: int = MAX_CONNECTIONS, request_timeout_s: float = REQUEST_TIMEOUT_S) -> None:
         self.hub, self.link, self.token = hub, link, token
         self.stopping = threading.Event()
+        self.request_timeout_s = request_timeout_s
+        self._slots = threading.BoundedSemaphore(max_connections)
+        self._count_lock = threading.Lock()
+        self.counters = {"busy": 0, "bad_request": 0, "timeout": 0, "failed": 0, "accept_failed": 0}
         super().__init__((host, port), _Handler)
+        self._waiting = _WaitingRoom(self)
+
+    def server_close(self) -> None:
+        waiting = getattr(self, "_waiting", None)      # None: the bind failed in __init__
+        if waiting is not None:
+            waiting.close()
+        super().server_close()
+
+    def count(self, what: str, n: int = 1) -> None:
+        with self._count_lock:
+            self.counters[what] = self.counters.get(what, 0) + n
+
+    def process_request(self, request, client_address) -> None:
+        """A new connection waits in the waiting room (no thread) until it sends something."""
+        self._waiting.add(request, client_address)
+
+    def dispatch(self, request, client_address) -> None:
+        """A connection with a request to read: a thread while a slot is free; otherwise 503 at once."""
+        if not self._slots.acquire(blocking=False):
+            self.count("busy")
+            try:
+                request.settimeout(0.5)
+                request.sendall(BUSY)
+            except OSError:
+                pass
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except Exception:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request, client_address) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
+
+    def handle_error(self, request, client_address) -> None:
+        """A handler that raised: counted, never a traceback on stderr (one per hostile request before)."""
+        self.count("failed")
+
+    def _handle_request_noblock(self) -> None:
+        try:
+            super()._handle_request_noblock()
+        except OSError:         # accept failed (out of file descriptors): counted, the next poll tries again
+            self.count("accept_failed")
+            self.stopping.wait(0.05)    # never a busy loop at 100 % of a core
 
     @property
     def url(self) -> str:
@@ -56,12 +125,110 @@ class WebServer(ThreadingHTTPServer):
         super().shutdown()
 
 
+class _WaitingRoom:
+    """Connections that sent nothing yet, watched by one thread (a selector): an idle connection costs a file
+    descriptor, never a thread or a slot. One that becomes readable goes to ``server.dispatch``; one silent
+    for ``request_timeout_s`` is closed (counted ``timeout``); beyond ``MAX_WAITING`` the newest is closed at
+    once (counted ``busy``)."""
+
+    MAX_WAITING = 4096
+
+    def __init__(self, server: WebServer) -> None:
+        self.server = server
+        self._sel = selectors.DefaultSelector()
+        self._lock = threading.Lock()
+        self._deadlines: dict[int, float] = {}
+        self._closed = False
+        threading.Thread(target=self._run, name="posed-web-waiting", daemon=True).start()
+
+    def add(self, request, client_address) -> None:
+        with self._lock:
+            if self._closed or len(self._deadlines) >= self.MAX_WAITING:
+                self.server.count("busy")
+                self.server.shutdown_request(request)
+                return
+            self._sel.register(request, selectors.EVENT_READ, client_address)
+            self._deadlines[request.fileno()] = time.monotonic() + self.server.request_timeout_s
+
+    def _run(self) -> None:
+        while not self._closed:
+            try:
+                ready = self._sel.select(timeout=0.2)
+            except (OSError, ValueError, KeyError):
+                if self._closed:
+                    return
+                time.sleep(0.05)
+                continue
+            now = time.monotonic()
+            with self._lock:
+                if self._closed:
+                    return
+                go = []
+                for key, _ in ready:
+                    self._forget(key.fileobj)
+                    go.append((key.fileobj, key.data))
+                expired = [k for k in self._sel.get_map().values() if self._deadlines.get(k.fd, now) < now]
+                for key in expired:
+                    self._forget(key.fileobj)
+            for key in expired:
+                self.server.count("timeout")
+                self.server.shutdown_request(key.fileobj)
+            for request, address in go:
+                self.server.dispatch(request, address)
+
+    def _forget(self, request) -> None:
+        self._deadlines.pop(request.fileno(), None)
+        self._sel.unregister(request)
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            for key in list(self._sel.get_map().values()):
+                self._sel.unregister(key.fileobj)
+                self.server.shutdown_request(key.fileobj)
+            self._deadlines.clear()
+        self._sel.close()
+
+
 class _Handler(BaseHTTPRequestHandler):
     server: WebServer
     protocol_version = "HTTP/1.1"
 
+    def setup(self) -> None:
+        self.timeout = self.server.request_timeout_s      # the socket's timeout for every read and write
+        super().setup()
+
     def log_message(self, format, *args) -> None:   # no per-request logs
         pass
+
+    def log_error(self, format, *args) -> None:
+        if "timed out" in format:          # http.server's own: no request within the timeout
+            self.server.count("timeout")
+
+    def handle_one_request(self) -> None:
+        try:
+            super().handle_one_request()
+        except TimeoutError:                # a write that timed out
+            self.server.count("timeout")
+            self.close_connection = True
+        except (ConnectionResetError, BrokenPipeError):
+            self.close_connection = True
+
+    def send_error(self, code, message=None, explain=None) -> None:
+        """http.server's own refusals (a malformed request line or header): counted, answered as JSON."""
+        self.server.count("bad_request")
+        self.close_connection = True
+        if self.request_version == "HTTP/0.9":     # an unreadable request line: answer with a status line anyway
+            self.request_version = "HTTP/1.0"
+        try:
+            self._send_json({"error": message or HTTPStatus(code).phrase}, HTTPStatus(code))
+        except (OSError, ValueError):
+            pass
+
+    def _bad(self, text: str, status: HTTPStatus = HTTPStatus.BAD_REQUEST) -> None:
+        self.server.count("bad_request")
+        self.close_connection = True
+        self._send_json({"error": text}, status)
 
     # ------------------------------------------------------------------ checks
     def _allowed(self) -> bool:
@@ -129,14 +296,19 @@ class _Handler(BaseHTTPRequestHandler):
         if self.headers.get("X-Posed") != "ack":
             self._send_json({"error": "missing header X-Posed: ack"}, HTTPStatus.FORBIDDEN)
             return
-        length = int(self.headers.get("Content-Length") or 0)
+        raw_length = (self.headers.get("Content-Length") or "0").strip()
+        if not raw_length.isdigit():
+            self._bad(f"Content-Length {raw_length[:20]!r} is not a number")
+            return
+        length = int(raw_length)
         if not 0 < length <= MAX_BODY:
-            self._send_json({"error": "body must be {\"id\": EVENT_ID}"}, HTTPStatus.BAD_REQUEST)
+            self._bad("body must be {\"id\": EVENT_ID}", HTTPStatus.BAD_REQUEST if length <= MAX_BODY
+                      else HTTPStatus.REQUEST_ENTITY_TOO_LARGE)
             return
         try:
             event_id = str(json.loads(self.rfile.read(length))["id"])
-        except (ValueError, KeyError, TypeError):
-            self._send_json({"error": "body must be {\"id\": EVENT_ID}"}, HTTPStatus.BAD_REQUEST)
+        except (ValueError, KeyError, TypeError, RecursionError):
+            self._bad("body must be {\"id\": EVENT_ID}")
             return
         try:
             ok = self.server.link.ack(event_id)

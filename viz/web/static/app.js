@@ -202,6 +202,14 @@ function showStatus(s) {
   setText("st-camera", s.camera || "–"); setText("st-drops", s.drops); setText("st-restarts", s.restarts);
 }
 
+function showBus(bus) {  // the page cannot reach the robot's bus: say so, never show an empty history as all well
+  const el = document.getElementById("bus");
+  if (!bus || bus.connected !== false) { el.hidden = true; return; }
+  el.hidden = false;
+  el.textContent = "Not connected to the robot: " + (bus.reason || "no answer") +
+    ". Falls are NOT shown here until this is fixed. Fix: " + (bus.fix || "check the Zenoh configuration") + ".";
+}
+
 function showAlive(alive) {
   const el = document.getElementById("alive");
   el.textContent = alive === null ? "robot: ?" : alive ? "robot: up" : "robot: GONE";
@@ -326,7 +334,7 @@ function onMessage(m) {
     if (m.status) showStatus(m.status);
     for (const e of m.events) view.events[e.id + "/" + e.state] = e;
     for (const id of m.acked) view.acked[id] = true;
-    showAlive(m.alive);
+    showAlive(m.alive); showBus(m.bus);
     if (m.pose) { view.lastPose = m.pose; if (m.pose.ok) view.lastGood = m.pose; drawSkeleton(); }
     showEvents(); drawChart();
   } else if (m.type === "pose") {
@@ -345,6 +353,8 @@ function onMessage(m) {
     if (m.confirmed) view.acked[m.id] = true; showEvents();
   } else if (m.type === "alive") {
     showAlive(m.alive);
+  } else if (m.type === "bus") {
+    showBus(m); loadHistory();
   }
 }
 
