@@ -89,5 +89,6 @@ def run(args: argparse.Namespace) -> int:
     ok = report["totals"]["lost"] == 0 and all(
         r["exit_status"] == 0 and r["daemon_survived_chaos"] and r["hooks_left_running"] == 0
         and (not r.get("web") or 0 < r["web"]["probes"] == r["web"]["answered"])
+        and (not (r.get("storage") or {}).get("faults") or r["storage"]["status_states"].get("degraded", 0) > 0)
         for r in report["runs"])
     return 0 if ok else 1

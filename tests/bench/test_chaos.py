@@ -55,4 +55,5 @@ def test_small_campaign_loses_no_event(tmp_path):
     assert run["limit_nofile"] > 0 and report["plan"]["clock_jumps"]
     if os.geteuid() == 0:          # CI runs as root: the state directory is a tmpfs of its own
         assert [f[0] for f in run["storage"]["faults"]] == ["read_only", "full", "freed"], run["storage"]
+        assert run["storage"]["status_states"].get("degraded", 0) >= 1, run["storage"]    # the status said so
     assert r.returncode == 0, r.stderr[-3000:]
