@@ -344,6 +344,10 @@ class HookRunner:
         """Hook processes running now."""
         return sum(w.running() for w in self._workers)
 
+    def pids(self) -> set[int]:
+        """The hook processes this runner started and still waits for."""
+        return {p.pid for p in (w._proc for w in self._workers) if p is not None}
+
     def wait_idle(self, timeout: float) -> bool:
         """Wait until every queued event has been handled; True if so before ``timeout`` seconds."""
         deadline = time.monotonic() + timeout

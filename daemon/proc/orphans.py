@@ -6,6 +6,13 @@ therefore carries ``POSED_HOOK_OWNER=<supervisor pid>:<stage pid>`` in its envir
 starts inherits it. The supervisor ends the processes of a stage it found dead before it starts the stage
 again, everything its own stages left at shutdown, and at start-up whatever a killed supervisor's stages left
 (an owner supervisor that no longer runs). Linux ``/proc`` only; elsewhere nothing is found.
+
+A hook may also leave its session (``setsid``) and clear its environment (``env -i``): no tag, no group. So
+the publisher is a child subreaper (:func:`become_subreaper`, Linux ``PR_SET_CHILD_SUBREAPER``): whatever a
+hook leaves behind when it exits is re-parented to the publisher instead of init. The publisher reaps those
+adopted processes when they exit (:func:`reap_adopted`) and ends every descendant when it stops
+(:func:`descendants`), which it also does when the supervisor was killed -9 (the stages notice their parent is
+gone and stop).
 """
 
 from __future__ import annotations
@@ -96,3 +103,62 @@ def of_supervisor(supervisor_pid: int) -> list[int]:
 def of_dead_supervisors() -> list[int]:
     """What the stages of supervisors that no longer run left behind (a kill -9 of the whole daemon)."""
     return owned(lambda sup, _stage: not alive(sup))
+
+
+PR_SET_CHILD_SUBREAPER = 36
+
+
+def become_subreaper() -> bool:
+    """Make this process the one orphaned descendants are re-parented to (Linux 3.4+); False elsewhere."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _stat(pid: str, proc: Path) -> tuple[int, str] | None:
+    """(parent pid, state letter) of a process, None when it is gone."""
+    try:
+        rest = (proc / pid / "stat").read_text().rsplit(")", 1)[1].split()
+        return int(rest[1]), rest[0]
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def descendants(root: int, proc: Path = Path("/proc")) -> list[int]:
+    """Every process below ``root`` (children, their children, ...), found through /proc's parent pids."""
+    children: dict[int, list[int]] = {}
+    try:
+        entries = [e.name for e in proc.iterdir() if e.name.isdigit()]
+    except OSError:
+        return []
+    for name in entries:
+        st = _stat(name, proc)
+        if st is not None:
+            children.setdefault(st[0], []).append(int(name))
+    out, todo = [], list(children.get(root, []))
+    while todo:
+        pid = todo.pop()
+        out.append(pid)
+        todo += children.get(pid, [])
+    return out
+
+
+def reap_adopted(keep: set[int], proc: Path = Path("/proc")) -> int:
+    """Reap this process's exited children other than ``keep`` (the hooks it started itself, which their
+    ``subprocess.Popen`` waits for): what a subreaper adopted. Returns how many were reaped."""
+    me, reaped = os.getpid(), 0
+    for pid in descendants(me, proc):
+        st = _stat(str(pid), proc)
+        if st is None or st[0] != me or st[1] != "Z" or pid in keep:
+            continue
+        try:
+            if os.waitpid(pid, os.WNOHANG)[0] == pid:
+                reaped += 1
+        except ChildProcessError:
+            pass
+    return reaped
+

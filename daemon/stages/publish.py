@@ -29,6 +29,8 @@ router, a busy port) the stage keeps consuming frames, journals events and retri
 from __future__ import annotations
 
 import contextlib
+import os
+from pathlib import Path
 
 from posed.daemon import clock
 from posed.daemon.bus.link import BusLink
@@ -50,6 +52,7 @@ from posed.daemon.outbox.fallback import FallbackStore, fallback_path
 from posed.daemon.outbox.hooks import HookRunner
 from posed.daemon.outbox.journal import EventJournal
 from posed.daemon.outbox.private import private_file, private_folder
+from posed.daemon.proc import orphans
 from posed.daemon.stages.base import StageRuntime
 from posed.daemon.stages.fall_watch import FallWatch, geometry_file
 
@@ -72,6 +75,8 @@ class PublisherStage:
         self.outbox = EventOutbox(journal, HookRunner(cfg.hooks), self._send_event, rt.log,
                                   cfg.zenoh.event_republish_s)
         self.ros2 = Ros2Bridge(cfg.ros2, rt.log) if cfg.ros2.enabled else None    # docs/ros2.md
+        self.subreaper = orphans.become_subreaper()     # what a hook leaves behind (setsid) comes back here
+        self._next_reap = 0.0
         self._stack = stack
         self.history = HistoryRecorder(
             AngleHistory(paths.history_path(cfg.pipeline), cfg.falls) if cfg.falls.history_enabled else None,
@@ -107,6 +112,9 @@ class PublisherStage:
             self.outbox.subscriber_appeared(now)
         self.outbox.tick(now, self.bus.event_subscribed)
         self.history.tick(now)
+        if self.subreaper and now >= self._next_reap:
+            self._next_reap = now + 1.0
+            orphans.reap_adopted(self.outbox.hooks.pids())
         storage = self.storage()
         self.rt.row.set("unstored", storage["unstored_events"])
         self.rt.row.set("storage_fault", 0.0 if storage["state"] == "ok" else 1.0)
@@ -146,6 +154,12 @@ class PublisherStage:
         self.bus.forget()
         self.outbox.close(hook_timeout_s=0.5)     # then TERM, KILL: within pipeline.shutdown_timeout_s
         self.rt.row.set("unstored", self.outbox.journal.pending_in_memory)   # the supervisor says it at stop
+        if self.subreaper:                          # what the hooks left behind (setsid, env -i): adopted here
+            left = [p for p in orphans.descendants(os.getpid()) if not _is_resource_tracker(p)]
+            if left:
+                self.rt.log.warning("hook_children_ended", pids=left[:20], count=len(left),
+                                    note="processes the hooks left running (setsid) ended with the publisher")
+                orphans.end(left)
         self.history.close()
         self.falls.close()                         # keep the geometry learned from people
 
@@ -163,6 +177,13 @@ class PublisherStage:
 
     def _acknowledge(self, event_id: str, state: str | None) -> None:
         self.outbox.acknowledge(event_id, state)
+
+
+def _is_resource_tracker(pid: int) -> bool:
+    try:
+        return b"resource_tracker" in Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return False
 
 
 def run(rt: StageRuntime) -> None:
