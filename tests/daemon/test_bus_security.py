@@ -85,6 +85,11 @@ def test_only_listed_receivers_ack_and_read_history(tmp_path):
                 f"pipeline.state_dir={tmp_path / 'state'}", "robot_id=sec", "zenoh.event_republish_s=600",
                 *FALL_OVERRIDES, publisher=True)
     try:
+        (tmp_path / "watching").mkdir()
+        stranger_all = _receiver(tmp_path / "watching", certs, "stranger", ep)
+        seen_acks: list[str] = []        # what an unlisted certificate subscribed to posed/** gets of the acks
+        _all = stranger_all.declare_subscriber("posed/**", lambda s: seen_acks.append(s.payload.to_string())
+                                               if str(s.key_expr).endswith("/events/ack") else None)
         with _receiver(tmp_path, certs, "stranger", ep) as stranger:
             # an unlisted certificate from the same CA may watch: it gets the status ...
             statuses, _sub = _statuses(stranger, "sec")
@@ -114,6 +119,13 @@ def test_only_listed_receivers_ack_and_read_history(tmp_path):
             assert r.returncode == 0, r.stdout + r.stderr
             until(lambda: statuses and statuses[-1]["events"]["unacknowledged"] == 0, 10, "the listed ack")
             assert all(acked is not None for _, acked in _journal(tmp_path))
+            listed.put("posed/sec/events/ack", json.dumps({"id": event_id, "by": "caregiver"}))
+            time.sleep(1.0)
+        # the listed receivers' acknowledgements stop at the daemon: an unlisted watcher of posed/** never
+        # sees them (the red-team's finding: it did)
+        assert seen_acks == [], seen_acks
+        _all.undeclare()
+        stranger_all.close()
 
         # no certificate at all, or plain TCP to the TLS port: no session
         nocert = tmp_path / "nocert.json5"
