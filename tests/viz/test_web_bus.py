@@ -89,3 +89,42 @@ def test_a_web_stage_without_a_bus_says_so_on_the_page_in_the_status_and_the_log
     lines = [json.loads(x) for x in (tmp_path / "out.log").read_text().splitlines() if x.startswith("{")]
     cannot = [r for r in lines if r.get("event") == "web_cannot_connect"]
     assert len(cannot) == 1 and cannot[0]["fix"], cannot
+
+
+def test_the_page_says_when_the_robot_cannot_store_fall_events(tmp_path):
+    """issue 34 item 2: a state directory that fails is reported on the web view too, not only in the status."""
+    import threading
+
+    from posed.client.types import Status
+    from posed.viz.web.hub import Hub
+    from posed.viz.web.server import WebServer
+
+    class _Robot:
+        def ack(self, event_id):
+            return True
+
+        def history(self):
+            return []
+
+    hub = Hub("r")
+    status = {"format": "posed.status", "robot": "r", "state": "running", "fps": 10.0, "drops": 0, "restarts": 0,
+              "latency_ms": {"p95": 20.0}, "camera": {"state": "open"}, "events": {"unacknowledged": 2},
+              "storage": {"state": "degraded", "unstored_events": 29, "fallback": "/run/posed/u.jsonl",
+                          "reason": "cannot open the event journal: disk full", "fix": "free disk space"}}
+    hub.on_status("r", Status.from_json(status))
+    assert hub.snapshot()["status"]["storage"]["unstored_events"] == 29
+    server = WebServer(hub, _Robot(), "127.0.0.1", 0)
+    threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
+    try:
+        with Browser(tmp_path / "profile") as b:
+            b.open(f"http://127.0.0.1:{server.server_address[1]}/")
+            text = b.wait_for("(() => { const e = document.getElementById('storage'); "
+                              "return e && !e.hidden && e.textContent; })()", 20, "the storage banner")
+            b.screenshot(ARTIFACTS / "web_storage_degraded.png")
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert "cannot store fall events" in text and "29 kept in memory" in text and "/run/posed/u.jsonl" in text
+    status["storage"] = {"state": "ok", "unstored_events": 0, "fallback": "/run/posed/u.jsonl"}
+    hub.on_status("r", Status.from_json(status))
+    assert hub.snapshot()["status"]["storage"] is None

@@ -131,7 +131,8 @@ class Hub:
         msg = {"type": "status", "state": status.state, "fps": _num(status.fps),
                "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
-               "time_unix": _num(status.time_unix), "floor": floor_of(status.raw)}
+               "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
+               "storage": storage_of(status.raw)}
         with self._lock:
             self._status = msg
         self._send(msg)
@@ -169,3 +170,13 @@ class Hub:
                 return
             self._bus = bus
         self._send({"type": "bus", **bus})
+
+
+def storage_of(raw) -> dict | None:
+    """The status' ``storage`` (the state directory) as the page shows it: None while all is well."""
+    st = (raw or {}).get("storage") if isinstance(raw, dict) else None
+    if not isinstance(st, dict) or st.get("state", "ok") == "ok":
+        return None
+    return {"unstored_events": st.get("unstored_events"), "fallback": st.get("fallback"),
+            "reason": st.get("reason"), "fix": st.get("fix")}
+

@@ -200,6 +200,11 @@ function showStatus(s) {
   setText("st-state", s.state); setText("st-fps", view.fpsText);
   setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
   setText("st-camera", s.camera || "–"); setText("st-drops", s.drops); setText("st-restarts", s.restarts);
+  const storage = document.getElementById("storage");   // the state directory fails: fall events not on disk
+  storage.hidden = !s.storage;
+  if (s.storage) storage.textContent = "The robot cannot store fall events on its disk: " +
+    (s.storage.unstored_events || 0) + " kept in memory and in " + (s.storage.fallback || "its fallback file") +
+    " (" + (s.storage.reason || "the state directory fails") + "). Fix: " + (s.storage.fix || "check its disk") + ".";
 }
 
 function showBus(bus) {  // the page cannot reach the robot's bus: say so, never show an empty history as all well
