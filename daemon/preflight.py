@@ -13,8 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from posed.daemon.config import Config
-from posed.hal import is_landmark_recording
-from posed.hal.registry import file_problem
+from posed.hal import file_problem, is_landmark_recording
 
 ROOT = Path(__file__).resolve().parent.parent
 SQUAT_VIDEO = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"

@@ -30,7 +30,14 @@ from posed.hal.errors import (
 )
 from posed.hal.frame import Frame
 from posed.hal.recorder import RecordSummary, check_output, record
-from posed.hal.registry import REGISTRY, is_landmark_recording, is_realsense_recording, open_source, register
+from posed.hal.registry import (
+    REGISTRY,
+    file_problem,
+    is_landmark_recording,
+    is_realsense_recording,
+    open_source,
+    register,
+)
 from posed.hal.resize import MAX_DECODE_PIXELS, downscale, downscale_depth, scale_factor, working_size
 from posed.hal.source import Source
 from posed.hal.uri import parse_uri, to_uri
@@ -41,6 +48,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_DECODE_PIXELS",
     "REGISTRY",
+    "file_problem",
     "Db3Writer",
     "EndOfStream",
     "Frame",

@@ -65,7 +65,7 @@ if TYPE_CHECKING:
         OnnxLandmarkModel,
         SessionSettings,
     )
-    from posed.landmarks.tracks import PersonTracker
+    from posed.landmarks.tracks import PersonTracker, landmark_box, oks
 
 __all__ = [
     "DETECTOR_INPUT_SIZE",
@@ -94,7 +94,9 @@ __all__ = [
     "detector_input",
     "dumps",
     "find_models",
+    "oks",
     "iter_recording",
+    "landmark_box",
     "landmark_input",
     "read_recording",
     "rotate_image",
@@ -122,6 +124,8 @@ _ORIGIN = {
     "PoseLandmarker": ("posed.landmarks.pipeline", "PoseLandmarker"),
     "MultiPoseLandmarker": ("posed.landmarks.people", "MultiPoseLandmarker"),
     "PersonTracker": ("posed.landmarks.tracks", "PersonTracker"),
+    "landmark_box": ("posed.landmarks.tracks", "landmark_box"),
+    "oks": ("posed.landmarks.tracks", "oks"),
     "PersonLandmarks": ("posed.landmarks.recording", "PersonLandmarks"),
     "rotate_image": ("posed.landmarks.pipeline", "rotate_image"),
     "rotate_points": ("posed.landmarks.pipeline", "rotate_points"),

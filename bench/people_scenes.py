@@ -1,0 +1,191 @@
+"""Two-person scenes composited from real single-person footage, for ``posed bench people`` (issue 36).
+
+Person A is the woman of the real squat video (tfjs_pose_squats, 65 frames at 5 fps, 720x1280), whose BlazePose
+full landmarks the tfjs-models project published (``pose_squats.full.json``: the truth A's errors are taken
+against). Her room is the scene: each of her frames, scaled to the 1280x720 canvas's height, sits in its middle
+(x 420..825), the canvas's sides continuing its edge columns (a plain wall and floor). Person B is the man of
+pose2sim's real "balancing" video, camera 3 (1088x1920, 60 fps; its first 65 frames), cut out of his video by
+a foreground mask (the pixels that differ from the clip's median frame, the camera being still; the largest
+connected parts: no learned segmentation, no image leaves the machine) and pasted in, scaled to the canvas
+height times his scenario's scale (smaller is farther away).
+
+Scenarios (``SCENARIOS``): ``apart`` (B on the right, never touching A); ``cross_behind`` (B, smaller, walks
+from the right edge past A to the left, drawn behind A: she hides him as they cross); ``cross_front`` (B, full
+size, walks across in front of A: he hides her). Each scene also exists with one person only (the same
+placement; for A alone, her own frames; for B alone, her empty room, the median of her frames with the
+canvas's sides): what the landmarker gives for each person alone is the reference of their two-person error.
+
+Pixels in the canvas's frame; a scene is a list of BGR frames plus, per frame, A's and B's placement.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+SQUAT = Path("reference") / "tfjs_pose_squats"
+BALANCING = Path("reference") / "pose2sim_demo" / "balancing" / "cam03.mp4"
+CANVAS = (1280, 720)                     # width, height
+FRAMES = 65                              # the squat video's length
+MASK_THRESHOLD = 40                      # summed |BGR - median| above which a pixel is the person's
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a person's clip goes on the canvas: its left edge ``x`` and its ``scale`` of the canvas height
+    (its bottom stays on the canvas's bottom)."""
+
+    x: float
+    scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    a: tuple[Placement, ...]             # per frame
+    b: tuple[Placement, ...]
+    b_first: bool                        # B drawn before A (A in front)
+
+
+def _linear(x0: float, x1: float, scale: float = 1.0) -> tuple[Placement, ...]:
+    return tuple(Placement(x0 + (x1 - x0) * k / (FRAMES - 1), scale) for k in range(FRAMES))
+
+
+A_X = 420                                # A's frame's left edge on the canvas
+
+SCENARIOS = (
+    Scenario("apart", (Placement(A_X),) * FRAMES, (Placement(930),) * FRAMES, False),
+    Scenario("cross_behind", (Placement(A_X),) * FRAMES, _linear(1000, -150, 0.75), True),
+    Scenario("cross_front", (Placement(A_X),) * FRAMES, _linear(1000, -150, 1.0), False),
+)
+
+
+@dataclass
+class Clip:
+    """A person's frames, their foreground masks and (A only) the published landmarks, in the clip's pixels."""
+
+    frames: list[np.ndarray]
+    masks: list[np.ndarray]
+    background: np.ndarray
+    truth: list[np.ndarray] | None = None     # (33, 3) x, y, z per frame
+
+
+def _read(path: Path, n: int) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(path))
+    out = []
+    try:
+        while len(out) < n:
+            ok, image = cap.read()
+            if not ok:
+                break
+            out.append(image)
+    finally:
+        cap.release()
+    if not out:
+        raise FileNotFoundError(f"{path}: no frame could be read (the shared data's real video)")
+    return out
+
+
+def _masks(frames: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
+    background = np.median(np.stack(frames[:: max(1, len(frames) // 25)]), axis=0).astype(np.uint8)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9))
+    masks = []
+    for f in frames:
+        diff = np.abs(f.astype(np.int16) - background.astype(np.int16)).sum(axis=2) > MASK_THRESHOLD
+        m = cv2.morphologyEx(diff.astype(np.uint8), cv2.MORPH_OPEN, kernel)
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, kernel, iterations=2)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(m)
+        if n > 1:
+            areas = stats[1:, cv2.CC_STAT_AREA]
+            keep = 1 + np.flatnonzero(areas >= 0.2 * areas.max())
+            m = np.isin(labels, keep).astype(np.uint8)
+        masks.append(cv2.dilate(m, kernel) > 0)
+    return masks, background
+
+
+def load_clips(shared: Path) -> tuple[Clip, Clip]:
+    """Person A (the squat video, with its published landmarks) and person B (pose2sim camera 3)."""
+    a_frames = _read(shared / SQUAT / "pose_squats.mp4", FRAMES)
+    truth = [np.asarray(f, dtype=np.float64) for f in json.loads((shared / SQUAT / "pose_squats.full.json").read_text())]
+    a_masks, a_bg = _masks(a_frames)
+    b_frames = _read(shared / BALANCING, FRAMES)
+    b_masks, b_bg = _masks(b_frames)
+    return Clip(a_frames, a_masks, a_bg, truth[: len(a_frames)]), Clip(b_frames, b_masks, b_bg)
+
+
+def room(image: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """``image`` (one of A's frames, or her empty room) scaled to the canvas height at x ``A_X``, the canvas's
+    sides continuing its edge columns; and the mapping (s, dx, dy) from A's pixels to the canvas."""
+    w, h = CANVAS
+    s = h / image.shape[0]
+    img = cv2.resize(image, (round(image.shape[1] * s), h), interpolation=cv2.INTER_AREA)
+    right = w - A_X - img.shape[1]
+    canvas = cv2.copyMakeBorder(img, 0, 0, A_X, right, cv2.BORDER_REPLICATE)
+    return np.ascontiguousarray(canvas), (s, float(A_X), 0.0)
+
+
+def empty_room(a: Clip) -> np.ndarray:
+    """A's room without her: her median frame with the box around everywhere her mask ever reached (she
+    squats in place, so parts of her never differ from the median) filled in from around it (cv2.inpaint)."""
+    union = np.any(np.stack(a.masks), axis=0)
+    ys, xs = np.nonzero(union)
+    bg = a.background.copy()
+    if xs.size:
+        pad = 25
+        hole = np.zeros(union.shape, np.uint8)
+        hole[max(0, ys.min() - pad): ys.max() + 4 * pad, max(0, xs.min() - pad): xs.max() + pad] = 1   # the feet
+        bg = cv2.inpaint(bg, hole, 9, cv2.INPAINT_TELEA)
+    return bg
+
+
+def _paste(canvas: np.ndarray, clip: Clip, k: int, place: Placement) -> tuple[float, float, float]:
+    """Paste frame ``k`` of ``clip``'s person at ``place``; returns (scale, dx, dy): clip pixels -> canvas."""
+    w, h = CANVAS
+    frame, mask = clip.frames[k % len(clip.frames)], clip.masks[k % len(clip.masks)]
+    s = h * place.scale / frame.shape[0]
+    size = (max(1, round(frame.shape[1] * s)), max(1, round(frame.shape[0] * s)))
+    img = cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
+    m = cv2.resize(mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+    x0, y0 = round(place.x), h - size[1]
+    cx0, cx1 = max(0, x0), min(w, x0 + size[0])
+    cy0 = max(0, y0)                          # a person taller than the canvas loses the top rows
+    if cx1 > cx0:
+        sub = m[cy0 - y0:, cx0 - x0: cx1 - x0]
+        region = canvas[cy0: y0 + size[1], cx0:cx1]
+        region[sub] = img[cy0 - y0:, cx0 - x0: cx1 - x0][sub]
+    return s, float(x0), float(y0)
+
+
+def compose(a: Clip, b: Clip, scenario: Scenario, who: str = "ab") -> tuple[list[np.ndarray], list[dict]]:
+    """The scene's frames with ``who`` in view ("ab", "a" or "b") and, per frame, each person's mapping from
+    their clip's pixels to the canvas ``{"a": (s, dx, dy), "b": ...}``."""
+    empty = room(empty_room(a))[0]
+    frames, maps = [], []
+    for k in range(FRAMES):
+        m = {}
+        if "a" in who:
+            canvas, m["a"] = room(a.frames[k])
+        else:
+            canvas = empty.copy()
+        if "b" in who:
+            if scenario.b_first and "a" in who:    # B behind A: only where A's mask leaves him visible
+                behind = empty.copy()
+                m["b"] = _paste(behind, b, k, scenario.b[k])
+                a_mask = room((a.masks[k] * 255).astype(np.uint8))[0] > 127
+                changed = np.any(behind != empty, axis=2) & ~a_mask
+                canvas[changed] = behind[changed]
+            else:
+                m["b"] = _paste(canvas, b, k, scenario.b[k])
+        frames.append(canvas)
+        maps.append(m)
+    return frames, maps
+
+
+def truth_on_canvas(a: Clip, k: int, mapping: tuple[float, float, float]) -> np.ndarray:
+    """A's published landmarks of frame ``k`` in canvas pixels, (33, 2)."""
+    s, dx, dy = mapping
+    return a.truth[k][:, :2] * s + np.array([dx, dy])
