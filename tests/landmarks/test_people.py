@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 
-import cv2
 import numpy as np
 import pytest
 
@@ -16,23 +15,13 @@ from posed.landmarks.config import LandmarkConfig
 from posed.landmarks.people import MultiPoseLandmarker
 from posed.landmarks.pipeline import PoseLandmarker
 from posed.landmarks.recording import PersonLandmarks
+from tests.daemon.frame_sizes_util import read_frames
 
 
 def _video(path, limit: int, every: int = 1) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out, k = [], 0
-    try:
-        while len(out) < limit:
-            ok, image = cap.read()
-            if not ok:
-                break
-            if k % every == 0:
-                out.append(image)
-            k += 1
-    finally:
-        cap.release()
-    assert out, f"{path}: no frame read"
-    return out
+    frames = read_frames(path, limit, every)
+    assert frames, f"{path}: no frame read"
+    return frames
 
 
 def test_one_person_in_view_is_exactly_the_one_person_landmarker(models_dir, squat_video):
