@@ -113,6 +113,7 @@ class FitMsg:
     stamps: tuple[tuple[str, float], ...] = ()
     intrinsics: Intrinsics | None = None
     t_origin: float | None = None     # latency is measured from here (None: from t_capture)
+    others: tuple[FitResult, ...] = ()  # the fits of the frame's other people (each with extra["person"])
 
 
 def timing_ms(stamps: tuple[tuple[str, float], ...], t_capture: float, t_out: float) -> dict[str, float]:

@@ -6,6 +6,12 @@ number going back) or after a gap of more than a second of capture time. Frames 
 (``landmarks`` None) are passed on as ``ok: false`` results, like any other: the fall detector's timers and
 its "lost after a descent" rule need them. :class:`StreamFit` is that per-frame logic, shared with the
 offline ``posed falls``.
+
+Several people (a frame with ``people``, landmarks.MultiPoseLandmarker): :class:`PeopleFit` fits each person
+with a fitter of their own (video mode, learned proportions), keyed by track id: the frame's own person (the
+one followed longest) is the FitMsg's ``result``, the others its ``others``, each result with ``person`` (the
+track id) in its extra fields. A frame without ``people`` is fitted exactly as before, with no ``person``. A
+person unseen for ``FORGET_S`` of capture time is forgotten.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ from posed.daemon.messages import FitMsg, origin
 from posed.daemon.stages.base import StageRuntime
 
 RESET_GAP_S = 1.0
+FORGET_S = 5.0          # a person of several unseen this long (capture seconds) loses their fitter
 
 
 class StreamFit:
@@ -33,6 +40,59 @@ class StreamFit:
                                intrinsics=intrinsics, depth_m=frame.depth_m, world=frame.world)
 
 
+class PeopleFit:
+    """Every person of a frame fitted by a :class:`StreamFit` of their own (see the module doc)."""
+
+    def __init__(self, make_fitter) -> None:
+        self.make_fitter = make_fitter
+        self.main = StreamFit(make_fitter())     # the frame's own person (the only one without ``people``)
+        self.main_id: int | None = None
+        self.others: dict[int, StreamFit] = {}
+        self.seen: dict[int, float] = {}
+
+    def fit(self, frame, t_capture: float, image_size, intrinsics):
+        """(the frame's own person's result, the other people's results)."""
+        from dataclasses import replace
+
+        import numpy as np
+
+        people = frame.people
+        if not people:
+            return self.main.fit(frame, t_capture, image_size, intrinsics), ()
+        primary = next((p.id for p in people if frame.landmarks is not None
+                        and np.array_equal(p.landmarks, frame.landmarks, equal_nan=True)), None)
+        if primary is not None and self.main_id is not None and primary != self.main_id:
+            self.others[self.main_id] = self.main             # the one followed longest changed
+            self.main = self.others.pop(primary, None) or StreamFit(self.make_fitter())
+        if primary is not None:
+            self.main_id = primary
+            self.seen[primary] = t_capture
+        result = self.main.fit(frame, t_capture, image_size, intrinsics)
+        if primary is not None:
+            result = replace(result, extra={**result.extra, "person": primary})
+        out = []
+        for p in people:
+            if p.id == primary:
+                continue
+            stream = self.others.get(p.id)
+            if stream is None:
+                stream = self.others[p.id] = StreamFit(self.make_fitter())
+            self.seen[p.id] = t_capture
+            own = replace(frame, landmarks=p.landmarks, world=p.world, depth_m=p.depth_m, people=None)
+            r = stream.fit(own, t_capture, image_size, intrinsics)
+            out.append(replace(r, extra={**r.extra, "person": p.id}))
+        for pid in [i for i, t in self.seen.items() if t_capture - t > FORGET_S and i != self.main_id]:
+            self.others.pop(pid, None)
+            self.seen.pop(pid, None)
+        return result, tuple(out)
+
+    def reset(self) -> None:
+        self.main.fitter.reset()
+        self.others.clear()
+        self.seen.clear()
+        self.main_id = None
+
+
 def run(rt: StageRuntime) -> None:
     from posed.fitting import CalibrationError, FitResult, Fitter
 
@@ -45,7 +105,12 @@ def run(rt: StageRuntime) -> None:
     rt.ready()
     inbox = rt.input
     failures = 0
-    stream = StreamFit(fitter)
+    spare = [fitter]                       # the warmed-up fitter is the first person's
+
+    def make_fitter():
+        return spare.pop() if spare else Fitter(rt.config.fitting)
+
+    people = PeopleFit(make_fitter)
     while True:
         rt.beat()
         rt.check_stop()
@@ -55,17 +120,18 @@ def run(rt: StageRuntime) -> None:
         frame = msg.frame
         with rt.step():
             t_in = clock.now()
+            others = ()
             try:
-                result = stream.fit(frame, msg.t_capture, msg.image_size, msg.intrinsics)
+                result, others = people.fit(frame, msg.t_capture, msg.image_size, msg.intrinsics)
             except Exception as exc:  # the fitter should never raise; if it does, keep the pipeline going
                 failures += 1
                 rt.error()
                 if failures <= 3 or failures % 100 == 0:
                     rt.log.error("fit_failed", error=repr(exc), seq=frame.seq, failures=failures)
-                fitter.reset()
+                people.reset()
                 result = FitResult.failure(frame.seq, msg.t_capture, f"fit failed: {exc!r}")
             t_out = clock.now()
             rt.send(FitMsg(result, frame, msg.t_capture, msg.image_size,
                            msg.stamps + (("fitting_in", t_in), ("fitting_out", t_out)), msg.intrinsics,
-                           msg.t_origin), lossless=msg.t_origin is not None)
+                           msg.t_origin, others), lossless=msg.t_origin is not None)
         rt.done(t_out - t_in, origin(msg), t_out)

@@ -17,6 +17,12 @@ render`` draws them on the original video. The depth at the landmarks is sampled
 Gravity: the camera accelerometer's down direction (``FrameRef.gravity``, hal.imu) goes on the frame too,
 ``LandmarkMsg.frame.gravity``, person or not: the fall detector's camera geometry follows it.
 
+Several people (``landmarks.max_people`` > 1, default 3): :class:`landmarks.MultiPoseLandmarker` follows each
+person with a landmark pass of their own; from the first frame with two people on, frames carry ``people``
+(track ids, landmarks in the source's pixels; the depth at the landmarks is sampled for the frame's own person
+only). The frame's own landmarks stay those of the person followed longest, so with one person in view every
+output is what the one-person landmarker gives. ``landmarks.max_people: 1`` runs the one-person landmarker.
+
 The floor: with a depth image (and ``falls.enabled`` and ``falls.floor_from_depth``), the floor plane is
 measured in it about once a second of capture time (:mod:`daemon.stages.depth_floor`, the gravity as its prior)
 and the latest goes on every frame as ``LandmarkMsg.frame.extra["floor"]``, person or not. A fit that raises
@@ -36,11 +42,12 @@ from posed.daemon.stages.depth_floor import DepthFloor
 
 
 def run(rt: StageRuntime) -> None:
-    from posed.landmarks import ModelMissingError, PoseLandmarker, with_depth
+    from posed.landmarks import ModelMissingError, MultiPoseLandmarker, PoseLandmarker, with_depth
 
     with rt.step():
         try:
-            landmarker = PoseLandmarker(rt.config.landmarks)
+            cfg = rt.config.landmarks
+            landmarker = MultiPoseLandmarker(cfg) if cfg.max_people > 1 else PoseLandmarker(cfg)
             landmarker.warmup()
         except ModelMissingError as exc:
             rt.fatal(str(exc), fix="run: posed models fetch")
@@ -100,9 +107,16 @@ def run(rt: StageRuntime) -> None:
 
 def to_source_pixels(frame, k: int):
     """``frame`` (a LandmarkFrame of an image scaled down by the whole factor ``k``) with its landmarks in the
-    pixels of the source's image: x, y and z times ``k`` (visibility and presence as they are)."""
+    pixels of the source's image: x, y and z times ``k`` (visibility and presence as they are); so are the
+    landmarks of each of its ``people``."""
     if frame.landmarks is None or k == 1:
         return frame
-    lm = np.array(frame.landmarks, dtype=np.float64, copy=True)
-    lm[:, :3] *= float(k)
-    return replace(frame, landmarks=lm)
+
+    def scaled(lms):
+        lm = np.array(lms, dtype=np.float64, copy=True)
+        lm[:, :3] *= float(k)
+        return lm
+
+    people = None if frame.people is None else tuple(replace(p, landmarks=scaled(p.landmarks))
+                                                      for p in frame.people)
+    return replace(frame, landmarks=scaled(frame.landmarks), people=people)

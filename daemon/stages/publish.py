@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+from dataclasses import replace
 from pathlib import Path
 
 from posed.daemon import clock
@@ -96,6 +97,9 @@ class PublisherStage:
     def handle(self, msg: FitMsg) -> None:
         pose = pose_message(msg, clock.now(), self.rt.config.robot_id)
         self.bus.put_pose(pose)
+        for other in msg.others:        # several people: one pose object per person, the frame's seq
+            self.bus.put_pose(pose_message(replace(msg, result=other, others=()), clock.now(),
+                                           self.rt.config.robot_id))
         if self.ros2 is not None:
             self.ros2.publish_pose(pose)
         if self.bus.wants_landmarks:
