@@ -219,7 +219,9 @@ class MultiPoseLandmarker:
     def _detect_new(self, image: np.ndarray, t: float, seq: int, found: dict[int, PoseResult], free: list[int],
                     timings: dict[str, float]) -> None:
         h, w = image.shape[:2]
-        rotations = (0,) + (FALLBACK_ROTATIONS if self.config.rotate_on_miss else ())
+        # the turned retries (a person lying on the floor) only when nobody is followed: while someone is, a
+        # redetection every few frames looking for a newcomer costs one detector run, not three
+        rotations = (0,) + (FALLBACK_ROTATIONS if self.config.rotate_on_miss and not found else ())
         # BlazePose's detector sees the most prominent person: with one in full view its scores elsewhere fall
         # below 0.05 (a second, smaller person it finds at 0.84 alone). So the people followed are blanked out
         # of the image it looks at; the landmark passes still see the whole frame.
