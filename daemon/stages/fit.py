@@ -16,6 +16,10 @@ person unseen for ``FORGET_S`` of capture time is forgotten.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
+
 from posed.daemon import clock
 from posed.daemon.messages import FitMsg, origin
 from posed.daemon.stages.base import StageRuntime
@@ -52,10 +56,6 @@ class PeopleFit:
 
     def fit(self, frame, t_capture: float, image_size, intrinsics):
         """(the frame's own person's result, the other people's results)."""
-        from dataclasses import replace
-
-        import numpy as np
-
         people = frame.people
         if not people:
             return self.main.fit(frame, t_capture, image_size, intrinsics), ()
