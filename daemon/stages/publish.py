@@ -76,7 +76,8 @@ class PublisherStage:
         self.outbox = EventOutbox(journal, HookRunner(cfg.hooks), self._send_event, rt.log,
                                   cfg.zenoh.event_republish_s)
         self.ros2 = Ros2Bridge(cfg.ros2, rt.log) if cfg.ros2.enabled else None    # docs/ros2.md
-        self.subreaper = orphans.become_subreaper()     # what a hook leaves behind (setsid) comes back here
+        # what a hook leaves behind (setsid) comes back here; no hooks configured: nothing to adopt or scan for
+        self.subreaper = bool(cfg.hooks.on_event) and orphans.become_subreaper()
         self._next_reap = 0.0
         self._stack = stack
         self.history = HistoryRecorder(
