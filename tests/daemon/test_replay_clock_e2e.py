@@ -60,7 +60,9 @@ def test_a_recording_whose_clock_jumps_replays_in_its_length_and_the_fall_is_fou
     # each jump is one frame period, as the recorded steps were: the time line is the original recording's, so
     # the fall detector says what `posed falls` says on the original (a paced replay used to burst through
     # the 1000 frames' worth of the step back, dropping them, and miss the fall)
-    states = [e["state"] for e in run.got["events/fall"]]
+    # one entry per message (event id and state): the daemon republishes unacknowledged messages when it sees a
+    # subscriber appear (which under load it may notice after the first publication), and every 30 s
+    states = [state for _id, state in dict.fromkeys((e["id"], e["state"]) for e in run.got["events/fall"])]
     assert states == _offline_states(shared_data / FALL), (states, [p["t"] for p in run.got["pose"]][25:40])
     assert len(run.got["pose"]) >= 0.9 * 45, len(run.got["pose"])
     ts = [p["t"] for p in run.got["pose"]]
