@@ -63,7 +63,8 @@ def test_a_recording_whose_clock_jumps_replays_in_its_length_and_the_fall_is_fou
     # one entry per message (event id and state): the daemon republishes unacknowledged messages when it sees a
     # subscriber appear (which under load it may notice after the first publication), and every 30 s
     states = [state for _id, state in dict.fromkeys((e["id"], e["state"]) for e in run.got["events/fall"])]
-    assert states == _offline_states(shared_data / FALL), (states, [p["t"] for p in run.got["pose"]][25:40])
+    assert states == _offline_states(shared_data / FALL), (
+        [(e["id"][:8], e["state"]) for e in run.got["events/fall"]], [p["t"] for p in run.got["pose"]][25:40])
     assert len(run.got["pose"]) >= 0.9 * 45, len(run.got["pose"])
     ts = [p["t"] for p in run.got["pose"]]
     assert all(b > a for a, b in zip(ts, ts[1:], strict=False)), ts
