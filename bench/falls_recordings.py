@@ -99,7 +99,7 @@ def cached_fits(path: Path, cfg: Config, cache: Path | None):
             results = [FitResult.from_json(json.loads(line)) for line in key.read_text().splitlines()]
             if len(results) == len(frames):
                 return header, list(zip(frames, results, strict=True))
-    pairs = list(fit_frames(cfg.fitting, header, frames))
+    pairs = [(frame, result) for frame, result, _others in fit_frames(cfg.fitting, header, frames)]
     if key is not None:
         from posed.daemon.bus.payloads import dumps
 

@@ -1,6 +1,14 @@
-"""Several people: the landmarker on two-person scenes composited from real footage (bench/people.py):
-identity switches, each person found, the woman's landmark error with a second person in view against alone
-(target at most 1.2x), speed. Run: ``posed bench people [--json] [--scenario NAME]``."""
+"""Several people (bench/people.py, bench/people_falls.py, bench/people_recordings.py). Parts:
+
+* ``scenes``: the landmarker on two-person scenes composited from real footage: identity switches, each person
+  found, the woman's landmark error with a second person in view against alone (target at most 1.2x), speed;
+* ``falls``: the synthetic fall scenarios (``--split``, default heldout) with a bystander standing, walking or
+  kneeling beside the person who fell, the real fit per person: recall, false alarms, bystander events, second
+  events, events ended, identity switches, against the same scenarios alone;
+* ``recordings``: the real fall recordings of shared/data/falls/urfd_dev each with a real bystander (another
+  clip's person beside the camera's axis), through what ``posed falls`` runs, against alone.
+
+Run: ``posed bench people [--json] [--part scenes|falls|recordings] [--scenario NAME] [--split S]``."""
 
 from __future__ import annotations
 
@@ -8,27 +16,81 @@ import argparse
 import json
 import sys
 
+PARTS = ("scenes", "falls", "recordings")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--part", action="append", choices=PARTS,
+                        help="run only this part (repeatable; default: all three)")
     parser.add_argument("--scenario", default="", choices=("", "apart", "cross_behind", "cross_front"),
-                        help="one scenario only (default: all)")
+                        help="scenes: one scenario only (default: all)")
+    parser.add_argument("--split", default="heldout", choices=("tune", "heldout"),
+                        help="falls: the scenario split (default: heldout, never used to tune)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from posed.bench.people import run_bench  # not at import: `posed bench` lists this module
     from posed.daemon.preflight import shared_data
 
-    report = run_bench(shared_data(), only=args.scenario,
-                       progress=lambda m: print(m, file=sys.stderr, flush=True))
+    parts = args.part or list(PARTS)
+    progress = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    report: dict = {"benchmark": "people"}
+    if "scenes" in parts:
+        from posed.bench.people import run_bench  # not at import: `posed bench` lists this module
+
+        report["scenes"] = run_bench(shared_data(), only=args.scenario, progress=progress)
+    if "falls" in parts:
+        from posed.bench.people_falls import run_bench as run_falls
+
+        report["falls"] = run_falls(args.split, progress=progress)
+    if "recordings" in parts:
+        from posed.bench.people_recordings import run as run_recordings
+
+        folder = shared_data() / "falls" / "urfd_dev"
+        report["recordings"] = {g: run_recordings(folder, geometry=g, progress=progress)
+                                for g in ("config", "labels")}
     if args.json:
         print(json.dumps(report))
         return 0
+    if "scenes" in report:
+        _print_scenes(report["scenes"])
+    if "falls" in report:
+        _print_falls(report["falls"])
+    if "recordings" in report:
+        _print_recordings(report["recordings"])
+    return 0
+
+
+def _print_scenes(rep: dict) -> None:
     print(f"{'scenario':13} {'switches A/B':>12} {'found A/B with other':>21} {'A err alone':>11} {'with B':>7} "
           f"{'ratio':>6} {'B dev':>6} {'ms/frame 2p':>11} {'1p':>6} {'passes':>6}")
-    for r in report["scenarios"]:
+    for r in rep["scenarios"]:
         e = r["a_error_px"]
         print(f"{r['scenario']:13} {r['identity_switches']['a']:>5} / {r['identity_switches']['b']:<4} "
               f"{r['found']['a_both']:>9.2f} / {r['found']['b_both']:<9.2f} {e['alone']:>11} {e['with_b']:>7} "
               f"{e['ratio']!s:>6} {r['b_deviation_from_alone_px']!s:>6} {r['ms_per_frame']['two_people']:>11} "
               f"{r['ms_per_frame']['a_alone']:>6} {r['landmark_passes_per_frame']:>6}")
-    return 0
+
+
+def _print_falls(rep: dict) -> None:
+    print(f"\nfalls with a bystander ({rep['split']} scenarios, real fit, geometry {rep['geometry']})")
+    print(f"{'':18} {'falls':>5} {'recall':>6} {'adl':>4} {'false':>5} {'bystander ev':>12} {'2nd ev':>6} "
+          f"{'ended':>5} {'id switches':>11} {'median lat s':>12}")
+    rows = [("alone", rep["alone"]), ("with a bystander", rep["with_bystander"])]
+    rows += [(f"  {k}", v) for k, v in rep["per_bystander"].items()]
+    for name, s in rows:
+        print(f"{name:18} {s['falls']:>5} {s['recall']!s:>6} {s['adl']:>4} {s['false_alarms']:>5} "
+              f"{s['bystander_events']:>12} {s['second_events']:>6} {s['ended']:>5} {s['identity_switches']:>11} "
+              f"{s['median_latency_s']!s:>12}")
+    ok = all(rep["with_bystander"][k] == rep["alone"][k] for k in ("recall", "false_alarms")) and not any(
+        rep["with_bystander"][k] for k in ("second_events", "ended", "bystander_events"))
+    print("target (recall and false alarms as alone, no second event, none ended, none for the bystander): "
+          + ("met" if ok else "MISSED"))
+
+
+def _print_recordings(reps: dict) -> None:
+    for geometry, rep in reps.items():
+        print(f"\nreal recordings with a real bystander ({rep['folder']}, geometry {geometry})")
+        for mode in ("alone", "with_bystander"):
+            s = rep[mode]
+            print(f"{mode:15} falls {s['detected']}/{s['falls']}, false alarms {s['false_alarms']}/{s['adl']}, "
+                  f"bystander events {s['bystander_events']}, second events {s['second_events']}")

@@ -1,5 +1,10 @@
 """Fall detection in the publisher stage: the :mod:`falls` detector run on every fit, in capture order.
 
+Several people (a frame with ``people``: the FitMsg's ``others``): each person has a detector of their own
+(:class:`falls.people.PeopleFalls`); their messages carry ``person`` and ``root_cam_m``. The frame's own
+person's detector is the one whose geometry is in the status and kept across restarts; the IMU's gravity and
+the depth floor go to every person's.
+
 Every FitMsg is fed (also frames without a person: the alarm timer runs on the capture timestamps, the one
 clock), with its 2D landmarks, image size and camera intrinsics. A detector that raises must not stop the
 poses: the frame then yields no event, the stage's error counter goes up and the failure is logged (the
@@ -41,6 +46,7 @@ import numpy as np
 from posed.daemon.messages import FitMsg
 from posed.daemon.stages.depth_floor import KEEP_S as FLOOR_KEEP_S
 from posed.falls import FallDetector, FallEvent, FallsConfig
+from posed.falls.people import PeopleFalls
 
 LOG_FIRST_FAILURES = 3
 LOG_FAILURE_EVERY = 100
@@ -60,11 +66,12 @@ def geometry_file(state_dir: Path, source) -> Path:
 
 
 class FallWatch:
-    """Wraps a :class:`FallDetector` (None when ``falls.enabled`` is false: no events)."""
+    """Wraps a :class:`FallDetector` per person (:class:`falls.people.PeopleFalls`; ``detector`` is the first
+    person's, None when ``falls.enabled`` is false: no events)."""
 
     def __init__(self, detector: FallDetector | None, log, on_error: Callable[[], None] = lambda: None,
                  state_file: Path | None = None) -> None:
-        self.detector = detector
+        self.people = PeopleFalls(detector) if detector is not None else None
         self.log = log
         self.failures = 0
         self.bad_gravity = 0
@@ -86,6 +93,11 @@ class FallWatch:
         None: not kept)."""
         return cls(FallDetector(cfg, robot_id) if cfg.enabled else None, log, on_error, state_file)
 
+    @property
+    def detector(self) -> FallDetector | None:
+        """The frame's own person's detector: its camera geometry is the one shown and kept."""
+        return self.people.main if self.people is not None else None
+
     def status(self) -> dict:
         """For the status message: whether detection runs, the camera geometry in use (tilt, roll, floor and
         where each comes from: config, learned, body or imu; whether it was restored from the state dir),
@@ -99,6 +111,8 @@ class FallWatch:
                "failures": self.failures}
         if self.save_error is not None:
             out["geometry_save_error"] = self.save_error
+        if self.people.main_key is not None:        # several people seen: who is watched
+            out["people"] = self.people.watching()
         return out
 
     # ------------------------------------------------------------------ the learned geometry, kept
@@ -176,7 +190,8 @@ class FallWatch:
                 gravity = (getattr(msg.landmarks, "extra", None) or {}).get("gravity")
         if gravity is not None:
             try:
-                self.detector.set_gravity(_vector3(gravity))
+                down = _vector3(gravity)
+                self.people.each(lambda d: d.set_gravity(down))
             except (TypeError, ValueError) as exc:   # a bad reading: keep the gravity in use, judge the frame
                 self.bad_gravity += 1
                 if self.bad_gravity <= LOG_FIRST_FAILURES or self.bad_gravity % LOG_FAILURE_EVERY == 0:
@@ -184,7 +199,8 @@ class FallWatch:
         if cfg is not None and getattr(cfg, "floor_from_depth", False):
             self._depth_floor(msg)
         try:
-            events = self.detector.update(msg.result, msg.landmarks.landmarks, msg.image_size, msg.intrinsics)
+            events = self.people.update(_people(msg), float(msg.result.t), msg.result.seq, msg.image_size,
+                                        msg.intrinsics)
         except Exception as exc:  # a detector bug must not stop the poses
             self.failures += 1
             self._on_error()
@@ -227,9 +243,21 @@ class FallWatch:
         age = t - t_meas
         if not 0.0 <= age <= FLOOR_KEEP_S:          # too old (or the clock went back): the other sources
             self._floor = None
-            self.detector.set_floor_plane(None)
+            self.people.each(lambda d: d.set_floor_plane(None))
             return
-        self.detector.set_floor_plane(down, height, {**evidence, **self._floor_tries, "age_s": round(age, 3)})
+        evidence = {**evidence, **self._floor_tries, "age_s": round(age, 3)}
+        self.people.each(lambda d: d.set_floor_plane(down, height, evidence))
+
+
+def _people(msg: FitMsg) -> list:
+    """The frame's people as :meth:`PeopleFalls.update` takes them: its own person first, then the others, each
+    with their track id (None without ``people``) and their own landmarks."""
+    own = msg.result.extra.get("person")
+    out = [(own, msg.result, msg.landmarks.landmarks)]
+    if msg.others:
+        marks = {p.id: p.landmarks for p in (msg.landmarks.people or ())}
+        out += [(r.extra.get("person"), r, marks.get(r.extra.get("person"))) for r in msg.others]
+    return out
 
 
 FLOOR_EVIDENCE = ("tilt_deg", "roll_deg", "inliers", "points", "fraction", "rms_m")

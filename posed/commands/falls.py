@@ -1,9 +1,10 @@
 """``posed falls RECORDING.landmarks.jsonl [--config FILE] [--set K=V]``: the fall detector offline.
 
 The frames the capture stage would take (no more than ``pipeline.target_fps`` by capture time, as
-``posed run --source file:REC`` replays it), the fit (video mode, reset as the fitting stage resets it:
-:class:`daemon.stages.fit.StreamFit`) and the fall detector (:class:`daemon.stages.fall_watch.FallWatch`, as the publisher stage runs it) on every frame of a
-landmark recording, frames without a person included. Each event message is printed as one JSON line,
+``posed run --source file:REC`` replays it), the fit (video mode, reset as the fitting stage resets it, a fitter
+per person of a recording with ``people``: :class:`daemon.stages.fit.PeopleFit`) and the fall detector
+(:class:`daemon.stages.fall_watch.FallWatch`, as the publisher stage runs it: a detector per person) on every
+frame of a landmark recording, frames without a person included. Each event message is printed as one JSON line,
 exactly the payload ``posed/ROBOT/events/fall`` would carry (:func:`event_payload`: the publisher's
 ``stamp_event`` and ``event_message``, ``wall_time`` as the journal fills it, the bus's ``dumps``; the unix
 times count the recording's t from when the command started). The recording's time line is the capture clock; the header's
@@ -54,18 +55,21 @@ def taken_frames(pipeline_config, frames: Iterable, period_s: float = 1.0 / 30.0
             yield frame
 
 
-def fit_frames(fit_config, header, frames: Iterable) -> Iterator[tuple[object, object]]:
-    """(LandmarkFrame, FitResult) per frame, fitted as the fitting stage fits them."""
-    from posed.daemon.stages.fit import StreamFit
+def fit_frames(fit_config, header, frames: Iterable) -> Iterator[tuple[object, object, tuple]]:
+    """(LandmarkFrame, FitResult, the other people's FitResults) per frame, fitted as the fitting stage fits
+    them (:class:`daemon.stages.fit.PeopleFit`: a frame without ``people`` has no others)."""
+    from posed.daemon.stages.fit import PeopleFit
     from posed.fitting import Fitter
 
-    stream = StreamFit(Fitter(fit_config))
+    people = PeopleFit(lambda: Fitter(fit_config))
     for frame in frames:
-        yield frame, stream.fit(frame, frame.t, tuple(header.image_size), header.camera)
+        result, others = people.fit(frame, frame.t, tuple(header.image_size), header.camera)
+        yield frame, result, others
 
 
-def detect(cfg, header, fitted: Iterable[tuple[object, object]], log=None) -> Iterator[tuple[object, object, list]]:
-    """(frame, result, fall-event messages) per frame, through the publisher stage's FallWatch."""
+def detect(cfg, header, fitted: Iterable[tuple], log=None) -> Iterator[tuple[object, object, list]]:
+    """(frame, result, fall-event messages) per frame, through the publisher stage's FallWatch (a fall
+    detector per person); ``fitted`` gives (frame, result) or (frame, result, the other people's results)."""
     from posed.daemon.messages import FitMsg
     from posed.daemon.stages.fall_watch import FallWatch
 
@@ -75,8 +79,9 @@ def detect(cfg, header, fitted: Iterable[tuple[object, object]], log=None) -> It
         log = structlog.get_logger("posed.falls")
     watch = FallWatch.from_config(cfg.falls, cfg.robot_id, log)
     size = tuple(header.image_size)
-    for frame, result in fitted:
-        yield frame, result, watch.update(FitMsg(result, frame, frame.t, size, (), header.camera))
+    for frame, result, *others in fitted:
+        msg = FitMsg(result, frame, frame.t, size, (), header.camera, others=others[0] if others else ())
+        yield frame, result, watch.update(msg)
 
 
 def event_payload(event, wall0: float | None = None) -> str:

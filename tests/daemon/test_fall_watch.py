@@ -13,8 +13,8 @@ from tests.daemon.fakes import RecordingLog
 
 
 def fit_msg(seq: int):
-    result = SimpleNamespace(seq=seq, t=seq / 30.0)
-    return SimpleNamespace(result=result, landmarks=SimpleNamespace(landmarks=np.zeros((33, 5))),
+    result = SimpleNamespace(seq=seq, t=seq / 30.0, extra={})
+    return SimpleNamespace(result=result, landmarks=SimpleNamespace(landmarks=np.zeros((33, 5))), others=(),
                            image_size=(640, 480), intrinsics=SimpleNamespace(fx=500.0, fy=500.0, cx=320.0, cy=240.0))
 
 

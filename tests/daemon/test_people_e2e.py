@@ -42,3 +42,34 @@ def test_one_real_person_has_no_person_field(tmp_path, shared_data):
     assert run.code == 0, run.stderr[-2000:]
     assert run.got["pose"] and all("person" not in p for p in run.got["pose"])
     assert len({p["seq"] for p in run.got["pose"]}) == len(run.got["pose"])      # one object per frame
+
+
+@pytest.mark.timeout(300)
+def test_a_visitors_fall_is_reported_as_theirs(tmp_path, shared_data):
+    """A real fall (urfd_00) with a real bystander (urfd_16, a daily activity) beside the camera's axis, the
+    bystander in view first (so the frame's own person, followed longest, is not the one who falls): replayed
+    through ``posed run`` with the default config, the fall is reported for the faller's track id with where
+    they were, and nothing for the bystander."""
+    from dataclasses import replace as _replace
+
+    from posed.bench import people_recordings as pr
+    from posed.daemon.config import Config
+    from posed.landmarks.recording import write_recording
+
+    folder = shared_data / "falls" / "urfd_dev"
+    h_own, f_own = pr._read(folder / "urfd_00_fall.landmarks.jsonl")
+    f_own = [_replace(f, landmarks=None) if f.t < 0.5 else f for f in f_own]    # walks into view later
+    header, frames, who = pr.compose((h_own, f_own), pr._read(folder / "urfd_16_adl.landmarks.jsonl"),
+                                     Config().pipeline)
+    rec = tmp_path / "visitor.landmarks.jsonl"
+    write_recording(rec, header, frames)
+    run = run_to_end(tmp_path, f"file:{rec}", "source.realtime=false")
+    assert run.code == 0, run.stderr[-2000:]
+    faller = {i for i, w in who.items() if w == "own"}
+    bystander = {i for i, w in who.items() if w == "bystander"}
+    assert run.got["pose"][0]["person"] in bystander          # the frame's own person is the bystander
+    events = run.got["events/fall"]
+    assert events and {e["state"] for e in events} & {"falling", "on_floor"}, events
+    assert all(e["person"] in faller for e in events), [(e["state"], e.get("person")) for e in events]
+    assert all(len(e["root_cam_m"]) == 3 and e["root_cam_m"][2] > 0 for e in events)
+    assert len({e["id"] for e in events}) == 1

@@ -1,0 +1,234 @@
+"""Falls with a bystander (issue 36): the synthetic fall scenarios with a second person in the room.
+
+Every scenario of a split (``bench.falls_scenarios.catalogue``, robot mount) is rendered again with a second,
+taller person (1.80 m; the faller is 1.65 m) through the same camera, doing one of:
+
+* ``standing``: standing still 1.2 m to the faller's side, facing the camera;
+* ``walking``: walking across the room behind the faller and back;
+* ``kneeling``: standing to the side until a second after the impact (from the start for a daily activity),
+  then walking to the faller and kneeling beside them to the end (the faller then lies 5 s longer, so the
+  kneeling has time to end the event or to raise a second one).
+
+The bystander is given to scenarios in turn (standing, walking, kneeling, ...), so each kind meets every sort
+of fall and view. Per frame both people's landmarks (projected, 1 % noise, as the one-person benchmark's) go
+through :class:`landmarks.tracks.PersonTracker` (box, landmark overlap, motion and
+proportions, and the landmark *slot*: as in the daemon, a body keeps its slot while it is found frame after
+frame, and gets a new one after it was lost), each track is fitted by a fitter of its own (video mode), and the fits go to
+:class:`falls.people.PeopleFalls` with the frame's own person first (the track followed longest, as the daemon
+does). Which track is whom is read off the landmarks each was given (identity from the renderer, not from the
+tracker). Counted:
+
+* **recall**: falls with a ``falling`` or ``on_floor`` message for the faller's track; **false alarms**: daily
+  activities with any message; **bystander events**: any message for the bystander's track;
+* **second events**: falls with more than one event id for the faller; **ended**: falls whose event got a
+  ``recovered`` message (the faller never gets up in these scenarios);
+* **identity switches**: changes of the track id given to each person between consecutive frames where they
+  were seen;
+* the same scenarios alone (one person, the same fits path), to compare.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from posed.bench.falls_body import Body
+from posed.bench.falls_scenarios import STAND, Key, Scenario, catalogue, frames, kneel, truth_result, walk
+from posed.falls.config import FallsConfig
+from posed.falls.detector import FallDetector
+from posed.falls.people import PeopleFalls
+from posed.fitting import FitResult
+from posed.landmarks.tracks import PersonTracker
+
+BYSTANDERS = ("standing", "walking", "kneeling")
+DETECTING = ("falling", "on_floor")
+BYSTANDER_HEIGHT_M = 1.80
+SIDE_M = 1.2              # the standing bystander's offset to the faller's side
+LIE_LONGER_S = 5.0        # the faller lies this much longer when a bystander kneels beside them
+
+
+@dataclass(frozen=True)
+class TwoPeople:
+    """A faller's scenario, the bystander's (same camera, fps and duration) and what the bystander does."""
+
+    faller: Scenario
+    bystander: Scenario
+    kind: str
+
+
+def _facing_camera(pose):
+    return pose.with_(yaw=180.0)
+
+
+def _hold(keys: list[Key], until: float) -> list[Key]:
+    return keys if keys[-1].t >= until else keys + [Key(until, keys[-1].pose, seat=keys[-1].seat, ease="hold",
+                                                        xy=keys[-1].xy)]
+
+
+def with_bystander(sc: Scenario, kind: str) -> TwoPeople:
+    """``sc`` with a second person doing ``kind`` (module doc)."""
+    if kind not in BYSTANDERS:
+        raise ValueError(f"bystander {kind!r} is not one of: {', '.join(BYSTANDERS)}")
+    faller = sc
+    x0, y0 = sc.start_xy
+    side = -1.0 if x0 > 0 else 1.0
+    home = (x0 + side * SIDE_M, y0 + 0.3)
+    if kind == "kneeling":
+        faller = replace(sc, keys=_hold(sc.keys, sc.duration + LIE_LONGER_S))
+    end = faller.duration
+    if kind == "standing":
+        keys = [Key(0.0, _facing_camera(STAND), xy=home), Key(end, _facing_camera(STAND), xy=home, ease="hold")]
+    elif kind == "walking":
+        far = (x0 - side * SIDE_M, y0 + 1.0)
+        keys, _ = walk([home, (home[0], y0 + 1.0), far, (home[0], y0 + 1.0)], speed=0.8)
+        keys = _hold(keys, end)
+    else:
+        lying = _lying_point(faller)
+        t_go = (sc.truth.t_impact + 1.0) if sc.truth.kind == "fall" and sc.truth.t_impact else 0.5
+        target = (float(lying[0] + side * 0.7), float(lying[1] + 0.2))
+        approach, _ = walk([home, target], speed=0.8, start_pause=0.0)
+        approach = [replace(k, t=k.t + t_go) for k in approach]
+        toward = math.degrees(math.atan2(-(lying[0] - target[0]), lying[1] - target[1]))
+        kneel_keys, _ = kneel(1.0, hold=end)
+        t_kneel = approach[-1].t
+        down = [replace(k, t=k.t - 1.5 + t_kneel, pose=k.pose.with_(yaw=toward), xy=None)
+                for k in kneel_keys[2:4]]          # standing -> one knee -> both knees, then held
+        keys = [Key(0.0, _facing_camera(STAND), xy=home), Key(t_go, _facing_camera(STAND), xy=home, ease="hold")]
+        keys += approach[1:] + down
+        keys = _hold(keys, end)
+    by = Scenario(name=f"{sc.name}+{kind}", kind="adl", keys=keys, truth=sc.truth, camera=sc.camera,
+                  body=Body(BYSTANDER_HEIGHT_M), fps=sc.fps, noise_frac=sc.noise_frac, seed=sc.seed + 7919,
+                  start_xy=home)
+    return TwoPeople(faller, by, kind)
+
+
+def _lying_point(sc: Scenario) -> np.ndarray:
+    last = list(frames(sc))[-1].joints_world
+    return 0.5 * (last["left_hip"][:2] + last["right_hip"][:2])
+
+
+def cases(split: str = "heldout") -> list[TwoPeople]:
+    """Every scenario of ``split`` with a bystander, the kinds given in turn."""
+    return [with_bystander(sc, BYSTANDERS[i % len(BYSTANDERS)]) for i, sc in enumerate(catalogue(split))]
+
+
+def _fitter_factory(kind: str) -> Callable[[], Callable]:
+    """A new per-person ``fit(landmarks, seq, t, size, intrinsics, joints_world)``: the real fitter (video mode)
+    or ``truth`` (a perfect fit from the renderer's joints, for tests of the detector path)."""
+    if kind == "truth":
+        def make_truth():
+            return lambda lm, seq, t, size, intr, frame, cam: truth_result(frame, cam)
+        return make_truth
+    from posed.fitting import FitConfig, Fitter
+
+    pool: list = []
+
+    def make_real():
+        fitter = pool.pop() if pool else Fitter(FitConfig())
+        fitter.reset()
+
+        def fit(lm, seq, t, size, intr, frame, cam):
+            return fitter.fit(lm, seq, t, size, mode="video", intrinsics=intr)
+        fit.release = lambda: pool.append(fitter)  # type: ignore[attr-defined]
+        return fit
+    return make_real
+
+
+def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig, alone: bool = False) -> dict:
+    """One scenario through the tracker, a fitter per track and :class:`PeopleFalls` (``alone``: the faller
+    only)."""
+    cam = case.faller.camera
+    size, intr = (cam.width, cam.height), cam.intrinsics
+    given = [(f.seq, f.t, f, None) for f in frames(case.faller)]
+    if not alone:
+        by = list(frames(case.bystander))
+        given = [(f.seq, f.t, f, by[i] if i < len(by) else None) for i, (_, _, f, _) in enumerate(given)]
+    tracker = PersonTracker()
+    detectors = PeopleFalls(FallDetector(replace(cfg), "bench"))
+    fits: dict[int, Callable] = {}
+    ids: dict[str, list[int]] = {"faller": [], "bystander": []}
+    messages = []
+    slots: dict[str, int] = {}
+    next_slot = 0
+    for seq, t, f_frame, b_frame in given:
+        seen = [(who, fr) for who, fr in (("faller", f_frame), ("bystander", b_frame))
+                if fr is not None and fr.landmarks is not None]
+        for who in ("faller", "bystander"):     # the landmark slot that follows a body while it is found
+            if who not in [w for w, _ in seen]:
+                slots.pop(who, None)
+            elif who not in slots:
+                next_slot += 1
+                slots[who] = next_slot
+        track_ids = tracker.update(t, [fr.landmarks for _, fr in seen], [slots[w] for w, _ in seen])
+        people = []
+        for (who, fr), tid in zip(seen, track_ids, strict=True):
+            ids[who].append(tid)
+            fit = fits.get(tid) or fits.setdefault(tid, make_fit())
+            r = fit(fr.landmarks, seq, t, size, intr, fr, cam)
+            people.append((tid, replace(r, extra={**r.extra, "person": tid}), fr.landmarks))
+        if people:
+            main = tracker.longest_followed([p[0] for p in people])
+            people.sort(key=lambda p: p[0] != main)
+        else:
+            people = [(None, FitResult.failure(seq, t, "no person"), None)]
+        messages += detectors.update(people, t, seq, size, intr)
+    for fit in fits.values():
+        getattr(fit, "release", lambda: None)()
+    faller_ids, by_ids = set(ids["faller"]), set(ids["bystander"])
+    mine = [m for m in messages if m.extra.get("person") in faller_ids]
+    theirs = [m for m in messages if m.extra.get("person") in by_ids - faller_ids]
+    first = next((m for m in mine if m.state in DETECTING), None)
+    truth = case.faller.truth
+    latency = None
+    if first is not None and truth.kind == "fall":
+        latency = round(first.t_detect - (truth.t_impact or 0.0), 3)
+    return {"name": case.faller.name, "kind": truth.kind, "bystander": "alone" if alone else case.kind,
+            "detected": first is not None, "latency_s": latency,
+            "states": [f"{m.extra.get('person')}:{m.state}" for m in messages],
+            "bystander_events": len(theirs), "event_ids": len({m.id for m in mine}),
+            "ended": any(m.state == "recovered" for m in mine),
+            "switches": {w: _switches(v) for w, v in ids.items()}, "rematches": detectors.rematches}
+
+
+def _switches(ids: list[int]) -> int:
+    return sum(a != b for a, b in zip(ids[:-1], ids[1:], strict=True))
+
+
+def summarise(rows: list[dict]) -> dict:
+    falls = [r for r in rows if r["kind"] == "fall"]
+    adl = [r for r in rows if r["kind"] != "fall"]
+    lat = sorted(r["latency_s"] for r in falls if r["latency_s"] is not None)
+    return {"falls": len(falls), "recall": round(sum(r["detected"] for r in falls) / len(falls), 3) if falls else None,
+            "adl": len(adl), "false_alarms": sum(r["detected"] or bool(r["states"]) for r in adl),
+            "bystander_events": sum(r["bystander_events"] for r in rows),
+            "second_events": sum(r["event_ids"] > 1 for r in falls),
+            "ended": sum(r["ended"] for r in falls),
+            "identity_switches": sum(r["switches"]["faller"] + r["switches"]["bystander"] for r in rows),
+            "median_latency_s": lat[len(lat) // 2] if lat else None}
+
+
+def run_bench(split: str = "heldout", fit_kind: str = "real", cfg: FallsConfig | None = None, only: str = "",
+              progress=lambda m: None) -> dict:
+    """Each scenario with its bystander and alone; the summaries per bystander kind and together."""
+    cfg = cfg or FallsConfig()
+    t0 = time.monotonic()
+    make_fit = _fitter_factory(fit_kind)
+    rows_by, rows_alone = [], []
+    for case in cases(split):
+        if only and only not in case.faller.name:
+            continue
+        cfg_case = replace(cfg, camera_tilt_deg=case.faller.camera.tilt, camera_height_m=case.faller.camera.z,
+                           camera_geometry="measured")
+        rows_by.append(run_case(case, make_fit, cfg_case))
+        rows_alone.append(run_case(case, make_fit, cfg_case, alone=True))
+        r = rows_by[-1]
+        progress(f"{r['name']} + {r['bystander']}: detected {r['detected']}, states {r['states']}")
+    return {"split": split, "fit": fit_kind, "geometry": "given (the scene's camera height and tilt)",
+            "with_bystander": summarise(rows_by), "alone": summarise(rows_alone),
+            "per_bystander": {k: summarise([r for r in rows_by if r["bystander"] == k]) for k in BYSTANDERS},
+            "scenarios": rows_by, "seconds": round(time.monotonic() - t0, 1),
+            "targets": {"recall": "as alone (1.0)", "false_alarms": "as alone (0)", "second_events": 0, "ended": 0}}
