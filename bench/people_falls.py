@@ -24,7 +24,10 @@ tracker). Counted:
   ``recovered`` message (the faller never gets up in these scenarios);
 * **identity switches**: changes of the track id given to each person between consecutive frames where they
   were seen;
-* the same scenarios alone (one person, the same fits path), to compare.
+* the same scenarios alone (one person, the same fits path), to compare;
+* **who is who** (with the bystander): the faller is the household's one member (``falls.household``, their true
+  height); at the end, how each person was recognised (the member, a visitor, not known), and in how many of the
+  frames with the faller in view the history followed the faller, or the bystander.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ import numpy as np
 
 from posed.bench.falls_body import Body
 from posed.bench.falls_scenarios import STAND, Key, Scenario, catalogue, frames, kneel, truth_result, walk
-from posed.falls.config import FallsConfig
+from posed.falls.config import FallsConfig, HouseholdMember
 from posed.falls.detector import FallDetector
 from posed.falls.people import PeopleFalls
 from posed.fitting import FitResult
@@ -148,7 +151,10 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
         by = list(frames(case.bystander))
         given = [(f.seq, f.t, f, by[i] if i < len(by) else None) for i, (_, _, f, _) in enumerate(given)]
     tracker = PersonTracker()
+    if not alone:         # who is who: the person who falls is the household's member (their true height)
+        cfg = replace(cfg, household=(HouseholdMember("resident", case.faller.body.height),))
     detectors = PeopleFalls(FallDetector(replace(cfg), "bench"))
+    followed: list[str | None] = []
     fits: dict[int, Callable] = {}
     ids: dict[str, list[int]] = {"faller": [], "bystander": []}
     messages = []
@@ -176,6 +182,9 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
         else:
             people = [(None, FitResult.failure(seq, t, "no person"), None)]
         messages += detectors.update(people, t, seq, size, intr)
+        key = detectors.followed()
+        followed.append(next((w for (w, _), tid in zip(seen, track_ids, strict=True) if tid == key), None)
+                        if "faller" in [w for w, _ in seen] else "absent")
     for fit in fits.values():
         getattr(fit, "release", lambda: None)()
     faller_ids, by_ids = set(ids["faller"]), set(ids["bystander"])
@@ -191,7 +200,22 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             "states": [f"{m.extra.get('person')}:{m.state}" for m in messages],
             "bystander_events": len(theirs), "event_ids": len({m.id for m in mine}),
             "ended": any(m.state == "recovered" for m in mine),
-            "switches": {w: _switches(v) for w, v in ids.items()}, "rematches": detectors.rematches}
+            "switches": {w: _switches(v) for w, v in ids.items()}, "rematches": detectors.rematches,
+            "household": None if alone else _recognition(detectors, ids, followed)}
+
+
+def _recognition(detectors: PeopleFalls, ids: dict[str, list[int]], followed: list) -> dict:
+    """How the faller (the member) and the bystander were recognised at the end, and whom the history followed
+    while the faller was in view (``faller``, ``bystander`` or None: nobody, only visitors)."""
+    def last(who):
+        return detectors.household.who(ids[who][-1]) if ids[who] else None
+
+    f, b = last("faller"), last("bystander")
+    shown = [x for x in followed if x != "absent"]
+    return {"faller": None if f is None else f["member"] or ("visitor" if f["visitor"] else "unknown"),
+            "bystander": None if b is None else b["member"] or ("visitor" if b["visitor"] else "unknown"),
+            "followed_faller": sum(x == "faller" for x in shown), "followed_bystander": sum(x == "bystander" for x in shown),
+            "frames_faller_in_view": len(shown)}
 
 
 def _switches(ids: list[int]) -> int:
@@ -208,7 +232,19 @@ def summarise(rows: list[dict]) -> dict:
             "second_events": sum(r["event_ids"] > 1 for r in falls),
             "ended": sum(r["ended"] for r in falls),
             "identity_switches": sum(r["switches"]["faller"] + r["switches"]["bystander"] for r in rows),
-            "median_latency_s": lat[len(lat) // 2] if lat else None}
+            "median_latency_s": lat[len(lat) // 2] if lat else None, **_recognised(rows)}
+
+
+def _recognised(rows: list[dict]) -> dict:
+    hh = [r["household"] for r in rows if r.get("household")]
+    if not hh:
+        return {}
+    return {"faller_as_member": sum(h["faller"] == "resident" for h in hh),
+            "bystander_as_visitor": sum(h["bystander"] == "visitor" for h in hh),
+            "bystander_as_member": sum(h["bystander"] == "resident" for h in hh),
+            "history_on_bystander_frames": sum(h["followed_bystander"] for h in hh),
+            "history_on_faller_frames": sum(h["followed_faller"] for h in hh),
+            "faller_in_view_frames": sum(h["frames_faller_in_view"] for h in hh), "cases": len(hh)}
 
 
 def run_bench(split: str = "heldout", fit_kind: str = "real", cfg: FallsConfig | None = None, only: str = "",

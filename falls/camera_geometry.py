@@ -247,6 +247,15 @@ class CameraGeometry:
             return None   # the body contradicted the configured guess: its height is no better (lowest joint)
         return self._floor_cfg
 
+    def metric_floor(self) -> float | None:
+        """The floor's distance below the camera (m) when it was *measured*: the depth floor, else the configured
+        height of a mount marked measured; None otherwise (a floor learned from a person's feet is in the fit's
+        metres, which follow the body size the fit assumes)."""
+        depth = self._depth_height()
+        if depth is not None:
+            return depth
+        return self._floor_cfg if self.measured else None
+
     def _depth_height(self) -> float | None:
         """The depth floor's distance from the camera along the gravity in use (the IMU's may differ from the
         plane's normal by a degree or two); None without one, or when the two are further apart than 30 deg."""

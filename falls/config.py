@@ -11,6 +11,17 @@ from dataclasses import dataclass, field
 
 
 @dataclass(frozen=True)
+class HouseholdMember:
+    """Someone who lives here (``falls.household``): recognised by their stature (docs/falls.md, "Who is who")."""
+
+    name: str = field(metadata={"doc": "how status, history and events name them (required)",
+                                "pattern": r"[^\x00-\x1f]{1,64}"})
+    height_m: float = field(default=1.65, metadata={"doc": "their stature, standing, without shoes as far as "
+                                                           "they go without at home", "unit": "m",
+                                                    "range": (0.9, 2.3)})
+
+
+@dataclass(frozen=True)
 class FallsConfig:
     """Fall detector thresholds; each one's reason is in docs/falls.md."""
 
@@ -153,6 +164,13 @@ class FallsConfig:
         default=200.0, metadata={"doc": "supporting feature: hip or knee flexing faster than this (paper "
                                         "Figure 16)", "unit": "deg/s", "range": (10.0, 5000.0)}
     )
+    household: tuple[HouseholdMember, ...] = field(
+        default=(), metadata={"doc": "who lives here, each {name, height_m}; with several people in view, the "
+                                     "person whose measured stature matches one of them is theirs, and status and "
+                                     "history follow the household (the first listed first), not a visitor; needs "
+                                     "a measured camera height and tilt or a depth camera; empty: every person is "
+                                     "watched alike; see docs/falls.md"}
+    )
     history_enabled: bool = field(default=True, metadata={"doc": "store per-frame joint angles in history.sqlite3 in the state dir"})
     history_rate_hz: float = field(
         default=5.0, metadata={"doc": "joint-angle history: frames kept per second (capture time)", "unit": "Hz", "range": (0.1, 60.0)}
@@ -171,3 +189,9 @@ class FallsConfig:
     history_retention_days: float = field(
         default=90.0, metadata={"doc": "joint-angle history: rows older than this are deleted", "unit": "d", "range": (0.01, 36500.0)}
     )
+
+    def __post_init__(self) -> None:
+        names = [m.name for m in self.household]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"household: each member needs a name of their own; named twice: {', '.join(twice)}")

@@ -120,6 +120,8 @@ class FallDetector:
         self._last_result: FitResult | None = None
         self.last_sample: Sample | None = None
         self.other_level = 0      # frames whose pelvis was far under the floor in use (BELOW_FLOOR_REL)
+        self.last_features: FrameFeatures | None = None   # the last frame's, None when it was not judged
+        self.last_camera: Intrinsics | None = None        # the intrinsics it was judged with
 
     # ------------------------------------------------------------------ calibration inputs
 
@@ -167,6 +169,7 @@ class FallDetector:
         if fit_frame == "auto":  # the fit says which projection it used (orthographic: axes along the ray)
             fit_frame = "camera" if result.extra.get("projection") == "perspective" else "ray"
         geo = self.camera
+        self.last_camera = camera
         feats = measure(result, landmarks, image_size, camera, geo.gravity, self.cfg.min_visibility,
                         self.cfg.upright_knee_deg, geo.roll_deg, fit_frame, self.cfg.upright_trunk_deg)
         if feats is not None and feats.straight_body:
@@ -183,6 +186,7 @@ class FallDetector:
                 self._gap()
         sample = self._sample(feats) if feats is not None else None
         self.last_sample = sample
+        self.last_features = feats
         if sample is not None:
             self._last_result = result
             if self._last_valid_t is not None and t - self._last_valid_t > self.cfg.max_gap_s:

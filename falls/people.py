@@ -45,6 +45,8 @@ import numpy as np
 
 from posed.falls.detector import FallDetector
 from posed.falls.event import FallEvent
+from posed.falls.household import Household
+from posed.falls.stature import stature_m
 from posed.fitting import FitResult
 
 FORGET_S = 5.0             # a person unseen this long (capture seconds) with no event under way is forgotten
@@ -82,6 +84,9 @@ class PeopleFalls:
         self.people: dict[int | None, _Person] = {None: _Person(first)}
         self._prev_t: float | None = None
         self.rematches = 0
+        self.household = Household(getattr(first.cfg, "household", ()))
+        self.metric: str | None = None            # why no stature can be measured (None: it can)
+        self.in_frame: dict[int | None, FitResult] = {}   # the last frame's people and their results
 
     @property
     def main(self) -> FallDetector:
@@ -107,6 +112,7 @@ class PeopleFalls:
             self._restart()
         out: list[FallEvent] = []
         present: set[int | None] = {pid for pid, _, lms in people if pid in self.people}
+        in_frame: dict[int | None, FitResult] = {}
         for i, (pid, result, landmarks) in enumerate(people):
             if pid is None and landmarks is None and None not in self.people:
                 continue       # nobody in view in a stream with ids: everyone is fed "not in view" below
@@ -114,13 +120,17 @@ class PeopleFalls:
             if i == 0:
                 self.main_key = key
             present.add(key)
+            in_frame[key] = result
             person = self.people[key]
             box = _box(landmarks) if landmarks is not None else None
             if box is not None:
                 person.last_t, person.box = t, box
             if getattr(result, "ok", False) and getattr(result, "root_cam_m", None) is not None:
                 person.root_cam_m = result.root_cam_m
-            out += self._tag(key, person, person.detector.update(result, landmarks, image_size, intrinsics))
+            events = person.detector.update(result, landmarks, image_size, intrinsics)
+            if self.household and landmarks is not None:
+                self._measure(key, person.detector, landmarks)
+            out += self._tag(key, person, events)
         for key, person in list(self.people.items()):
             if key in present:
                 continue
@@ -128,7 +138,44 @@ class PeopleFalls:
             out += self._tag(key, person, person.detector.update(gone, None, image_size, intrinsics))
         self._forget(t)
         self._prev_t = t
+        self.in_frame = in_frame
         return out
+
+    # ------------------------------------------------------------------ the household
+
+    def _measure(self, key: int | None, det: FallDetector, landmarks: np.ndarray) -> None:
+        """A stature sample of a person standing upright, when the camera's floor is measured (module doc)."""
+        floor = det.camera.metric_floor()
+        if floor is None:
+            self.metric = ("no measured floor: set falls.camera_height_m and camera_tilt_deg as measured "
+                           "(falls.camera_geometry: measured) or use a depth camera")
+            return
+        self.metric = None
+        f = det.last_features
+        if f is None or not f.straight_body or f.trunk_incl_deg > det.cfg.upright_trunk_deg \
+                or det.last_camera is None:
+            return
+        h = stature_m(landmarks, det.last_camera, det.camera.gravity, floor, det.cfg.min_visibility)
+        if h is not None:
+            self.household.observe(key, h)
+
+    def followed(self) -> int | None | bool:
+        """Whom status and history follow this frame: the person in view recognised as the first-listed
+        household member in view; else the first person in view (the frame's own first) not known to be a
+        visitor; False when only visitors are in view (or nobody)."""
+        present = list(self.in_frame)
+        if not self.household:
+            return present[0] if present else False
+        ranked = [(r, k) for k in present for r in [self.household.rank(k)] if r is not None]
+        if ranked:
+            return min(ranked, key=lambda x: x[0])[1]
+        return next((k for k in present if not self.household.who(k)["visitor"]), False)
+
+    def household_status(self) -> dict:
+        """For the status: the members, whether stature can be measured, each person in view as recognised."""
+        return {"members": [m.name for m in self.household.members], "stature": self.metric or "measured",
+                "in_view": [{"person": k, **self.household.who(k)} for k in self.in_frame],
+                "followed": (lambda f: None if f is False else f)(self.followed())}
 
     # ------------------------------------------------------------------ who is who
 
@@ -137,6 +184,7 @@ class PeopleFalls:
             return pid
         if None in self.people and self._seen_last_frame(self.people[None]):
             self.people[pid] = self.people.pop(None)            # the stream's one person got their id
+            self.household.rename(None, pid)
             return pid
         box = _box(landmarks) if landmarks is not None else None
         best = self._rematch(box, present) if box is not None else None
@@ -145,6 +193,7 @@ class PeopleFalls:
             person = self.people.pop(old)
             person.match = match
             self.people[pid] = person
+            self.household.rename(old, pid)
             self.rematches += 1
             return pid
         self.people[pid] = _Person(self._new_detector())
@@ -186,26 +235,36 @@ class PeopleFalls:
                 continue
             if p.last_t is None or t - p.last_t > FORGET_S:
                 del self.people[key]
+                self.household.forget(key)
         while len(self.people) > MAX_KEPT:
             unseen = [(p.detector.state != "up", p.last_t if p.last_t is not None else -math.inf, k)
                       for k, p in self.people.items() if k != self.main_key]
-            del self.people[min(unseen, key=lambda x: (x[0], x[1]))[2]]
+            gone = min(unseen, key=lambda x: (x[0], x[1]))[2]
+            del self.people[gone]
+            self.household.forget(gone)
 
     def _restart(self) -> None:
         main = self.people[self.main_key]
         main.last_t, main.box, main.match = None, None, None
         self.people = {None: main}
         self.main_key = None
+        self.household = Household(self.household.members)
+        self.in_frame = {}
 
-    @staticmethod
-    def _tag(key: int | None, person: _Person, events: list[FallEvent]) -> list[FallEvent]:
-        if key is None or not events:
+    def _tag(self, key: int | None, person: _Person, events: list[FallEvent]) -> list[FallEvent]:
+        if not events:
             return events
-        tags = {"person": key, "root_cam_m": None if person.root_cam_m is None else
-                [round(float(v), 3) for v in person.root_cam_m]}
-        if person.match is not None:
-            tags["person_match"] = dict(person.match)
-        return [replace(e, extra={**e.extra, **tags}) for e in events]
+        tags: dict = {}
+        if key is not None:
+            tags = {"person": key, "root_cam_m": None if person.root_cam_m is None else
+                    [round(float(v), 3) for v in person.root_cam_m]}
+            if person.match is not None:
+                tags["person_match"] = dict(person.match)
+        if self.household:
+            who = self.household.who(key)
+            tags["member"] = who["member"]
+            tags["household"] = {k: who[k] for k in ("visitor", "sure", "stature_m", "samples")}
+        return [replace(e, extra={**e.extra, **tags}) for e in events] if tags else events
 
 
 def _box(landmarks: np.ndarray) -> np.ndarray | None:

@@ -260,7 +260,8 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         for i, ep in enumerate(falls, 1):
             what = " &rarr; ".join(esc(s.replace("_", " ")) for s in ep.states)
             ack = fmt(ep.acked) if ep.acked is not None else "<b class='warn'>no</b>"
-            parts.append(f"<tr><td>fall {i}</td><td>{fmt(ep.start)}</td><td>{what}</td><td>{esc(ep.outcome)}"
+            whose = f" ({esc(ep.who)})" if ep.who else ""
+            parts.append(f"<tr><td>fall {i}{whose}</td><td>{fmt(ep.start)}</td><td>{what}</td><td>{esc(ep.outcome)}"
                          f"</td><td>{ack}</td></tr>")
         parts.append("</table>")
     parts.append(f"<p>{_falls_sentence(acct, len(falls))}</p>")

@@ -82,6 +82,7 @@ class EventMark:
     state: str
     time: float
     acked: float | None = None
+    who: str | None = None        # whose fall (a household member's name, "a visitor", "person N"), if known
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,7 @@ class Episode:
     states: tuple[str, ...]
     acked: float | None = None
     notes: tuple[str, ...] = field(default=())
+    who: str | None = None        # whose fall, when the messages say
 
     @property
     def outcome(self) -> str:
@@ -129,7 +131,9 @@ def episodes(marks: Iterable[EventMark]) -> list[Episode]:
             if m.state not in states:
                 states.append(m.state)
         acked = [m.acked for m in ms if m.acked is not None]
-        out.append(Episode(eid, ms[0].time, ms[-1].time, tuple(states), min(acked) if acked else None))
+        who = next((m.who for m in reversed(ms) if m.who), None)      # the latest word on it
+        out.append(Episode(eid, ms[0].time, ms[-1].time, tuple(states), min(acked) if acked else None,
+                           who=who))
     return sorted(out, key=lambda e: e.start)
 
 

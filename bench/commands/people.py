@@ -6,9 +6,11 @@
   kneeling beside the person who fell, the real fit per person: recall, false alarms, bystander events, second
   events, events ended, identity switches, against the same scenarios alone;
 * ``recordings``: the real fall recordings of shared/data/falls/urfd_dev each with a real bystander (another
-  clip's person beside the camera's axis), through what ``posed falls`` runs, against alone.
+  clip's person beside the camera's axis), through what ``posed falls`` runs, against alone;
+* ``stature``: who is who: a man's shoulder height measured from one real image by each of four calibrated
+  cameras (what the household recognition measures), against his triangulated joints.
 
-Run: ``posed bench people [--json] [--part scenes|falls|recordings] [--scenario NAME] [--split S]``."""
+Run: ``posed bench people [--json] [--part scenes|falls|recordings|stature] [--scenario NAME] [--split S]``."""
 
 from __future__ import annotations
 
@@ -16,12 +18,12 @@ import argparse
 import json
 import sys
 
-PARTS = ("scenes", "falls", "recordings")
+PARTS = ("scenes", "falls", "recordings", "stature")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--part", action="append", choices=PARTS,
-                        help="run only this part (repeatable; default: all three)")
+                        help="run only this part (repeatable; default: all)")
     parser.add_argument("--scenario", default="", choices=("", "apart", "cross_behind", "cross_front"),
                         help="scenes: one scenario only (default: all)")
     parser.add_argument("--split", default="heldout", choices=("tune", "heldout"),
@@ -48,6 +50,10 @@ def run(args: argparse.Namespace) -> int:
         folder = shared_data() / "falls" / "urfd_dev"
         report["recordings"] = {g: run_recordings(folder, geometry=g, progress=progress)
                                 for g in ("config", "labels")}
+    if "stature" in parts:
+        from posed.bench.people_stature import run as run_stature
+
+        report["stature"] = run_stature(shared_data())
     if args.json:
         print(json.dumps(report))
         return 0
@@ -57,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
         _print_falls(report["falls"])
     if "recordings" in report:
         _print_recordings(report["recordings"])
+    if "stature" in report:
+        _print_stature(report["stature"])
     return 0
 
 
@@ -85,6 +93,13 @@ def _print_falls(rep: dict) -> None:
         rep["with_bystander"][k] for k in ("second_events", "ended", "bystander_events"))
     print("target (recall and false alarms as alone, no second event, none ended, none for the bystander): "
           + ("met" if ok else "MISSED"))
+    w = rep["with_bystander"]
+    if "cases" in w:
+        print(f"who is who (the faller the household's member, by height): faller recognised in "
+              f"{w['faller_as_member']}/{w['cases']} scenarios, bystander as a visitor in "
+              f"{w['bystander_as_visitor']}/{w['cases']}, bystander taken for the member in {w['bystander_as_member']}; "
+              f"history on the faller in {w['history_on_faller_frames']}/{w['faller_in_view_frames']} frames with "
+              f"them in view, on the bystander in {w['history_on_bystander_frames']}")
 
 
 def _print_recordings(reps: dict) -> None:
@@ -94,3 +109,11 @@ def _print_recordings(reps: dict) -> None:
             s = rep[mode]
             print(f"{mode:15} falls {s['detected']}/{s['falls']}, false alarms {s['false_alarms']}/{s['adl']}, "
                   f"bystander events {s['bystander_events']}, second events {s['second_events']}")
+
+
+def _print_stature(rep: dict) -> None:
+    print("\nshoulder height from one real image (pose2sim balancing, both feet down) against triangulated")
+    for v in rep["views"]:
+        print(f"{v['view']}: camera {v['camera_height_m']} m high, {v['tilt_deg']} deg down, {v['frames']} frames: "
+              f"{v['shoulder_m']} m against {v['truth_m']} m (error {v['error_m']} m; stature {v['stature_m']} m)")
+    print(f"spread between the views {rep['spread_between_views_m']} m, mean error {rep['mean_error_m']} m")

@@ -20,5 +20,15 @@ def angle_series(rows: Sequence[tuple], columns: Sequence[str]) -> AngleSeries:
 
 
 def event_marks(stored: Iterable) -> list[EventMark]:
-    """Journal messages (``StoredEvent``) as marks on the clock."""
-    return [EventMark(s.event.id, s.event.state, s.wall, s.acked_at) for s in stored]
+    """Journal messages (``StoredEvent``) as marks on the clock, each with whose fall it is when known."""
+    return [EventMark(s.event.id, s.event.state, s.wall, s.acked_at, whose(s.event.extra)) for s in stored]
+
+
+def whose(extra: dict) -> str | None:
+    """Whose fall a message is, in words: the household member's name, "a visitor", "person N" (several
+    people, no household), None (one person)."""
+    if extra.get("member"):
+        return str(extra["member"])
+    if (extra.get("household") or {}).get("visitor"):
+        return "a visitor"
+    return None if extra.get("person") is None else f"person {extra['person']}"

@@ -47,6 +47,7 @@ from posed.daemon.messages import FitMsg
 from posed.daemon.stages.depth_floor import KEEP_S as FLOOR_KEEP_S
 from posed.falls import FallDetector, FallEvent, FallsConfig
 from posed.falls.people import PeopleFalls
+from posed.fitting import FitResult
 
 LOG_FIRST_FAILURES = 3
 LOG_FAILURE_EVERY = 100
@@ -113,7 +114,21 @@ class FallWatch:
             out["geometry_save_error"] = self.save_error
         if self.people.main_key is not None:        # several people seen: who is watched
             out["people"] = self.people.watching()
+        if self.people.household:
+            out["household"] = self.people.household_status()
         return out
+
+    def followed(self, msg: FitMsg) -> FitResult:
+        """The fit that the history keeps for this frame: the household member's when a household is configured
+        and one is recognised in view (:meth:`falls.people.PeopleFalls.followed`); a frame with only visitors
+        in view gives a "no person" result (the person cared for is not in view); otherwise the frame's own."""
+        if self.people is None or not self.people.household:
+            return msg.result
+        key = self.people.followed()
+        if key is False:
+            return FitResult.failure(msg.result.seq, msg.result.t, "no person",
+                                     others_in_view=len(self.people.in_frame))
+        return self.people.in_frame.get(key, msg.result)
 
     # ------------------------------------------------------------------ the learned geometry, kept
 

@@ -107,7 +107,7 @@ class PublisherStage:
             self.bus.put_landmarks(landmarks_message(msg, self.rt.config.robot_id))
         for event in self.falls.update(msg):
             self.outbox.post(stamp_event(event))    # unix times before the journal
-        self.history.add(msg.result, msg.t_capture)
+        self.history.add(self.falls.followed(msg), msg.t_capture)     # the household member's, when known
 
     def periodic(self, now: float) -> None:
         status = self.rt.mailbox("status").take()

@@ -42,3 +42,18 @@ def test_people_bench_real_recordings_with_a_bystander():
             assert (both["detected"], both["event_ids"]) == (alone["detected"], alone["event_ids"]), clip
             assert both["bystander_events"] == 0, clip
         assert rep["with_bystander"]["detected"] >= 7 and rep["with_bystander"]["false_alarms"] <= 1
+
+
+def test_stature_from_one_real_image_is_within_what_recognition_tolerates():
+    """The man of the balancing video from each of four calibrated real cameras: his shoulder height measured
+    from one image within the household's tolerance of his triangulated shoulders, and the four views agree
+    within the margin that tells two members apart (falls.household)."""
+    from posed.falls.household import MARGIN_M, TOLERANCE_M
+
+    r = subprocess.run([sys.executable, "-m", "posed.cli", "bench", "people", "--json", "--part", "stature"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rep = json.loads(r.stdout)["stature"]
+    assert len(rep["views"]) == 4 and all(v["frames"] >= 10 for v in rep["views"]), rep
+    assert all(abs(v["error_m"]) < TOLERANCE_M for v in rep["views"]), rep
+    assert rep["spread_between_views_m"] < MARGIN_M, rep

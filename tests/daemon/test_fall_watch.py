@@ -19,6 +19,8 @@ def fit_msg(seq: int):
 
 
 class Detector:
+    cfg = FallsConfig()
+
     def __init__(self, fail: bool = False) -> None:
         self.fail = fail
         self.calls: list[tuple] = []
@@ -51,3 +53,47 @@ def test_disabled_falls_give_no_events():
     watch = FallWatch.from_config(FallsConfig(enabled=False), "r1", RecordingLog())
     assert watch.detector is None and watch.update(fit_msg(0)) == []
     assert FallWatch.from_config(FallsConfig(), "r1", RecordingLog()).detector is not None
+
+
+def test_with_a_household_the_history_follows_the_member_not_the_frames_own_person():
+    """Two people through FallWatch as the publisher feeds it (FitMsg with ``others``, frames with ``people``):
+    the member (1.60 m, not the frame's own person) is what the history keeps; with only the visitor in view,
+    a "no person" result; the status lists who is who."""
+    from dataclasses import replace
+
+    from posed.bench.falls_body import Body
+    from posed.bench.falls_scenarios import STAND, Key, Truth, frames, make, truth_result
+    from posed.daemon.messages import FitMsg
+    from posed.falls.config import HouseholdMember
+    from posed.landmarks.recording import LandmarkFrame, PersonLandmarks
+
+    def still(height, xy, seed):
+        sc = make("s", "adl", ([Key(0.0, STAND, xy=xy), Key(3.0, STAND, xy=xy, ease="hold")], Truth("adl")),
+                  0.0, 3.0, 1.0, 12.0, seed=seed, start_xy=xy)
+        return replace(sc, body=Body(height))
+
+    member, visitor = still(1.60, (-0.9, 3.2), 1), still(1.84, (0.9, 3.4), 2)
+    cam = member.camera
+    cfg = FallsConfig(camera_tilt_deg=12.0, camera_height_m=1.0, camera_geometry="measured",
+                      household=(HouseholdMember("Grandma", 1.60),))
+    watch = FallWatch.from_config(cfg, "r1", RecordingLog())
+    kept = []
+    for m, v in zip(frames(member), frames(visitor), strict=True):
+        rv = replace(truth_result(v, cam), extra={"person": 1})
+        rm = replace(truth_result(m, cam), extra={"person": 2})
+        frame = LandmarkFrame(m.seq, m.t, v.landmarks, people=(PersonLandmarks(1, v.landmarks),
+                                                               PersonLandmarks(2, m.landmarks)))
+        msg = FitMsg(rv, frame, m.t, (cam.width, cam.height), (), cam.intrinsics, others=(rm,))
+        watch.update(msg)
+        kept.append(watch.followed(msg))
+    assert kept[-1].extra.get("person") == 2 and kept[0].extra.get("person") == 1   # before she was known
+    status = watch.status()["household"]
+    assert status["followed"] == 2 and status["members"] == ["Grandma"]
+    who = {p["person"]: p for p in status["in_view"]}
+    assert who[2]["member"] == "Grandma" and who[1]["visitor"] and abs(who[1]["stature_m"] - 1.84) < 0.03
+    # the visitor alone: the person cared for is not in view
+    alone = FitMsg(rv, LandmarkFrame(99, 9.9, v.landmarks, people=(PersonLandmarks(1, v.landmarks),)), 9.9,
+                   (cam.width, cam.height), (), cam.intrinsics)
+    watch.update(replace(alone, result=replace(rv, seq=99, t=9.9)))
+    got = watch.followed(alone)
+    assert not got.ok and got.reason == "no person"
