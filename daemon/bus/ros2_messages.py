@@ -53,6 +53,7 @@ MARKER_NS = "posed_skeleton"
 MARKER_LIFETIME_S = 1.0           # a skeleton not refreshed for this long disappears from RViz
 DIAGNOSTIC_LEVEL = {"falling": 1, "on_floor": 2, "alarm": 2, "recovered": 0}   # WARN, ERROR, ERROR, OK
 EVENT_KEYS = ("id", "robot", "state", "confidence", "time_unix", "t_onset_unix", "t_impact_unix", "wall_time")
+PERSON_KEYS = ("person", "member")
 
 
 @cache
@@ -178,6 +179,9 @@ def fall_diagnostic(event: dict, node_name: str):
     values = [T("diagnostic_msgs/msg/KeyValue")(key=k, value="" if event.get(k) is None else str(event[k]))
               for k in EVENT_KEYS]
     values.append(T("diagnostic_msgs/msg/KeyValue")(key="features", value=",".join(event.get("features") or ())))
+    for k in PERSON_KEYS:                # several people: whose fall (absent with one person)
+        if event.get(k) is not None:
+            values.append(T("diagnostic_msgs/msg/KeyValue")(key=k, value=str(event[k])))
     level = DIAGNOSTIC_LEVEL.get(event.get("state"), 2)
     status = T("diagnostic_msgs/msg/DiagnosticStatus")(
         level=level, name=f"{node_name}/fall",

@@ -10,7 +10,8 @@ Per fit result (``fits`` mailbox), in this order:
 3. each fall-event message to the outbox (:class:`daemon.outbox.delivery.EventOutbox`): into the journal
    *before* it is published on ``posed/ROBOT/events/fall`` (reliable, congestion control BLOCK, never
    dropped), then to the hooks;
-4. the joint angles to the history (:class:`daemon.history.recorder.HistoryRecorder`).
+4. the joint angles to the history (:class:`daemon.history.recorder.HistoryRecorder`) and to ROS 2: the frame's
+   own person's, or with ``falls.household`` the member's recognised in view (``FallWatch.followed``).
 
 Between frames: ``posed/ROBOT/status`` (the supervisor's status every ``pipeline.status_period_s``, plus the
 Zenoh session and the event backlog); unacknowledged events published again when a new subscriber to
@@ -98,16 +99,20 @@ class PublisherStage:
     def handle(self, msg: FitMsg) -> None:
         pose = pose_message(msg, clock.now(), self.rt.config.robot_id)
         self.bus.put_pose(pose)
+        poses = {id(msg.result): pose}
         for other in msg.others:        # several people: one pose object per person, the frame's seq
-            self.bus.put_pose(pose_message(replace(msg, result=other, others=()), clock.now(),
-                                           self.rt.config.robot_id))
-        if self.ros2 is not None:
-            self.ros2.publish_pose(pose)
+            poses[id(other)] = pose_message(replace(msg, result=other, others=()), clock.now(),
+                                            self.rt.config.robot_id)
+            self.bus.put_pose(poses[id(other)])
         if self.bus.wants_landmarks:
             self.bus.put_landmarks(landmarks_message(msg, self.rt.config.robot_id))
         for event in self.falls.update(msg):
             self.outbox.post(stamp_event(event))    # unix times before the journal
-        self.history.add(self.falls.followed(msg), msg.t_capture)     # the household member's, when known
+        followed = self.falls.followed(msg)       # the household member's, when one is known: else the frame's
+        if self.ros2 is not None:                 # ROS 2's one JointState stream follows that person too
+            self.ros2.publish_pose(poses.get(id(followed)) or pose_message(replace(msg, result=followed, others=()),
+                                                                           clock.now(), self.rt.config.robot_id))
+        self.history.add(followed, msg.t_capture)
 
     def periodic(self, now: float) -> None:
         status = self.rt.mailbox("status").take()

@@ -281,3 +281,13 @@ def test_the_example_of_ros2_md_runs(ros_run):
     assert len(lines) >= 5, out.stdout[-2000:] + out.stderr[-2000:]
     sec, _, angles = lines[-1].partition(" ")
     assert int(sec) > 1.6e9 and re.search(r"'(left|right)_\w+_joint': ", angles) and "theta" not in angles
+
+
+def test_a_fall_diagnostic_says_whose_fall_when_several_people_are_watched():
+    event = {"id": "a" * 32, "robot": "r1", "state": "on_floor", "confidence": 0.8, "time_unix": 1.7e9,
+             "features": ["pelvis_at_floor_level"]}
+    plain = {kv.key: kv.value for kv in rm.fall_diagnostic(event, "posed").status[0].values}
+    assert "person" not in plain and "member" not in plain            # one person: as before
+    theirs = rm.fall_diagnostic({**event, "person": 3, "member": "Grandma"}, "posed")
+    values = {kv.key: kv.value for kv in theirs.status[0].values}
+    assert values["person"] == "3" and values["member"] == "Grandma" and values["state"] == "on_floor"
