@@ -5,7 +5,8 @@ Messages (JSON objects with ``type``): ``pose`` (at most ``pose_rate_hz`` per se
 measured — fitting.measured; an unseen one is absent — in metres, camera axes — x image right, y image down,
 z away from the camera — relative to the mid-hip, the mid-hip's camera position when known, and the main joint
 angles, null when not measured), ``status`` (with ``floor``: the fall detector's gravity and floor),
-``event`` (each fall-event message once per (id, state)), ``acked``, ``alive``. ``snapshot()`` is what a page that opens
+``event`` (each fall-event message once per (id, state)), ``acked``, ``alive``. With several people in view
+one person is drawn: the household member the status says is followed, else each frame's own person. ``snapshot()`` is what a page that opens
 now needs first: the last status, the last minute of angles, the events seen, whether the robot is up.
 """
 
@@ -68,6 +69,8 @@ class Hub:
         self._alive: bool | None = None
         self._bus: dict = {"connected": None, "reason": None, "fix": None}   # None: not known yet
         self.poses_in = 0
+        self._follow: int | None = None     # several people: the track id the status says is followed
+        self._last_seq: int | None = None   # the seq of the last pose that was not another person's
 
     # ------------------------------------------------------------------ browsers
     def subscribe(self) -> queue.Queue:
@@ -108,6 +111,8 @@ class Hub:
         """A ``fitting.FitResult`` from posed/ROBOT/pose (``extra`` holds ``time_unix`` when sent)."""
         now = self._clock()
         self.poses_in += 1
+        if not self._is_followed(result):
+            return
         if now - self._last_pose_at < self.min_pose_gap:
             return
         self._last_pose_at = now
@@ -126,8 +131,25 @@ class Hub:
                 self._angles.popleft()
         self._send(msg)
 
+    def _is_followed(self, result) -> bool:
+        """Several people (poses with ``person``): the page draws one, the household member the status says is
+        followed, else each frame's own person (published first for its seq): the chart never mixes two
+        people's angles."""
+        person = result.extra.get("person")
+        if person is None:
+            return True
+        if self._follow is not None:
+            return person == self._follow
+        if result.seq == self._last_seq:
+            return False
+        self._last_seq = result.seq
+        return True
+
     def on_status(self, robot: str, status) -> None:
         """A ``client.Status``."""
+        household = ((status.raw or {}).get("falls") or {}).get("household") or {}
+        followed = household.get("followed")
+        self._follow = followed if isinstance(followed, int) and not isinstance(followed, bool) else None
         msg = {"type": "status", "state": status.state, "fps": _num(status.fps),
                "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
