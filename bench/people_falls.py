@@ -45,7 +45,7 @@ from posed.falls.config import FallsConfig, HouseholdMember
 from posed.falls.detector import FallDetector
 from posed.falls.people import PeopleFalls
 from posed.fitting import FitResult
-from posed.landmarks.tracks import PersonTracker
+from posed.landmarks import PersonTracker
 
 BYSTANDERS = ("standing", "walking", "kneeling")
 DETECTING = ("falling", "on_floor")

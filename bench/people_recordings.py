@@ -31,8 +31,7 @@ import numpy as np
 from posed.bench.falls_recordings import read_labels, with_geometry
 from posed.camera_model import Intrinsics
 from posed.daemon.config import Config
-from posed.landmarks.recording import LandmarkFrame, PersonLandmarks, RecordingHeader, read_recording
-from posed.landmarks.tracks import PersonTracker
+from posed.landmarks import LandmarkFrame, PersonLandmarks, PersonTracker, RecordingHeader, read_recording
 
 DETECTING = ("falling", "on_floor")
 PAN_DEG = 45.0     # the bystander stands this far to the right of the camera's axis (about the vertical)
