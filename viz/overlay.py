@@ -70,6 +70,20 @@ def draw_landmarks(img: np.ndarray, landmarks: np.ndarray | None) -> None:
             cv2.circle(img, p, r, (40, 40, 40), 1, cv2.LINE_AA)
 
 
+def draw_person_label(img: np.ndarray, landmarks: np.ndarray | None, text: str) -> None:
+    """``text`` (a person's track id, whose angles are shown) above the person's landmark box."""
+    if landmarks is None:
+        return
+    lm = np.asarray(landmarks, float)
+    ok = np.all(np.isfinite(lm[:, :2]), axis=1)
+    if not ok.any():
+        return
+    s = scale_of(img)
+    x = int(np.clip(lm[ok, 0].min(), 0, img.shape[1] - 10))
+    y = int(np.clip(lm[ok, 1].min() - 10 * s, 18 * s, img.shape[0] - 4))
+    draw.text(img, text, (x, y), 0.5 * s, (255, 255, 255), max(1, round(1.2 * s)), background=(60, 60, 60))
+
+
 def draw_model(img: np.ndarray, reproj: Reprojection | None) -> None:
     """The fitted skeleton (thick; left orange solid, right blue dashed, centre green): the joints in
     ``reproj`` only (the caller passes the measured ones), a bone where both its ends are there."""

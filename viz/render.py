@@ -27,6 +27,8 @@ class FrameInput:
     result: object | None            # fitting.FitResult
     fall_state: str | None = None
     fall_event: str | None = None
+    person: int | None = None        # several people: the track id of the person whose angles are shown
+    others: tuple = ()               # the other people: (track id, 33 x 5 landmarks, FitResult or None) each
 
 
 def joints_for_side(result, absolute: bool) -> dict[str, np.ndarray] | None:
@@ -96,8 +98,15 @@ class ClipRenderer:
             note = result.reason or "fit failed"
         elif item.landmarks is None:
             note = "no person"
+        for pid, lms, res in item.others:      # several people: each drawn and labelled; the angles are one's
+            overlay.draw_landmarks(canvas, lms)
+            if res is not None and res.ok:
+                overlay.draw_model(canvas, reproject(res.measured_joints(), res.root_cam_m, self.intrinsics, lms))
+            overlay.draw_person_label(canvas, lms, f"person {pid}")
         overlay.draw_landmarks(canvas, item.landmarks)
         overlay.draw_model(canvas, reproj)
+        if item.person is not None:
+            overlay.draw_person_label(canvas, item.landmarks, f"person {item.person} (angles)")
         overlay.draw_info(canvas, FrameInfo(item.t, angles, note, item.fall_state, item.fall_event,
                                             reproj.how if reproj else "", lean, evidence))
         overlay.legend(canvas)

@@ -1,6 +1,8 @@
 """``posed render INPUT -o OUT.webm``: the video with what posed found drawn on it (viz.render).
 
-INPUT is a video (the landmark stage and the fit run here, in video mode, as the daemon runs them) or a
+INPUT is a video (the landmark stage and the fit run here, in video mode, as the daemon runs them: with
+``landmarks.max_people`` > 1 every person is followed, fitted and fall-checked, each drawn with their track id;
+the angles and the fall state shown are the frame's own person's, another person's fall event is named) or a
 landmark recording (``.landmarks.jsonl``) with its fit (``--fit FIT.jsonl``, from ``posed fit``) and, when
 there is one, the source video (``--video``; otherwise the drawing is on a grey background). The fall
 detector runs on the fits when ``falls.enabled``. Camera intrinsics: the recording's header, else the
@@ -68,15 +70,16 @@ def _fit_video(args, config, progress_on):
     from dataclasses import replace
 
     from posed.commands.landmarks import open_input
-    from posed.daemon.stages.fit import StreamFit
+    from posed.daemon.stages.fit import PeopleFit
     from posed.fitting import Fitter
-    from posed.landmarks import PoseLandmarker
+    from posed.landmarks import MultiPoseLandmarker, PoseLandmarker
     from posed.viz.video import Progress
 
     source = open_input(Path(args.input), None, config.source.fps)
     intrinsics = _intrinsics(source.camera, source.image_size, config, args.hfov)
-    landmarker = PoseLandmarker(replace(config.landmarks, tracking=True))
-    stream = StreamFit(Fitter(config.fitting))   # the fitting stage's own video-mode logic
+    lm_config = replace(config.landmarks, tracking=True)
+    landmarker = MultiPoseLandmarker(lm_config) if lm_config.max_people > 1 else PoseLandmarker(lm_config)
+    stream = PeopleFit(lambda: Fitter(config.fitting))   # the fitting stage's own logic, a fitter per person
     items, problems = [], 0
     count = _frame_count(args.input)
     bar = Progress(count, "landmarks + fit", progress_on)
@@ -86,11 +89,17 @@ def _fit_video(args, config, progress_on):
             problems += 1
             continue
         lf = landmarker.process(frame.image, frame.t, frame.seq)
-        result = stream.fit(lf, lf.t, source.image_size, intrinsics)
-        items.append((lf.seq, lf.t, lf.landmarks, result))
+        result, others = stream.fit(lf, lf.t, source.image_size, intrinsics)
+        items.append((lf.seq, lf.t, lf.landmarks, result, _others(lf, others)))
         bar.step()
     bar.finish()
     return source.image_size, source.fps, intrinsics, items, problems
+
+
+def _others(frame, others) -> tuple:
+    """The frame's other people as the renderer draws them: (track id, landmarks, fit) each."""
+    marks = {p.id: p.landmarks for p in (frame.people or ())}
+    return tuple((r.extra.get("person"), marks.get(r.extra.get("person")), r) for r in others)
 
 
 def _frame_count(path) -> int | None:
@@ -121,7 +130,10 @@ def _from_recording(args, config):
             print(str(f), file=sys.stderr)
             problems += 1
             continue
-        items.append((f.seq, f.t, f.landmarks, fits.get(f.seq)))
+        own = fits.get(f.seq)
+        mine = None if own is None else own.extra.get("person")
+        items.append((f.seq, f.t, f.landmarks, own,
+                      tuple((p.id, p.landmarks, None) for p in (f.people or ()) if p.id != mine)))
     intrinsics = _intrinsics(header.camera, header.image_size, config, args.hfov)
     return header.image_size, header.fps, intrinsics, items, problems
 
@@ -179,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
         with VideoOut(args.output, fps, size) as out:
             next_index = 0
             image = None
-            for (seq, t, lm, result), (state, event) in zip(items, states, strict=True):
+            for (seq, t, lm, result, others), (state, event) in zip(items, states, strict=True):
                 if cap is not None:
                     while next_index <= seq:           # the video frame of this seq (seq = frame index)
                         ok, image = cap.read()
@@ -189,7 +201,8 @@ def run(args: argparse.Namespace) -> int:
                             break
                     if image is not None and (image.shape[1], image.shape[0]) != tuple(image_size):
                         image = cv2.resize(image, tuple(int(v) for v in image_size))
-                frame = renderer.frame(image, FrameInput(seq, t, lm, result, state, event))
+                person = None if result is None else result.extra.get("person")
+                frame = renderer.frame(image, FrameInput(seq, t, lm, result, state, event, person, others))
                 if k != 1.0:
                     frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
                 out.write(frame)
@@ -208,14 +221,21 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _falls(items, image_size, intrinsics, config):
-    """The fall detector's state after each frame and the last event message's state."""
+    """The fall detector's state after each frame (the shown person's) and the last event message's state
+    (``person N: state`` when it was another person's), a detector per person as the daemon runs them."""
     from posed.falls import FallDetector
+    from posed.falls.people import PeopleFalls
 
-    detector = FallDetector(config.falls, config.robot_id)
+    watch = PeopleFalls(FallDetector(config.falls, config.robot_id))
     out, last = [], None
-    for _seq, _t, lm, result in items:
-        if result is not None:
-            for ev in detector.update(result, lm, image_size, intrinsics):
-                last = ev.state
-        out.append((detector.state, last))
+    for seq, t, lm, result, others in items:
+        if result is None:                        # a frame the fit file does not have: nothing to judge
+            out.append((watch.main.state, last))
+            continue
+        people = [(result.extra.get("person"), result, lm)]
+        people += [(pid, r, marks) for pid, marks, r in others if r is not None]
+        for ev in watch.update(people, t, seq, image_size, intrinsics):
+            whose = ev.extra.get("person")
+            last = ev.state if whose is None or whose == people[0][0] else f"person {whose}: {ev.state}"
+        out.append((watch.main.state, last))
     return out

@@ -132,3 +132,33 @@ def test_render_reports_bad_inputs(tmp_path, capsys):
     bad.write_bytes(b"not a video at all" * 100)
     assert main(["render", str(bad), "-o", str(tmp_path / "x.webm")]) == 2
     assert "cannot open" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_render_draws_every_person_of_a_real_two_person_clip(shared_data, tmp_path):
+    """The real s2d_enter clip cut to its first 3 s (a woman walks in at ~1.3 s): rendered in the daemon's
+    several-people mode, the frames after she is found have the fitted skeleton drawn over both people: skeleton
+    colours inside each person's own landmark box, the other person drawn where the one-person render left
+    the picture as it was."""
+    from posed.landmarks import LandmarkConfig, MultiPoseLandmarker
+    from tests.daemon.frame_sizes_util import read_frames, write_video
+
+    frames = read_frames(shared_data / "reference" / "multi_person" / "s2d_enter.mp4", n=90)
+    clip = write_video(tmp_path / "enter.avi", frames, 30.0)
+    out = tmp_path / "enter.webm"
+    assert main(["render", str(clip), "-o", str(out), "--max-height", "0"]) == 0
+    drawn = _frames(out)
+    assert len(drawn) == 90
+    # where the two people are, from the landmarker itself on the last frame
+    lm = MultiPoseLandmarker(LandmarkConfig())
+    for k, f in enumerate(frames):
+        res = lm.process_full(f, k / 30.0, k)
+    assert len(res.people) == 2
+    h, w = frames[0].shape[:2]
+    mask = _skeleton_mask(drawn[-1][:, :w])
+    for person in res.people:
+        marks = person.result.frame.landmarks
+        ok = np.isfinite(marks[:, :2]).all(axis=1) & (marks[:, 3] > 0.5)
+        x0, y0 = np.floor(marks[ok, :2].min(axis=0)).astype(int)
+        x1, y1 = np.ceil(marks[ok, :2].max(axis=0)).astype(int)
+        assert mask[max(0, y0):y1, max(0, x0):x1].sum() > 200, f"no skeleton drawn over person {person.id}"
