@@ -80,14 +80,24 @@ class Summary:
         poses, events, status = self.take_period()
         out = [f"{elapsed_s:5.1f}s  FALL {e.get('state', '?'):9s} id {str(e.get('id', ''))[:8]}  "
                f"confidence {e.get('confidence', 0):.2f}  features {','.join(e.get('features') or [])}"
+               + (f"  person {e['person']}" if e.get("person") is not None else "")
+               + (f" ({e['member']})" if e.get("member") else "")
                for e in events]
         parts = [f"{elapsed_s:5.1f}s"]
         if not poses:
             parts.append(f"no poses ({waiting_for(status)})")
         else:
-            lat = [p["timing_ms"]["total"] for p in poses if (p.get("timing_ms") or {}).get("total") is not None]
-            ok = [p for p in poses if p.get("ok")]
-            parts.append(f"{len(poses) / period_s:5.1f} fps")
+            # several people: one pose per person per frame, the frame's own first (the one shown)
+            per_seq: dict = {}
+            for p in poses:
+                per_seq.setdefault(p.get("seq"), []).append(p)
+            own = [ps[0] for ps in per_seq.values()]
+            lat = [p["timing_ms"]["total"] for p in own if (p.get("timing_ms") or {}).get("total") is not None]
+            ok = [p for p in own if p.get("ok")]
+            parts.append(f"{len(per_seq) / period_s:5.1f} fps")
+            most = max(len(ps) for ps in per_seq.values())
+            if most > 1:
+                parts.append(f"{most} people")
             if lat:
                 s = percentile_summary(lat, 0)
                 parts.append(f"latency p50 {s['p50']:4.0f} ms p95 {s['p95']:4.0f} ms")

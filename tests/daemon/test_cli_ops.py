@@ -234,6 +234,34 @@ def test_watch_says_what_a_starting_daemon_is_doing():
     assert "no poses (starting: compiling the fitting kernels" in s.line(1.0)[-1]
 
 
+def test_watch_counts_frames_not_poses_and_says_whose_fall_with_several_people():
+    import json as _json
+    from types import SimpleNamespace
+
+    from posed.commands._viewer import Summary
+
+    def sample(obj):
+        return SimpleNamespace(payload=SimpleNamespace(to_string=lambda: _json.dumps(obj)))
+
+    from posed.fitting import FitResult
+    from posed.fitting.measured import Measured
+
+    def pose(seq, person, knee):
+        r = FitResult(seq, seq / 10, True, joint_angles_deg={"theta_kn_l": knee}, extra={"person": person},
+                      measured=Measured.from_landmarks(["left_hip", "left_knee", "left_ankle"]))
+        return {**r.to_json(), "timing_ms": {"total": 20.0}}
+
+    s = Summary()
+    for seq in range(10):                    # one second at 10 fps, two people in each frame
+        s.on_pose(sample(pose(seq, 1, 10.0)))
+        s.on_pose(sample(pose(seq, 2, 80.0)))
+    s.on_event(sample({"id": "e" * 32, "state": "on_floor", "confidence": 0.8, "features": [], "person": 2,
+                       "member": "Grandma"}))
+    fall, line = s.line(1.0)
+    assert "10.0 fps" in line and "2 people" in line and "knee L  10.0" in line, line
+    assert "person 2 (Grandma)" in fall
+
+
 def test_landmarks_progress_lines(capsys):
     from posed.commands.landmarks import Progress
 
