@@ -71,6 +71,16 @@ def test_a_slow_page_loses_its_oldest_messages_not_the_others():
     assert slow.get()["alive"] == (((400 - slow.maxsize) % 2) == 0)   # the newest ones are kept
 
 
+def drawn_knees(q) -> list:
+    """The left knee of every pose message waiting in a page's queue."""
+    out = []
+    while not q.empty():
+        m = q.get()
+        if m["type"] == "pose":
+            out.append(m["angles"]["theta_kn_l"])
+    return out
+
+
 def test_with_several_people_the_page_draws_one_person():
     """Each frame's poses (the frame's own person first, then the others, same seq): the page gets the frame's
     own person only; once the status says the household member is followed, that person only."""
@@ -83,24 +93,14 @@ def test_with_several_people_the_page_draws_one_person():
         clock.now = seq * 0.1
         hub.on_pose("r", pose(seq, 1000.0 + seq, knee=10.0, person=1))      # the frame's own (a visitor)
         hub.on_pose("r", pose(seq, 1000.0 + seq, knee=80.0, person=2))      # the other
-    drawn = []
-    while not q.empty():
-        m = q.get()
-        if m["type"] == "pose":
-            drawn.append(m["angles"]["theta_kn_l"])
-    assert drawn == [10.0] * 5
+    assert drawn_knees(q) == [10.0] * 5
     hub.on_status("r", Status("r", "running", 1001.0, 10.0, 20.0, 0, 0, "open", 0,
                               raw={"falls": {"household": {"followed": 2}}}))
     for seq in range(5, 10):
         clock.now = seq * 0.1
         hub.on_pose("r", pose(seq, 1000.0 + seq, knee=10.0, person=1))
         hub.on_pose("r", pose(seq, 1000.0 + seq, knee=80.0, person=2))
-    drawn = []
-    while not q.empty():
-        m = q.get()
-        if m["type"] == "pose":
-            drawn.append(m["angles"]["theta_kn_l"])
-    assert drawn == [80.0] * 5
+    assert drawn_knees(q) == [80.0] * 5
     clock.now = 2.0
     hub.on_pose("r", pose(11, 1011.0, knee=33.0))           # one person again (no ids): drawn
     assert hub.snapshot()["pose"]["angles"]["theta_kn_l"] == 33.0
