@@ -30,9 +30,14 @@ whose fall it is.
   under way (``down`` or ``alarm``) is kept until re-matched or seen recovering; at most ``MAX_KEPT`` people are
   kept (the longest unseen without an event go first, then with one).
 
+* **Who is who** (``falls.household`` configured): each person standing upright in view gives stature samples
+  (:mod:`falls.stature`, only with a measured floor) to :class:`falls.household.Household`, which says who is a
+  member, a visitor or not known; :meth:`PeopleFalls.followed` is whom status, history and ROS 2 follow.
+
 Messages of a person with a track id carry ``person`` (the id) and ``root_cam_m`` (where the person was last
-fitted: the pelvis in camera axes, metres; None when never fitted); the one person of a stream without ids gets
-neither, so its messages are what a single :class:`FallDetector` gives.
+fitted: the pelvis in camera axes, metres; None when never fitted), with a household also ``member`` and
+``household``; the one person of a stream without ids and no household gets none of them, so its messages are
+what a single :class:`FallDetector` gives.
 """
 
 from __future__ import annotations
@@ -173,9 +178,10 @@ class PeopleFalls:
 
     def household_status(self) -> dict:
         """For the status: the members, whether stature can be measured, each person in view as recognised."""
+        followed = self.followed()
         return {"members": [m.name for m in self.household.members], "stature": self.metric or "measured",
                 "in_view": [{"person": k, **self.household.who(k)} for k in self.in_frame],
-                "followed": (lambda f: None if f is False else f)(self.followed())}
+                "followed": None if followed is False else followed}
 
     # ------------------------------------------------------------------ who is who
 
