@@ -71,7 +71,8 @@ class Clip:
     frames: list[np.ndarray]
     masks: list[np.ndarray]
     background: np.ndarray
-    truth: list[np.ndarray] | None = None     # (33, 3) x, y, z per frame
+    truth: list[np.ndarray] | None = None     # (33, 3) x, y, z per frame (A: her published landmarks)
+    truth12: list[np.ndarray] | None = None   # (12, 2) per frame, BODY12 order (B: his triangulated joints projected)
 
 
 def _read(path: Path, n: int) -> list[np.ndarray]:
@@ -114,7 +115,24 @@ def load_clips(shared: Path) -> tuple[Clip, Clip]:
     a_masks, a_bg = _masks(a_frames)
     b_frames = _read(shared / BALANCING, FRAMES)
     b_masks, b_bg = _masks(b_frames)
-    return Clip(a_frames, a_masks, a_bg, truth[: len(a_frames)]), Clip(b_frames, b_masks, b_bg)
+    return (Clip(a_frames, a_masks, a_bg, truth[: len(a_frames)]),
+            Clip(b_frames, b_masks, b_bg, truth12=_b_truth(shared, len(b_frames))))
+
+
+def _b_truth(shared: Path, n: int) -> list[np.ndarray]:
+    """B's 12 body joints triangulated from pose2sim's four views (truth_3d.trc, the same frames as the video),
+    projected into camera 3 through its calibration, lens distortion included: (12, 2) pixels per frame."""
+    from posed.bench import balancing_video as bv
+
+    folder = shared / bv.DATA
+    cam = bv.load_cameras(folder)["cam03"]
+    world = bv.load_truth(folder)[:n]
+    rvec, _ = cv2.Rodrigues(cam.rot)
+    out = []
+    for joints in world:
+        px, _ = cv2.projectPoints(joints.reshape(-1, 1, 3), rvec, cam.t, cam.k, cam.dist)
+        out.append(px.reshape(-1, 2))
+    return out
 
 
 def room(image: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
@@ -189,3 +207,9 @@ def truth_on_canvas(a: Clip, k: int, mapping: tuple[float, float, float]) -> np.
     """A's published landmarks of frame ``k`` in canvas pixels, (33, 2)."""
     s, dx, dy = mapping
     return a.truth[k][:, :2] * s + np.array([dx, dy])
+
+
+def truth12_on_canvas(b: Clip, k: int, mapping: tuple[float, float, float]) -> np.ndarray:
+    """B's projected triangulated joints of frame ``k`` in canvas pixels, (12, 2), BODY12 order."""
+    s, dx, dy = mapping
+    return b.truth12[k % len(b.truth12)] * s + np.array([dx, dy])

@@ -70,12 +70,14 @@ def run(args: argparse.Namespace) -> int:
 
 def _print_scenes(rep: dict) -> None:
     print(f"{'scenario':13} {'switches A/B':>12} {'found A/B with other':>21} {'A err alone':>11} {'with B':>7} "
-          f"{'ratio':>6} {'B dev':>6} {'ms/frame 2p':>11} {'1p':>6} {'passes':>6}")
+          f"{'ratio':>6} {'B err alone':>11} {'with A':>7} {'ratio':>6} {'B dev':>6} {'ms/frame 2p':>11} {'1p':>6} "
+          f"{'passes':>6}")
     for r in rep["scenarios"]:
-        e = r["a_error_px"]
+        e, b = r["a_error_px"], r["b_error_px"]
         print(f"{r['scenario']:13} {r['identity_switches']['a']:>5} / {r['identity_switches']['b']:<4} "
               f"{r['found']['a_both']:>9.2f} / {r['found']['b_both']:<9.2f} {e['alone']:>11} {e['with_b']:>7} "
-              f"{e['ratio']!s:>6} {r['b_deviation_from_alone_px']!s:>6} {r['ms_per_frame']['two_people']:>11} "
+              f"{e['ratio']!s:>6} {b['alone']!s:>11} {b['with_a']!s:>7} {b['ratio']!s:>6} "
+              f"{r['b_deviation_from_alone_px']!s:>6} {r['ms_per_frame']['two_people']:>11} "
               f"{r['ms_per_frame']['a_alone']:>6} {r['landmark_passes_per_frame']:>6}")
 
 
