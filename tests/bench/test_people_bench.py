@@ -24,6 +24,8 @@ def test_people_bench_apart():
     assert row["identity_switches"] == {"a": 0, "b": 0}
     assert row["found"]["a_both"] > 0.95 and row["found"]["b_both"] > 0.8, row["found"]
     assert row["a_error_px"]["ratio"] <= report["targets"]["a_error_ratio_max"], row["a_error_px"]
+    # B against his triangulated joints, on the frames where both runs found him: within 1.2x too
+    assert row["b_error_px"]["frames"] > 40 and row["b_error_px"]["ratio"] <= 1.2, row["b_error_px"]
     assert row["landmark_passes_per_frame"] > 1.5 and row["ms_per_frame"]["two_people"] > 0
 
 
