@@ -11,9 +11,8 @@ taller person (1.80 m; the faller is 1.65 m) through the same camera, doing one 
 
 The bystander is given to scenarios in turn (standing, walking, kneeling, ...), so each kind meets every sort
 of fall and view. Per frame both people's landmarks (projected, 1 % noise, as the one-person benchmark's) go
-through :class:`landmarks.tracks.PersonTracker` (box, landmark overlap, motion and
-proportions, and the landmark *slot*: as in the daemon, a body keeps its slot while it is found frame after
-frame, and gets a new one after it was lost), each track is fitted by a fitter of its own (video mode), and the fits go to
+through :class:`landmarks.tracks.PersonTracker` with the daemon's landmark slots (:mod:`bench.people_tracks`),
+each track is fitted by a fitter of its own (video mode), and the fits go to
 :class:`falls.people.PeopleFalls` with the frame's own person first (the track followed longest, as the daemon
 does). Which track is whom is read off the landmarks each was given (identity from the renderer, not from the
 tracker). Counted:
@@ -39,16 +38,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from posed.bench.falls import DETECTING_STATES as DETECTING
 from posed.bench.falls_body import Body
 from posed.bench.falls_scenarios import STAND, Key, Scenario, catalogue, frames, kneel, truth_result, walk
+from posed.bench.people import _switches
+from posed.bench.people_tracks import NamedBodies
 from posed.falls.config import FallsConfig, HouseholdMember
 from posed.falls.detector import FallDetector
 from posed.falls.people import PeopleFalls
 from posed.fitting import FitResult
-from posed.landmarks import PersonTracker
 
 BYSTANDERS = ("standing", "walking", "kneeling")
-DETECTING = ("falling", "on_floor")
 BYSTANDER_HEIGHT_M = 1.80
 SIDE_M = 1.2              # the standing bystander's offset to the faller's side
 LIE_LONGER_S = 5.0        # the faller lies this much longer when a bystander kneels beside them
@@ -133,6 +133,7 @@ def _fitter_factory(kind: str) -> Callable[[], Callable]:
     def make_real():
         fitter = pool.pop() if pool else Fitter(FitConfig())
         fitter.reset()
+        fitter.forget_body()          # a new person: not the proportions the pooled fitter learned of another
 
         def fit(lm, seq, t, size, intr, frame, cam):
             return fitter.fit(lm, seq, t, size, mode="video", intrinsics=intr)
@@ -150,7 +151,7 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
     if not alone:
         by = list(frames(case.bystander))
         given = [(f.seq, f.t, f, by[i] if i < len(by) else None) for i, (_, _, f, _) in enumerate(given)]
-    tracker = PersonTracker()
+    bodies = NamedBodies()
     if not alone:         # who is who: the person who falls is the household's member (their true height)
         cfg = replace(cfg, household=(HouseholdMember("resident", case.faller.body.height),))
     detectors = PeopleFalls(FallDetector(replace(cfg), "bench"))
@@ -158,18 +159,10 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
     fits: dict[int, Callable] = {}
     ids: dict[str, list[int]] = {"faller": [], "bystander": []}
     messages = []
-    slots: dict[str, int] = {}
-    next_slot = 0
     for seq, t, f_frame, b_frame in given:
         seen = [(who, fr) for who, fr in (("faller", f_frame), ("bystander", b_frame))
                 if fr is not None and fr.landmarks is not None]
-        for who in ("faller", "bystander"):     # the landmark slot that follows a body while it is found
-            if who not in [w for w, _ in seen]:
-                slots.pop(who, None)
-            elif who not in slots:
-                next_slot += 1
-                slots[who] = next_slot
-        track_ids = tracker.update(t, [fr.landmarks for _, fr in seen], [slots[w] for w, _ in seen])
+        track_ids = bodies.update(t, [(who, fr.landmarks) for who, fr in seen])
         people = []
         for (who, fr), tid in zip(seen, track_ids, strict=True):
             ids[who].append(tid)
@@ -177,7 +170,7 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             r = fit(fr.landmarks, seq, t, size, intr, fr, cam)
             people.append((tid, replace(r, extra={**r.extra, "person": tid}), fr.landmarks))
         if people:
-            main = tracker.longest_followed([p[0] for p in people])
+            main = bodies.tracker.longest_followed([p[0] for p in people])
             people.sort(key=lambda p: p[0] != main)
         else:
             people = [(None, FitResult.failure(seq, t, "no person"), None)]
@@ -216,10 +209,6 @@ def _recognition(detectors: PeopleFalls, ids: dict[str, list[int]], followed: li
             "bystander": None if b is None else b["member"] or ("visitor" if b["visitor"] else "unknown"),
             "followed_faller": sum(x == "faller" for x in shown), "followed_bystander": sum(x == "bystander" for x in shown),
             "frames_faller_in_view": len(shown)}
-
-
-def _switches(ids: list[int]) -> int:
-    return sum(a != b for a, b in zip(ids[:-1], ids[1:], strict=True))
 
 
 def summarise(rows: list[dict]) -> dict:

@@ -11,8 +11,8 @@ ends, they are gone (held in their last pose instead, a clip ending lying on a b
 for longer than the clip showed: an alarm the clip alone never had the time to raise).
 
 The frames are those ``posed run`` would take (``pipeline.target_fps``); each frame carries ``people`` with
-track ids from :class:`landmarks.tracks.PersonTracker` (a landmark slot per body while it is found, a new one
-after it was lost, as in the daemon's landmark stage) and its own ``landmarks`` are the person followed
+track ids from :class:`landmarks.tracks.PersonTracker` with the daemon's landmark slots
+(:mod:`bench.people_tracks`) and its own ``landmarks`` are the person followed
 longest's, as :class:`landmarks.people.MultiPoseLandmarker` writes them. The recording then goes through what
 ``posed falls`` runs (a fitter and a fall detector per person, :mod:`posed.commands.falls`), and once more with
 the clip's person alone on the same wide canvas.
@@ -28,12 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
+from posed.bench.falls import DETECTING_STATES as DETECTING
 from posed.bench.falls_recordings import read_labels, with_geometry
+from posed.bench.people_tracks import NamedBodies
 from posed.camera_model import Intrinsics
 from posed.daemon.config import Config
-from posed.landmarks import LandmarkFrame, PersonLandmarks, PersonTracker, RecordingHeader, read_recording
+from posed.landmarks import LandmarkFrame, PersonLandmarks, RecordingHeader, read_recording
 
-DETECTING = ("falling", "on_floor")
 PAN_DEG = 45.0     # the bystander stands this far to the right of the camera's axis (about the vertical)
 
 
@@ -57,16 +58,14 @@ def compose(own: tuple, other: tuple, pipeline_config, alone: bool = False) -> t
     from posed.commands.falls import taken_frames
 
     h_own, f_own = own
-    h_other, f_other = other
+    f_other = other[1]
     width, height = h_own.image_size
     cam = h_own.camera
     wide = Intrinsics(cam.fx, cam.fy, cam.cx, cam.cy, 2 * width, height) if cam is not None else None
     header = RecordingHeader((2 * width, height), h_own.fps, f"{h_own.source} + a bystander beside", wide)
     mine = list(taken_frames(pipeline_config, f_own))
     theirs = list(taken_frames(pipeline_config, f_other))
-    tracker = PersonTracker()
-    slots: dict[str, int] = {}
-    next_slot = 0
+    bodies = NamedBodies()
     who: dict[int, str] = {}
     out = []
     for k, fr in enumerate(mine):
@@ -75,19 +74,13 @@ def compose(own: tuple, other: tuple, pipeline_config, alone: bool = False) -> t
             seen.append(("own", fr.landmarks))
         if not alone and k < len(theirs) and theirs[k].landmarks is not None:
             seen.append(("bystander", panned(theirs[k].landmarks, cam, PAN_DEG)))
-        for name in ("own", "bystander"):
-            if name not in [n for n, _ in seen]:
-                slots.pop(name, None)
-            elif name not in slots:
-                next_slot += 1
-                slots[name] = next_slot
-        ids = tracker.update(fr.t, [lm for _, lm in seen], [slots[n] for n, _ in seen])
+        ids = bodies.update(fr.t, seen)
         for (name, _), tid in zip(seen, ids, strict=True):
             who[tid] = name
         people = tuple(PersonLandmarks(tid, lm) for (_, lm), tid in zip(seen, ids, strict=True))
-        main = tracker.longest_followed(list(ids))
+        main = bodies.tracker.longest_followed(list(ids))
         landmarks = next((p.landmarks for p in people if p.id == main), None)
-        out.append(LandmarkFrame(fr.seq, fr.t, landmarks, people=people if people else ()))
+        out.append(LandmarkFrame(fr.seq, fr.t, landmarks, people=people))
     return header, out, who
 
 
