@@ -28,6 +28,11 @@ class LandmarkConfig:
                                        "frame, no smoothing (static-image mode)"}
     )
     smoothing: bool = field(default=True, metadata={"doc": "one-euro smoothing with MediaPipe's parameters"})
+    keep_sides: bool = field(
+        default=True, metadata={"doc": "put back left and right when BlazePose flips them between two frames of "
+                                       "one person faster than anyone can turn (landmarks.sides; false = "
+                                       "MediaPipe's labels as they come)"}
+    )
     rotate_on_miss: bool = field(
         default=True, metadata={"doc": "when nobody is found, retry the frame rotated by +-90 deg "
                                        "(people lying on the floor)"}

@@ -257,7 +257,10 @@ class PoseLandmarker:
 
         body = image_lms[:NUM_BODY_LANDMARKS]
         aux = image_lms[AUX_START:AUX_END + 1]
-        body_s, aux_s, world_s, world_vis = self.smoother.apply(t, body, aux, world[:NUM_BODY_LANDMARKS])
+        world_body = world[:NUM_BODY_LANDMARKS]
+        if self.config.keep_sides:
+            body, world_body, _ = self.smoother.sides.check(t, body, world_body)
+        body_s, aux_s, world_s, world_vis = self.smoother.apply(t, body, aux, world_body)
         next_roi = roi_from_alignment(aux_s[0, :2], aux_s[1, :2])
         self._roi = next_roi
         timings["smoothing"] = (time.perf_counter() - t3) * 1e3

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posed.landmarks.roi import alignment_size
+from posed.landmarks.sides import SideKeeper
 
 DEFAULT_FREQUENCY = 30.0
 MIN_OBJECT_SCALE = 1e-6
@@ -115,9 +116,10 @@ class PoseSmoother:
         self.world = OneEuro(WORLD_PARAMS)
         self.aux_visibility = LowPass(VISIBILITY_ALPHA)
         self.aux = OneEuro(AUX_PARAMS)
+        self.sides = SideKeeper()       # the person's left/right labels (landmarks.sides), checked before filtering
 
     def reset(self) -> None:
-        for f in (self.visibility, self.landmarks, self.world, self.aux_visibility, self.aux):
+        for f in (self.visibility, self.landmarks, self.world, self.aux_visibility, self.aux, self.sides):
             f.reset()
 
     def apply(self, t: float, landmarks: np.ndarray, aux: np.ndarray,

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from posed.landmarks.sides import MIRROR
+
 KAPPA = 0.1                 # OKS falloff, as a fraction of the person's size
 VISIBLE = 0.5               # a landmark counts as seen above this visibility
 SEGMENTS = ((11, 12), (23, 24), (11, 13), (13, 15), (12, 14), (14, 16), (23, 25), (25, 27), (24, 26), (26, 28))
@@ -105,8 +107,6 @@ def oks(a: np.ndarray, b: np.ndarray, size: float, kappa: float = KAPPA) -> floa
     return float(np.exp(-d2 / (2.0 * (kappa * size) ** 2)).mean())
 
 
-# MediaPipe Pose index of each landmark's left/right counterpart (the nose is its own)
-MIRROR = np.array([0, 4, 5, 6, 1, 2, 3, 8, 7, 10, 9] + [i + 1 if i % 2 else i - 1 for i in range(11, 33)])
 
 
 def body_overlap(a: np.ndarray, b: np.ndarray, size: float | None = None) -> float:
