@@ -7,7 +7,11 @@ joints triangulated from all four views (markerless: a floor of 2-3 cm, errors s
 Each view goes through posed's own landmark stage (``posed landmarks``: BlazePose full, video mode, the world
 landmarks kept), its pixels are undistorted with the calibration, and the fit gets the camera's true
 intrinsics, the default config otherwise (no height given: video mode learns the proportions), at the
-daemon's 10 fps (every 6th frame) in video and image mode, and at the video's 60 fps in video mode.
+daemon's 10 fps (every 6th frame: the landmark stage itself sees only those, as the daemon's does on a
+faster camera) in video and image mode, and at the video's 60 fps in video mode. The
+comparison is BlazePose's world landmarks as a MediaPipe user has them: the same landmark stage run with
+``landmarks.keep_sides=false`` (posed puts back left and right where BlazePose flips them between two frames,
+landmarks.sides; a MediaPipe user does not have that).
 
 Per frame where both the fit and BlazePose answered (the same frames for both), on the 12 body joints
 (shoulders, elbows, wrists, hips, knees, ankles) in the camera frame: PA-MPJPE (similarity-aligned, mm),
@@ -16,11 +20,18 @@ whose true depth difference exceeds 5 cm and whose estimate has the other sign),
 positions (the same formula for truth and estimate, ``bench.ood.segment_angles``), and for the fit also the
 mid-hip's position (``root_cam_m``) against the truth and the four views' agreement on it (the spread of the
 four world positions). Baseline: the 2D landmarks with zero depth (PA-MPJPE).
+
+Where the error comes from (``depth_sources``, PA-MPJPE mm): posed's own 2D landmarks, back-projected through
+the camera, each at a depth taken from elsewhere -- the true depth of each joint (``true``: what the 2D
+landmarks and the keypoint definitions leave, the floor of any estimate built on them), the true mid-hip
+depth plus BlazePose's world depths relative to its mid-hip (``world``), or plus the fit's
+(``fit``). The gap between ``true`` and the others is what each source's depths cost.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import sys
 import tomllib
@@ -103,17 +114,54 @@ def load_truth(folder: Path) -> np.ndarray:
     return data[:, idx][:, :, [2, 0, 1]]
 
 
-def landmark_recording(video: Path, cache: Path) -> Path:
-    """posed's own landmark stage on one view (``posed landmarks``), cached beside the other bench inputs."""
-    out = cache / f"{video.stem}.landmarks.jsonl"
-    if not out.is_file() or out.stat().st_mtime < video.stat().st_mtime:
+def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = False, step: int = 1) -> Path:
+    """posed's own landmark stage on one view, cached beside the other bench inputs under a name that changes
+    with the landmark stage's code. ``step`` 1: every frame (``posed landmarks``); ``step`` n: every n-th frame
+    only, as the daemon's landmark stage sees a faster camera (its seq and time kept: ``t = seq / 60``).
+    ``mediapipe_sides``: with BlazePose's left/right labels as they come (``landmarks.keep_sides=false``: what
+    a MediaPipe user has)."""
+    tag = _stage_tag() + (f".every{step}" if step > 1 else "") + (".mediapipe" if mediapipe_sides else "")
+    out = cache / f"{video.stem}.{tag}.landmarks.jsonl"
+    if out.is_file() and out.stat().st_mtime >= video.stat().st_mtime:
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sets = ["--set", "landmarks.keep_sides=false"] if mediapipe_sides else []
+    if step == 1:
         from posed.cli import main
 
-        out.parent.mkdir(parents=True, exist_ok=True)
         with contextlib.redirect_stdout(sys.stderr):
-            if main(["landmarks", str(video), "-o", str(out)]) != 0:
+            if main(["landmarks", str(video), "-o", str(out), *sets]) != 0:
                 raise RuntimeError(f"posed landmarks failed on {video}")
+        return out
+    from posed.landmarks import LandmarkConfig, MultiPoseLandmarker, RecordingHeader, dumps
+
+    landmarker = MultiPoseLandmarker(LandmarkConfig(keep_sides=not mediapipe_sides))
+    cap = cv2.VideoCapture(str(video))
+    lines, seq = [], 0
+    try:
+        while True:
+            ok, image = cap.read()
+            if not ok:
+                break
+            if seq == 0:
+                size = (image.shape[1], image.shape[0])
+            if seq % step == 0:
+                lines.append(dumps(landmarker.process(image, seq / VIDEO_FPS, seq).to_json()))
+            seq += 1
+    finally:
+        cap.release()
+    header = RecordingHeader(size, VIDEO_FPS / step, source=f"bench {PROTOCOL} {video.name} every {step}th frame")
+    out.write_text("\n".join([dumps(header.to_json()), *lines]) + "\n")
     return out
+
+
+def _stage_tag() -> str:
+    """10 hex digits of a hash of the landmark stage's source (a changed stage is run again, not read stale)."""
+    folder = Path(__file__).resolve().parent.parent / "landmarks"
+    h = hashlib.sha1()
+    for f in sorted(folder.glob("*.py")):
+        h.update(f.read_bytes())
+    return h.hexdigest()[:10]
 
 
 @dataclass
@@ -121,17 +169,33 @@ class _View:
     camera: Camera
     image_size: tuple[int, int]
     landmarks: list[np.ndarray | None]        # undistorted (33, 5) per frame, None: no person
-    world: list[np.ndarray | None]            # BlazePose's world landmarks (33, 5) per frame
+    world: list[np.ndarray | None]            # the world landmarks (33, 5) per frame the fit is given
     truth_cam: np.ndarray                     # (frames, 12, 3) camera frame
+    baseline_world: list[np.ndarray | None] | None = None   # BlazePose's, labels as they come (the baseline)
 
 
-def _load_view(camera: Camera, recording: Path, truth_world: np.ndarray) -> _View:
-    header, frames, problems = read_recording(recording)
-    if problems:
-        raise RuntimeError(f"{recording}: {problems[0]}")
-    lms = [None if f.landmarks is None else camera.undistort(f.landmarks) for f in frames]
-    world = [f.world for f in frames]
-    return _View(camera, tuple(header.image_size), lms, world, camera.to_camera(truth_world))
+def _load_view(camera: Camera, recording: Path, truth_world: np.ndarray,
+               baseline: Path | None = None) -> _View:
+    """One view: posed's ``recording`` (what the fit gets) and, when given, the ``baseline`` recording whose
+    world landmarks are the comparison (else the recording's own)."""
+    n = len(truth_world)
+
+    def by_seq(path: Path) -> tuple[tuple[int, int], list, list]:
+        """Landmarks (undistorted) and world landmarks per video frame (None where the recording has none)."""
+        header, frames, problems = read_recording(path)
+        if problems:
+            raise RuntimeError(f"{path}: {problems[0]}")
+        lms: list = [None] * n
+        world: list = [None] * n
+        for f in frames:
+            if 0 <= f.seq < n:
+                lms[f.seq] = None if f.landmarks is None else camera.undistort(f.landmarks)
+                world[f.seq] = f.world
+        return tuple(header.image_size), lms, world
+
+    size, lms, world = by_seq(recording)
+    base = None if baseline is None else by_seq(baseline)[2]
+    return _View(camera, size, lms, world, camera.to_camera(truth_world), base)
 
 
 def _mid_hip(j: np.ndarray) -> np.ndarray:
@@ -174,6 +238,7 @@ def _fit_view(view: _View, mode: str, fps: float, base: FitConfig) -> dict:
     fitter = Fitter(base)
     k = view.camera.intrinsics(view.image_size)
     fit, world, flat = _Scores(), _Scores(), _Scores()
+    depth_from = {"true": _Scores(), "world": _Scores(), "fit": _Scores()}
     frames = answered = 0
     root_err: list[float] = []
     roots: dict[int, np.ndarray] = {}
@@ -182,9 +247,10 @@ def _fit_view(view: _View, mode: str, fps: float, base: FitConfig) -> dict:
         lm = view.landmarks[i]
         w = view.world[i]
         r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k, world=w)
-        if not r.ok or w is None or lm is None:
+        base = w if view.baseline_world is None else view.baseline_world[i]
+        if not r.ok or base is None or lm is None:
             continue
-        est_w = w[BODY12_IDX, :3]
+        est_w = base[BODY12_IDX, :3]
         if not np.isfinite(est_w).all():
             continue
         answered += 1
@@ -192,13 +258,24 @@ def _fit_view(view: _View, mode: str, fps: float, base: FitConfig) -> dict:
         fit.add(O.fitted_joints(r), truth)
         world.add(est_w, truth)
         flat.add(np.column_stack([lm[BODY12_IDX, :2], np.zeros(12)]), truth)
+        joints = O.fitted_joints(r)
+        hip_z = _mid_hip(truth)[2]
+        for source, z in (("true", truth[:, 2]), ("world", hip_z + est_w[:, 2] - _mid_hip(est_w)[2]),
+                          ("fit", hip_z + joints[:, 2] - _mid_hip(joints)[2])):
+            depth_from[source].add(_back_project(lm[BODY12_IDX, :2], z, k), truth)
         root = O.root_cam(r)
         if root is not None:
             root_err.append(float(np.linalg.norm(root - _mid_hip(truth))) * 1e3)
             roots[i] = view.camera.to_world(root)
     return {"frames": frames, "answered": answered, "fit": fit.summary(), "blazepose_world": world.summary(),
             "flat_2d": {"pa_mpjpe_mm": flat.summary().get("pa_mpjpe_mm")},
+            "depth_sources": {s: sc.summary().get("pa_mpjpe_mm") for s, sc in depth_from.items()},
             "root_err_mm": round(float(np.median(root_err)), 1) if root_err else None, "_roots": roots}
+
+
+def _back_project(uv: np.ndarray, z: np.ndarray, k: Intrinsics) -> np.ndarray:
+    """Pixels ``uv`` (n, 2) at depths ``z`` (n,) metres -> camera-frame points (n, 3)."""
+    return np.column_stack([(uv[:, 0] - k.cx) * z / k.fx, (uv[:, 1] - k.cy) * z / k.fy, z])
 
 
 def run(shared_data: Path, base: FitConfig | None = None, cache: Path | None = None) -> list[dict]:
@@ -211,12 +288,17 @@ def run(shared_data: Path, base: FitConfig | None = None, cache: Path | None = N
     cameras = load_cameras(folder)
     truth = load_truth(folder)
     cache = cache or cache_dir() / "bench" / PROTOCOL
-    views = {n: _load_view(cameras[n], landmark_recording(folder / "balancing" / f"{n}.mp4", cache), truth)
-             for n in CAMERAS}
+    def views(step: int) -> dict[str, _View]:
+        video = {n: folder / "balancing" / f"{n}.mp4" for n in CAMERAS}
+        return {n: _load_view(cameras[n], landmark_recording(video[n], cache, step=step), truth,
+                              landmark_recording(video[n], cache, mediapipe_sides=True, step=step))
+                for n in CAMERAS}
+
+    per_step = {step: views(step) for step in sorted({round(VIDEO_FPS / fps) for _, fps in RUNS})}
     Fitter(base).warmup()
     rows = []
     for mode, fps in RUNS:
-        per_view = {n: _fit_view(v, mode, fps, base) for n, v in views.items()}
+        per_view = {n: _fit_view(v, mode, fps, base) for n, v in per_step[round(VIDEO_FPS / fps)].items()}
         for n, res in per_view.items():
             rows.append({"protocol": PROTOCOL, "domain": DOMAIN, "view": n, "mode": mode, "fps": fps,
                          **{k: v for k, v in res.items() if not k.startswith("_")}})
@@ -245,6 +327,7 @@ def _overall(per_view: dict[str, dict], mode: str, fps: float) -> dict:
     return {"protocol": PROTOCOL, "domain": DOMAIN, "view": "all", "mode": mode, "fps": fps, "frames": frames,
             "answered": answered, "fit": fit, "blazepose_world": world,
             "flat_2d": {"pa_mpjpe_mm": mean("pa_mpjpe_mm", "flat_2d")},
+            "depth_sources": {s: mean(s, "depth_sources") for s in ("true", "world", "fit")},
             "fit_over_blazepose_pa": round(fit["pa_mpjpe_mm"] / world["pa_mpjpe_mm"], 3)
             if fit["pa_mpjpe_mm"] and world["pa_mpjpe_mm"] else None,
             "root_err_mm": round(float(np.median(roots)), 1) if roots else None,

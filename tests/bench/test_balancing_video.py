@@ -94,4 +94,11 @@ def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, reco
         assert r["fit_over_blazepose_pa"] == pytest.approx(r["fit"]["pa_mpjpe_mm"] / r["blazepose_world"]["pa_mpjpe_mm"],
                                                            abs=1e-3)
         assert r["root_err_mm"] is not None and r["views_root_spread_mm"] is not None
+        # the 2D landmarks at the true depths leave far less than at any estimate's depths
+        depth = r["depth_sources"]
+        assert 0 < depth["true"] < 0.8 * min(depth["world"], depth["fit"]), depth
     assert len(B.markdown(rows)) == 2 + len(B.RUNS)
+    # the baseline is the landmark stage with MediaPipe's own left/right labels, at each rate the fit runs at
+    names = sorted(p.name for p in recordings[0].glob("*.landmarks.jsonl"))
+    assert sum(".mediapipe." in n for n in names) == len(B.CAMERAS) * len({round(B.VIDEO_FPS / f) for _, f in B.RUNS})
+    assert sum(".every6." in n for n in names) == 2 * len(B.CAMERAS)
