@@ -4,7 +4,7 @@ Person A is the woman of the real squat video (tfjs_pose_squats, 65 frames at 5 
 full landmarks the tfjs-models project published (``pose_squats.full.json``: the truth A's errors are taken
 against). Her room is the scene: each of her frames, scaled to the 1280x720 canvas's height, sits in its middle
 (x 420..825), the canvas's sides continuing its edge columns (a plain wall and floor). Person B is the man of
-pose2sim's real "balancing" video, camera 3 (1088x1920, 60 fps; its first 65 frames), cut out of his video by
+pose2sim's real "balancing" video, camera 3 (``B_CAMERA``; 1088x1920, 60 fps; its first 65 frames), cut out of his video by
 a foreground mask (the pixels that differ from the clip's median frame, the camera being still; the largest
 connected parts: no learned segmentation, no image leaves the machine) and pasted in, scaled to the canvas
 height times his scenario's scale (smaller is farther away).
@@ -28,7 +28,8 @@ import cv2
 import numpy as np
 
 SQUAT = Path("reference") / "tfjs_pose_squats"
-BALANCING = Path("reference") / "pose2sim_demo" / "balancing" / "cam03.mp4"
+BALANCING = Path("reference") / "pose2sim_demo" / "balancing"
+B_CAMERA = "cam03"                       # the reported view; cam01 and cam04: development views
 CANVAS = (1280, 720)                     # width, height
 FRAMES = 65                              # the squat video's length
 MASK_THRESHOLD = 40                      # summed |BGR - median| above which a pixel is the person's
@@ -108,24 +109,24 @@ def _masks(frames: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
     return masks, background
 
 
-def load_clips(shared: Path) -> tuple[Clip, Clip]:
-    """Person A (the squat video, with its published landmarks) and person B (pose2sim camera 3)."""
+def load_clips(shared: Path, b_camera: str = B_CAMERA) -> tuple[Clip, Clip]:
+    """Person A (the squat video, with its published landmarks) and person B (pose2sim's ``b_camera``)."""
     a_frames = _read(shared / SQUAT / "pose_squats.mp4", FRAMES)
     truth = [np.asarray(f, dtype=np.float64) for f in json.loads((shared / SQUAT / "pose_squats.full.json").read_text())]
     a_masks, a_bg = _masks(a_frames)
-    b_frames = _read(shared / BALANCING, FRAMES)
+    b_frames = _read(shared / BALANCING / f"{b_camera}.mp4", FRAMES)
     b_masks, b_bg = _masks(b_frames)
     return (Clip(a_frames, a_masks, a_bg, truth[: len(a_frames)]),
-            Clip(b_frames, b_masks, b_bg, truth12=_b_truth(shared, len(b_frames))))
+            Clip(b_frames, b_masks, b_bg, truth12=_b_truth(shared, len(b_frames), b_camera)))
 
 
-def _b_truth(shared: Path, n: int) -> list[np.ndarray]:
+def _b_truth(shared: Path, n: int, b_camera: str) -> list[np.ndarray]:
     """B's 12 body joints triangulated from pose2sim's four views (truth_3d.trc, the same frames as the video),
-    projected into camera 3 through its calibration, lens distortion included: (12, 2) pixels per frame."""
+    projected into ``b_camera`` through its calibration, lens distortion included: (12, 2) pixels per frame."""
     from posed.bench import balancing_video as bv
 
     folder = shared / bv.DATA
-    cam = bv.load_cameras(folder)["cam03"]
+    cam = bv.load_cameras(folder)[b_camera]
     world = bv.load_truth(folder)[:n]
     rvec, _ = cv2.Rodrigues(cam.rot)
     out = []

@@ -10,7 +10,7 @@
 * ``stature``: who is who: a man's shoulder height measured from one real image by each of four calibrated
   cameras (what the household recognition measures), against his triangulated joints.
 
-Run: ``posed bench people [--json] [--part scenes|falls|recordings|stature] [--scenario NAME] [--split S]``."""
+Run: ``posed bench people [--json] [--part scenes|falls|recordings|stature] [--scenario NAME] [--b-camera CAM] [--split S]``."""
 
 from __future__ import annotations
 
@@ -26,6 +26,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run only this part (repeatable; default: all)")
     parser.add_argument("--scenario", default="", choices=("", "apart", "cross_behind", "cross_front"),
                         help="scenes: one scenario only (default: all)")
+    parser.add_argument("--b-camera", default="cam03", choices=("cam01", "cam03", "cam04"),
+                        help="scenes: the pose2sim view B is cut from (default cam03, the reported one; cam01 and "
+                             "cam04 are development views; cam02's foreground mask does not hold him)")
     parser.add_argument("--split", default="heldout", choices=("tune", "heldout"),
                         help="falls: the scenario split (default: heldout, never used to tune)")
 
@@ -39,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     if "scenes" in parts:
         from posed.bench.people import run_bench  # not at import: `posed bench` lists this module
 
-        report["scenes"] = run_bench(shared_data(), only=args.scenario, progress=progress)
+        report["scenes"] = run_bench(shared_data(), only=args.scenario, progress=progress,
+                                     b_camera=args.b_camera)
     if "falls" in parts:
         from posed.bench.people_falls import run_bench as run_falls
 

@@ -59,3 +59,31 @@ def test_stature_from_one_real_image_is_within_what_recognition_tolerates():
     assert len(rep["views"]) == 4 and all(v["frames"] >= 10 for v in rep["views"]), rep
     assert all(abs(v["error_m"]) < TOLERANCE_M for v in rep["views"]), rep
     assert rep["spread_between_views_m"] < MARGIN_M, rep
+
+
+def test_every_view_b_can_be_cut_from_has_his_projected_joints_on_his_cut_out(shared_data):
+    """``--b-camera``: each selectable pose2sim view's triangulated joints, projected through that view's own
+    calibration, fall on the man's foreground mask in that view's frames far more often than another view's
+    projection does (the mask misses thin limbs, so not every joint is on it)."""
+    import cv2
+    import numpy as np
+
+    from posed.bench import people_scenes as scenes
+
+    clips = {cam: scenes.load_clips(shared_data, cam)[1] for cam in ("cam01", "cam03", "cam04")}
+
+    def off_mask_px(masks_of: str, joints_of: str) -> float:
+        """Median distance (pixels) from the projected joints to the nearest pixel of the man's mask."""
+        dist = []
+        for k in range(0, scenes.FRAMES, 8):
+            mask = clips[masks_of].masks[k]
+            to_mask = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, 5)
+            for x, y in np.round(clips[joints_of].truth12[k]).astype(int):
+                inside = 0 <= x < mask.shape[1] and 0 <= y < mask.shape[0]
+                dist.append(float(to_mask[y, x]) if inside else float(max(mask.shape)))
+        return float(np.median(dist))
+
+    for cam in clips:
+        own = off_mask_px(cam, cam)
+        others = [off_mask_px(cam, other) for other in clips if other != cam]
+        assert own < 3.0 and min(others) > 10.0, (cam, own, others)
