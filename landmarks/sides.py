@@ -26,8 +26,9 @@ this recent is compared (the daemon's 10 fps gives 0.1 s). Which of the two labe
 frame alone cannot say: the labels kept are those that held for :data:`SETTLED_S` (0.5 s, five frames at the
 daemon's 10 fps) before the flip, with the same side towards the camera -- a track's first frames, placed by
 the detector rather than by tracking, are the least sure (on real video, Sports2D's demo, the model's very
-first frame had the sides the other way from every later one), and a side change the test let through (a
-turn a person can make, or a flip it could not tell from one) starts the count again; a flip of labels
+first frame had the sides the other way from every later one), and a side change the test let through (the
+shoulders' offset changing sign by a turn a person can make, or by a flip it could not tell from one) starts
+the count again -- the hips' offset, small and unsteady in the model's output, does not; a flip of labels
 younger than that is taken as it comes. Labels that stay the
 other way for :data:`PERSIST_S` (1 s) are accepted too.
 
@@ -117,7 +118,7 @@ class SideKeeper:
                 self._settled_since, self._flipped_since = t, None
         else:
             self._flipped_since = None
-            if np.any(signed_widths(landmarks[:, :2]) * signed_widths(self._last) < 0.0):
+            if signed_widths(landmarks[:, :2])[0] * signed_widths(self._last)[0] < 0.0:
                 self._settled_since = t             # a turn a person can make, or a flip the test cannot tell
         self._last, self._last_t = landmarks[:, :2].copy(), t
         return landmarks, world, swapped

@@ -47,9 +47,15 @@ def test_descendants_and_reaping_of_adopted_processes(subreaper):
     # a child that starts a grandchild in a session of its own and exits at once: the grandchild is adopted
     child = subprocess.Popen(["setsid", "/bin/sh", "-c", f"sleep 30; : {token}"], start_new_session=True)
     child.wait(10)
-    grand = until(lambda: _with_token(token), 5, "the grandchild")
+    def adopted() -> list[int]:
+        """The token's shells once every one is our child: the shell's own fork for ``sleep`` carries the
+        same command line for the instant before it execs, and is the shell's child, not ours."""
+        shells = _with_token(token)
+        parents = [orphans._stat(str(p), Path("/proc")) for p in shells]
+        return shells if shells and all(s is not None and s[0] == os.getpid() for s in parents) else []
+
+    grand = until(adopted, 5, "the grandchild, adopted by us")
     assert set(grand) <= set(orphans.descendants(os.getpid()))
-    assert all(orphans._stat(str(p), Path("/proc"))[0] == os.getpid() for p in grand)      # adopted by us
     orphans.end(grand)
     until(lambda: orphans.reap_adopted(set()) >= 1 or not [p for p in grand if Path(f"/proc/{p}").exists()],
           5, "the adopted process to be reaped")
