@@ -6,31 +6,31 @@ camera 2, it does so on a fifth of the frames while the man, who faces the camer
 leg. Everything downstream then sees the body turn round and back in a tenth of a second: the filters smooth
 between the two labellings, the fit mirrors the skeleton, the joint angles swap sides.
 
-A person cannot do that. Seen from the camera, a pair of points ``W`` apart across the torso (the shoulders,
-the hips) shows the offset ``w = W cos(heading)`` between them, taken across the torso's long axis in the
-image; its sign says which side faces the camera. Going from ``w0`` to ``w1`` takes a turn of at least
-``|acos(w1 / W) - acos(w0 / W)|`` about that axis, and in ``dt`` seconds nobody turns by more than
-:data:`TURN_RATE_MAX` ``* dt``. So when the shoulders' offset (the widest pair, and the best placed by the model)
-changes sign between two frames by more turn than that, the labels flipped, and they are swapped back (image
-and world landmarks together) -- unless the hips clearly kept their side (both offsets the same sign and at
-least half their width: :data:`HIPS_SURE`), which a whole-body flip would not. ``W`` is the pair's true width: the anthropometric one (Drillis and Contini: shoulders 0.259,
-hips 0.191 of the stature, against 0.288 from hip to shoulder) in units of the torso's length in the image,
-or the largest offset seen when that is larger (a torso foreshortened in the image). A real turn, of any
-speed a person can reach, passes through the side view, where the offsets are small and the needed turn is
-too.
+A person cannot do that. Seen from the camera, a pair of points ``W`` apart across the torso (the shoulders, the
+hips) shows the offset ``w = W cos(heading)`` between them, taken across the torso's long axis in the image; its
+sign says which side faces the camera. Going from ``w0`` to ``w1`` takes a turn of at least
+``|acos(w1/W) - acos(w0/W)|`` about that axis, and in ``dt`` seconds nobody turns by more than
+:data:`TURN_RATE_MAX` ``* dt``.
+So when the shoulders' offset (the widest pair, and the best placed by the model) changes sign between two
+frames by more turn than that, the labels flipped, and they are swapped back (image and world landmarks
+together) -- unless the hips clearly kept their side (both offsets the same sign and at least half their width:
+:data:`HIPS_SURE`), which a whole-body flip would not. ``W`` is the pair's true width: the anthropometric one
+(Drillis and Contini: shoulders 0.259, hips 0.191 of the stature, against 0.288 from hip to shoulder) in units
+of the torso's length in the image, or the largest offset seen when that is larger (a torso foreshortened in the
+image). A real turn, of any speed a person can reach, passes through the side view, where the offsets are small
+and the needed turn is too.
 
 Values: :data:`TURN_RATE_MAX` 2 pi rad/s (360 deg/s): peak trunk angular velocities of turning on the spot are
-about 100-250 deg/s in healthy and older adults (gait and turning studies with inertial sensors), a quick
-pivot stays below 360 deg/s; above it, nothing a person at home does. :data:`MAX_GAP_S` 0.25 s: only a frame
-this recent is compared (the daemon's 10 fps gives 0.1 s). Which of the two labellings is the wrong one, a
-frame alone cannot say: the labels kept are those that held for :data:`SETTLED_S` (0.5 s, five frames at the
-daemon's 10 fps) before the flip, with the same side towards the camera -- a track's first frames, placed by
-the detector rather than by tracking, are the least sure (on real video, Sports2D's demo, the model's very
-first frame had the sides the other way from every later one), and a side change the test let through (the
-shoulders' offset changing sign by a turn a person can make, or by a flip it could not tell from one) starts
-the count again -- the hips' offset, small and unsteady in the model's output, does not; a flip of labels
-younger than that is taken as it comes. Labels that stay the
-other way for :data:`PERSIST_S` (1 s) are accepted too.
+about 100-250 deg/s in healthy and older adults (gait and turning studies with inertial sensors), a quick pivot
+stays below 360 deg/s; above it, nothing a person at home does. :data:`MAX_GAP_S` 0.25 s: only a frame this
+recent is compared (the daemon's 10 fps gives 0.1 s). Which of the two labellings is the wrong one, a frame
+alone cannot say: the labels kept are those that held for :data:`SETTLED_S` (0.5 s, five frames at the daemon's
+10 fps) before the flip, with the same side towards the camera -- a track's first frames, placed by the detector
+rather than by tracking, are the least sure (on real video, Sports2D's demo, the model's very first frame had
+the sides the other way from every later one), and a side change the test let through (the shoulders' offset
+changing sign by a turn a person can make, or by a flip it could not tell from one) starts the count again --
+the hips' offset, small and unsteady in the model's output, does not; a flip of labels younger than that is
+taken as it comes. Labels that stay the other way for :data:`PERSIST_S` (1 s) are accepted too.
 
 Frames: image pixels; times in seconds on the capture clock. Indices: MediaPipe Pose's 33 landmarks.
 """

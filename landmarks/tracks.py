@@ -107,8 +107,6 @@ def oks(a: np.ndarray, b: np.ndarray, size: float, kappa: float = KAPPA) -> floa
     return float(np.exp(-d2 / (2.0 * (kappa * size) ** 2)).mean())
 
 
-
-
 def body_overlap(a: np.ndarray, b: np.ndarray, size: float | None = None) -> float:
     """How much two landmark sets look like the same body: the larger :func:`oks` of ``b`` as it is and with
     left and right swapped (a model that saw the person from the wrong side); ``size`` defaults to the
