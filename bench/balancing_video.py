@@ -8,10 +8,10 @@ Each view goes through posed's own landmark stage (``posed landmarks``: BlazePos
 landmarks kept), its pixels are undistorted with the calibration, and the fit gets the camera's true
 intrinsics, the default config otherwise (no height given: video mode learns the proportions), at the
 daemon's 10 fps (every 6th frame: the landmark stage itself sees only those, as the daemon's does on a
-faster camera) in video and image mode, and at the video's 60 fps in video mode. The
-comparison is BlazePose's world landmarks as a MediaPipe user has them: the same landmark stage run with
-``landmarks.keep_sides=false`` (posed puts back left and right where BlazePose flips them between two frames,
-landmarks.sides; a MediaPipe user does not have that).
+faster camera) in video and image mode, and at the video's 60 fps in video mode. The comparison is
+BlazePose's world landmarks as a MediaPipe user has them: the same landmark stage run with
+``landmarks.keep_sides=false`` (posed puts back left and right where BlazePose flips them between two
+frames, landmarks.sides; a MediaPipe user does not have that).
 
 Per frame where both the fit and BlazePose answered (the same frames for both), on the 12 body joints
 (shoulders, elbows, wrists, hips, knees, ankles) in the camera frame: PA-MPJPE (similarity-aligned, mm),
@@ -24,8 +24,8 @@ four world positions). Baseline: the 2D landmarks with zero depth (PA-MPJPE).
 Where the error comes from (``depth_sources``, PA-MPJPE mm): posed's own 2D landmarks, back-projected through
 the camera, each at a depth taken from elsewhere -- the true depth of each joint (``true``: what the 2D
 landmarks and the keypoint definitions leave, the floor of any estimate built on them), the true mid-hip
-depth plus BlazePose's world depths relative to its mid-hip (``world``), or plus the fit's
-(``fit``). The gap between ``true`` and the others is what each source's depths cost.
+depth plus BlazePose's world depths relative to its mid-hip (``world``), or plus the fit's (``fit``). The
+gap between ``true`` and the others is what each source's depths cost.
 """
 
 from __future__ import annotations
@@ -137,7 +137,7 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
 
     landmarker = MultiPoseLandmarker(LandmarkConfig(keep_sides=not mediapipe_sides))
     cap = cv2.VideoCapture(str(video))
-    lines, seq = [], 0
+    lines, seq, size = [], 0, None
     try:
         while True:
             ok, image = cap.read()
@@ -150,6 +150,8 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
             seq += 1
     finally:
         cap.release()
+    if size is None:
+        raise RuntimeError(f"{video}: no frame could be read")
     header = RecordingHeader(size, VIDEO_FPS / step, source=f"bench {PROTOCOL} {video.name} every {step}th frame")
     out.write_text("\n".join([dumps(header.to_json()), *lines]) + "\n")
     return out
@@ -255,10 +257,10 @@ def _fit_view(view: _View, mode: str, fps: float, base: FitConfig) -> dict:
             continue
         answered += 1
         truth = view.truth_cam[i]
-        fit.add(O.fitted_joints(r), truth)
+        joints = O.fitted_joints(r)
+        fit.add(joints, truth)
         world.add(est_w, truth)
         flat.add(np.column_stack([lm[BODY12_IDX, :2], np.zeros(12)]), truth)
-        joints = O.fitted_joints(r)
         hip_z = _mid_hip(truth)[2]
         for source, z in (("true", truth[:, 2]), ("world", hip_z + est_w[:, 2] - _mid_hip(est_w)[2]),
                           ("fit", hip_z + joints[:, 2] - _mid_hip(joints)[2])):
@@ -288,6 +290,7 @@ def run(shared_data: Path, base: FitConfig | None = None, cache: Path | None = N
     cameras = load_cameras(folder)
     truth = load_truth(folder)
     cache = cache or cache_dir() / "bench" / PROTOCOL
+
     def views(step: int) -> dict[str, _View]:
         video = {n: folder / "balancing" / f"{n}.mp4" for n in CAMERAS}
         return {n: _load_view(cameras[n], landmark_recording(video[n], cache, step=step), truth,

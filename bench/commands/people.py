@@ -10,7 +10,8 @@
 * ``stature``: who is who: a man's shoulder height measured from one real image by each of four calibrated
   cameras (what the household recognition measures), against his triangulated joints.
 
-Run: ``posed bench people [--json] [--part scenes|falls|recordings|stature] [--scenario NAME] [--b-camera CAM] [--split S]``."""
+Run: ``posed bench people [--json] [--part scenes|falls|recordings|stature] [--scenario NAME]
+[--b-camera CAM] [--split S]``."""
 
 from __future__ import annotations
 
