@@ -10,15 +10,15 @@ A person cannot do that. Seen from the camera, a pair of points ``W`` apart acro
 hips) shows the offset ``w = W cos(heading)`` between them, taken across the torso's long axis in the image; its
 sign says which side faces the camera. Going from ``w0`` to ``w1`` takes a turn of at least
 ``|acos(w1/W) - acos(w0/W)|`` about that axis, and in ``dt`` seconds nobody turns by more than
-:data:`TURN_RATE_MAX` ``* dt``.
-So when the shoulders' offset (the widest pair, and the best placed by the model) changes sign between two
-frames by more turn than that, the labels flipped, and they are swapped back (image and world landmarks
-together) -- unless the hips clearly kept their side (both offsets the same sign and at least half their width:
-:data:`HIPS_SURE`), which a whole-body flip would not. ``W`` is the pair's true width: the anthropometric one
-(Drillis and Contini: shoulders 0.259, hips 0.191 of the stature, against 0.288 from hip to shoulder) in units
-of the torso's length in the image, or the largest offset seen when that is larger (a torso foreshortened in the
-image). A real turn, of any speed a person can reach, passes through the side view, where the offsets are small
-and the needed turn is too.
+:data:`TURN_RATE_MAX` ``* dt``. So when the shoulders' offset (the widest pair, and the best placed by the
+model) changes sign between two frames by more turn than that, the labels flipped, and they are swapped back
+(image and world landmarks together) -- unless the hips clearly kept their side (both offsets the same sign and
+at least half their width: :data:`HIPS_SURE`), which a whole-body flip would not. ``W`` is the pair's true
+width: the anthropometric one (Drillis and Contini: shoulders 0.259, hips 0.191 of the stature, against 0.288
+from hip to shoulder) in units of the torso's length in the image -- its longest over the last
+:data:`TORSO_MEMORY_S` (2 s), so that a person bending towards the camera, whose torso then looks short, is not
+taken to be narrower than they are -- or the largest offset seen when that is larger. A real turn, of any speed
+a person can reach, passes through the side view, where the offsets are small and the needed turn is too.
 
 Values: :data:`TURN_RATE_MAX` 2 pi rad/s (360 deg/s): peak trunk angular velocities of turning on the spot are
 about 100-250 deg/s in healthy and older adults (gait and turning studies with inertial sensors), a quick pivot
@@ -48,6 +48,7 @@ SETTLED_S = 0.5                   # only labels that held this long are kept aga
 SHOULDER_WIDTH_REL = 0.90         # shoulder width / torso length (Drillis-Contini: 0.259 H / 0.288 H)
 HIP_WIDTH_REL = 0.66              # hip width / torso length (0.191 H / 0.288 H)
 HIPS_SURE = 0.5                   # hips this far apart (of their width) that keep their side veto a flip
+TORSO_MEMORY_S = 2.0              # the torso's longest image length over this long is its unforeshortened one
 
 # MediaPipe Pose index of each landmark's left/right counterpart (the nose is its own)
 MIRROR = np.array([0, 4, 5, 6, 1, 2, 3, 8, 7, 10, 9] + [i + 1 if i % 2 else i - 1 for i in range(11, 33)])
@@ -74,13 +75,14 @@ def turn_needed(w_before: float, w_now: float, width: float) -> float:
     return abs(math.acos(w_now / width) - math.acos(w_before / width))
 
 
-def labels_flipped(now: np.ndarray, before: np.ndarray, dt: float) -> bool:
+def labels_flipped(now: np.ndarray, before: np.ndarray, dt: float, torso_px: float = 0.0) -> bool:
     """Whether the torso landmarks ``now`` (33, ≥2 pixels) have left and right the other way from ``before``,
-    ``dt`` seconds earlier, by more turn than :data:`TURN_RATE_MAX` allows (see the module doc)."""
+    ``dt`` seconds earlier, by more turn than :data:`TURN_RATE_MAX` allows (see the module doc). ``torso_px``:
+    the torso's length in the image when it is not foreshortened, if known (else the two frames' own)."""
     a, b = now[:, :2].astype(np.float64), before[:, :2].astype(np.float64)
     if not (np.isfinite(a[TORSO]).all() and np.isfinite(b[TORSO]).all()) or dt <= 0.0:
         return False
-    size = 0.5 * (torso_length(a) + torso_length(b))
+    size = max(0.5 * (torso_length(a) + torso_length(b)), torso_px)
     if not size > 0.0:
         return False
     (sh0, hip0), (sh1, hip1) = signed_widths(b), signed_widths(a)
@@ -98,18 +100,24 @@ class SideKeeper:
         self._last_t = 0.0
         self._flipped_since: float | None = None
         self._settled_since = 0.0        # when the labels now kept started to hold
+        self._lengths: list[tuple[float, float]] = []   # (t, torso length px) of the last TORSO_MEMORY_S
 
     def reset(self) -> None:
         self._last = None
         self._flipped_since = None
+        self._lengths.clear()
 
     def check(self, t: float, landmarks: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         """``(landmarks, world, swapped)``: the frame's image landmarks (33, 5) and world landmarks (33, k) at
         ``t`` seconds, left and right swapped back when the labels flipped since the last frame checked."""
         swapped = False
+        length = torso_length(landmarks[:, :2])
+        if math.isfinite(length):
+            self._lengths = [(tl, v) for tl, v in self._lengths if t - tl <= TORSO_MEMORY_S] + [(t, length)]
+        torso_px = max((v for _, v in self._lengths), default=0.0)
         if self._last is None or not 0.0 < t - self._last_t <= MAX_GAP_S:
             self._settled_since, self._flipped_since = t, None
-        elif labels_flipped(landmarks, self._last, t - self._last_t):
+        elif labels_flipped(landmarks, self._last, t - self._last_t, torso_px):
             if self._flipped_since is None:
                 self._flipped_since = t
             if self._flipped_since - self._settled_since >= SETTLED_S and t - self._flipped_since <= PERSIST_S:

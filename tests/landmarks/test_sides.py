@@ -62,6 +62,27 @@ def test_no_turn_a_person_can_make_is_taken_for_a_flip(tilt):
     assert any(S.labels_flipped(b, a, dt) for a, b in zip(fast, fast[1:], strict=False))
 
 
+def test_a_person_bent_towards_the_camera_turning_fast_is_not_taken_for_a_flip():
+    """Bent forward towards the camera, the torso looks half as long and the shoulders twice as wide for it; a
+    turn at 300 deg/s through the side view then looks impossible against the anthropometric width — but
+    the keeper remembers the torso's length from two seconds of standing upright, and does not fire."""
+    def bent(heading: float) -> np.ndarray:
+        lms = _body(heading)
+        hip = 0.5 * (lms[23, :2] + lms[24, :2])
+        lms[:, 1] = hip[1] + 0.5 * (lms[:, 1] - hip[1])        # the torso foreshortened to half its length
+        return lms
+    dt, rate = 0.1, math.radians(300.0)
+    headings = [math.radians(65.0) + rate * dt * k for k in range(8)]      # through 90 deg: the side view
+    frames = [bent(h) for h in headings]
+    assert any(S.labels_flipped(b, a, dt) for a, b in zip(frames, frames[1:], strict=False))  # without memory
+    keeper = S.SideKeeper()
+    world = np.zeros((33, 3))
+    for k in range(20):                                          # two seconds upright, facing the camera
+        keeper.check(k * dt, _body(math.radians(60.0)), world)
+    swapped = [keeper.check(2.0 + k * dt, lms, world)[2] for k, lms in enumerate(frames)]
+    assert not any(swapped), swapped
+
+
 def test_hips_that_clearly_kept_their_side_veto_a_shoulder_flip():
     a = _body(0.0)
     b = a.copy()
