@@ -31,7 +31,6 @@ gap between ``true`` and the others is what each source's depths cost.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import sys
 import tomllib
@@ -42,6 +41,7 @@ import cv2
 import numpy as np
 
 from posed.bench import ood as O
+from posed.bench.landmark_cache import stage_tag
 from posed.bench.mocap_landmarks import BODY12, BODY12_IDX
 from posed.camera_model import Intrinsics
 from posed.fitting import FitConfig, Fitter
@@ -120,7 +120,7 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
     only, as the daemon's landmark stage sees a faster camera (its seq and time kept: ``t = seq / 60``).
     ``mediapipe_sides``: with BlazePose's left/right labels as they come (``landmarks.keep_sides=false``: what
     a MediaPipe user has)."""
-    tag = _stage_tag() + (f".every{step}" if step > 1 else "") + (".mediapipe" if mediapipe_sides else "")
+    tag = stage_tag() + (f".every{step}" if step > 1 else "") + (".mediapipe" if mediapipe_sides else "")
     out = cache / f"{video.stem}.{tag}.landmarks.jsonl"
     if out.is_file() and out.stat().st_mtime >= video.stat().st_mtime:
         return out
@@ -155,15 +155,6 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
     header = RecordingHeader(size, VIDEO_FPS / step, source=f"bench {PROTOCOL} {video.name} every {step}th frame")
     out.write_text("\n".join([dumps(header.to_json()), *lines]) + "\n")
     return out
-
-
-def _stage_tag() -> str:
-    """10 hex digits of a hash of the landmark stage's source (a changed stage is run again, not read stale)."""
-    folder = Path(__file__).resolve().parent.parent / "landmarks"
-    h = hashlib.sha1()
-    for f in sorted(folder.glob("*.py")):
-        h.update(f.read_bytes())
-    return h.hexdigest()[:10]
 
 
 @dataclass

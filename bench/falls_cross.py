@@ -19,6 +19,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from posed.bench.landmark_cache import stage_tag
+
 # real videos of the shared data, all daily activities: (path under shared/data, what happens, role)
 VIDEOS = (
     ("reference/tfjs_pose_squats/pose_squats.mp4", "squats, front view", "held out"),
@@ -74,8 +76,10 @@ def _recordings_row(source, role, geometry_text, r) -> Row:
 
 
 def video_recordings(shared: Path, out_dir: Path, log: Callable[[str], None] = lambda s: None) -> Path:
-    """``out_dir`` with one ``posed landmarks`` recording per video of ``VIDEOS`` (made once, then reused) and a
-    labels.json marking each a daily activity, with no camera geometry (the default config judges them)."""
+    """A folder in ``out_dir``, one per version of the landmark stage (bench.landmark_cache), with one ``posed
+    landmarks`` recording per video of ``VIDEOS`` (made once, then reused) and a labels.json marking each a
+    daily activity, with no camera geometry (the default config judges them)."""
+    out_dir = out_dir / f"landmarks-{stage_tag()}"
     out_dir.mkdir(parents=True, exist_ok=True)
     clips = []
     for rel, what, _role in VIDEOS:
