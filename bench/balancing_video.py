@@ -133,11 +133,11 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
             if main(["landmarks", str(video), "-o", str(out), *sets]) != 0:
                 raise RuntimeError(f"posed landmarks failed on {video}")
         return out
-    from posed.landmarks import LandmarkConfig, MultiPoseLandmarker, RecordingHeader, dumps
+    from posed.landmarks import LandmarkConfig, MultiPoseLandmarker, RecordingHeader, write_recording
 
     landmarker = MultiPoseLandmarker(LandmarkConfig(keep_sides=not mediapipe_sides))
     cap = cv2.VideoCapture(str(video))
-    lines, seq, size = [], 0, None
+    frames, seq, size = [], 0, None
     try:
         while True:
             ok, image = cap.read()
@@ -146,14 +146,14 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
             if seq == 0:
                 size = (image.shape[1], image.shape[0])
             if seq % step == 0:
-                lines.append(dumps(landmarker.process(image, seq / VIDEO_FPS, seq).to_json()))
+                frames.append(landmarker.process(image, seq / VIDEO_FPS, seq))
             seq += 1
     finally:
         cap.release()
     if size is None:
         raise RuntimeError(f"{video}: no frame could be read")
-    header = RecordingHeader(size, VIDEO_FPS / step, source=f"bench {PROTOCOL} {video.name} every {step}th frame")
-    out.write_text("\n".join([dumps(header.to_json()), *lines]) + "\n")
+    write_recording(out, RecordingHeader(size, VIDEO_FPS / step,
+                                         source=f"bench {PROTOCOL} {video.name} every {step}th frame"), frames)
     return out
 
 
