@@ -31,6 +31,7 @@ import numpy as np
 
 from posed.bench import people_scenes as scenes
 from posed.bench.mocap_landmarks import BODY12_IDX
+from posed.bench.people_tracks import switches
 
 MATCH_MIN = 0.3          # landmark overlap with a person's own one-person run to count as them
 
@@ -80,11 +81,6 @@ def _ratio(alone: list[float], both: list[float]) -> dict:
     m_alone, m_both = float(np.nanmean(alone)), float(np.nanmean(both))
     return {"alone": round(m_alone, 1), "with_a": round(m_both, 1),
             "ratio": round(m_both / m_alone, 3) if m_alone > 0 else None, "frames": len(alone)}
-
-
-def _switches(ids: list[int | None]) -> int:
-    seen = [i for i in ids if i is not None]
-    return sum(1 for x, y in zip(seen, seen[1:], strict=False) if x != y)
 
 
 def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_dir: Path | None) -> dict:
@@ -139,7 +135,7 @@ def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_d
     n = len(both)
     return {
         "scenario": scenario.name, "frames": n,
-        "identity_switches": {"a": _switches(ids["a"]), "b": _switches(ids["b"])},
+        "identity_switches": {"a": switches(ids["a"]), "b": switches(ids["b"])},
         "ids": {"a": sorted({i for i in ids["a"] if i is not None}), "b": sorted({i for i in ids["b"] if i is not None})},
         "found": {k: round(v / n, 3) for k, v in found.items()},
         "a_error_px": {"alone": round(a_alone, 1), "with_b": round(a_both, 1),

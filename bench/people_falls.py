@@ -41,8 +41,7 @@ import numpy as np
 from posed.bench.falls import DETECTING_STATES as DETECTING
 from posed.bench.falls_body import Body
 from posed.bench.falls_scenarios import STAND, Key, Scenario, catalogue, frames, kneel, truth_result, walk
-from posed.bench.people import _switches
-from posed.bench.people_tracks import NamedBodies
+from posed.bench.people_tracks import NamedBodies, switches
 from posed.falls.config import FallsConfig, HouseholdMember
 from posed.falls.detector import FallDetector
 from posed.falls.people import PeopleFalls
@@ -193,7 +192,7 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             "states": [f"{m.extra.get('person')}:{m.state}" for m in messages],
             "bystander_events": len(theirs), "event_ids": len({m.id for m in mine}),
             "ended": any(m.state == "recovered" for m in mine),
-            "switches": {w: _switches(v) for w, v in ids.items()}, "rematches": detectors.rematches,
+            "switches": {w: switches(v) for w, v in ids.items()}, "rematches": detectors.rematches,
             "household": None if alone else _recognition(detectors, ids, followed)}
 
 

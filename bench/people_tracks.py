@@ -28,3 +28,9 @@ class NamedBodies:
                 self._next += 1
                 self._slots[name] = self._next
         return self.tracker.update(t, [lms for _, lms in seen], [self._slots[n] for n in names])
+
+
+def switches(ids: list[int | None]) -> int:
+    """How often the track id changes between consecutive frames where the body was found (None: not found)."""
+    seen = [i for i in ids if i is not None]
+    return sum(1 for x, y in zip(seen, seen[1:], strict=False) if x != y)
