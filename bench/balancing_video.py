@@ -8,7 +8,8 @@ Each view goes through posed's own landmark stage (``posed landmarks``: BlazePos
 landmarks kept), its pixels are undistorted with the calibration, and the fit gets the camera's true
 intrinsics, the default config otherwise (no height given: video mode learns the proportions), at the
 daemon's 10 fps (every 6th frame: the landmark stage itself sees only those, as the daemon's does on a
-faster camera) in video and image mode, and at the video's 60 fps in video mode. The comparison is
+faster camera; six runs, one per starting frame 0-5, so that every frame is scored once and the 10 fps rows
+weigh as many frames as the 60 fps one) in video and image mode, and at the video's 60 fps in video mode. The comparison is
 BlazePose's world landmarks as a MediaPipe user has them: the same landmark stage run with
 ``landmarks.keep_sides=false`` (posed puts back left and right where BlazePose flips them between two
 frames, landmarks.sides; a MediaPipe user does not have that).
@@ -34,7 +35,7 @@ import contextlib
 import json
 import sys
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -114,13 +115,16 @@ def load_truth(folder: Path) -> np.ndarray:
     return data[:, idx][:, :, [2, 0, 1]]
 
 
-def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = False, step: int = 1) -> Path:
+def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = False, step: int = 1,
+                       phase: int = 0) -> Path:
     """posed's own landmark stage on one view, cached beside the other bench inputs under a name that changes
     with the landmark stage's code. ``step`` 1: every frame (``posed landmarks``); ``step`` n: every n-th frame
-    only, as the daemon's landmark stage sees a faster camera (its seq and time kept: ``t = seq / 60``).
+    only from frame ``phase`` on, as the daemon's landmark stage sees a faster camera (its seq and time kept:
+    ``t = seq / 60``).
     ``mediapipe_sides``: with BlazePose's left/right labels as they come (``landmarks.keep_sides=false``: what
     a MediaPipe user has)."""
-    tag = stage_tag() + (f".every{step}" if step > 1 else "") + (".mediapipe" if mediapipe_sides else "")
+    tag = (stage_tag() + (f".every{step}" if step > 1 else "") + (f"+{phase}" if phase else "")
+           + (".mediapipe" if mediapipe_sides else ""))
     out = cache / f"{video.stem}.{tag}.landmarks.jsonl"
     if out.is_file() and out.stat().st_mtime >= video.stat().st_mtime:
         return out
@@ -145,7 +149,7 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
                 break
             if seq == 0:
                 size = (image.shape[1], image.shape[0])
-            if seq % step == 0:
+            if seq % step == phase:
                 frames.append(landmarker.process(image, seq / VIDEO_FPS, seq))
             seq += 1
     finally:
@@ -153,7 +157,8 @@ def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = Fals
     if size is None:
         raise RuntimeError(f"{video}: no frame could be read")
     write_recording(out, RecordingHeader(size, VIDEO_FPS / step,
-                                         source=f"bench {PROTOCOL} {video.name} every {step}th frame"), frames)
+                                         source=f"bench {PROTOCOL} {video.name} every {step}th frame from {phase}"),
+                    frames)
     return out
 
 
@@ -226,44 +231,62 @@ class _Scores:
                 "per_joint_pa_mm": {n: round(float(v), 1) for n, v in zip(BODY12, joints, strict=True)}}
 
 
-def _fit_view(view: _View, mode: str, fps: float, base: FitConfig) -> dict:
+@dataclass
+class _Pool:
+    """Everything one view's runs are scored into."""
+
+    fit: _Scores = field(default_factory=_Scores)
+    world: _Scores = field(default_factory=_Scores)
+    flat: _Scores = field(default_factory=_Scores)
+    depth_from: dict[str, _Scores] = field(default_factory=lambda: {s: _Scores() for s in ("true", "world", "fit")})
+    root_err: list[float] = field(default_factory=list)
+    roots: dict[int, np.ndarray] = field(default_factory=dict)   # frame -> the fit's mid-hip in the world
+    frames: int = 0
+    answered: int = 0
+
+
+def _fit_view(runs: list[_View], mode: str, fps: float, base: FitConfig) -> dict:
+    """One view's scores at ``fps``, pooled over its ``runs`` (one per starting frame: run p fits frames p,
+    p + step, ...; each a fresh fitter, as a daemon started at that frame)."""
     step = round(VIDEO_FPS / fps)
+    pool = _Pool()
+    for phase, view in enumerate(runs):
+        _fit_run(view, phase, step, mode, base, pool)
+    return {"frames": pool.frames, "answered": pool.answered, "fit": pool.fit.summary(),
+            "blazepose_world": pool.world.summary(), "flat_2d": {"pa_mpjpe_mm": pool.flat.summary().get("pa_mpjpe_mm")},
+            "depth_sources": {s: sc.summary().get("pa_mpjpe_mm") for s, sc in pool.depth_from.items()},
+            "root_err_mm": round(float(np.median(pool.root_err)), 1) if pool.root_err else None, "_roots": pool.roots}
+
+
+def _fit_run(view: _View, phase: int, step: int, mode: str, base: FitConfig, pool: _Pool) -> None:
+    """Frames ``phase``, ``phase + step``, ... of one view through a fresh fitter, scored into ``pool``."""
     fitter = Fitter(base)
     k = view.camera.intrinsics(view.image_size)
-    fit, world, flat = _Scores(), _Scores(), _Scores()
-    depth_from = {"true": _Scores(), "world": _Scores(), "fit": _Scores()}
-    frames = answered = 0
-    root_err: list[float] = []
-    roots: dict[int, np.ndarray] = {}
-    for i in range(0, len(view.landmarks), step):
-        frames += 1
+    for i in range(phase, len(view.landmarks), step):
+        pool.frames += 1
         lm = view.landmarks[i]
         w = view.world[i]
         r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k, world=w)
-        base = w if view.baseline_world is None else view.baseline_world[i]
-        if not r.ok or base is None or lm is None:
+        ref = w if view.baseline_world is None else view.baseline_world[i]
+        if not r.ok or ref is None or lm is None:
             continue
-        est_w = base[BODY12_IDX, :3]
+        est_w = ref[BODY12_IDX, :3]
         if not np.isfinite(est_w).all():
             continue
-        answered += 1
+        pool.answered += 1
         truth = view.truth_cam[i]
         joints = O.fitted_joints(r)
-        fit.add(joints, truth)
-        world.add(est_w, truth)
-        flat.add(np.column_stack([lm[BODY12_IDX, :2], np.zeros(12)]), truth)
+        pool.fit.add(joints, truth)
+        pool.world.add(est_w, truth)
+        pool.flat.add(np.column_stack([lm[BODY12_IDX, :2], np.zeros(12)]), truth)
         hip_z = _mid_hip(truth)[2]
         for source, z in (("true", truth[:, 2]), ("world", hip_z + est_w[:, 2] - _mid_hip(est_w)[2]),
                           ("fit", hip_z + joints[:, 2] - _mid_hip(joints)[2])):
-            depth_from[source].add(_back_project(lm[BODY12_IDX, :2], z, k), truth)
+            pool.depth_from[source].add(_back_project(lm[BODY12_IDX, :2], z, k), truth)
         root = O.root_cam(r)
         if root is not None:
-            root_err.append(float(np.linalg.norm(root - _mid_hip(truth))) * 1e3)
-            roots[i] = view.camera.to_world(root)
-    return {"frames": frames, "answered": answered, "fit": fit.summary(), "blazepose_world": world.summary(),
-            "flat_2d": {"pa_mpjpe_mm": flat.summary().get("pa_mpjpe_mm")},
-            "depth_sources": {s: sc.summary().get("pa_mpjpe_mm") for s, sc in depth_from.items()},
-            "root_err_mm": round(float(np.median(root_err)), 1) if root_err else None, "_roots": roots}
+            pool.root_err.append(float(np.linalg.norm(root - _mid_hip(truth))) * 1e3)
+            pool.roots[i] = view.camera.to_world(root)
 
 
 def _back_project(uv: np.ndarray, z: np.ndarray, k: Intrinsics) -> np.ndarray:
@@ -282,10 +305,12 @@ def run(shared_data: Path, base: FitConfig | None = None, cache: Path | None = N
     truth = load_truth(folder)
     cache = cache or cache_dir() / "bench" / PROTOCOL
 
-    def views(step: int) -> dict[str, _View]:
+    def views(step: int) -> dict[str, list[_View]]:
+        """Per camera, one view per starting frame 0 .. step - 1."""
         video = {n: folder / "balancing" / f"{n}.mp4" for n in CAMERAS}
-        return {n: _load_view(cameras[n], landmark_recording(video[n], cache, step=step), truth,
-                              landmark_recording(video[n], cache, mediapipe_sides=True, step=step))
+        return {n: [_load_view(cameras[n], landmark_recording(video[n], cache, step=step, phase=p), truth,
+                               landmark_recording(video[n], cache, mediapipe_sides=True, step=step, phase=p))
+                    for p in range(step)]
                 for n in CAMERAS}
 
     per_step = {step: views(step) for step in sorted({round(VIDEO_FPS / fps) for _, fps in RUNS})}

@@ -98,10 +98,15 @@ def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, reco
         depth = r["depth_sources"]
         assert 0 < depth["true"] < 0.8 * min(depth["world"], depth["fit"]), depth
     assert len(B.markdown(rows)) == 2 + len(B.RUNS)
-    # the baseline is the landmark stage with MediaPipe's own left/right labels, at each rate the fit runs at
+    # the baseline is the landmark stage with MediaPipe's own left/right labels, at each rate the fit runs at;
+    # at 10 fps one run per starting frame (0-5), so that every frame is scored once
     names = sorted(p.name for p in recordings[0].glob("*.landmarks.jsonl"))
-    assert sum(".mediapipe." in n for n in names) == len(B.CAMERAS) * len({round(B.VIDEO_FPS / f) for _, f in B.RUNS})
-    assert sum(".every6." in n for n in names) == 2 * len(B.CAMERAS)
+    runs = sum(round(B.VIDEO_FPS / f) for f in {f for _, f in B.RUNS})    # 1 at 60 fps + 6 at 10 fps
+    assert sum(".mediapipe." in n for n in names) == len(B.CAMERAS) * runs
+    assert sum(".every6" in n for n in names) == 2 * 6 * len(B.CAMERAS)
+    by_rate = {f: sum(r["frames"] for r in rows if r["view"] != "all" and r["fps"] == f and r["mode"] == "video")
+               for f in (10.0, 60.0)}
+    assert by_rate[10.0] == by_rate[60.0] == 4 * 100, by_rate       # every frame of every view, at both rates
 
 
 def test_camera_2_at_the_daemons_rate_keeps_left_and_right_where_mediapipe_flips_them(folder, recordings):
