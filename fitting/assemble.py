@@ -9,8 +9,14 @@ import numpy as np
 from posed.fitting import problem as P
 from posed.fitting.depth_term import DepthFit
 from posed.fitting.measured import Measured
-from posed.fitting.reported import ANGLES, JOINTS, N_REPORTED, reported_values
-from posed.fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
+from posed.fitting.reported import ANGLES, JOINTS, N_REPORTED, ROTATIONS, reported_values
+from posed.fitting.result import (
+    JOINT_3D_NAMES,
+    JOINT_ANGLE_NAMES,
+    SHOULDER_ROTATION_NAMES,
+    VARIABLE_NAMES,
+    FitResult,
+)
 
 _DEPENDS = {  # variables that only these landmarks observe
     "left_elbow": ("theta_sh_l", "phi_sh_l"), "right_elbow": ("theta_sh_r", "phi_sh_r"),
@@ -30,10 +36,11 @@ def unobserved(missing: list[str]) -> list[str]:
 
 def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.ndarray, *, loss: float,
              mp: float, fit_ms: float, mode: str, evals: int, udeas_s: float, missing: list[str], gamma: float,
-             depth: DepthFit | None, measured: Measured | None = None) -> FitResult:
+             depth: DepthFit | None, measured: Measured | None = None, rotation: bool = False) -> FitResult:
     """The result of solution ``x`` (kernel units) of ``frame``; ``gamma`` the reported size factor, ``depth``
     the depth term at ``x`` (None without depth), ``measured`` what the frame's landmarks measured
-    (fitting.measured; None: judged from ``missing`` alone)."""
+    (fitting.measured; None: judged from ``missing`` alone); ``rotation``: the upper arms' rotations were
+    searched (reported as ``shoulder_rotation_deg``)."""
     values = np.empty(N_REPORTED)
     known, *root = reported_values(x, frame.data, fixed_deg, 0.0 if depth is None else depth.root_z,
                                    depth is not None, values)
@@ -41,11 +48,13 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
     variables = {"gamma": round(gamma, 5)}
     variables.update(zip(VARIABLE_NAMES[1:], v[1:ANGLES], strict=True))
     angles = dict(zip(JOINT_ANGLE_NAMES, v[ANGLES:JOINTS], strict=True))
-    j3 = dict(zip(JOINT_3D_NAMES, zip(v[JOINTS::3], v[JOINTS + 1::3], v[JOINTS + 2::3], strict=True),
-                  strict=True))
+    xyz = v[JOINTS:ROTATIONS]
+    j3 = dict(zip(JOINT_3D_NAMES, zip(xyz[0::3], xyz[1::3], xyz[2::3], strict=True), strict=True))
     extra = {"mode": mode, "projection": "perspective" if frame.perspective else "orthographic",
              "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
+    if rotation:
+        extra["shoulder_rotation_deg"] = dict(zip(SHOULDER_ROTATION_NAMES, v[ROTATIONS:], strict=True))
     if depth is not None:
         extra["depth_inliers"] = depth.inliers
     if known:  # perspective (intrinsics known): where the person is, for a robot to go there

@@ -105,6 +105,13 @@ class FitConfig:
                                        "'world') as robust evidence of each limb's depth, when there is no "
                                        "depth camera (fitting.world_term; docs/body-model.md)"}
     )
+    shoulder_rotation: bool = field(
+        default=False, metadata={"doc": "search each upper arm's rotation about its own axis (hands before "
+                                        "the chest, arms folded) when world landmarks tell the arms' depth; "
+                                        "off, or without them: the paper's shoulder, flexion and adduction "
+                                        "only. Off by default: on real video with 3D truth it costs 5 mm "
+                                        "PA-MPJPE at 10 fps (docs/body-model.md, 'Shoulder rotation')"}
+    )
     learn_proportions: bool = field(
         default=True, metadata={"doc": "video mode without a calibration file: learn the person's proportions "
                                        "(upper arm, forearm, thigh, shank, trunk, hip width; the configured "

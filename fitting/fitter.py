@@ -84,6 +84,8 @@ class Fitter:
         self._learn_t: float | None = None  # time of the last frame the learner saw
         self._work = FK.empty_work()
         self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.reported.FIXED_NAMES), degrees
+        self._rotation = False   # this frame searches the upper arms' rotations (world landmarks tell them)
+        self._lim = P.limits(False)   # its joint limits (fitting.problem.limits)
         self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
         self._sensor = SENSOR_DEPTH_CAMERA       # ... of this sensor: a depth camera, or the world landmarks
         self._depth_weight = DEPTH_WEIGHT        # ... and its weight against the 2D landmarks
@@ -209,7 +211,13 @@ class Fitter:
         if use_persp and intrinsics is None:
             return FitResult.failure(seq, t, "projection is 'perspective' but no camera intrinsics were given "
                                              "(add \"camera\" to the recording header or use projection: auto)")
-        frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg)
+        video_ok = (mode == "video" and self._prev_x is not None and self._prev_t is not None
+                    and 0.0 <= t - self._prev_t <= cfg.video_max_gap_s)
+        # the upper arms' rotations are searched where the world landmarks tell the arms' depth, else held at 0
+        self._rotation = self._world is not None and cfg.shoulder_rotation
+        self._lim = P.limits(self._rotation)
+        frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg,
+                       self._rotation)
         # the depth evidence: a depth camera's, else the world landmarks' (fitting.world_term)
         self._sensor, self._depth_weight = SENSOR_DEPTH_CAMERA, DEPTH_WEIGHT
         if self._depth is None and self._world is not None:
@@ -217,25 +225,17 @@ class Fitter:
             self._sensor, self._depth_weight = SENSOR_WORLD, WORLD_WEIGHT
         camera_depth = self._sensor is SENSOR_DEPTH_CAMERA
 
-        used_mode = "image"
-        evals = 0
         self._udeas_s = 0.0
-        x = None
-        if mode == "video" and self._prev_x is not None and self._prev_t is not None \
-                and 0.0 <= t - self._prev_t <= cfg.video_max_gap_s:
-            prev = self._prev_x.copy()
-            prev[0] *= self._prev_ppm / ppm0  # same pixel scale under the new reference
-            x, loss, mp, evals = self._video(frame, prev, t - self._prev_t)
-            used_mode = "video"
-            # lost track (fast motion, a wrong branch after an ambiguity): the 2D error jumps above its
-            # recent level -> fit this frame in image mode too and keep the better of the two
-            if mp > min(cfg.video_recover_error, RECOVER_FACTOR * self._err_ref + RECOVER_FLOOR):
-                xi, li, mi, ei = self._image(frame)
-                evals += ei
-                if li < loss:
-                    x, loss, mp, used_mode = xi, li, mi, "video+image"
-        if x is None:
-            x, loss, mp, evals = self._image(frame)
+        x, loss, mp, evals, used_mode = self._solve(frame, video_ok, ppm0, t)
+        if self._rotation and self._depth is None:
+            # the world landmarks were judged garbage (no hypothesis agrees with their depths: the tracker on
+            # another body): nothing tells the arms' rotations either -- the frame is solved again without them
+            self._rotation = False
+            self._lim = P.limits(False)
+            frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg)
+            x, loss, mp, more, used_mode = self._solve(frame, video_ok, ppm0, t)
+            evals += more
+        if used_mode == "image":
             self._err_ref = mp
         else:
             self._err_ref += ERR_REF_RATE * (mp - self._err_ref)
@@ -253,7 +253,8 @@ class Fitter:
         depth = self._depth_fit(frame, x) if camera_depth else None
         result = assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
                           evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma, depth=depth,
-                          measured=Measured.from_landmarks(measured_landmarks(lm, cfg.visibility_drop)))
+                          measured=Measured.from_landmarks(measured_landmarks(lm, cfg.visibility_drop)),
+                          rotation=self._rotation)
         # what the fit used: the 2D landmarks always; a depth camera's or the world landmarks' depths when they
         # were given and not judged garbage (fitting.depth_term.usable)
         evidence = ["landmarks"]
@@ -275,6 +276,25 @@ class Fitter:
             self._learn_t = t
         return result
 
+    def _solve(self, frame: P.Frame, video: bool, ppm0: float, t: float) -> tuple[np.ndarray, float, float, int, str]:
+        """(x, loss, 2D error, evaluations, mode used) of one packed frame: video mode from the previous
+        solution when ``video``, falling back to image mode when the 2D error jumps; else image mode."""
+        cfg = self.config
+        if video:
+            prev = self._prev_x.copy()
+            prev[0] *= self._prev_ppm / ppm0  # same pixel scale under the new reference
+            x, loss, mp, evals = self._video(frame, prev, t - self._prev_t)
+            # lost track (fast motion, a wrong branch after an ambiguity): the 2D error jumps above its
+            # recent level -> fit this frame in image mode too and keep the better of the two
+            if mp > min(cfg.video_recover_error, RECOVER_FACTOR * self._err_ref + RECOVER_FLOOR):
+                xi, li, mi, ei = self._image(frame)
+                if li < loss:
+                    return xi, li, mi, evals + ei, "video+image"
+                return x, loss, mp, evals + ei, "video"
+            return x, loss, mp, evals, "video"
+        x, loss, mp, evals = self._image(frame)
+        return x, loss, mp, evals, "image"
+
     def _dims_for(self, mode: str, t: float) -> BodyDimensions:
         """The lengths to fit this frame with: the learned ones in video mode, else the configured ones."""
         if mode != "video" or self._learner is None:
@@ -291,19 +311,19 @@ class Fitter:
         ``refine_iterations``)."""
         out = np.empty(L.N_VAR)
         n = self.config.refine_iterations if iterations is None else iterations
-        cost = refine.levenberg_marquardt(x, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, n, out)[0]
+        cost = refine.levenberg_marquardt(x, *self._lim, data, n, out)[0]
         return out, float(cost)
 
     def _score(self, frame: P.Frame, x: np.ndarray) -> tuple[np.ndarray, float, float]:
         """Set the pelvis tilt by its prior and evaluate the loss: (x, loss, mpjpe)."""
         out = np.empty(L.N_VAR)
-        loss, mp = score_into(x, frame.data, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, self._work, out)
+        loss, mp = score_into(x, frame.data, *self._lim, self._work, out)
         return out, float(loss), float(mp)
 
     def _score_all(self, frame: P.Frame, pool: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`_score` of each row of ``pool``: (xs, losses, mpjpes)."""
         scored, loss, mp = np.empty_like(pool), np.empty(len(pool)), np.empty(len(pool))
-        score_all(pool, len(pool), frame.data, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, self._work, scored, loss, mp)
+        score_all(pool, len(pool), frame.data, *self._lim, self._work, scored, loss, mp)
         return scored, loss, mp
 
     def _select(self, frame: P.Frame, pool: np.ndarray, mse: np.ndarray,
@@ -356,13 +376,13 @@ class Fitter:
         best_x = np.empty(L.N_VAR)
         starts = pool[order[:PRIOR_CANDIDATES]]
         if self._depth is None:  # no depth rows: the refinement's cost is the compared one
-            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, _NO_DEPTH, self._sensor, False, 0.0,
+            best_hypothesis(starts, *self._lim, data, _NO_DEPTH, self._sensor, False, 0.0,
                             min(TRIAL_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations, FINALISTS, best_x)
         else:
             # with depth: each converged in two passes, the depth rows' robust weights solved from its start and
             # again from the first pass's result (the kernel's trial and its finalist refinement, every start a
             # finalist); compared on the cost without those rows plus the depth term
-            best_hypothesis(starts, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self._depth, self._sensor, True,
+            best_hypothesis(starts, *self._lim, data, self._depth, self._sensor, True,
                             self._depth_weight * noise2,
                             cfg.refine_iterations, cfg.refine_iterations, len(starts), best_x)
         return self._score(frame, best_x)
@@ -391,7 +411,7 @@ class Fitter:
 
         best_x = np.empty(L.N_VAR)
         use_depth = self._depth is not None
-        best_hypothesis(hypotheses, P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, data, self._depth if use_depth else _NO_DEPTH,
+        best_hypothesis(hypotheses, *self._lim, data, self._depth if use_depth else _NO_DEPTH,
                         self._sensor, use_depth, w_depth, min(HYPOTHESIS_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations,
                         FINALISTS, best_x)
         return self._score(frame, best_x)
@@ -419,7 +439,7 @@ class Fitter:
         bent limbs are skipped after an exact fit); :meth:`_select` chooses among all of them, the trials not
         refined further included (under the pose prior they are starts like the others)."""
         cfg = self.config
-        lo, hi = P.image_box(cfg)
+        lo, hi = P.image_box(cfg, self._rotation)
         seeds = P.orientation_seeds(frame, self.dims, lo, hi) if cfg.seed_orientation else _NO_SEEDS
         seeds = seeds[: cfg.restarts]
         los, his = P.restart_boxes(lo, hi, seeds, cfg.restarts)
@@ -448,7 +468,7 @@ class Fitter:
         pool = np.empty((k + 4 * passes, L.N_VAR))
         scored = np.empty_like(pool)
         loss, mp, mse = np.empty(len(pool)), np.empty(len(pool)), np.empty(len(pool))
-        n = image_candidates(np.array(picked).reshape(k, L.N_VAR), P.LIMIT_LO_RAD, P.LIMIT_HI_RAD, frame.data,
+        n = image_candidates(np.array(picked).reshape(k, L.N_VAR), *self._lim, frame.data,
                              self._work, min(TRIAL_ITERATIONS, cfg.refine_iterations), cfg.refine_iterations,
                              FINALISTS, passes, EXACT_MSE, STRAIGHT_RAD, pool, scored, loss, mp, mse)
         return (*self._select(frame, pool[:n], mse[:n], scored=(scored[:n], loss[:n], mp[:n])), int(evals))
@@ -480,14 +500,14 @@ class Fitter:
             if mse_start < EXACT_MSE:
                 return (*self._score(frame, start), 0)
         # the hypotheses: the start, each limb's depth mirror of it, this frame's analytic starts (and uDEAS's)
-        seeds = (P.orientation_seeds(frame, self.dims, *P.image_box(cfg))
+        seeds = (P.orientation_seeds(frame, self.dims, *P.image_box(cfg, self._rotation))
                  if cfg.video_hypotheses and cfg.seed_orientation and cfg.analytic_seeds else _NO_SEEDS)
         mirrors = 4 if cfg.video_hypotheses else 0
         hyps = np.empty((1 + mirrors + len(seeds) + (cfg.video_restarts > 0), L.N_VAR))
         video_starts(start, seeds, mirrors, frame.data, self._work, hyps)
         evals = 0
         if cfg.video_restarts > 0:  # the paper's search: uDEAS within +-video_window_deg of the previous solution
-            lo, hi = P.video_box(prev, cfg)
+            lo, hi = P.video_box(prev, cfg, self._rotation)
             c0 = time.thread_time()
             best_x, _, evals = udeas.minimize(udeas.PROBLEM_POSE, lo, hi, restarts=cfg.video_restarts,
                                               m0=cfg.video_row_init, mf=cfg.video_row_max, seed=cfg.seed,

@@ -50,9 +50,9 @@ def _slot_group(k):
         return G_BODY
     if k == L.X_TTR or k == L.X_PTR or k == L.X_STR or k == S_THD or k == S_PHD:
         return G_TORSO
-    if k == L.X_TSH_L or k == L.X_TEL_L or k == L.X_PSH_L:
+    if k == L.X_TSH_L or k == L.X_TEL_L or k == L.X_PSH_L or k == L.X_PSISH_L:
         return G_ARM_L
-    if k == L.X_TSH_R or k == L.X_TEL_R or k == L.X_PSH_R:
+    if k == L.X_TSH_R or k == L.X_TEL_R or k == L.X_PSH_R or k == L.X_PSISH_R:
         return G_ARM_R
     if k == L.X_THP_L or k == L.X_TKN_L or k == L.X_PHP_L or k == S_PSIHP_L or k == S_TAN_L or k == S_PAN_L:
         return G_LEG_L
@@ -162,9 +162,10 @@ def _fk_arm(k, data, work):
     x_tsh = L.X_TSH_L if k == 0 else L.X_TSH_R
     x_psh = L.X_PSH_L if k == 0 else L.X_PSH_R
     x_tel = L.X_TEL_L if k == 0 else L.X_TEL_R
+    x_psish = L.X_PSISH_L if k == 0 else L.X_PSISH_R
     l_ua, l_fa = data[L.D_DIMS + L.DM_UA], data[L.D_DIMS + L.DM_FA]
     r_tr = load_rot(work, L.W_RTR)
-    r_ua = mm(mm(r_tr, _ry_slot(work, x_tsh, -1.0)), _rx_slot(work, x_psh, -s))
+    r_ua = mm(mm(mm(r_tr, _ry_slot(work, x_tsh, -1.0)), _rx_slot(work, x_psh, -s)), _rz_slot(work, x_psish, -s))
     put_point(work, i_el, work[i_sh, 0], work[i_sh, 1], work[i_sh, 2], r_ua, 0.0, 0.0, -l_ua)
     r_fa = mm(r_ua, _ry_slot(work, x_tel, -1.0))
     put_point(work, i_wr, work[i_el, 0], work[i_el, 1], work[i_el, 2], r_fa, 0.0, 0.0, -l_fa)

@@ -1,7 +1,7 @@
 """numba kernels: the least-squares residuals of the refinement and their analytic Jacobian d res / d x.
 ``cache=True``; tested against central finite differences in ``tests/fitting/test_kinematics.py``.
 
-Residual layout (``R_*`` in fitting.layout, N_RES = 83 rows):
+Residual layout (``R_*`` in fitting.layout, N_RES = 87 rows):
 
 * R_LM + 2 i + c: landmark i, image axis c: sqrt(w_i / sum w) (b_ic - a_ic T_c), b = observed - model
   projection before the translation, a = d(model) / dT (1 orthographic, fn_c / Z'_i perspective), T the
@@ -82,7 +82,7 @@ def _rate(jp, i, k, a, p, o):
 
 @njit(cache=True)
 def _point_jacobian(x, data, pts_c, jp):
-    """jp[i] (3 x 19): d (camera-axes position of landmark i) / d x, metres per radian (gamma column 0)."""
+    """jp[i] (3 x 21): d (camera-axes position of landmark i) / d x, metres per radian (gamma column 0)."""
     # body R_CB = R0 Rz(psi_bd) Rx(-phi_bd) Ry(theta_bd): moves every point about the mid-hip
     r_bd = body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD])
     r_z = mm(r0(), rz(x[L.X_SBD]))
@@ -107,23 +107,27 @@ def _point_jacobian(x, data, pts_c, jp):
         _rate(jp, i, L.X_TTR, a_ttr, p, ORIGIN)
         _rate(jp, i, L.X_PTR, a_ptr, p, ORIGIN)
         _rate(jp, i, L.X_STR, a_str, p, ORIGIN)
-    # arm k (s = +1 left, -1 right): shoulder Ry(-theta_sh) Rx(-s phi_sh), elbow Ry(-theta_el)
+    # arm k (s = +1 left, -1 right): shoulder Ry(-theta_sh) Rx(-s phi_sh) Rz(-s psi_sh), elbow Ry(-theta_el)
     for k in range(2):
         s = 1.0 if k == 0 else -1.0
         i_sh, i_el, i_wr = L.P_SH_L + k, L.P_EL_L + k, L.P_WR_L + k
         x_tsh = L.X_TSH_L if k == 0 else L.X_TSH_R
         x_psh = L.X_PSH_L if k == 0 else L.X_PSH_R
+        x_psish = L.X_PSISH_L if k == 0 else L.X_PSISH_R
         x_tel = L.X_TEL_L if k == 0 else L.X_TEL_R
         a_tsh = _neg(column(r_tr, 1))
         r_a = mm(r_tr, ry(-x[x_tsh]))
         a_psh = _scaled(-s, column(r_a, 0))
-        r_ua = mm(r_a, rx(-s * x[x_psh]))
+        r_ap = mm(r_a, rx(-s * x[x_psh]))
+        a_psish = _scaled(-s, column(r_ap, 2))   # the upper arm's own axis: moves the wrist only
+        r_ua = mm(r_ap, rz(-s * x[x_psish]))
         a_tel = _neg(column(r_ua, 1))
         o_sh = _point(pts_c, i_sh)
         for i in (i_el, i_wr):
             p = _point(pts_c, i)
             _rate(jp, i, x_tsh, a_tsh, p, o_sh)
             _rate(jp, i, x_psh, a_psh, p, o_sh)
+        _rate(jp, i_wr, x_psish, a_psish, _point(pts_c, i_wr), _point(pts_c, i_el))
         _rate(jp, i_wr, x_tel, a_tel, _point(pts_c, i_wr), _point(pts_c, i_el))
     # leg k: hip Ry(-theta_hp) Rx(-s phi_hp) Rz(-s psi_hp) (psi_hp fixed), knee Ry(theta_kn)
     for k in range(2):
@@ -219,7 +223,7 @@ def _weight_sum(data):
 @njit(cache=True)
 def residuals_jacobian(x, data, res, jac, want_jac):
     """Least-squares residuals (layout R_*, see the module docstring) into ``res`` (N_RES) and, when
-    ``want_jac``, their Jacobian d res / d x into ``jac`` (N_RES x 19)."""
+    ``want_jac``, their Jacobian d res / d x into ``jac`` (N_RES x N_VAR)."""
     work = empty_work()
     residuals_into(x, data, res, work)
     if want_jac:

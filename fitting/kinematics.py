@@ -18,7 +18,9 @@ Rotations (Vicon Plug-in Gait polarity, Cardan order flexion -> ab/adduction -> 
 * hip:   Ry(-theta_hp) Rx(-s phi_hp) Rz(-s psi_hp), s = +1 left, -1 right: flexion, adduction, internal
   rotation positive on both sides. knee: Ry(+theta_kn) flexion positive.
 * ankle: Ry(-theta_an) Rx(-s phi_an): dorsiflexion, inversion positive.
-* shoulder: Ry(-theta_sh) Rx(-s phi_sh): flexion, adduction positive. elbow: Ry(-theta_el) flexion positive.
+* shoulder: Ry(-theta_sh) Rx(-s phi_sh) Rz(-s psi_sh): flexion, adduction, internal rotation positive (the
+  rotation is not among the paper's 23 angles: the fit searches it only with BlazePose's world landmarks,
+  else holds it at 0). elbow: Ry(-theta_el) flexion positive.
 * head:  Ry(theta_hd) Rz(psi_hd): nod forward, turn left positive.
 
 Because the body pitch theta_bd is the innermost body rotation and the lumbar and hip flexions are the
@@ -35,7 +37,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posed.fitting.body import SEGMENT_MASS, BodyDimensions
-from posed.fitting.result import BODY_ANGLE_NAMES, JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES
+from posed.fitting.result import (
+    BODY_ANGLE_NAMES,
+    JOINT_3D_NAMES,
+    JOINT_ANGLE_NAMES,
+    SHOULDER_ROTATION_NAMES,
+    VARIABLE_NAMES,
+)
 
 # Camera axes of the pelvis axes in the neutral pose (columns: x_B, y_B, z_B in C).
 R0 = np.array([[0.0, 1.0, 0.0],
@@ -99,7 +107,8 @@ def body_angles_from_rotation(r_cb: np.ndarray) -> tuple[float, float, float]:
 
 @dataclass(frozen=True)
 class Pose:
-    """A pose of the model: the 23 joint angles and the 3 body angles, degrees (Vicon polarity).
+    """A pose of the model: the 23 joint angles, the 3 body angles and the upper arms' rotations, degrees
+    (Vicon polarity).
 
     Missing joint angles are 0. ``joints`` is stored as a plain dict with every name of JOINT_ANGLE_NAMES.
     """
@@ -108,6 +117,8 @@ class Pose:
     theta_bd: float = 0.0
     phi_bd: float = 0.0
     psi_bd: float = 0.0
+    psi_sh_l: float = 0.0
+    psi_sh_r: float = 0.0
 
     def __post_init__(self) -> None:
         unknown = set(self.joints) - set(JOINT_ANGLE_NAMES)
@@ -117,16 +128,16 @@ class Pose:
         object.__setattr__(self, "joints", full)
 
     def angle(self, name: str) -> float:
-        if name in BODY_ANGLE_NAMES:
+        if name in BODY_ANGLE_NAMES or name in SHOULDER_ROTATION_NAMES:
             return float(getattr(self, name))
         return self.joints[name]
 
     def replace(self, **angles: float) -> Pose:
         """A copy with some joint or body angles replaced (degrees)."""
         joints = dict(self.joints)
-        body = {k: getattr(self, k) for k in BODY_ANGLE_NAMES}
+        body = {k: getattr(self, k) for k in BODY_ANGLE_NAMES + SHOULDER_ROTATION_NAMES}
         for k, v in angles.items():
-            if k in BODY_ANGLE_NAMES:
+            if k in body:
                 body[k] = float(v)
             elif k in JOINT_ANGLE_NAMES:
                 joints[k] = float(v)
@@ -173,7 +184,8 @@ def skeleton(pose: Pose, dims: BodyDimensions) -> Skeleton:
     for side, s, i_sh, i_el, i_wr, i_pk, i_ix, i_th in (("l", 1.0, 11, 13, 15, 17, 19, 21),
                                                         ("r", -1.0, 12, 14, 16, 18, 20, 22)):
         sh = r_tr @ np.array([0.0, s * dims.shoulder_half_m, dims.trunk_m])
-        r_ua = r_tr @ rot_y(-_r(j[f"theta_sh_{side}"])) @ rot_x(-s * _r(j[f"phi_sh_{side}"]))
+        r_ua = (r_tr @ rot_y(-_r(j[f"theta_sh_{side}"])) @ rot_x(-s * _r(j[f"phi_sh_{side}"]))
+                @ rot_z(-s * _r(pose.angle(f"psi_sh_{side}"))))
         el = sh + r_ua @ np.array([0.0, 0.0, -dims.upper_arm_m])
         r_fa = r_ua @ rot_y(-_r(j[f"theta_el_{side}"]))
         wr = el + r_fa @ np.array([0.0, 0.0, -dims.forearm_m])

@@ -8,14 +8,17 @@ Inside the kernels angles are radians and lengths metres.
 
 from __future__ import annotations
 
-# --- x (19): the paper's eq. (6) order, fitting.result.VARIABLE_NAMES ---
+# --- x (21): the paper's eq. (6) order (fitting.result.VARIABLE_NAMES), then the two below ---
 # x[X_GAMMA] is the size factor relative to the frame's reference scale (1 = the scale estimated from the
 # landmarks); the rest are angles theta (flexion), phi (abduction / lateral), psi (twist).
 X_GAMMA, X_TBD, X_PBD, X_SBD, X_TTR, X_PTR, X_STR = 0, 1, 2, 3, 4, 5, 6   # gamma, theta/phi/psi of bd, tr
 X_THP_L, X_TKN_L, X_THP_R, X_TKN_R = 7, 8, 9, 10                          # theta_hp_l, theta_kn_l, ...
 X_TSH_L, X_TEL_L, X_TSH_R, X_TEL_R = 11, 12, 13, 14                       # theta_sh_l, theta_el_l, ...
 X_PHP_L, X_PHP_R, X_PSH_L, X_PSH_R = 15, 16, 17, 18                       # phi_hp_l, phi_hp_r, phi_sh_*
-N_VAR = 19
+# beyond the paper's 19: the upper arms' rotation about their own axis (fitting.result.SHOULDER_ROTATION_NAMES),
+# searched only where BlazePose's world landmarks tell the arms' depth (else its box is [0, 0]: the paper's arm)
+X_PSISH_L, X_PSISH_R = 19, 20                                              # psi_sh_l, psi_sh_r
+N_VAR = 21
 
 # --- fixed (8): joint angles that are not optimized ---
 # theta_hd, psi_hd, psi_hp_l, psi_hp_r, theta_an_l, phi_an_l, theta_an_r, phi_an_r
@@ -39,13 +42,13 @@ D_OBS = 0             # 24: observed landmarks, normalized image units, (x, y) o
 D_W = 24              # 12: landmark weights (0 = not used)
 D_DIMS = 36           # 11: dims, DM_* order
 D_FIXED = 47          # 8: fixed joint angles, F_* order
-D_PROJ = 55           # 5: the camera, PJ_* order
+D_PROJ = D_FIXED + N_FIXED   # 5: the camera, PJ_* order
 PJ_MODE, PJ_FN_X, PJ_FN_Y, PJ_OFF_X, PJ_OFF_Y = 0, 1, 2, 3, 4
 # PJ_MODE: PROJ_ORTHOGRAPHIC (0) or 1 for perspective. Perspective only: PJ_FN_* the focal lengths in
 # normalized units (fx / scale_px, fy / scale_px); PJ_OFF_* the offset from the observations' origin (the
 # weighted landmark centroid) to camera-centred normalized coordinates (observed + offset).
 PROJ_ORTHOGRAPHIC = 0.0
-D_LW = 60             # 17: loss weights, LW_* order
+D_LW = D_PROJ + 5    # 17: loss weights, LW_* order
 LW_COM, LW_SYM, LW_SAG_TR, LW_COR_TR, LW_TRAN_TR, LW_SAG_SH, LW_COR_SH = 0, 1, 2, 3, 4, 5, 6
 LW_NULL, LW_PRIOR_TR, LW_PRIOR_HP, LW_PRIOR_UP = 7, 8, 9, 10
 LW_COM_MODE, LW_CONTACT, LW_MARGIN, LW_SEAT = 11, 12, 13, 14
@@ -61,12 +64,12 @@ TH_SH_FLEX_MIN = 3    # shoulder flexion minimum (P_sn on theta_sh_*)
 TH_SH_ADD_MAX = 4     # shoulder adduction maximum (P_sp on phi_sh_*)
 TH_HP_ADD_MAX = 5     # hip adduction maximum (P_sp on phi_hp_*)
 N_TH = 6
-D_LIM_LO = D_TH + N_TH            # 19 joint limits (refinement hinge), x order
-D_LIM_HI = D_LIM_LO + N_VAR       # 19
+D_LIM_LO = D_TH + N_TH            # 21 joint limits (refinement hinge), x order
+D_LIM_HI = D_LIM_LO + N_VAR       # 21
 D_PRIOR = D_LIM_HI + N_VAR        # 1: weight lambda of the pose prior (refinement only; 0 = off)
-D_PRIOR_MU = D_PRIOR + 1          # 19: prior means (kernel units)
-D_PRIOR_SIG = D_PRIOR_MU + N_VAR  # 19: prior standard deviations (<= 0: no prior on that variable)
-D_PRIOR_PARTNER = D_PRIOR_SIG + N_VAR  # 19: partner variable (prior on x_k - x_partner), -1 for none
+D_PRIOR_MU = D_PRIOR + 1          # 21: prior means (kernel units)
+D_PRIOR_SIG = D_PRIOR_MU + N_VAR  # 21: prior standard deviations (<= 0: no prior on that variable)
+D_PRIOR_PARTNER = D_PRIOR_SIG + N_VAR  # 21: partner variable (prior on x_k - x_partner), -1 for none
 D_DEPTH = D_PRIOR_PARTNER + N_VAR  # 12: depth targets: landmark i's depth relative to the mid-hip (m)
 D_DEPTH_W = D_DEPTH + N_LM         # 12: weights of the depth rows (0 = no depth; refinement only)
 D_SIZE = D_DEPTH_W + N_LM
@@ -76,7 +79,7 @@ N_SLOTS = N_VAR + N_FIXED     # trig-table slots: x[k] at slot k (slot 0 unused)
 W_PTS_B = 0                   # 19 rows: model points in the pelvis frame
 W_PTS_C = W_PTS_B + N_POINTS  # 19 rows: in camera axes
 W_PROJ = W_PTS_C + N_POINTS   # 12 rows: normalized image coordinates (columns 0, 1; 1 / depth in column 2)
-W_TRIG = W_PROJ + N_LM        # 27 rows: (angle, cos, sin) per slot, recomputed only when the angle changes
+W_TRIG = W_PROJ + N_LM        # 29 rows: (angle, cos, sin) per slot, recomputed only when the angle changes
 W_RTR = W_TRIG + N_SLOTS      # 3 rows: torso rotation (pelvis from torso), row-major
 W_RBD = W_RTR + 3             # 3 rows: body rotation R_CB
 W_SIG = W_RBD + 3             # 1 row: signature of the dims the cached points were computed with
@@ -86,7 +89,7 @@ W_ROWS = W_SIG + 1
 N_PEN = 9                     # penalty hinges: the paper's 7 and the two hip adductions
 R_LM = 0                      # 24: landmark i, axis c (0 = x, 1 = y) at R_LM + 2 i + c
 R_PEN = R_LM + 2 * N_LM       # 9: penalty hinges, fitting.penalties.PENALTY_HINGES order
-R_LIM = R_PEN + N_PEN         # 19: joint-limit hinges, x order
-R_PRIOR = R_LIM + N_VAR       # 19: pose-prior rows, x order (zero where there is no prior)
+R_LIM = R_PEN + N_PEN         # 21: joint-limit hinges, x order
+R_PRIOR = R_LIM + N_VAR       # 21: pose-prior rows, x order (zero where there is no prior)
 R_DEPTH = R_PRIOR + N_VAR     # 12: depth rows w_i (Z_i - target_i) (zero without depth)
 N_RES = R_DEPTH + N_LM

@@ -26,23 +26,27 @@ from posed.fitting.packing import normalized_into, reference_scale_of, weights_i
 
 DEG = math.pi / 180.0
 
-# Search boxes in degrees (gamma relative to the reference scale), eq. (6) order.
-#                 gamma  tbd   pbd   sbd   ttr  ptr  str  thl  tkl  thr  tkr   tsl  tel   tsr  ter  phl  phr  psl  psr
-PAPER_LO = np.array([0.7, -10, -10, -90, -20, -40, -30, -20, 0, -20, 0, -180, 0, -180, 0, -40, -40, -40, -40.0])
-PAPER_HI = np.array([1.6, 10, 10, 90, 90, 40, 30, 90, 90, 90, 90, 180, 90, 180, 90, 40, 40, 40, 40.0])
-WIDE_LO = np.array([0.7, -100, -90, -180, -30, -40, -40, -30, 0, -30, 0, -180, 0, -180, 0, -50, -50, -90, -90.0])
-WIDE_HI = np.array([1.6, 100, 90, 180, 90, 40, 40, 130, 160, 130, 160, 180, 160, 180, 160, 40, 40, 40, 40.0])
-# Joint limits of the refinement (hard clamps) and of video-mode windows.
-LIMIT_LO = np.array([0.5, -180, -90, -360, -40, -50, -50, -40, 0, -40, 0, -200, 0, -200, 0, -60, -60, -100, -100.0])
-LIMIT_HI = np.array([2.5, 180, 90, 360, 100, 50, 50, 140, 165, 140, 165, 200, 165, 200, 165, 50, 50, 50, 50.0])
+# Search boxes in degrees (gamma relative to the reference scale), eq. (6) order, then the upper arms' rotations
+# (psl2, psr2 below: psi_sh_l, psi_sh_r; searched only with world landmarks, else held at 0: :func:`limits`).
+#                 gamma  tbd   pbd   sbd   ttr  ptr  str  thl  tkl  thr  tkr   tsl  tel   tsr  ter  phl  phr  psl  psr psl2 psr2
+PAPER_LO = np.array([0.7, -10, -10, -90, -20, -40, -30, -20, 0, -20, 0, -180, 0, -180, 0, -40, -40, -40, -40, 0, 0.0])
+PAPER_HI = np.array([1.6, 10, 10, 90, 90, 40, 30, 90, 90, 90, 90, 180, 90, 180, 90, 40, 40, 40, 40, 0, 0.0])
+WIDE_LO = np.array([0.7, -100, -90, -180, -30, -40, -40, -30, 0, -30, 0, -180, 0, -180, 0, -50, -50, -90, -90, -90,
+                    -90.0])
+WIDE_HI = np.array([1.6, 100, 90, 180, 90, 40, 40, 130, 160, 130, 160, 180, 160, 180, 160, 40, 40, 40, 40, 70, 70.0])
+# Joint limits of the refinement (hard clamps) and of video-mode windows. The upper arms' rotation: external 90,
+# internal 70 degrees, the normal range of motion (AAOS; Greene & Heckman 1994).
+LIMIT_LO = np.array([0.5, -180, -90, -360, -40, -50, -50, -40, 0, -40, 0, -200, 0, -200, 0, -60, -60, -100, -100, -90,
+                     -90.0])
+LIMIT_HI = np.array([2.5, 180, 90, 360, 100, 50, 50, 140, 165, 140, 165, 200, 165, 200, 165, 50, 50, 50, 50, 70, 70.0])
 
 # Pose prior of the refinement with noisy landmarks (fitting.fitter._select, docs/body-model.md): rows of
 # (x_k - x_partner - mu_k) / sigma_k, degrees; sigma 0 = no row. Left/right symmetry of the limbs and a
 # straight spine: it breaks the depth ambiguity of noisy limbs without pulling a pose toward a fixed one.
-#                    gamma tbd pbd sbd ttr ptr str thl tkl thr tkr tsl tel tsr ter phl phr psl psr
-PRIOR_MU = np.array([0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0.0])
-PRIOR_SIG = np.array([0, 0, 0, 0, 0, 15, 15, 20, 20, 0, 0, 30, 30, 0, 0, 15, 0, 20, 0.0])
-PRIOR_PARTNER = np.array([-1, -1, -1, -1, -1, -1, -1, 9, 10, -1, -1, 13, 14, -1, -1, 16, -1, 18, -1.0])
+#                    gamma tbd pbd sbd ttr ptr str thl tkl thr tkr tsl tel tsr ter phl phr psl psr psl2 psr2
+PRIOR_MU = np.array([0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0.0])
+PRIOR_SIG = np.array([0, 0, 0, 0, 0, 15, 15, 20, 20, 0, 0, 30, 30, 0, 0, 15, 0, 20, 0, 30, 0.0])
+PRIOR_PARTNER = np.array([-1, -1, -1, -1, -1, -1, -1, 9, 10, -1, -1, 13, 14, -1, -1, 16, -1, 18, -1, 20, -1.0])
 
 # The model length of each segment of the reference scale (fitting.packing.SCALE_PAIRS, that order)
 _SCALE_LENGTHS = ("shoulder", "hip", "upper_arm_m", "upper_arm_m", "thigh_m", "thigh_m", "shank_m", "shank_m")
@@ -58,6 +62,18 @@ def to_radians(x_deg: np.ndarray) -> np.ndarray:
 # The limits and the pose prior in kernel units (radians; gamma unitless).
 LIMIT_LO_RAD = to_radians(LIMIT_LO)
 LIMIT_HI_RAD = to_radians(LIMIT_HI)
+_ROTATIONS = [L.X_PSISH_L, L.X_PSISH_R]
+# the same with the upper arms' rotations held at 0 (the paper's arm: no world landmarks to tell them)
+HELD_LO_RAD, HELD_HI_RAD = LIMIT_LO_RAD.copy(), LIMIT_HI_RAD.copy()
+HELD_LO_RAD[_ROTATIONS] = HELD_HI_RAD[_ROTATIONS] = 0.0
+for _a in (LIMIT_LO_RAD, LIMIT_HI_RAD, HELD_LO_RAD, HELD_HI_RAD):
+    _a.flags.writeable = False
+
+
+def limits(rotation: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The joint limits (kernel units, read-only): the upper arms' rotations free within their range when
+    ``rotation`` (world landmarks tell the arms' depth), else held at 0."""
+    return (LIMIT_LO_RAD, LIMIT_HI_RAD) if rotation else (HELD_LO_RAD, HELD_HI_RAD)
 PRIOR_MU_RAD = to_radians(PRIOR_MU)
 PRIOR_SIG_RAD = to_radians(PRIOR_SIG)
 
@@ -128,6 +144,7 @@ class Frame:
     centroid_px: np.ndarray
     weights: np.ndarray
     perspective: bool
+    rotation: bool = False   # the upper arms' rotations are free (limits(rotation))
 
 
 _last_constants: tuple = (None, None)   # (cfg, _constants(cfg)) of the last pack: hashing a FitConfig is slow
@@ -176,9 +193,13 @@ def _constants(cfg: FitConfig) -> np.ndarray:
 
 def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, ppm0: float,
          intrinsics: Intrinsics | None = None,
-         fixed_deg: np.ndarray | None = None) -> Frame:
-    """Build the kernels' data array of one frame (see the D_* layout in fitting.layout)."""
+         fixed_deg: np.ndarray | None = None, rotation: bool = False) -> Frame:
+    """Build the kernels' data array of one frame (see the D_* layout in fitting.layout); ``rotation``: the
+    upper arms' rotations are free (:func:`limits`)."""
     data = _constants_of(cfg).copy()
+    if not rotation:
+        data[L.D_LIM_LO + L.X_PSISH_L] = data[L.D_LIM_LO + L.X_PSISH_R] = 0.0
+        data[L.D_LIM_HI + L.X_PSISH_L] = data[L.D_LIM_HI + L.X_PSISH_R] = 0.0
     scale_px = ppm0 * dims.body_height_m
     c_x, c_y = normalized_into(np.ascontiguousarray(xy, dtype=np.float64), np.ascontiguousarray(w, dtype=np.float64),
                                scale_px, data, L.D_OBS, L.D_W)
@@ -190,12 +211,12 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
         fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
         # camera-centred normalized coordinates = data obs + offset
         data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (c_x - cx) / scale_px, (c_y - cy) / scale_px)
-    return Frame(data, ppm0, scale_px, np.array([c_x, c_y]), w, perspective)
+    return Frame(data, ppm0, scale_px, np.array([c_x, c_y]), w, perspective, rotation)
 
 
 def with_prior(frame: Frame, weight: float, mu, sig, partner) -> np.ndarray:
     """A copy of ``frame``'s data with the refinement's prior rows set: weight lambda, means ``mu``, standard
-    deviations ``sig`` (<= 0: no row) and partners ``partner`` (-1: none), each 19 values or one for all
+    deviations ``sig`` (<= 0: no row) and partners ``partner`` (-1: none), each N_VAR values or one for all
     (kernel units; layout D_PRIOR*)."""
     data = frame.data.copy()
     data[L.D_PRIOR] = weight
@@ -205,24 +226,32 @@ def with_prior(frame: Frame, weight: float, mu, sig, partner) -> np.ndarray:
     return data
 
 
-def image_box(cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]:
-    """uDEAS search box of image mode (kernel units)."""
+def image_box(cfg: FitConfig, rotation: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """uDEAS search box of image mode (kernel units); the upper arms' rotations held at 0 unless ``rotation``."""
     lo, hi = _PAPER_BOX if cfg.bounds == "paper" else _WIDE_BOX
-    return lo.copy(), hi.copy()
+    lo, hi = lo.copy(), hi.copy()
+    if not rotation:
+        lo[_ROTATIONS] = hi[_ROTATIONS] = 0.0
+    return lo, hi
 
 
 _PAPER_BOX = (to_radians(PAPER_LO), to_radians(PAPER_HI))
 _WIDE_BOX = (to_radians(WIDE_LO), to_radians(WIDE_HI))
 
 
-def video_box(prev: np.ndarray, cfg: FitConfig) -> tuple[np.ndarray, np.ndarray]:
-    """+- the window around the previous solution (kernel units), knees and elbows never below 0."""
+def video_box(prev: np.ndarray, cfg: FitConfig, rotation: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """+- the window around the previous solution (kernel units), within the joint limits (:func:`limits`):
+    knees and elbows never below 0."""
     win = cfg.video_window_deg * DEG
     lo = prev - win
     hi = prev + win
     lo[0] = prev[0] * (1 - cfg.video_window_gamma)
     hi[0] = prev[0] * (1 + cfg.video_window_gamma)
-    return np.maximum(lo, LIMIT_LO_RAD), np.minimum(hi, LIMIT_HI_RAD)
+    lim_lo, lim_hi = limits(rotation)
+    lo, hi = np.maximum(lo, lim_lo), np.minimum(hi, lim_hi)
+    if not rotation:   # held at 0 whatever the previous frame had
+        lo[_ROTATIONS] = hi[_ROTATIONS] = 0.0
+    return lo, hi
 
 
 def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

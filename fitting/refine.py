@@ -342,14 +342,44 @@ def _mt_v(r, v0, v1, v2):
             r[2] * v0 + r[5] * v1 + r[8] * v2)
 
 
+STRAIGHT_ARM = math.sin(math.radians(10.0))   # an elbow bent less than this leaves its rotation undefined
+
+
+@njit(cache=True)
+def _arm_rotation(r_up, v0, v1, v2, s, lo, hi, out, xj, x_psi):
+    """With the upper arm's rotation free (limits ``lo`` < ``hi``): the elbow flexion and rotation that put the
+    forearm exactly on its observed direction (``v0, v1`` in the image, ``+-v2`` in depth; unit length), of the
+    two depth signs the one with the rotation nearer neutral within the limits, into ``out``. In the upper
+    arm's frame before its rotation (``r_up``) the forearm is Rz(-s psi) (sin theta_el, 0, -cos theta_el).
+    Returns False (``out`` untouched) when the elbow is too straight for the rotation to mean anything."""
+    best_cost = 1e300
+    best_j = 0.0
+    best_psi = 0.0
+    for sv in (1.0, -1.0):
+        b = _mt_v(r_up, v0, v1, sv * v2)
+        side = math.hypot(b[0], b[1])
+        if side < STRAIGHT_ARM:
+            return False
+        psi = -s * math.atan2(b[1], b[0])
+        inside = min(hi, max(lo, psi))
+        cost = abs(psi - inside) + abs(inside)   # beyond the limits counts, then the distance from neutral
+        if cost < best_cost:
+            best_cost, best_psi, best_j = cost, inside, math.atan2(side, -b[2])
+    out[x_psi] = best_psi
+    out[xj] = best_j
+    return True
+
+
+
 @njit(cache=True)
 def limb_from_observation(x, data, limb, sign_u, out):
     """``out`` = ``x`` with one limb's three angles solved from its observed 2D landmarks (analytic seed).
 
     The observed 2D vectors root->middle and middle->end (scaled to metres with the size factor) give the
     segment directions up to the sign of their depth; ``sign_u`` picks the upper segment's, and the lower
-    segment's is the one that best lies in the hinge plane. Segments longer in 2D than the model are
-    clipped to the image plane.
+    segment's is the one that best lies in the hinge plane -- or, for an arm whose rotation is free, the one
+    that needs the rotation nearest neutral, the forearm then exactly on its observation. Segments longer in 2D
+    than the model are clipped to the image plane.
     """
     for k in range(x.size):
         out[k] = x[k]
@@ -399,6 +429,12 @@ def limb_from_observation(x, data, limb, sign_u, out):
         q = l2 * l2
     vz = math.sqrt(l2 * l2 - q)
     r_up = ROT.mm(ROT.mm(r_root, ROT.ry(-theta)), ROT.rx(-s * phi))
+    if arm:
+        x_psi = L.X_PSISH_L + k
+        lo, hi = data[L.D_LIM_LO + x_psi], data[L.D_LIM_HI + x_psi]
+        if hi > lo and _arm_rotation(r_up, vx / l2, vy / l2, vz / l2, s, lo, hi, out, xj, x_psi):
+            return
+        r_up = ROT.mm(r_up, ROT.rz(-s * x[x_psi]))   # the upper arm's rotation kept: the forearm in its hinge plane
     best_j = 0.0
     best_off = 1e300
     for sv in (1.0, -1.0):

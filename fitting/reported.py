@@ -2,10 +2,11 @@
 (``cache=True``): the model's 12 joints in camera axes, every value in the unit and rounding the result
 reports it in and in the result's own order, and the root's position (fitting.root).
 
-The order (``N_REPORTED`` values): the 19 variables (fitting.result.VARIABLE_NAMES; degrees, gamma
+The order (``N_REPORTED`` values): the paper's 19 variables (fitting.result.VARIABLE_NAMES; degrees, gamma
 unitless), the 23 joint angles (JOINT_ANGLE_NAMES, degrees: the estimated ones from the solution, the fixed
-ones from the fitter's fixed values) and the 13 joints x 3 (JOINT_3D_NAMES: the mid-hip origin, then the 12
-body landmarks; metres, camera axes, mid-hip origin). Angles and gamma rounded to 4 decimals, the joints to
+ones from the fitter's fixed values), the 13 joints x 3 (JOINT_3D_NAMES: the mid-hip origin, then the 12
+body landmarks; metres, camera axes, mid-hip origin) and the upper arms' two rotations
+(SHOULDER_ROTATION_NAMES, degrees). Angles and gamma rounded to 4 decimals, the joints to
 5, each as ``np.round`` does it (tested against np.round to the last bit in tests/fitting/test_assemble.py).
 """
 
@@ -31,11 +32,12 @@ _N_SOURCES = L.N_VAR + L.N_FIXED + 3 * L.N_LM
 _UNIT = np.concatenate(([1.0], np.full(L.N_VAR - 1, math.pi / 180.0), np.ones(L.N_FIXED + 3 * L.N_LM)))
 _DECIMALS = np.concatenate((np.full(L.N_VAR + L.N_FIXED, 1e4), np.full(3 * L.N_LM, 1e5)))
 # Where the reported values start (ANGLES, JOINTS) and per reported value its source (-1: the mid-hip's zeros)
-ANGLES, JOINTS = L.N_VAR, L.N_VAR + len(JOINT_ANGLE_NAMES)
-_SOURCE = np.array([*range(L.N_VAR),
+ANGLES, JOINTS = len(VARIABLE_NAMES), len(VARIABLE_NAMES) + len(JOINT_ANGLE_NAMES)
+_SOURCE = np.array([*range(len(VARIABLE_NAMES)),
                     *(L.N_VAR + FIXED_NAMES.index(n) if n in FIXED_NAMES else 4 + VARIABLE_NAMES[4:].index(n)
                       for n in JOINT_ANGLE_NAMES),
-                    -1, -1, -1, *range(L.N_VAR + L.N_FIXED, _N_SOURCES)])
+                    -1, -1, -1, *range(L.N_VAR + L.N_FIXED, _N_SOURCES), L.X_PSISH_L, L.X_PSISH_R])
+ROTATIONS = len(_SOURCE) - 2   # where the upper arms' rotations (SHOULDER_ROTATION_NAMES) start
 N_REPORTED = len(_SOURCE)
 
 

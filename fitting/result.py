@@ -30,6 +30,13 @@ JOINT_ANGLE_NAMES = (
     "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r",
 )
 
+# The upper arms' rotation about their own axis (internal rotation positive), degrees: not among the paper's 23
+# angles (its shoulder is flexion and adduction only); the fit searches them when BlazePose's world landmarks
+# tell the arms' depth and then reports them as ``shoulder_rotation_deg``.
+SHOULDER_ROTATION_NAMES = ("psi_sh_l", "psi_sh_r")
+# The kernels' solution vector x (fitting.layout X_*): the paper's 19, then the upper arms' rotations.
+MODEL_VARIABLE_NAMES = VARIABLE_NAMES + SHOULDER_ROTATION_NAMES
+
 # joints_3d keys: the mid-hip origin and the 12 body landmarks by MediaPipe name.
 JOINT_3D_NAMES = (
     "mid_hip", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",

@@ -101,7 +101,7 @@ def udeas(problem, lo, hi, restarts, m0, mf, seed, data, work, x_init, n_init, o
     The first ``n_init`` restarts start from the rows nearest to ``x_init[r]`` instead of random bits
     (video mode: the previous frame's solution). Returns (best cost, number of cost evaluations); the
     best vector goes to ``out_x`` and each restart's result to ``out_restart_x[r]`` / ``out_restart_cost[r]``.
-    A variable with lo == hi is held fixed.
+    A variable with lo == hi is held fixed and draws no random bits: a held variable changes nothing else.
     """
     n = lo.shape[1]
     state = np.empty(1, dtype=np.uint64)
@@ -119,6 +119,8 @@ def udeas(problem, lo, hi, restarts, m0, mf, seed, data, work, x_init, n_init, o
         for j in range(n):
             if r < n_init:
                 rows[j] = encode(x_init[r, j], m, lo_r[j], hi_r[j])
+            elif hi_r[j] <= lo_r[j]:
+                rows[j] = 0   # held: no random bits drawn for it (the others' draws as without it)
             else:
                 rows[j] = np.int64(splitmix64(state) >> np.uint64(64 - m))
             v[j] = decode(rows[j], m, lo_r[j], hi_r[j])

@@ -19,24 +19,26 @@ from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 
 
 def _reference_assemble(seq, t, x, frame, fixed_deg, *, loss, mp, fit_ms, mode, evals, udeas_s, missing, gamma,
-                        depth):
+                        depth, rotation=False):
     """The assembly in plain NumPy and Python (np.round of every value, the dicts built by name)."""
     pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
     FK.model_points(x, frame.data, pts_b, pts_c)
     deg = np.round(P.to_degrees(x), 4).tolist()
     fixed = np.round(fixed_deg, 4).tolist()
     xyz = np.round(pts_c[:L.N_LM], 5).tolist()
-    variables = dict(zip(VARIABLE_NAMES, deg, strict=True))
+    variables = dict(zip(VARIABLE_NAMES, deg[:len(VARIABLE_NAMES)], strict=True))
     variables["gamma"] = round(gamma, 5)
     angles = dict.fromkeys(JOINT_ANGLE_NAMES, 0.0)
-    angles.update(zip(FIXED_NAMES, fixed, strict=True))
-    angles.update(zip(VARIABLE_NAMES[4:], deg[4:], strict=True))
+    angles.update((n, v) for n, v in zip(FIXED_NAMES, fixed, strict=True) if n in angles)
+    angles.update(zip(VARIABLE_NAMES[4:], deg[4:len(VARIABLE_NAMES)], strict=True))
     j3 = {"mid_hip": (0.0, 0.0, 0.0)}
     j3.update(zip(BODY_LANDMARK_NAMES, map(tuple, xyz), strict=True))
     extra = {"mode": mode, "projection": "perspective" if frame.perspective else "orthographic",
              "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
     root = reference_root(x, frame.data, pts_c, None if depth is None else depth.root_z)
+    if rotation:
+        extra["shoulder_rotation_deg"] = {"psi_sh_l": deg[L.X_PSISH_L], "psi_sh_r": deg[L.X_PSISH_R]}
     if depth is not None:
         extra["depth_inliers"] = depth.inliers
     if root is not None:
@@ -96,7 +98,7 @@ def test_assemble_matches_the_plain_numpy_assembly(intrinsics):
         missing = [] if i % 5 else ["left_wrist", "right_knee"]
         kw = dict(loss=float(rng.random()), mp=float(rng.random() * 0.1), fit_ms=float(rng.random() * 3),
                   mode="video", evals=int(i), udeas_s=float(rng.random() * 1e-3) if i % 2 else 0.0,
-                  missing=missing, gamma=float(rng.uniform(0.5, 2.0)), depth=depth)
+                  missing=missing, gamma=float(rng.uniform(0.5, 2.0)), depth=depth, rotation=i % 3 == 1)
         got = assemble(i, 0.1 * i, x, frame, fixed_deg, **kw)
         want = _reference_assemble(i, 0.1 * i, x, frame, fixed_deg, **kw)
         assert _bits(got.to_json()) == _bits(want.to_json())

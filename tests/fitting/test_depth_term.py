@@ -48,13 +48,13 @@ def _near_solution(pose, dims, noise_px, seed, rng, jitter, intrinsics=None):
     from posed.fitting import forward_kinematics as FK
     from posed.fitting import layout as L
     from posed.fitting import problem as P
-    from posed.fitting.result import VARIABLE_NAMES
+    from posed.fitting.result import MODEL_VARIABLE_NAMES
 
     lm = S.render(pose, dims=dims, noise_px=noise_px, seed=seed)
     xy, w, _ = P.landmark_weights(lm, FitConfig())
     assert (w > 0).all()
     data = P.pack(xy, w, dims, FitConfig(), P.reference_scale(xy, w, dims), intrinsics).data.copy()
-    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in MODEL_VARIABLE_NAMES[1:]]))
     x[1:] += rng.normal(0.0, jitter, x.size - 1)
     pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
     FK.model_points(x, data, pts_b, pts_c)

@@ -21,7 +21,7 @@ from posed.fitting.kinematics import (
     landmarks_camera,
     skeleton,
 )
-from posed.fitting.result import JOINT_ANGLE_NAMES, VARIABLE_NAMES
+from posed.fitting.result import JOINT_ANGLE_NAMES, MODEL_VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.72)
 FIXED = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
@@ -34,14 +34,15 @@ def random_pose(rng) -> Pose:
     joints = {name: rng.uniform(-60, 60) for name in JOINT_ANGLE_NAMES}
     for name in ("theta_kn_l", "theta_kn_r", "theta_el_l", "theta_el_r"):
         joints[name] = rng.uniform(0, 140)
-    return Pose(joints, theta_bd=rng.uniform(-100, 100), phi_bd=rng.uniform(-80, 80), psi_bd=rng.uniform(-180, 180))
+    return Pose(joints, theta_bd=rng.uniform(-100, 100), phi_bd=rng.uniform(-80, 80), psi_bd=rng.uniform(-180, 180),
+                psi_sh_l=rng.uniform(-90, 70), psi_sh_r=rng.uniform(-90, 70))
 
 
 def kernel_data(pose: Pose, dims=DIMS) -> tuple[np.ndarray, np.ndarray]:
     data = np.zeros(L.D_SIZE)
     data[L.D_DIMS:L.D_DIMS + L.N_DIMS] = dims.as_array()
-    data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.radians([pose.joints[n] for n in FIXED])
-    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+    data[L.D_FIXED:L.D_FIXED + L.N_FIXED] = np.radians([pose.angle(n) for n in FIXED])
+    x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in MODEL_VARIABLE_NAMES[1:]]))
     return data, x
 
 
@@ -154,7 +155,7 @@ def test_analytic_jacobian_matches_finite_differences(perspective):
     data[L.D_PRIOR_PARTNER:L.D_PRIOR_PARTNER + L.N_VAR] = P.PRIOR_PARTNER
     m = JAC.n_residuals()
     for _ in range(4):
-        x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in VARIABLE_NAMES[1:]])) + rng.normal(0, 0.4, 19)
+        x = P.to_radians(np.array([1.0] + [pose.angle(n) for n in MODEL_VARIABLE_NAMES[1:]])) + rng.normal(0, 0.4, L.N_VAR)
         x[0] = 0.9 + 0.2 * rng.random()
         res, jac = np.empty(m), np.empty((m, L.N_VAR))
         JAC.residuals_jacobian(x, data, res, jac, True)

@@ -13,7 +13,7 @@ from posed.fitting import problem as P
 from posed.fitting.body import BodyDimensions
 from posed.fitting.config import FitConfig
 from posed.fitting.kinematics import BODY_LANDMARKS, Pose, landmarks_camera, skeleton, to_camera
-from posed.fitting.result import VARIABLE_NAMES
+from posed.fitting.result import MODEL_VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.6)
 
@@ -57,7 +57,7 @@ def frame_for(pose, cfg, noise=0.0, seed=0):
 
 
 def x_of(pose, gamma=1.0):
-    return P.to_radians(np.array([gamma] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+    return P.to_radians(np.array([gamma] + [pose.angle(n) for n in MODEL_VARIABLE_NAMES[1:]]))
 
 
 @pytest.mark.parametrize("name", ["walk_left_forward", "sit_chair", "lying_side", "kneel"])

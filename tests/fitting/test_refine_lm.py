@@ -11,7 +11,7 @@ from posed.fitting import problem as P
 from posed.fitting import refine
 from posed.fitting.body import BodyDimensions
 from posed.fitting.config import FitConfig
-from posed.fitting.result import VARIABLE_NAMES
+from posed.fitting.result import MODEL_VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.65)
 EPS = np.finfo(float).eps
@@ -70,7 +70,7 @@ def frame_and_start(seed):
     lm = S.render(truth, dims=DIMS, noise_px=3.0, seed=seed)
     xy, w, _ = P.landmark_weights(lm, cfg)
     frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS), None)
-    x_true = P.to_radians(np.array([1.0] + [truth.angle(n) for n in VARIABLE_NAMES[1:]]))
+    x_true = P.to_radians(np.array([1.0] + [truth.angle(n) for n in MODEL_VARIABLE_NAMES[1:]]))
     rng = np.random.default_rng(seed)
     return frame.data, x_true + rng.normal(0.0, 0.15, x_true.size) * (np.arange(x_true.size) > 0)
 

@@ -14,13 +14,13 @@ from posed.fitting import problem as P
 from posed.fitting.body import BodyDimensions
 from posed.fitting.config import FitConfig
 from posed.fitting.kinematics import BODY_LANDMARKS, body_rotation, landmarks_camera, rot_x, rot_y, rot_z
-from posed.fitting.result import VARIABLE_NAMES
+from posed.fitting.result import MODEL_VARIABLE_NAMES
 
 DIMS = BodyDimensions.from_height(1.65)
 
 
 def x_of(pose, gamma):
-    return P.to_radians(np.array([gamma] + [pose.angle(n) for n in VARIABLE_NAMES[1:]]))
+    return P.to_radians(np.array([gamma] + [pose.angle(n) for n in MODEL_VARIABLE_NAMES[1:]]))
 
 
 @pytest.mark.parametrize("perspective", [False, True])
@@ -65,7 +65,7 @@ def test_hinge_rows_match_reference():
     """Rows R_PEN.. (penalties of eqs. 9-11), R_LIM.. (joint limits) and R_PRIOR.. (pose prior)."""
     cfg = FitConfig(w_limit=0.5)
     xy = np.random.default_rng(0).normal(300, 50, (L.N_LM, 2))
-    frame = P.pack(xy, np.ones(L.N_LM), DIMS, cfg, 200.0)
+    frame = P.pack(xy, np.ones(L.N_LM), DIMS, cfg, 200.0, rotation=True)   # every variable within its limits
     d = frame.data.copy()
     d[L.D_PRIOR] = 0.01
     d[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD
@@ -78,7 +78,7 @@ def test_hinge_rows_match_reference():
     rng = np.random.default_rng(8)
     for _ in range(50):
         x = rng.uniform(P.LIMIT_LO_RAD * 1.3, P.LIMIT_HI_RAD * 1.3)   # some outside the limits
-        v = dict(zip(VARIABLE_NAMES, x, strict=True))
+        v = dict(zip(MODEL_VARIABLE_NAMES, x, strict=True))
         pen = [
             (cfg.w_sag_tr, max(0.0, th["tr_flex"] - v["theta_tr"])),
             (cfg.w_cor_tr, max(0.0, abs(v["phi_tr"]) - th["tr_lat"])),

@@ -134,3 +134,15 @@ def test_same_seed_same_result_and_initial_rows():
     x, _, evals, _, _ = udeas.minimize(udeas.PROBLEM_SPHERE, lo, hi, restarts=1, m0=12, mf=12, x_init=[0.5, -1, 2, 0])
     assert evals == 1
     np.testing.assert_allclose(x, [0.5, -1, 2, 0], atol=3e-3)
+
+
+def test_a_held_variable_changes_nothing_else():
+    """A variable with lo == hi draws no random bits and costs no evaluations: the others come out exactly as
+    without it (the fit holds the upper arms' rotations so, and then searches exactly the paper's 19)."""
+    lo, hi = np.full(3, -5.12), np.full(3, 5.12)
+    x, c, evals, rx, rc = udeas.minimize(udeas.PROBLEM_RASTRIGIN, lo, hi, restarts=5, m0=3, mf=10, seed=4)
+    lo4, hi4 = np.insert(lo, 1, 0.0), np.insert(hi, 1, 0.0)   # rastrigin(0) adds nothing to the cost
+    x4, c4, evals4, rx4, rc4 = udeas.minimize(udeas.PROBLEM_RASTRIGIN, lo4, hi4, restarts=5, m0=3, mf=10, seed=4)
+    assert np.array_equal(np.delete(x4, 1), x) and x4[1] == 0.0
+    assert c4 == c and evals4 == evals
+    assert np.array_equal(np.delete(rx4, 1, axis=1), rx) and np.array_equal(rc4, rc)
