@@ -54,6 +54,7 @@ DATA = Path("reference") / "pose2sim_demo"
 CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 VIDEO_FPS = 60.0
 RUNS = (("video", 10.0), ("image", 10.0), ("video", 60.0))   # (mode, fps): the daemon's rate, and every frame
+EXTERNAL_RUN = ("video", 10.0)   # the run that also fits other extractors' recordings as `posed fit` does
 # posed's joint names -> the triangulated markers' names (truth_3d.trc)
 TRC_NAMES = {"left_shoulder": "LShoulder", "right_shoulder": "RShoulder", "left_elbow": "LElbow",
              "right_elbow": "RElbow", "left_wrist": "LWrist", "right_wrist": "RWrist", "left_hip": "LHip",
@@ -322,7 +323,44 @@ def run(shared_data: Path, base: FitConfig | None = None, cache: Path | None = N
             rows.append({"protocol": PROTOCOL, "domain": DOMAIN, "view": n, "mode": mode, "fps": fps,
                          **{k: v for k, v in res.items() if not k.startswith("_")}})
         rows.append(_overall(per_view, mode, fps))
+        if (mode, fps) == EXTERNAL_RUN:
+            step = round(VIDEO_FPS / fps)
+            rows[-1]["external_recordings"] = _external(
+                {n: [_load_view(cameras[n], landmark_recording(folder / "balancing" / f"{n}.mp4", cache,
+                                                               mediapipe_sides=True, step=step, phase=p), truth)
+                     for p in range(step)] for n in CAMERAS}, mode, step, base)
     return rows
+
+
+def _external(runs: dict[str, list[_View]], mode: str, step: int, base: FitConfig) -> dict:
+    """What ``posed fit`` makes of recordings another extractor wrote (here the landmark stage with
+    MediaPipe's own left/right labels, ``landmarks.keep_sides=false``): PA-MPJPE (mm, every answered frame of
+    every view) with the labels as they come and with the check ``posed fit`` runs on such a recording
+    (landmarks.sides), and on how many frames it put them back."""
+    from posed.landmarks import SideKeeper
+
+    pa: dict[str, list[float]] = {"as_they_come": [], "sides_put_back": []}
+    swapped = 0
+    for views in runs.values():
+        for phase, view in enumerate(views):
+            k = view.camera.intrinsics(view.image_size)
+            for key in pa:
+                fitter, keeper = Fitter(base), SideKeeper()
+                for i in range(phase, len(view.landmarks), step):
+                    lm, w = view.landmarks[i], view.world[i]
+                    if lm is None:
+                        keeper.reset()
+                        continue
+                    if key == "sides_put_back":
+                        lm, w, s = keeper.check(i / VIDEO_FPS, lm, w if w is not None else np.empty((33, 0)))
+                        swapped += s
+                    r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k,
+                                   world=None if w is None or w.shape[1] == 0 else w)
+                    if r.ok:
+                        aligned = O.procrustes_align(O.fitted_joints(r), view.truth_cam[i])
+                        pa[key].append(float(np.linalg.norm(aligned - view.truth_cam[i], axis=1).mean()) * 1e3)
+    return {"fit_pa_mpjpe_mm": {k: round(float(np.mean(v)), 1) for k, v in pa.items()},
+            "frames": {k: len(v) for k, v in pa.items()}, "frames_put_back": swapped}
 
 
 def _overall(per_view: dict[str, dict], mode: str, fps: float) -> dict:

@@ -31,8 +31,8 @@ JOINT_ANGLE_NAMES = (
 )
 
 # The upper arms' rotation about their own axis (internal rotation positive), degrees: not among the paper's 23
-# angles (its shoulder is flexion and adduction only); the fit searches them when BlazePose's world landmarks
-# tell the arms' depth and then reports them as ``shoulder_rotation_deg``.
+# angles (its shoulder is flexion and adduction only); with fitting.shoulder_rotation on, the fit searches them
+# when BlazePose's world landmarks tell the arms' depth, and then reports them as ``shoulder_rotation_deg``.
 SHOULDER_ROTATION_NAMES = ("psi_sh_l", "psi_sh_r")
 # The kernels' solution vector x (fitting.layout X_*): the paper's 19, then the upper arms' rotations.
 MODEL_VARIABLE_NAMES = VARIABLE_NAMES + SHOULDER_ROTATION_NAMES

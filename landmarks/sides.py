@@ -38,8 +38,11 @@ Frames: image pixels; times in seconds on the capture clock. Indices: MediaPipe 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
+
+from posed.landmarks.recording import LandmarkFrame
 
 TURN_RATE_MAX = 2.0 * math.pi     # rad/s: no person turns faster
 MAX_GAP_S = 0.25                  # compare with the last frame only when it is this recent
@@ -130,3 +133,15 @@ class SideKeeper:
                 self._settled_since = t             # a turn a person can make, or a flip the test cannot tell
         self._last, self._last_t = landmarks[:, :2].copy(), t
         return landmarks, world, swapped
+
+
+def keep_sides(keeper: SideKeeper, frame: LandmarkFrame) -> tuple[LandmarkFrame, bool]:
+    """``(frame, swapped)``: a recording's frame (its one person, ``landmarks``; frames in order, with a person)
+    checked by ``keeper``, its image and world landmarks and the depth at them swapped back together where the
+    recording's extractor flipped the labels (what ``posed fit`` does to a recording another tool made)."""
+    world = frame.world if frame.world is not None else np.empty((33, 0))
+    landmarks, world, swapped = keeper.check(frame.t, frame.landmarks, world)
+    if not swapped:
+        return frame, False
+    return replace(frame, landmarks=landmarks, world=None if frame.world is None else world,
+                   depth_m=None if frame.depth_m is None else frame.depth_m[MIRROR]), True

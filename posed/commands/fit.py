@@ -35,9 +35,17 @@ _err = error_printer("posed fit")
 
 def run(args: argparse.Namespace) -> int:
     from posed.fitting import CalibrationError, FitResult, Fitter
-    from posed.landmarks import RecordingError, RecordingProblem, dumps, iter_recording
+    from posed.landmarks import (
+        RecordingError,
+        RecordingProblem,
+        SideKeeper,
+        dumps,
+        iter_recording,
+        keep_sides,
+    )
 
-    cfg = config_from_args(args).fitting
+    config = config_from_args(args)
+    cfg = config.fitting
     try:
         header, frames = iter_recording(args.input)
     except RecordingError as exc:
@@ -66,13 +74,21 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             _err(f"{args.output}: cannot write: {exc.strerror}")
             return 2
-    skipped = fitted = ok = 0
+    # left and right put back where the recording's extractor flipped them (landmarks.sides), unless the
+    # recording says its landmark stage did that already
+    sides = SideKeeper() if config.landmarks.keep_sides and header.extra.get("sides_kept") is not True else None
+    skipped = fitted = ok = swapped = 0
     try:
         for item in frames:
             if isinstance(item, RecordingProblem):
                 print(str(item), file=sys.stderr, flush=True)
                 skipped += 1
                 continue
+            if sides is not None and item.landmarks is not None:
+                item, flipped = keep_sides(sides, item)
+                swapped += flipped
+            elif sides is not None:
+                sides.reset()   # nobody in view: the next person's labels start afresh
             result = fitter.fit(item.landmarks, item.seq, item.t, header.image_size, mode=args.mode,
                                 intrinsics=intrinsics, depth_m=item.depth_m, world=item.world)
             try:
@@ -87,5 +103,6 @@ def run(args: argparse.Namespace) -> int:
             out.close()
         else:
             out.flush()
-    _err(f"{fitted} frames fitted ({ok} ok, {fitted - ok} not ok), {skipped} lines skipped")
+    _err(f"{fitted} frames fitted ({ok} ok, {fitted - ok} not ok), {skipped} lines skipped"
+         + (f"; left and right put back on {swapped} (landmarks.sides)" if swapped else ""))
     return 1 if skipped else 0

@@ -272,7 +272,7 @@ def run(args: argparse.Namespace) -> int:
 
     header = RecordingHeader(source.image_size, source.fps, source=f"posed landmarks {path.name} ({mode} mode)",
                              camera=source.camera, depth=DepthSource("realsense", "color") if source.has_depth
-                             else None)
+                             else None, extra={"sides_kept": lm_config.keep_sides})
     problems = written = found = most = 0
     progress = Progress(source.total if source.kind != "image" else 0)
     try:

@@ -107,6 +107,12 @@ def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, reco
     by_rate = {f: sum(r["frames"] for r in rows if r["view"] != "all" and r["fps"] == f and r["mode"] == "video")
                for f in (10.0, 60.0)}
     assert by_rate[10.0] == by_rate[60.0] == 4 * 100, by_rate       # every frame of every view, at both rates
+    # other extractors' recordings (MediaPipe's labels) through `posed fit`'s side check: camera 2's flips put back
+    external = [r for r in overall if "external_recordings" in r]
+    assert [(r["mode"], r["fps"]) for r in external] == [B.EXTERNAL_RUN]
+    ext = external[0]["external_recordings"]
+    assert ext["frames"] == {"as_they_come": 400, "sides_put_back": 400} and ext["frames_put_back"] >= 10
+    assert ext["fit_pa_mpjpe_mm"]["sides_put_back"] < ext["fit_pa_mpjpe_mm"]["as_they_come"] - 5.0, ext
 
 
 def test_camera_2_at_the_daemons_rate_keeps_left_and_right_where_mediapipe_flips_them(folder, recordings):

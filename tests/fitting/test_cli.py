@@ -102,3 +102,46 @@ def test_bench_fit_report_structure():
     assert "| paper_poses | udeas+lm | (6, 6) |" in markdown(report)
     assert f"speed reference {ref['before']} ms before / {ref['after']} ms after" in markdown(report)
     json.dumps(report)
+
+
+def test_posed_fit_puts_back_left_and_right_where_another_extractor_flipped_them(tmp_path, shared_data):
+    """A recording another tool made (BlazePose full's own landmarks and world landmarks of the real squat
+    video, tfjs-models) whose labels flip for three frames while the woman stands facing the camera: `posed
+    fit` fits it exactly as the unflipped one (landmarks.sides, image and world landmarks together); with
+    `landmarks.keep_sides=false`, or a header saying the sides were kept already, it takes them as they come."""
+    from posed.bench.squat_video import load
+    from posed.landmarks.sides import MIRROR
+
+    folder = shared_data / "reference" / "tfjs_pose_squats"
+    lms = load(shared_data)
+    world = [np.column_stack([w, np.ones((33, 2))])
+             for w in np.array(json.loads((folder / "pose_squats_3d.full.json").read_text()))]
+    flipped = {20, 21, 22}
+
+    def make(name, flip, extra=None):
+        frames = [LandmarkFrame(i, i / 5.0, lm[MIRROR] if i in flip else lm,
+                                world=(w[MIRROR] if i in flip else w)) for i, (lm, w) in enumerate(zip(lms, world, strict=True))]
+        header = RecordingHeader((720, 1280), 5.0, "BlazePose full (tfjs-models), pose_squats.mp4",
+                                 extra=extra or {})
+        write_recording(tmp_path / name, header, frames)
+        return tmp_path / name
+
+    def fits(path, *sets):
+        run = posed("fit", path, "-o", "-", *sets)
+        assert run.returncode == 0, run.stderr
+        rows = [json.loads(line) for line in run.stdout.splitlines()]
+        for r in rows:
+            r.pop("fit_ms", None), r.pop("udeas_ms", None)
+        return rows, run.stderr
+
+    clean, _ = fits(make("clean.landmarks.jsonl", set()))
+    put_back, said = fits(make("flipped.landmarks.jsonl", flipped))
+    assert put_back == clean
+    assert "left and right put back on 3" in said
+    as_they_come, _ = fits(tmp_path / "flipped.landmarks.jsonl", "--set", "landmarks.keep_sides=false")
+    kept_already, _ = fits(make("kept.landmarks.jsonl", flipped, {"sides_kept": True}))
+    for rows in (as_they_come, kept_already):
+        assert rows[:20] == clean[:20] and all(rows[i] != clean[i] for i in flipped)
+        # the fitted left shoulder goes to the image's other side with the labels
+        for i in flipped:
+            assert np.sign(rows[i]["joints_3d"]["left_shoulder"][0]) != np.sign(clean[i]["joints_3d"]["left_shoulder"][0])
