@@ -211,19 +211,19 @@ class Fitter:
         if use_persp and intrinsics is None:
             return FitResult.failure(seq, t, "projection is 'perspective' but no camera intrinsics were given "
                                              "(add \"camera\" to the recording header or use projection: auto)")
-        video_ok = (mode == "video" and self._prev_x is not None and self._prev_t is not None
-                    and 0.0 <= t - self._prev_t <= cfg.video_max_gap_s)
-        # the upper arms' rotations are searched where the world landmarks tell the arms' depth, else held at 0
-        self._rotation = self._world is not None and cfg.shoulder_rotation
-        self._lim = P.limits(self._rotation)
-        frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg,
-                       self._rotation)
         # the depth evidence: a depth camera's, else the world landmarks' (fitting.world_term)
         self._sensor, self._depth_weight = SENSOR_DEPTH_CAMERA, DEPTH_WEIGHT
         if self._depth is None and self._world is not None:
             self._depth = world_depths(self._world, self.dims, cfg.visibility_drop)
             self._sensor, self._depth_weight = SENSOR_WORLD, WORLD_WEIGHT
         camera_depth = self._sensor is SENSOR_DEPTH_CAMERA
+        # the upper arms' rotations are searched where the world landmarks tell the arms' depth, else held at 0
+        self._rotation = cfg.shoulder_rotation and not camera_depth and self._depth is not None
+        self._lim = P.limits(self._rotation)
+        frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg,
+                       self._rotation)
+        video_ok = (mode == "video" and self._prev_x is not None and self._prev_t is not None
+                    and 0.0 <= t - self._prev_t <= cfg.video_max_gap_s)
 
         self._udeas_s = 0.0
         x, loss, mp, evals, used_mode = self._solve(frame, video_ok, ppm0, t)

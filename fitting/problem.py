@@ -62,6 +62,8 @@ def to_radians(x_deg: np.ndarray) -> np.ndarray:
 # The limits and the pose prior in kernel units (radians; gamma unitless).
 LIMIT_LO_RAD = to_radians(LIMIT_LO)
 LIMIT_HI_RAD = to_radians(LIMIT_HI)
+PRIOR_MU_RAD = to_radians(PRIOR_MU)
+PRIOR_SIG_RAD = to_radians(PRIOR_SIG)
 _ROTATIONS = [L.X_PSISH_L, L.X_PSISH_R]
 # the same with the upper arms' rotations held at 0 (the paper's arm: no world landmarks to tell them)
 HELD_LO_RAD, HELD_HI_RAD = LIMIT_LO_RAD.copy(), LIMIT_HI_RAD.copy()
@@ -74,8 +76,6 @@ def limits(rotation: bool) -> tuple[np.ndarray, np.ndarray]:
     """The joint limits (kernel units, read-only): the upper arms' rotations free within their range when
     ``rotation`` (world landmarks tell the arms' depth), else held at 0."""
     return (LIMIT_LO_RAD, LIMIT_HI_RAD) if rotation else (HELD_LO_RAD, HELD_HI_RAD)
-PRIOR_MU_RAD = to_radians(PRIOR_MU)
-PRIOR_SIG_RAD = to_radians(PRIOR_SIG)
 
 
 def to_degrees(x_rad: np.ndarray) -> np.ndarray:
@@ -144,7 +144,6 @@ class Frame:
     centroid_px: np.ndarray
     weights: np.ndarray
     perspective: bool
-    rotation: bool = False   # the upper arms' rotations are free (limits(rotation))
 
 
 _last_constants: tuple = (None, None)   # (cfg, _constants(cfg)) of the last pack: hashing a FitConfig is slow
@@ -211,7 +210,7 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
         fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
         # camera-centred normalized coordinates = data obs + offset
         data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (c_x - cx) / scale_px, (c_y - cy) / scale_px)
-    return Frame(data, ppm0, scale_px, np.array([c_x, c_y]), w, perspective, rotation)
+    return Frame(data, ppm0, scale_px, np.array([c_x, c_y]), w, perspective)
 
 
 def with_prior(frame: Frame, weight: float, mu, sig, partner) -> np.ndarray:
