@@ -339,12 +339,12 @@ def _external(runs: dict[str, list[_View]], mode: str, step: int, base: FitConfi
     (landmarks.sides), and on how many frames it put them back."""
     from posed.landmarks import SideKeeper
 
-    pa: dict[str, list[float]] = {"as_they_come": [], "sides_put_back": []}
+    scores = {"as_they_come": _Scores(), "sides_put_back": _Scores()}
     swapped = 0
     for views in runs.values():
         for phase, view in enumerate(views):
             k = view.camera.intrinsics(view.image_size)
-            for key in pa:
+            for key, score in scores.items():
                 fitter, keeper = Fitter(base), SideKeeper()
                 for i in range(phase, len(view.landmarks), step):
                     lm, w = view.landmarks[i], view.world[i]
@@ -352,15 +352,13 @@ def _external(runs: dict[str, list[_View]], mode: str, step: int, base: FitConfi
                         keeper.reset()
                         continue
                     if key == "sides_put_back":
-                        lm, w, s = keeper.check(i / VIDEO_FPS, lm, w if w is not None else np.empty((33, 0)))
+                        lm, w, s = keeper.check(i / VIDEO_FPS, lm, w)
                         swapped += s
-                    r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k,
-                                   world=None if w is None or w.shape[1] == 0 else w)
+                    r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k, world=w)
                     if r.ok:
-                        aligned = O.procrustes_align(O.fitted_joints(r), view.truth_cam[i])
-                        pa[key].append(float(np.linalg.norm(aligned - view.truth_cam[i], axis=1).mean()) * 1e3)
-    return {"fit_pa_mpjpe_mm": {k: round(float(np.mean(v)), 1) for k, v in pa.items()},
-            "frames": {k: len(v) for k, v in pa.items()}, "frames_put_back": swapped}
+                        score.add(O.fitted_joints(r), view.truth_cam[i])
+    return {"fit_pa_mpjpe_mm": {k: s.summary()["pa_mpjpe_mm"] for k, s in scores.items()},
+            "frames": {k: len(s.pa) for k, s in scores.items()}, "frames_put_back": swapped}
 
 
 def _overall(per_view: dict[str, dict], mode: str, fps: float) -> dict:

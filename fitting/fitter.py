@@ -85,7 +85,6 @@ class Fitter:
         self._work = FK.empty_work()
         self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.reported.FIXED_NAMES), degrees
         self._rotation = False   # this frame searches the upper arms' rotations (world landmarks tell them)
-        self._lim = P.limits(False)   # its joint limits (fitting.problem.limits)
         self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
         self._sensor = SENSOR_DEPTH_CAMERA       # ... of this sensor: a depth camera, or the world landmarks
         self._depth_weight = DEPTH_WEIGHT        # ... and its weight against the 2D landmarks
@@ -219,7 +218,6 @@ class Fitter:
         camera_depth = self._sensor is SENSOR_DEPTH_CAMERA
         # the upper arms' rotations are searched where the world landmarks tell the arms' depth, else held at 0
         self._rotation = cfg.shoulder_rotation and not camera_depth and self._depth is not None
-        self._lim = P.limits(self._rotation)
         frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg,
                        self._rotation)
         video_ok = (mode == "video" and self._prev_x is not None and self._prev_t is not None
@@ -231,7 +229,6 @@ class Fitter:
             # the world landmarks were judged garbage (no hypothesis agrees with their depths: the tracker on
             # another body): nothing tells the arms' rotations either -- the frame is solved again without them
             self._rotation = False
-            self._lim = P.limits(False)
             frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg)
             x, loss, mp, more, used_mode = self._solve(frame, video_ok, ppm0, t)
             evals += more
@@ -275,6 +272,11 @@ class Fitter:
             self._learner.observe(obs, frame.weights, image_scale(x, frame.data), self.dims, pts, sd)
             self._learn_t = t
         return result
+
+    @property
+    def _lim(self) -> tuple[np.ndarray, np.ndarray]:
+        """This frame's joint limits (fitting.problem.limits)."""
+        return P.limits(self._rotation)
 
     def _solve(self, frame: P.Frame, video: bool, ppm0: float, t: float) -> tuple[np.ndarray, float, float, int, str]:
         """(x, loss, 2D error, evaluations, mode used) of one packed frame: video mode from the previous

@@ -160,8 +160,8 @@ def _constants_of(cfg: FitConfig) -> np.ndarray:
 
 @functools.lru_cache(maxsize=16)
 def _constants(cfg: FitConfig) -> np.ndarray:
-    """The part of the data array that depends on the configuration only (loss weights, thresholds, joint
-    limits); zero elsewhere. Cached per configuration: ``pack`` copies it (read-only here)."""
+    """The part of the data array that depends on the configuration only (loss weights, thresholds); zero
+    elsewhere. Cached per configuration: ``pack`` copies it (read-only here)."""
     data = np.zeros(L.D_SIZE)
     lw = L.D_LW
     data[lw + L.LW_COM] = cfg.w_com
@@ -184,8 +184,6 @@ def _constants(cfg: FitConfig) -> np.ndarray:
     data[L.D_TH:L.D_TH + L.N_TH] = np.array([cfg.tr_flexion_min_deg, cfg.tr_lateral_deg, cfg.tr_twist_deg,
                                              cfg.sh_flexion_min_deg, cfg.sh_adduction_max_deg,
                                              cfg.hp_adduction_max_deg]) * DEG
-    data[L.D_LIM_LO:L.D_LIM_LO + L.N_VAR] = LIMIT_LO_RAD
-    data[L.D_LIM_HI:L.D_LIM_HI + L.N_VAR] = LIMIT_HI_RAD
     data.flags.writeable = False
     return data
 
@@ -196,9 +194,7 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
     """Build the kernels' data array of one frame (see the D_* layout in fitting.layout); ``rotation``: the
     upper arms' rotations are free (:func:`limits`)."""
     data = _constants_of(cfg).copy()
-    if not rotation:
-        data[L.D_LIM_LO + L.X_PSISH_L] = data[L.D_LIM_LO + L.X_PSISH_R] = 0.0
-        data[L.D_LIM_HI + L.X_PSISH_L] = data[L.D_LIM_HI + L.X_PSISH_R] = 0.0
+    data[L.D_LIM_LO:L.D_LIM_LO + L.N_VAR], data[L.D_LIM_HI:L.D_LIM_HI + L.N_VAR] = limits(rotation)
     scale_px = ppm0 * dims.body_height_m
     c_x, c_y = normalized_into(np.ascontiguousarray(xy, dtype=np.float64), np.ascontiguousarray(w, dtype=np.float64),
                                scale_px, data, L.D_OBS, L.D_W)
@@ -226,12 +222,11 @@ def with_prior(frame: Frame, weight: float, mu, sig, partner) -> np.ndarray:
 
 
 def image_box(cfg: FitConfig, rotation: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """uDEAS search box of image mode (kernel units); the upper arms' rotations held at 0 unless ``rotation``."""
+    """uDEAS search box of image mode (kernel units), within the joint limits (:func:`limits`: the upper arms'
+    rotations held at 0 unless ``rotation``; every other bound of the boxes lies within them)."""
     lo, hi = _PAPER_BOX if cfg.bounds == "paper" else _WIDE_BOX
-    lo, hi = lo.copy(), hi.copy()
-    if not rotation:
-        lo[_ROTATIONS] = hi[_ROTATIONS] = 0.0
-    return lo, hi
+    lim_lo, lim_hi = limits(rotation)
+    return np.clip(lo, lim_lo, lim_hi), np.clip(hi, lim_lo, lim_hi)
 
 
 _PAPER_BOX = (to_radians(PAPER_LO), to_radians(PAPER_HI))

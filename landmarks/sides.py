@@ -110,9 +110,11 @@ class SideKeeper:
         self._flipped_since = None
         self._lengths.clear()
 
-    def check(self, t: float, landmarks: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-        """``(landmarks, world, swapped)``: the frame's image landmarks (33, 5) and world landmarks (33, k) at
-        ``t`` seconds, left and right swapped back when the labels flipped since the last frame checked."""
+    def check(self, t: float, landmarks: np.ndarray, world: np.ndarray | None
+              ) -> tuple[np.ndarray, np.ndarray | None, bool]:
+        """``(landmarks, world, swapped)``: the frame's image landmarks (33, 5) and world landmarks (33, k, or
+        None without them) at ``t`` seconds, left and right swapped back when the labels flipped since the last
+        frame checked."""
         swapped = False
         length = torso_length(landmarks[:, :2])
         if math.isfinite(length):
@@ -124,7 +126,7 @@ class SideKeeper:
             if self._flipped_since is None:
                 self._flipped_since = t
             if self._flipped_since - self._settled_since >= SETTLED_S and t - self._flipped_since <= PERSIST_S:
-                landmarks, world, swapped = landmarks[MIRROR], world[MIRROR], True
+                landmarks, world, swapped = landmarks[MIRROR], None if world is None else world[MIRROR], True
             else:                                   # the model's labels are taken: they start to settle now
                 self._settled_since, self._flipped_since = t, None
         else:
@@ -139,9 +141,8 @@ def keep_sides(keeper: SideKeeper, frame: LandmarkFrame) -> tuple[LandmarkFrame,
     """``(frame, swapped)``: a recording's frame (its one person, ``landmarks``; frames in order, with a person)
     checked by ``keeper``, its image and world landmarks and the depth at them swapped back together where the
     recording's extractor flipped the labels (what ``posed fit`` does to a recording another tool made)."""
-    world = frame.world if frame.world is not None else np.empty((33, 0))
-    landmarks, world, swapped = keeper.check(frame.t, frame.landmarks, world)
+    landmarks, world, swapped = keeper.check(frame.t, frame.landmarks, frame.world)
     if not swapped:
         return frame, False
-    return replace(frame, landmarks=landmarks, world=None if frame.world is None else world,
+    return replace(frame, landmarks=landmarks, world=world,
                    depth_m=None if frame.depth_m is None else frame.depth_m[MIRROR]), True
