@@ -17,6 +17,7 @@ detector settings costs no fit.
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import statistics
 from collections.abc import Callable
@@ -82,18 +83,20 @@ def _fitting_source_hash() -> str:
 
 def cached_fits(path: Path, cfg: Config, cache: Path | None):
     """(header, [(frame, FitResult)]) of one recording, fitted as ``posed falls`` fits it (cached)."""
-    from posed.commands.falls import fit_frames, taken_frames
+    from posed.commands.falls import fit_frames, sides_kept, taken_frames
     from posed.fitting import FitResult
-    from posed.landmarks import read_recording
+    from posed.landmarks import RecordingSides, read_recording
 
     header, frames, _problems = read_recording(path)
-    frames = list(taken_frames(cfg.pipeline, frames))   # what the daemon's capture stage takes
+    # what the daemon's capture stage takes from a recording, and sends on with left and right kept
+    frames = list(sides_kept(header, taken_frames(cfg.pipeline, frames), cfg.landmarks.keep_sides))
     key = None
     if cache is not None:
         h = hashlib.sha256(path.read_bytes())
         h.update(json.dumps(asdict(cfg.fitting), sort_keys=True).encode())
-        h.update(f"target_fps={cfg.pipeline.target_fps}".encode())
+        h.update(f"target_fps={cfg.pipeline.target_fps} keep_sides={cfg.landmarks.keep_sides}".encode())
         h.update(_fitting_source_hash().encode())
+        h.update(Path(inspect.getfile(RecordingSides)).read_bytes())   # what put back the labels the fit had
         key = cache / f"{path.name}.{h.hexdigest()[:20]}.fits.jsonl"
         if key.is_file():
             results = [FitResult.from_json(json.loads(line)) for line in key.read_text().splitlines()]

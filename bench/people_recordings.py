@@ -87,7 +87,7 @@ def compose(own: tuple, other: tuple, pipeline_config, alone: bool = False) -> t
 def run(folder: Path, cfg: Config | None = None, geometry: str = "labels", only: str = "",
         progress=lambda m: None) -> dict:
     """Every clip of ``folder`` with a bystander and alone (module doc)."""
-    from posed.commands.falls import detect, fit_frames
+    from posed.commands.falls import detect, fit_frames, sides_kept
 
     cfg = with_geometry(cfg or Config(), read_labels(folder).get("camera", {}), geometry)
     labels = read_labels(folder)
@@ -103,7 +103,8 @@ def run(folder: Path, cfg: Config | None = None, geometry: str = "labels", only:
         row = {"clip": c["clip"], "label": c["label"], "bystander_clip": partner["clip"]}
         for mode in ("with_bystander", "alone"):
             header, frames, who = compose(own, other, cfg.pipeline, alone=mode == "alone")
-            messages = [m for _f, _r, evs in detect(cfg, header, fit_frames(cfg.fitting, header, frames))
+            messages = [m for _f, _r, evs in detect(cfg, header, fit_frames(
+                cfg.fitting, header, sides_kept(header, frames, cfg.landmarks.keep_sides)))
                         for m in evs]
             mine = [m for m in messages if who.get(m.extra.get("person")) == "own" or
                     (m.extra.get("person") is None and mode == "alone")]

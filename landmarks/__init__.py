@@ -22,7 +22,7 @@ Other packages import these names from ``landmarks`` itself, never from its modu
   patch radius ``depth_patch_radius(width, height)``, and ``with_depth(frame, depth, depth_scale)`` (a
   ``LandmarkFrame`` with its ``depth_m`` filled in).
 * left and right kept (pure NumPy): ``SideKeeper`` (one person's labels across frames, ``check``) and
-  ``keep_sides(keeper, frame)`` (a recording's frame with its labels put back where they flipped).
+  ``RecordingSides`` (a recording's frames, every person's labels put back where they flipped).
 
 The model converter behind ``posed models fetch`` is the subpackage :mod:`landmarks.convert`, with its own
 public names. The names here load on first use (PEP 562): ``import landmarks`` costs nothing; onnxruntime
@@ -67,7 +67,7 @@ if TYPE_CHECKING:
         OnnxLandmarkModel,
         SessionSettings,
     )
-    from posed.landmarks.sides import SideKeeper, keep_sides
+    from posed.landmarks.sides import RecordingSides, SideKeeper
     from posed.landmarks.tracks import PersonTracker, landmark_box, oks
 
 __all__ = [
@@ -106,7 +106,7 @@ __all__ = [
     "rotate_points",
     "sample_depth",
     "SideKeeper",
-    "keep_sides",
+    "RecordingSides",
     "verify_models",
     "with_depth",
     "write_recording",
@@ -123,7 +123,7 @@ _ORIGIN = {
     "sample_depth": ("posed.landmarks.depth", "sample_depth"),
     "with_depth": ("posed.landmarks.depth", "with_depth"),
     "SideKeeper": ("posed.landmarks.sides", "SideKeeper"),
-    "keep_sides": ("posed.landmarks.sides", "keep_sides"),
+    "RecordingSides": ("posed.landmarks.sides", "RecordingSides"),
     "ModelMissingError": ("posed.landmarks.models", "ModelMissingError"),
     "default_models_dir": ("posed.landmarks.models", "default_models_dir"),
     "find_models": ("posed.landmarks.models", "find_models"),

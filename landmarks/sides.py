@@ -60,15 +60,33 @@ TORSO = np.array([11, 12, 23, 24])   # left shoulder, right shoulder, left hip, 
 
 def torso_length(xy: np.ndarray) -> float:
     """Distance from the mid-hip to the mid-shoulder, pixels (``xy``: the 33 landmarks' x, y)."""
-    return float(np.linalg.norm(0.5 * (xy[11] + xy[12]) - 0.5 * (xy[23] + xy[24])))
+    return float(np.linalg.norm(torso_axis(xy)))
 
 
-def signed_widths(xy: np.ndarray) -> np.ndarray:
-    """(shoulders, hips): the left point's offset from the right one across the torso (along the normal of the
-    mid-hip → mid-shoulder axis), pixels; the sign says which side faces the camera."""
-    axis = 0.5 * (xy[11] + xy[12]) - 0.5 * (xy[23] + xy[24])
+def torso_axis(xy: np.ndarray) -> np.ndarray:
+    """The mid-hip → mid-shoulder vector, pixels (``xy``: the 33 landmarks' x, y)."""
+    return 0.5 * (xy[11] + xy[12]) - 0.5 * (xy[23] + xy[24])
+
+
+def signed_widths(xy: np.ndarray, axis: np.ndarray | None = None) -> np.ndarray:
+    """(shoulders, hips): the left point's offset from the right one across the torso (along the normal of
+    ``axis``, by default the frame's own mid-hip → mid-shoulder axis), pixels; the sign says which side faces
+    the camera."""
+    axis = torso_axis(xy) if axis is None else axis
     normal = np.array([-axis[1], axis[0]]) / max(float(np.linalg.norm(axis)), 1e-9)
     return np.array([float((xy[11] - xy[12]) @ normal), float((xy[23] - xy[24]) @ normal)])
+
+
+def pair_widths(now: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(before's, now's) :func:`signed_widths`, both across one axis: that of the frame whose torso is the
+    longer in the image. Between two frames a tenth of a second apart the torso's image axis cannot turn
+    round in the image plane (a half turn in 0.1 s is 1800 deg/s); it reverses only when the torso pitches
+    through the line of sight (bending towards or away from a camera above or below it), where the shorter
+    torso's own axis is noise and, past end-on, points the other way -- which would flip the sign of the
+    offsets with no turn and no label swapped. The axis is the same for either labelling (the midpoints do
+    not depend on it), so a real flip still shows."""
+    axis = torso_axis(before) if torso_length(before) >= torso_length(now) else torso_axis(now)
+    return signed_widths(before, axis), signed_widths(now, axis)
 
 
 def turn_needed(w_before: float, w_now: float, width: float) -> float:
@@ -88,7 +106,7 @@ def labels_flipped(now: np.ndarray, before: np.ndarray, dt: float, torso_px: flo
     size = max(0.5 * (torso_length(a) + torso_length(b)), torso_px)
     if not size > 0.0:
         return False
-    (sh0, hip0), (sh1, hip1) = signed_widths(b), signed_widths(a)
+    (sh0, hip0), (sh1, hip1) = pair_widths(a, b)
     if not (sh0 * sh1 < 0.0 and turn_needed(sh0, sh1, SHOULDER_WIDTH_REL * size) > TURN_RATE_MAX * dt):
         return False
     hips_kept = hip0 * hip1 > 0.0 and min(abs(hip0), abs(hip1)) >= HIPS_SURE * HIP_WIDTH_REL * size
@@ -131,18 +149,63 @@ class SideKeeper:
                 self._settled_since, self._flipped_since = t, None
         else:
             self._flipped_since = None
-            if signed_widths(landmarks[:, :2])[0] * signed_widths(self._last)[0] < 0.0:
+            before, now = pair_widths(landmarks[:, :2], self._last)
+            if before[0] * now[0] < 0.0:
                 self._settled_since = t             # a turn a person can make, or a flip the test cannot tell
         self._last, self._last_t = landmarks[:, :2].copy(), t
         return landmarks, world, swapped
 
 
-def keep_sides(keeper: SideKeeper, frame: LandmarkFrame) -> tuple[LandmarkFrame, bool]:
-    """``(frame, swapped)``: a recording's frame (its one person, ``landmarks``; frames in order, with a person)
-    checked by ``keeper``, its image and world landmarks and the depth at them swapped back together where the
-    recording's extractor flipped the labels (what ``posed fit`` does to a recording another tool made)."""
-    landmarks, world, swapped = keeper.check(frame.t, frame.landmarks, frame.world)
-    if not swapped:
-        return frame, False
-    return replace(frame, landmarks=landmarks, world=world,
-                   depth_m=None if frame.depth_m is None else frame.depth_m[MIRROR]), True
+class RecordingSides:
+    """Left and right of a recording whose extractor did not keep them (another tool's, or one whose header
+    lacks ``sides_kept``), checked as the landmark stage checks its own: one :class:`SideKeeper` per person
+    (``people``' track ids; the frame's own person otherwise), image and world landmarks and the depth at them
+    swapped back together. What ``posed fit``, ``posed falls`` and the daemon's recording replay do to each
+    frame they fit, in capture order. ``frames_put_back`` counts the frames where any person's labels were."""
+
+    def __init__(self) -> None:
+        self._own = SideKeeper()
+        self._people: dict[int, tuple[SideKeeper, float]] = {}    # track id -> (keeper, when last seen)
+        self.frames_put_back = 0
+
+    @staticmethod
+    def needed(header, enabled: bool) -> bool:
+        """Whether a recording with ``header`` (a :class:`RecordingHeader`) is checked: ``enabled`` (the
+        config's ``landmarks.keep_sides``) and its extractor did not say it kept them already."""
+        return enabled and header.extra.get("sides_kept") is not True
+
+    def __call__(self, frame: LandmarkFrame) -> LandmarkFrame:
+        """``frame`` with every person's labels put back where they flipped since the last frame checked."""
+        if frame.landmarks is None and not frame.people:
+            self._own.reset()          # nobody in view: the next person's labels start afresh
+            return frame
+        if not frame.people:
+            landmarks, world, swapped = self._own.check(frame.t, frame.landmarks, frame.world)
+            if not swapped:
+                return frame
+            self.frames_put_back += 1
+            return replace(frame, landmarks=landmarks, world=world, depth_m=_mirrored(frame.depth_m, swapped))
+        # a track unseen for longer than a comparison reaches is forgotten (a long replay meets many ids)
+        self._people = {i: kt for i, kt in self._people.items() if frame.t - kt[1] <= MAX_GAP_S}
+        people, own, any_swapped = [], None, False
+        for p in frame.people:
+            keeper = self._people.get(p.id, (SideKeeper(), frame.t))[0]
+            self._people[p.id] = (keeper, frame.t)
+            landmarks, world, swapped = keeper.check(frame.t, p.landmarks, p.world)
+            people.append(replace(p, landmarks=landmarks, world=world, depth_m=_mirrored(p.depth_m, swapped))
+                          if swapped else p)
+            if frame.landmarks is not None and np.array_equal(p.landmarks, frame.landmarks, equal_nan=True):
+                own = (landmarks, _mirrored(frame.world, swapped), _mirrored(frame.depth_m, swapped))
+            any_swapped |= swapped
+        if not any_swapped:
+            return frame
+        self.frames_put_back += 1
+        if own is None:
+            return replace(frame, people=tuple(people))
+        return replace(frame, people=tuple(people), landmarks=own[0], world=own[1], depth_m=own[2])
+
+
+def _mirrored(values: np.ndarray | None, swapped: bool) -> np.ndarray | None:
+    """Per-landmark ``values`` (world landmarks, depths; None when unknown) with left and right swapped when
+    ``swapped``."""
+    return values[MIRROR] if swapped and values is not None else values

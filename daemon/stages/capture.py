@@ -330,11 +330,11 @@ def _close(source) -> None:
 def run_recording(rt: StageRuntime) -> None:
     """Replay a ``*.landmarks.jsonl`` recording as the landmark stage's output."""
     from posed.hal import ReplayClock
-    from posed.landmarks import RecordingError, RecordingProblem, iter_recording
+    from posed.landmarks import RecordingError, RecordingProblem, RecordingSides, iter_recording
 
     src = rt.config.source
     thinner = _Thinner(rt.config.pipeline.target_fps)
-    problems = 0
+    problems = put_back = 0
     first = True
     line = ReplayClock()             # the capture clock of every replay (hal.clock): no repeats, no leaps
     t_offset = 0.0                   # recording seconds of the passes before this one
@@ -361,6 +361,8 @@ def run_recording(rt: StageRuntime) -> None:
             first = False
             t_start = clock.now()
         intrinsics = header.camera
+        # left and right put back where the recording's extractor flipped them, as posed fit does
+        sides = RecordingSides() if RecordingSides.needed(header, rt.config.landmarks.keep_sides) else None
         t_first: float | None = None
         seq_first: int | None = None
         pass_frames = 0
@@ -399,10 +401,13 @@ def run_recording(rt: StageRuntime) -> None:
             with rt.step():
                 t_in = clock.now()
                 frame = replace(item, t=t_capture, seq=seq)   # depth_m, gravity and unknown fields travel on
+                if sides is not None:
+                    frame = sides(frame)
                 msg = LandmarkMsg(frame, t_capture, tuple(header.image_size), intrinsics, (),
                                   None if src.realtime else t_in)
                 rt.send(msg)
             rt.done(clock.now() - t_in, origin(msg))
+        put_back += 0 if sides is None else sides.frames_put_back
         if not src.loop or pass_frames == 0:
             break
         t_offset += last_rel + period            # the next pass continues the time line ...
@@ -410,6 +415,7 @@ def run_recording(rt: StageRuntime) -> None:
         passes += 1
     rt.row.set_camera("ended")
     rt.report(camera={**info, "state": "ended", "clock_jumps": line.jumps}, **({"problem": problem} if problem else {}))
-    rt.log.info("recording_ended", frames=int(rt.row.get("frames")), problems=problems, clock_jumps=line.jumps)
+    rt.log.info("recording_ended", frames=int(rt.row.get("frames")), problems=problems, clock_jumps=line.jumps,
+                sides_put_back=put_back)
     while True:
         sleep_until(clock.now() + 0.2, rt)

@@ -55,6 +55,15 @@ def taken_frames(pipeline_config, frames: Iterable, period_s: float = 1.0 / 30.0
             yield frame
 
 
+def sides_kept(header, frames: Iterable, enabled: bool = True) -> Iterator:
+    """The frames with left and right put back where the recording's extractor flipped them, as the daemon's
+    recording replay does to the frames it takes (landmarks.RecordingSides): when ``enabled`` (the config's
+    ``landmarks.keep_sides``) and the header does not say ``sides_kept``."""
+    from posed.landmarks import RecordingSides
+
+    return map(RecordingSides(), frames) if RecordingSides.needed(header, enabled) else iter(frames)
+
+
 def fit_frames(fit_config, header, frames: Iterable) -> Iterator[tuple[object, object, tuple]]:
     """(LandmarkFrame, FitResult, the other people's FitResults) per frame, fitted as the fitting stage fits
     them (:class:`daemon.stages.fit.PeopleFit`: a frame without ``people`` has no others)."""
@@ -107,7 +116,7 @@ def event_payload(event, wall0: float | None = None) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from posed.fitting import CalibrationError
-    from posed.landmarks import RecordingError, RecordingProblem, iter_recording
+    from posed.landmarks import RecordingError, RecordingProblem, RecordingSides, iter_recording
 
     cfg = config_from_args(args)
     try:
@@ -115,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     except (RecordingError, OSError) as exc:
         _err(str(exc))
         return 2
+    sides = RecordingSides() if RecordingSides.needed(header, cfg.landmarks.keep_sides) else None
     skipped = read = 0
 
     def frames():
@@ -131,8 +141,10 @@ def run(args: argparse.Namespace) -> int:
     wall0 = time.time()
     try:
         period = 1.0 / (header.fps if header.fps and header.fps > 0 else cfg.source.fps)
-        for _frame, _result, messages in detect(cfg, header, fit_frames(cfg.fitting, header,
-                                                                      taken_frames(cfg.pipeline, frames(), period))):
+        taken = taken_frames(cfg.pipeline, frames(), period)
+        if sides is not None:      # left and right put back where the extractor flipped them (as posed fit)
+            taken = map(sides, taken)
+        for _frame, _result, messages in detect(cfg, header, fit_frames(cfg.fitting, header, taken)):
             n += 1
             for ev in messages:
                 events += 1
@@ -143,8 +155,10 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         _err(f"{exc} (fitting.calibration in the config)")
         return 2
-    taken = f"{n} frames" if n == read else (
+    judged = f"{n} frames" if n == read else (
         f"{n} of the recording's {read} frames judged (at most pipeline.target_fps = {cfg.pipeline.target_fps:g} "
         "a second of capture time, as the daemon's capture stage takes them; posed fit fits them all)")
-    _err(f"{taken}, {events} event message(s), {skipped} lines skipped")
+    swapped = 0 if sides is None else sides.frames_put_back
+    _err(f"{judged}, {events} event message(s), {skipped} lines skipped"
+         + (f"; left and right put back on {swapped} (landmarks.sides)" if swapped else ""))
     return 1 if skipped else 0

@@ -38,10 +38,9 @@ def run(args: argparse.Namespace) -> int:
     from posed.landmarks import (
         RecordingError,
         RecordingProblem,
-        SideKeeper,
+        RecordingSides,
         dumps,
         iter_recording,
-        keep_sides,
     )
 
     config = config_from_args(args)
@@ -76,19 +75,16 @@ def run(args: argparse.Namespace) -> int:
             return 2
     # left and right put back where the recording's extractor flipped them (landmarks.sides), unless the
     # recording says its landmark stage did that already
-    sides = SideKeeper() if config.landmarks.keep_sides and header.extra.get("sides_kept") is not True else None
-    skipped = fitted = ok = swapped = 0
+    sides = RecordingSides() if RecordingSides.needed(header, config.landmarks.keep_sides) else None
+    skipped = fitted = ok = 0
     try:
         for item in frames:
             if isinstance(item, RecordingProblem):
                 print(str(item), file=sys.stderr, flush=True)
                 skipped += 1
                 continue
-            if sides is not None and item.landmarks is not None:
-                item, flipped = keep_sides(sides, item)
-                swapped += flipped
-            elif sides is not None:
-                sides.reset()   # nobody in view: the next person's labels start afresh
+            if sides is not None:
+                item = sides(item)
             result = fitter.fit(item.landmarks, item.seq, item.t, header.image_size, mode=args.mode,
                                 intrinsics=intrinsics, depth_m=item.depth_m, world=item.world)
             try:
@@ -103,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
             out.close()
         else:
             out.flush()
+    swapped = 0 if sides is None else sides.frames_put_back
     _err(f"{fitted} frames fitted ({ok} ok, {fitted - ok} not ok), {skipped} lines skipped"
          + (f"; left and right put back on {swapped} (landmarks.sides)" if swapped else ""))
     return 1 if skipped else 0

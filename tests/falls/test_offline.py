@@ -88,3 +88,30 @@ def test_a_real_fall_judged_at_5_fps_with_the_default_config(shared_data, capsys
     assert code == 0, out.err
     assert events and events[0]["state"] == "falling", f"{name} at 5 fps: {events}; {out.err}"
     assert 0.0 <= events[0]["t_detect"] - labels(shared_data)[name]["impact_t"] <= 1.0
+
+
+def test_labels_another_extractor_flipped_are_put_back_before_the_fit(shared_data, tmp_path, capsys):
+    """urfd_00 (MediaPipe's labels) with the person's left and right swapped for 0.3 s while they stand
+    facing the camera, before the fall: `posed falls` puts them back as the daemon's replay does (the
+    frames it takes, landmarks.sides), and judges the fall exactly as on the recording as MediaPipe wrote it."""
+    from dataclasses import replace
+
+    from posed.landmarks import read_recording, write_recording
+    from posed.landmarks.sides import MIRROR
+
+    header, frames, _ = read_recording(clip(shared_data, "urfd_00_fall"))
+    flipped = tmp_path / "urfd_00_flipped.landmarks.jsonl"
+    write_recording(flipped, header, [replace(f, landmarks=f.landmarks[MIRROR]) if 30 <= f.seq <= 38 else f
+                                      for f in frames])
+    code, clean, _ = run(capsys, clip(shared_data, "urfd_00_fall"))
+    assert code == 0 and clean
+    code, put_back, err = run(capsys, flipped)
+    assert code == 0
+    assert "left and right put back on 3 (landmarks.sides)" in err      # seq 30, 33, 36 at 10 fps
+
+    def judged(events):     # what was decided and the pose it was decided on (not ids, clocks or timings)
+        keys = ("state", "t_onset", "t_impact", "t_detect", "confidence", "features")
+        return [({k: e[k] for k in keys}, e["pose"]["variables"]) for e in events]
+    assert judged(put_back) == judged(clean)
+    _, _, err = run(capsys, flipped, "--set", "landmarks.keep_sides=false")
+    assert "put back" not in err

@@ -109,22 +109,12 @@ def test_posed_fit_puts_back_left_and_right_where_another_extractor_flipped_them
     video, tfjs-models) whose labels flip for three frames while the woman stands facing the camera: `posed
     fit` fits it exactly as the unflipped one (landmarks.sides, image and world landmarks together); with
     `landmarks.keep_sides=false`, or a header saying the sides were kept already, it takes them as they come."""
-    from posed.bench.squat_video import load
-    from posed.landmarks.sides import MIRROR
+    from tests.landmarks import flipped_squat
 
-    folder = shared_data / "reference" / "tfjs_pose_squats"
-    lms = load(shared_data)
-    world = [np.column_stack([w, np.ones((33, 2))])
-             for w in np.array(json.loads((folder / "pose_squats_3d.full.json").read_text()))]
-    flipped = {20, 21, 22}
+    flipped = flipped_squat.FLIPPED
 
     def make(name, flip, extra=None):
-        frames = [LandmarkFrame(i, i / 5.0, lm[MIRROR] if i in flip else lm,
-                                world=(w[MIRROR] if i in flip else w)) for i, (lm, w) in enumerate(zip(lms, world, strict=True))]
-        header = RecordingHeader((720, 1280), 5.0, "BlazePose full (tfjs-models), pose_squats.mp4",
-                                 extra=extra or {})
-        write_recording(tmp_path / name, header, frames)
-        return tmp_path / name
+        return flipped_squat.write(shared_data, tmp_path / name, flip, extra)
 
     def fits(path, *sets):
         run = posed("fit", path, "-o", "-", *sets)

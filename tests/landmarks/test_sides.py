@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from posed.landmarks import LandmarkFrame, PersonLandmarks, RecordingHeader
 from posed.landmarks import sides as S
 from posed.landmarks.config import LandmarkConfig
 from posed.landmarks.pipeline import PoseLandmarker
@@ -81,6 +82,32 @@ def test_a_person_bent_towards_the_camera_turning_fast_is_not_taken_for_a_flip()
         keeper.check(k * dt, _body(math.radians(60.0)), world)
     swapped = [keeper.check(2.0 + k * dt, lms, world)[2] for k, lms in enumerate(frames)]
     assert not any(swapped), swapped
+
+
+def test_a_torso_pitching_through_the_line_of_sight_is_not_taken_for_a_flip():
+    """Bending over towards a camera above (picking something up; urfd_30_adl in shared/data/falls, MediaPipe's
+    labels right throughout), the shoulders drop past the hips in the image: the torso's own image axis
+    shrinks and turns round while the shoulders' left-right offset stays. Measured across each frame's own
+    axis the offset changes sign with no turn; across the longer torso's axis it does not, and the keeper
+    leaves the labels alone. A real flip while so bent is still found."""
+    def pitched(k: int) -> np.ndarray:
+        lms = _body(0.0)
+        hip = 0.5 * (lms[23, :2] + lms[24, :2])
+        lms[:, 1] = hip[1] + (1.0 - 0.3 * k) * (lms[:, 1] - hip[1])    # 1.0, 0.7, ... -0.8 of its length
+        lms[[11, 12], 1] += np.array([-4.0, 4.0])                      # a little roll, as on real video
+        return lms
+    frames = [pitched(k) for k in range(7)]
+    own = [S.signed_widths(f[:, :2])[0] for f in frames]
+    assert own[0] > 0 > own[-1]                                        # each frame's own axis: the sign flips
+    keeper = S.SideKeeper()
+    for k in range(10):                                                # settled: a second upright
+        keeper.check(k / 10.0, _body(0.0), None)
+    for k, f in enumerate(frames):
+        if k:
+            assert not S.labels_flipped(f, frames[k - 1], 0.1), k
+        _, _, swapped = keeper.check(1.0 + k / 10.0, f, None)
+        assert not swapped, k
+    assert S.labels_flipped(frames[-1][S.MIRROR], frames[-2], 0.1)
 
 
 def test_hips_that_clearly_kept_their_side_veto_a_shoulder_flip():
@@ -160,6 +187,54 @@ def test_reset_forgets_the_person():
     keeper.reset()
     t, lms, w = next(_stream({0}, n=1))
     assert not keeper.check(1.0, lms, w)[2]
+
+
+def _frames(flipped: set[int], people: bool, n: int = 30):
+    """LandmarkFrames of ``_stream``, each with its depth (33 distinct values) mirrored with the labels; with
+    ``people``, the person (track 7) beside a second one (track 3) whose labels never flip."""
+    for k, (t, lms, world) in enumerate(_stream(flipped, n)):
+        world = np.column_stack([world, np.ones((33, 2))])
+        depth = 2.0 + np.arange(33.0) / 100.0
+        depth = depth[S.MIRROR] if k in flipped else depth
+        crowd = None
+        if people:
+            other = _body(0.0, cx=1200.0)
+            crowd = (PersonLandmarks(3, other), PersonLandmarks(7, lms, world=world, depth_m=depth))
+        yield LandmarkFrame(k, t, lms, world=world, depth_m=depth, people=crowd)
+
+
+@pytest.mark.parametrize("people", [False, True])
+def test_a_recording_has_every_persons_labels_put_back_with_their_world_landmarks_and_depth(people):
+    """What posed fit, posed falls and the daemon's replay do to a recording another tool made: the frame's
+    own person and, with ``people``, each track by its own keeper; image and world landmarks and the depth at
+    them swapped back together; a frame without anyone forgets the person."""
+    sides = S.RecordingSides()
+    flips = {10, 11, 12}
+    for k, frame in enumerate(_frames(flips, people)):
+        out = sides(frame)
+        assert out.landmarks[11, 0] > out.landmarks[12, 0], k       # facing the camera: left on the image right
+        np.testing.assert_array_equal(out.world[:, 0], np.arange(33.0))
+        np.testing.assert_array_equal(out.depth_m, 2.0 + np.arange(33.0) / 100.0)
+        if people:
+            own = next(p for p in out.people if p.id == 7)
+            np.testing.assert_array_equal(own.landmarks, out.landmarks)
+            np.testing.assert_array_equal(own.world, out.world)
+            np.testing.assert_array_equal(own.depth_m, out.depth_m)
+            assert next(p for p in out.people if p.id == 3) == frame.people[0]     # never flipped: untouched
+        if k not in flips:
+            assert out is frame
+    assert sides.frames_put_back == len(flips)
+    empty = LandmarkFrame(30, 3.0, None)
+    assert sides(empty) is empty
+    assert sides.frames_put_back == len(flips)
+
+
+def test_a_recording_is_checked_unless_its_extractor_kept_the_sides_or_the_config_says_not_to():
+    plain = RecordingHeader((1280, 720), 10.0, "MediaPipe")
+    kept = RecordingHeader((1280, 720), 10.0, "posed landmarks", extra={"sides_kept": True})
+    assert S.RecordingSides.needed(plain, True)
+    assert not S.RecordingSides.needed(plain, False)
+    assert not S.RecordingSides.needed(kept, True)
 
 
 def test_real_video_the_man_facing_the_camera_keeps_his_left_on_his_left(models_dir, shared_data):
