@@ -120,16 +120,20 @@ def _read_fit(path: str):
 
 
 def _from_recording(args, config):
-    from posed.landmarks import RecordingProblem, iter_recording
+    from posed.landmarks import RecordingProblem, RecordingSides, iter_recording
 
     header, frames = iter_recording(args.input)   # RecordingError: caller reports
     fits, problems = _read_fit(args.fit)
+    # the labels drawn are those the fit was given: posed fit put back where the extractor flipped them
+    sides = RecordingSides() if RecordingSides.needed(header, config.landmarks.keep_sides) else None
     items = []
     for f in frames:
         if isinstance(f, RecordingProblem):
             print(str(f), file=sys.stderr)
             problems += 1
             continue
+        if sides is not None:
+            f = sides(f)
         own = fits.get(f.seq)
         mine = None if own is None else own.extra.get("person")
         items.append((f.seq, f.t, f.landmarks, own,

@@ -162,3 +162,28 @@ def test_render_draws_every_person_of_a_real_two_person_clip(shared_data, tmp_pa
         x0, y0 = np.floor(marks[ok, :2].min(axis=0)).astype(int)
         x1, y1 = np.ceil(marks[ok, :2].max(axis=0)).astype(int)
         assert mask[max(0, y0):y1, max(0, x0):x1].sum() > 200, f"no skeleton drawn over person {person.id}"
+
+
+def test_render_of_a_recording_draws_the_labels_its_fit_was_given(shared_data, tmp_path, capsys):
+    """A recording another tool made, its labels flipped on three frames: `posed fit` put them back
+    (landmarks.sides), so the landmarks `posed render` draws over the video are the put-back ones too —
+    never a left arm drawn where the fitted skeleton has the right."""
+    import argparse
+
+    from posed.commands import config_from_args
+    from posed.commands.render import _from_recording
+    from posed.landmarks import read_recording
+    from tests.landmarks import flipped_squat
+
+    clean = flipped_squat.write(shared_data, tmp_path / "clean.landmarks.jsonl", flip=())
+    flipped = flipped_squat.write(shared_data, tmp_path / "flipped.landmarks.jsonl")
+    fit = tmp_path / "fit.jsonl"
+    assert main(["fit", str(flipped), "-o", str(fit)]) == 0
+    capsys.readouterr()
+    args = argparse.Namespace(input=str(flipped), fit=str(fit), hfov=None, config=None)
+    _size, _fps, _k, items, problems = _from_recording(args, config_from_args(args))
+    _, truth, _ = read_recording(clean)
+    assert problems == 0 and len(items) == len(truth)
+    for (seq, _t, landmarks, own, _others), f in zip(items, truth, strict=True):
+        np.testing.assert_array_equal(landmarks, f.landmarks, err_msg=f"seq {seq}")
+        assert own is not None and own.seq == seq
