@@ -104,7 +104,7 @@ def _write(out: Path, png: bytes, cmd: str) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    from posed.daemon.history.plot import angle_series, event_marks
+    from posed.commands._history_series import angle_series, event_marks
     from posed.daemon.history.store import ANGLE_COLUMNS
     from posed.daemon.outbox.journal import EventJournal, JournalError
     from posed.viz.plots import plot_angles, zone_text

@@ -53,9 +53,9 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
+    from posed.commands._history_series import angle_series, event_marks
     from posed.commands.history import history_path
     from posed.daemon.config.paths import EVENTS_FILE
-    from posed.daemon.history.plot import angle_series, event_marks
     from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
     from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from posed.cli import main
-from posed.daemon.history.plot import angle_series, event_marks
+from posed.commands._history_series import angle_series, event_marks
 from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
 from posed.daemon.history.watched import WatchLog
 from posed.daemon.outbox.journal import EventJournal

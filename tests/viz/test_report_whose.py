@@ -6,7 +6,7 @@ from __future__ import annotations
 import datetime as dt
 from types import SimpleNamespace
 
-from posed.daemon.history.plot import event_marks, whose
+from posed.commands._history_series import event_marks, whose
 from posed.viz.report import day_report
 from posed.viz.series import AngleSeries, episodes
 

@@ -1,5 +1,6 @@
-"""The joint-angle history and the event journal as the plots take them (``viz.series``); the drawing itself
-is ``viz.plots`` (matplotlib).
+"""The joint-angle history and the event journal as ``posed plot history`` and ``posed report`` take them
+(``viz.series``); the drawing itself is ``viz.plots`` (matplotlib). Command-line only: the service stores
+the history (``daemon.history``) and never draws it.
 
 Clock: the history's ``wall`` column is the robot's unix time when the frame was stored (the publisher stage,
 a few milliseconds after capture); a journal message's ``wall`` is when it was journalled and ``acked_at``
