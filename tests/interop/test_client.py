@@ -64,7 +64,7 @@ def test_the_documented_example_runs(fleet_of_one):
     before = _open_messages(rep)
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
-    text = out.stdout                      # the callbacks print from Zenoh's threads: lines may interleave
+    text = out.stdout                      # the callbacks print from Zenoh's threads, after the listing
     assert text.startswith("robots up: ['docs1']\n")
     assert re.search(r"docs1 \d+ (-?\d+\.\d+|None)\n", text), text[:500]    # the knee by its plain name
     listed = re.findall(r"^docs1/(\w+)/(\w+) (open|acknowledged)$", text, re.M)
