@@ -205,17 +205,17 @@ def summarise(outcomes: Iterable[Outcome]) -> dict:
     }
 
 
-def real_fitter(fit_config=None, with_intrinsics: bool = True):
+def real_fitter(fit_config=None):
     """``fit(landmarks, seq, t, image_size, intrinsics)`` through fitting.fitter.Fitter in video mode; with
-    intrinsics the fit projects through the pinhole (``fitting.projection: auto``), as with a RealSense."""
+    intrinsics the fit projects through the pinhole (``fitting.projection: auto``), as with a RealSense, or
+    through an assumed lens (``Intrinsics.assume``), as the daemon fits a source without intrinsics."""
     from posed.fitting import FitConfig, Fitter
 
     fitter = Fitter(fit_config or FitConfig())
     fitter.warmup()
 
     def fit(landmarks, seq, t, image_size, intrinsics):
-        return fitter.fit(landmarks, seq, t, image_size, mode="video",
-                          intrinsics=intrinsics if with_intrinsics else None)
+        return fitter.fit(landmarks, seq, t, image_size, mode="video", intrinsics=intrinsics)
 
     fit.reset = fitter.reset  # type: ignore[attr-defined]
     return fit
@@ -224,9 +224,10 @@ def real_fitter(fit_config=None, with_intrinsics: bool = True):
 def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path | None,
                intrinsics: Intrinsics | None = None):
     """``fit`` wrapped with a per-case cache of its results (key: the case's landmarks, the fit config, the
-    intrinsics switch and the fitting package's source), so that re-scoring the detector costs no fit."""
+    intrinsics the fit is given and the fitting package's source), so that re-scoring the detector costs no
+    fit. ``intrinsics``: given to the fit instead of the case camera's (an assumed lens)."""
     if cache is None:
-        return fit
+        return lambda lm, seq, t, size, intr: fit(lm, seq, t, size, intrinsics or intr)
     import hashlib
     import json
     from dataclasses import asdict
@@ -266,15 +267,16 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
 def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
               only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
               fit_config=None, with_intrinsics: bool = True, cache: Path | None = None,
-              geometry: str = "given", mount: str = "robot", assume_fov: bool = False) -> dict:
-    """``mount`` "wall": the scenarios and CMU clips seen by ``falls_scenarios.MOUNTS["wall"]``, as a recording
-    without a camera header: the detector gets no intrinsics (it assumes ``camera_hfov_deg``), nor does the fit
-    (orthographic), unless ``assume_fov``: then the fit projects through the pinhole of that assumed field of
-    view (not the camera's true one)."""
+              geometry: str = "given", mount: str = "robot") -> dict:
+    """``with_intrinsics`` False, and always with ``mount`` "wall" (the scenarios and CMU clips seen by
+    ``falls_scenarios.MOUNTS["wall"]``, as a recording without a camera header): the fit is given what the
+    daemon gives a source without intrinsics, the assumed lens of ``camera_hfov_deg`` (orthographic when
+    ``fit_config.projection`` is), not the camera's true one. With the wall camera the detector gets no
+    intrinsics either (it assumes the same lens)."""
     cfg = cfg or FallsConfig()
     cases: list[Case] = []
     if mount != "robot":
-        with_intrinsics = assume_fov
+        with_intrinsics = False
     for split in splits:
         if split == "cmu":
             cases += cmu_cases(shared_data / "mocap" / "cmu", mount=mount)
@@ -284,13 +286,13 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
         cases = [c for c in cases if only in c.name]
     outcomes = []
     t0 = time.monotonic()
-    fit = real_fitter(fit_config, with_intrinsics) if fit_kind == "real" else None
+    fit = real_fitter(fit_config) if fit_kind == "real" else None
     fit_frame = "auto" if fit_kind == "real" else "camera"
     for case in cases:
         if fit_kind == "real":
             fit.reset()  # type: ignore[union-attr]
-            assumed = Intrinsics.from_hfov(cfg.camera_hfov_deg, case.camera.width, case.camera.height) \
-                if assume_fov and mount != "robot" else None
+            assumed = None if with_intrinsics else \
+                Intrinsics.assume(cfg.camera_hfov_deg, case.camera.width, case.camera.height)
             fn = cached_fit(case, fit, fit_config, with_intrinsics, cache, assumed)
         else:
             by_seq = {fr.seq: fr for fr in case.frames}
@@ -304,9 +306,11 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             progress(outcome)
     report = {"scenarios": [o.to_json() for o in outcomes], **summarise(outcomes)}
     report["splits"] = {s: summarise(o for o in outcomes if o.split == s) for s in dict.fromkeys(o.split for o in outcomes)}
+    orthographic = fit_config is not None and fit_config.projection == "orthographic"
     report["fit"] = fit_kind if fit_kind != "real" else (
-        f"real, perspective (the assumed {cfg.camera_hfov_deg:g} deg field of view)" if assume_fov and mount != "robot"
-        else "real, perspective (intrinsics given)" if with_intrinsics else "real, orthographic (no intrinsics)")
+        "real, orthographic (fitting.projection orthographic)" if orthographic
+        else "real, perspective (intrinsics given)" if with_intrinsics
+        else f"real, perspective through the assumed {cfg.camera_hfov_deg:g} deg lens (no intrinsics given)")
     report["geometry"] = {"mode": geometry, "meaning": GEOMETRIES[geometry]}
     report["mount"] = mount
     report["seconds"] = round(time.monotonic() - t0, 1)

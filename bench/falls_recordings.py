@@ -94,7 +94,8 @@ def cached_fits(path: Path, cfg: Config, cache: Path | None):
     if cache is not None:
         h = hashlib.sha256(path.read_bytes())
         h.update(json.dumps(asdict(cfg.fitting), sort_keys=True).encode())
-        h.update(f"target_fps={cfg.pipeline.target_fps} keep_sides={cfg.landmarks.keep_sides}".encode())
+        h.update(f"target_fps={cfg.pipeline.target_fps} keep_sides={cfg.landmarks.keep_sides} "
+                 f"lens={header.camera or cfg.falls.camera_hfov_deg}".encode())
         h.update(_fitting_source_hash().encode())
         h.update(Path(inspect.getfile(RecordingSides)).read_bytes())   # what put back the labels the fit had
         key = cache / f"{path.name}.{h.hexdigest()[:20]}.fits.jsonl"
@@ -102,7 +103,7 @@ def cached_fits(path: Path, cfg: Config, cache: Path | None):
             results = [FitResult.from_json(json.loads(line)) for line in key.read_text().splitlines()]
             if len(results) == len(frames):
                 return header, list(zip(frames, results, strict=True))
-    pairs = [(frame, result) for frame, result, _others in fit_frames(cfg.fitting, header, frames)]
+    pairs = [(frame, result) for frame, result, _others in fit_frames(cfg, header, frames)]
     if key is not None:
         from posed.daemon.bus.payloads import dumps
 

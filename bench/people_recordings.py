@@ -104,7 +104,7 @@ def run(folder: Path, cfg: Config | None = None, geometry: str = "labels", only:
         for mode in ("with_bystander", "alone"):
             header, frames, who = compose(own, other, cfg.pipeline, alone=mode == "alone")
             messages = [m for _f, _r, evs in detect(cfg, header, fit_frames(
-                cfg.fitting, header, sides_kept(header, frames, cfg.landmarks.keep_sides)))
+                cfg, header, sides_kept(header, frames, cfg.landmarks.keep_sides)))
                         for m in evs]
             mine = [m for m in messages if who.get(m.extra.get("person")) == "own" or
                     (m.extra.get("person") is None and mode == "alone")]

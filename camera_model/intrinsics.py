@@ -16,7 +16,7 @@ Capture times, seconds on the one ``time.monotonic()`` clock of the machine (the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,6 +29,8 @@ class Intrinsics:
 
     ``fx``, ``fy``: focal lengths (> 0); ``cx``, ``cy``: principal point. The values are stored as float and
     int whatever numbers they were given as; non-finite or non-positive values raise ValueError.
+    ``assumed``: not the camera's own intrinsics but a lens taken for granted because the source knows none
+    (:meth:`assume`): image directions and relative depths through it are usable, distances in metres are not.
     """
 
     fx: float
@@ -37,6 +39,7 @@ class Intrinsics:
     cy: float
     width: int
     height: int
+    assumed: bool = False
 
     def __post_init__(self) -> None:
         try:
@@ -50,6 +53,7 @@ class Intrinsics:
             raise ValueError(f"intrinsics need a positive integer width and height, got {self!r}")
         for k, v in zip((*_FOCAL, "width", "height"), (*focal, *size), strict=True):
             object.__setattr__(self, k, v)
+        object.__setattr__(self, "assumed", bool(self.assumed))
 
     @property
     def size(self) -> tuple[int, int]:
@@ -63,13 +67,24 @@ class Intrinsics:
         f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
         return cls(f, f, width / 2.0, height / 2.0, width, height)
 
+    @classmethod
+    def assume(cls, fov_deg: float, width: int, height: int) -> Intrinsics:
+        """The lens taken for granted when a source gives no intrinsics (``falls.camera_hfov_deg``;
+        docs/body-model.md "An assumed lens"), marked ``assumed``: ``fov_deg`` across the image's longer side
+        (square pixels, principal point at the centre). A camera's field of view is its sensor's long side's,
+        and a portrait video is that camera turned: the same lens, its long side vertical."""
+        if height > width:
+            f = (height / 2.0) / math.tan(math.radians(fov_deg) / 2.0)
+            return cls(f, f, width / 2.0, height / 2.0, width, height, assumed=True)
+        return replace(cls.from_hfov(fov_deg, width, height), assumed=True)
+
     def scaled(self, width: int, height: int) -> Intrinsics:
         """The same camera seen at another resolution (a pure resize of the image)."""
         if (width, height) == (self.width, self.height):
             return self
         sx, sy = width / self.width, height / self.height
         return Intrinsics(self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5, (self.cy + 0.5) * sy - 0.5,
-                          int(width), int(height))
+                          int(width), int(height), self.assumed)
 
     def deproject(self, u: np.ndarray | float, v: np.ndarray | float, z_m: np.ndarray | float) -> np.ndarray:
         """Camera-frame points (..., 3) in metres of pixels (u, v) at depth ``z_m`` (metres along z)."""
@@ -84,10 +99,13 @@ class Intrinsics:
 
     def to_json(self, with_size: bool = True) -> dict:
         """``{"fx", "fy", "cx", "cy", "width", "height"}``; without ``width`` and ``height`` when
-        ``with_size`` is False (the landmark recording's ``camera``, whose header carries ``image_size``)."""
+        ``with_size`` is False (the landmark recording's ``camera``, whose header carries ``image_size``);
+        ``"assumed": true`` added for an assumed lens."""
         out: dict = {"fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy}
         if with_size:
             out.update(width=self.width, height=self.height)
+        if self.assumed:
+            out["assumed"] = True
         return out
 
     @classmethod
@@ -106,4 +124,7 @@ class Intrinsics:
                 raise ValueError(f"intrinsics width and height must be integers, got {size[0]!r}, {size[1]!r}")
         else:
             size = (image_size[0], image_size[1])
-        return cls(*(float(obj[k]) for k in _FOCAL), size[0], size[1])
+        assumed = obj.get("assumed", False)
+        if not isinstance(assumed, bool):
+            raise ValueError(f"intrinsics assumed must be true or false, got {assumed!r}")
+        return cls(*(float(obj[k]) for k in _FOCAL), size[0], size[1], assumed)

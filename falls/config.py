@@ -73,8 +73,10 @@ class FallsConfig:
                                "unit": "m", "range": (0.0, 5.0)}
     )
     camera_hfov_deg: float = field(
-        default=69.0, metadata={"doc": "horizontal field of view, used when the frame has no intrinsics "
-                                       "(69 = RealSense D4xx colour)", "unit": "deg", "range": (10.0, 170.0)}
+        default=69.0, metadata={"doc": "field of view of the lens assumed when the frame has no intrinsics, by "
+                                       "the fall detector and the fit, across the image's longer side "
+                                       "(horizontal unless the camera is turned to portrait; 69 = RealSense "
+                                       "D4xx colour)", "unit": "deg", "range": (10.0, 170.0)}
     )
     learn_floor: bool = field(
         default=True, metadata={"doc": "refine the floor height from the feet of a person standing upright"}

@@ -154,8 +154,8 @@ class FallDetector:
                intrinsics: Intrinsics | None = None) -> list[FallEvent]:
         """Feed one frame (capture time ``result.t``); returns the messages it caused (usually none).
 
-        ``intrinsics``: the camera's, in pixels of the landmarks' image; None: a camera of horizontal field
-        of view ``camera_hfov_deg`` (``Intrinsics.from_hfov``).
+        ``intrinsics``: the camera's, in pixels of the landmarks' image; None: a lens of ``camera_hfov_deg``
+        across the image's longer side (``Intrinsics.assume``: the lens the fit assumed for the frame).
         """
         t = float(result.t)
         if self._last_t is not None and t < self._last_t:  # a clock step backwards: start over, keep calibration
@@ -164,7 +164,7 @@ class FallDetector:
         self._last_t = t
         out: list[FallEvent] = []
         camera = intrinsics if intrinsics is not None else \
-            Intrinsics.from_hfov(self.cfg.camera_hfov_deg, int(image_size[0]), int(image_size[1]))
+            Intrinsics.assume(self.cfg.camera_hfov_deg, int(image_size[0]), int(image_size[1]))
         fit_frame = self.fit_frame
         if fit_frame == "auto":  # the fit says which projection it used (orthographic: axes along the ray)
             fit_frame = "camera" if result.extra.get("projection") == "perspective" else "ray"

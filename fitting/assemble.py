@@ -36,11 +36,14 @@ def unobserved(missing: list[str]) -> list[str]:
 
 def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.ndarray, *, loss: float,
              mp: float, fit_ms: float, mode: str, evals: int, udeas_s: float, missing: list[str], gamma: float,
-             depth: DepthFit | None, measured: Measured | None = None, rotation: bool = False) -> FitResult:
+             depth: DepthFit | None, measured: Measured | None = None, rotation: bool = False,
+             lens_assumed: bool = False) -> FitResult:
     """The result of solution ``x`` (kernel units) of ``frame``; ``gamma`` the reported size factor, ``depth``
     the depth term at ``x`` (None without depth), ``measured`` what the frame's landmarks measured
     (fitting.measured; None: judged from ``missing`` alone); ``rotation``: the upper arms' rotations were
-    searched (reported as ``shoulder_rotation_deg``)."""
+    searched (reported as ``shoulder_rotation_deg``); ``lens_assumed``: the perspective frame's intrinsics
+    were an assumed lens (camera_model.Intrinsics.assume): ``lens`` says so and ``root_cam_m``, metres
+    through a lens nobody measured, is left out."""
     values = np.empty(N_REPORTED)
     known, *root = reported_values(x, frame.data, fixed_deg, 0.0 if depth is None else depth.root_z,
                                    depth is not None, values)
@@ -53,11 +56,13 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
     extra = {"mode": mode, "projection": "perspective" if frame.perspective else "orthographic",
              "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
+    if frame.perspective:
+        extra["lens"] = "assumed" if lens_assumed else "given"
     if rotation:
         extra["shoulder_rotation_deg"] = dict(zip(SHOULDER_ROTATION_NAMES, v[ROTATIONS:], strict=True))
     if depth is not None:
         extra["depth_inliers"] = depth.inliers
-    if known:  # perspective (intrinsics known): where the person is, for a robot to go there
+    if known and not lens_assumed:  # perspective through the camera's own lens: where the person is
         extra["root_cam_m"] = [round(root[0], 4), round(root[1], 4), round(root[2], 4)]
     if missing:
         extra["missing"] = missing

@@ -124,7 +124,9 @@ class FitConfig:
     )
     projection: str = field(
         default="auto", metadata={"doc": "camera model: orthographic (the paper), perspective (needs "
-                                         "intrinsics), or auto (perspective when intrinsics are known)",
+                                         "intrinsics), or auto (perspective when intrinsics are known; the "
+                                         "daemon gives a source without any the lens of "
+                                         "falls.camera_hfov_deg, assumed: no root_cam_m)",
                                   "choices": ("auto", "orthographic", "perspective")}
     )
     visibility_drop: float = field(

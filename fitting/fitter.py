@@ -139,7 +139,10 @@ class Fitter:
             depth_m: np.ndarray | None = None, world: np.ndarray | None = None) -> FitResult:
         """Fit one frame. ``landmarks``: (33, 5) ``[x_px, y_px, z, visibility, presence]`` or None (no person).
 
-        ``intrinsics``: the camera's, in pixels of the landmarks' image, or None (unknown). ``depth_m``: what
+        ``intrinsics``: the camera's, in pixels of the landmarks' image, or None (unknown: with ``projection``
+        auto the fit is orthographic); an assumed lens (``Intrinsics.assume``, what the daemon gives a source
+        without intrinsics) is projected through like the camera's own, but no ``root_cam_m`` comes of it
+        (the result's ``lens``: given or assumed). ``depth_m``: what
         an aligned depth camera measured at each of the 33 landmarks, metres along the camera's z axis, NaN
         where unknown (interfaces.md section 1), or None: used by a robust term (fitting.depth_term) and for
         ``root_cam_m``. ``world``: BlazePose's world landmarks of the frame (33 x 5, metres, hip-centred;
@@ -210,6 +213,7 @@ class Fitter:
         if use_persp and intrinsics is None:
             return FitResult.failure(seq, t, "projection is 'perspective' but no camera intrinsics were given "
                                              "(add \"camera\" to the recording header or use projection: auto)")
+        lens_assumed = use_persp and intrinsics.assumed   # a lens taken for granted: no metres from it
         # the depth evidence: a depth camera's, else the world landmarks' (fitting.world_term)
         self._sensor, self._depth_weight = SENSOR_DEPTH_CAMERA, DEPTH_WEIGHT
         if self._depth is None and self._world is not None:
@@ -251,7 +255,7 @@ class Fitter:
         result = assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
                           evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma, depth=depth,
                           measured=Measured.from_landmarks(measured_landmarks(lm, cfg.visibility_drop)),
-                          rotation=self._rotation)
+                          rotation=self._rotation, lens_assumed=lens_assumed)
         # what the fit used: the 2D landmarks always; a depth camera's or the world landmarks' depths when they
         # were given and not judged garbage (fitting.depth_term.usable)
         evidence = ["landmarks"]
@@ -265,7 +269,7 @@ class Fitter:
             result.extra["limb_scale"] = self._learner.scale.to_json()  # the lengths this fit used
             obs = frame.data[L.D_OBS:L.D_OBS + 2 * L.N_LM].reshape(L.N_LM, 2)
             pts, sd = None, 0.0
-            if depth is not None and use_persp:   # the lengths in 3D: the depth-consistent, seen landmarks
+            if depth is not None and use_persp and not lens_assumed:   # lengths in 3D: depth-consistent landmarks
                 use = (depth.weights >= DEPTH_MIN_WEIGHT) & (frame.weights > 0)
                 pts = joint_points(xy, self._depth, use, SURFACE_M, intrinsics)
                 sd = DEPTH_RMS_K * depth.root_z ** 2   # the camera's noise at the person's distance

@@ -5,7 +5,8 @@ joint in the camera frame is ``root_cam_m + joints_3d[name]`` (metres, x image r
 from the camera) and projects through the pinhole ``Intrinsics.project`` — nothing is adjusted to the
 landmarks, so a wrong depth, size or timing of the fit is visible as a mismatch with them.
 
-Orthographic fit (no intrinsics; the paper's model): the result carries no image position or scale, so the
+A fit without ``root_cam_m`` (through an assumed lens, the source knowing no intrinsics, or orthographic,
+the paper's model): the result carries no image position or scale, so the
 scale and offset that best place the model's x, y on the frame's landmarks (least squares over the fitted
 landmarks) are solved here; a depth error then stays invisible, a wrong pose or a lag still shows.
 ``Reprojection.how`` says which was used.

@@ -3,8 +3,9 @@ cannot (how far the person leans toward the camera, whether they are up or on th
 
 The view looks along the camera's x axis (from the image's right edge toward its left): horizontal = depth z
 (away from the camera, metres), vertical = up (-y of the camera frame; the camera is taken as level, as the
-fit does). With a perspective fit the joints are where the fit put them in the camera frame (the camera is
-drawn at the left); with an orthographic fit only their offsets from the mid-hip are known and the mid-hip is
+fit does). With a fit through the camera's own lens the joints are where the fit put them in the camera frame
+(the camera is drawn at the left); without ``root_cam_m`` (an assumed lens, or an orthographic fit) only their
+offsets from the mid-hip are known and the mid-hip is
 drawn at a fixed depth, and each frame is shifted so its lowest joint stands on the floor (a squat then
 shows as the hips going down). The floor is ``ANKLE_HEIGHT_M`` below the lowest joint of the whole clip (the
 ankle's height above the sole): an estimate from the person, not a measured plane.

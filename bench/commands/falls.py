@@ -33,20 +33,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mount", choices=("robot", "wall"), default="robot",
                         help="simulated scenarios and CMU clips: the robot's camera (0.9-1.3 m, 8-22 deg down, "
                              "640x480, intrinsics given) or a wall camera (2 m, 35 deg down, 320x240, 62 deg, no "
-                             "intrinsics given to the fit or the detector)")
+                             "intrinsics given to the fit or the detector: both assume falls.camera_hfov_deg's "
+                             "lens, as the daemon does)")
     parser.add_argument("--no-cache", action="store_true",
                         help="fit again, do not use the cached fits (~/.cache/posed/falls-fits)")
     parser.add_argument("--only", default="", metavar="TEXT", help="only scenarios whose name contains TEXT")
     parser.add_argument("--truth", action="store_true",
                         help="skip the fit: feed the simulation's ground-truth joints (checks the detector alone)")
     parser.add_argument("--no-intrinsics", action="store_true",
-                        help="do not give the fit the camera intrinsics (scaled orthographic fit, as a webcam "
-                             "without calibration)")
+                        help="do not give the fit the camera intrinsics: it gets the assumed lens of "
+                             "falls.camera_hfov_deg, as the daemon fits a webcam without calibration (--set "
+                             "fitting.projection=orthographic: the scaled orthographic fit)")
     parser.add_argument("--markdown", metavar="FILE", help="also write the per-scenario table as Markdown")
     parser.add_argument("--assume-fov", action="store_true",
-                        help="--mount wall: fit in perspective with the intrinsics of falls.camera_hfov_deg (an "
-                             "assumed lens, not the camera's 62 deg) instead of the orthographic fit a recording "
-                             "without a camera header gets today")
+                        help="no effect: a fit without intrinsics (--mount wall, --no-intrinsics) now always "
+                             "projects through the assumed lens of falls.camera_hfov_deg, as the daemon's; kept "
+                             "so the earlier commands in docs/benchmarks.md still run")
     parser.add_argument("--cross-source", action="store_true",
                         help="the cross-source check: the same detector on every source (synthetic robot and wall "
                              "cameras, CMU, --recordings or shared urfd_dev, real videos through posed landmarks), "
@@ -81,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     report = run_bench(splits, "truth" if args.truth else "real", cfg.falls, args.only, shared, progress,
                        fit_config=cfg.fitting, with_intrinsics=not args.no_intrinsics,
                        cache=None if args.no_cache else cache_dir() / "falls-fits",
-                       geometry=args.synthetic_geometry, mount=args.mount, assume_fov=args.assume_fov)
+                       geometry=args.synthetic_geometry, mount=args.mount)
     if args.markdown:
         Path(args.markdown).write_text(markdown(report))
     if real is not None:

@@ -12,6 +12,11 @@ with a fitter of their own (video mode, learned proportions), keyed by track id:
 one followed longest) is the FitMsg's ``result``, the others its ``others``, each result with ``person`` (the
 track id) in its extra fields. A frame without ``people`` is fitted exactly as before, with no ``person``. A
 person unseen for ``FORGET_S`` of capture time is forgotten.
+
+A source without intrinsics (a webcam, a video file, a recording without ``camera``) is fitted through an
+assumed lens of ``falls.camera_hfov_deg`` (camera_model.Intrinsics.assume; the fall detector assumes the same
+one): in perspective, so a camera looking down shows in the body's axes, but with no ``root_cam_m`` (the
+result's ``lens``: assumed). ``fitting.projection: orthographic`` keeps the paper's orthographic fit.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from posed.camera_model import Intrinsics
 from posed.daemon import clock
 from posed.daemon.messages import FitMsg, origin
 from posed.daemon.stages.base import StageRuntime
@@ -47,8 +53,12 @@ class StreamFit:
 class PeopleFit:
     """Every person of a frame fitted by a :class:`StreamFit` of their own (see the module doc)."""
 
-    def __init__(self, make_fitter) -> None:
+    def __init__(self, make_fitter, assumed_hfov_deg: float | None = None) -> None:
+        """``assumed_hfov_deg``: the field of view (across the image's longer side) of the lens assumed for
+        frames without intrinsics (``falls.camera_hfov_deg``); None: such frames are fitted without one
+        (orthographic)."""
         self.make_fitter = make_fitter
+        self.assumed_hfov_deg = assumed_hfov_deg
         self.main = StreamFit(make_fitter())     # the frame's own person (the only one without ``people``)
         self.main_id: int | None = None
         self.others: dict[int, StreamFit] = {}
@@ -56,6 +66,8 @@ class PeopleFit:
 
     def fit(self, frame, t_capture: float, image_size, intrinsics):
         """(the frame's own person's result, the other people's results)."""
+        if intrinsics is None and self.assumed_hfov_deg:
+            intrinsics = Intrinsics.assume(self.assumed_hfov_deg, int(image_size[0]), int(image_size[1]))
         people = frame.people
         if not people:
             return self.main.fit(frame, t_capture, image_size, intrinsics), ()
@@ -110,7 +122,7 @@ def run(rt: StageRuntime) -> None:
     def make_fitter():
         return spare.pop() if spare else Fitter(rt.config.fitting)
 
-    people = PeopleFit(make_fitter)
+    people = PeopleFit(make_fitter, rt.config.falls.camera_hfov_deg)
     while True:
         rt.beat()
         rt.check_stop()

@@ -64,13 +64,14 @@ def sides_kept(header, frames: Iterable, enabled: bool = True) -> Iterator:
     return map(RecordingSides(), frames) if RecordingSides.needed(header, enabled) else iter(frames)
 
 
-def fit_frames(fit_config, header, frames: Iterable) -> Iterator[tuple[object, object, tuple]]:
+def fit_frames(cfg, header, frames: Iterable) -> Iterator[tuple[object, object, tuple]]:
     """(LandmarkFrame, FitResult, the other people's FitResults) per frame, fitted as the fitting stage fits
-    them (:class:`daemon.stages.fit.PeopleFit`: a frame without ``people`` has no others)."""
+    them (:class:`daemon.stages.fit.PeopleFit`: a frame without ``people`` has no others; a recording
+    without ``camera`` through the assumed lens of ``falls.camera_hfov_deg``). ``cfg``: the whole config."""
     from posed.daemon.stages.fit import PeopleFit
     from posed.fitting import Fitter
 
-    people = PeopleFit(lambda: Fitter(fit_config))
+    people = PeopleFit(lambda: Fitter(cfg.fitting), cfg.falls.camera_hfov_deg)
     for frame in frames:
         result, others = people.fit(frame, frame.t, tuple(header.image_size), header.camera)
         yield frame, result, others
@@ -144,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
         taken = taken_frames(cfg.pipeline, frames(), period)
         if sides is not None:      # left and right put back where the extractor flipped them (as posed fit)
             taken = map(sides, taken)
-        for _frame, _result, messages in detect(cfg, header, fit_frames(cfg.fitting, header, taken)):
+        for _frame, _result, messages in detect(cfg, header, fit_frames(cfg, header, taken)):
             n += 1
             for ev in messages:
                 events += 1

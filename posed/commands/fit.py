@@ -4,7 +4,9 @@ Reads a landmark recording (interfaces.md section 1) and writes one fit result p
 (interfaces.md section 2; standard output without ``-o``). Frames without a person, with missing, NaN or
 low-visibility landmarks get ``"ok": false`` and a reason; a line that cannot be read is reported on stderr as
 ``FILE:LINE: message`` and skipped. The recording header's ``camera`` intrinsics, when present, select the
-perspective model (``fitting.projection: auto``).
+perspective model (``fitting.projection: auto``); without them the fit projects, as the daemon's does, through
+the lens of ``falls.camera_hfov_deg`` assumed (the results say ``"lens": "assumed"`` and carry no
+``root_cam_m``; ``fitting.projection: orthographic`` gives the paper's orthographic fit).
 
 Exit status: 0 every line was read, 1 some lines were skipped, 2 the recording cannot be read at all.
 """
@@ -34,6 +36,7 @@ _err = error_printer("posed fit")
 
 
 def run(args: argparse.Namespace) -> int:
+    from posed.camera_model import Intrinsics
     from posed.fitting import CalibrationError, FitResult, Fitter
     from posed.landmarks import (
         RecordingError,
@@ -64,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
     from posed.commands.warmup import warm_fitter
 
     warm_fitter(fitter, _err)        # compile before frame 0: its fit_ms must be the fit alone
-    intrinsics = header.camera
+    # a recording without the camera's intrinsics: the daemon's assumed lens (daemon.stages.fit)
+    intrinsics = header.camera or Intrinsics.assume(config.falls.camera_hfov_deg, *header.image_size)
     out = sys.stdout if args.output == "-" else None
     if out is None:
         try:

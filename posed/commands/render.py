@@ -6,7 +6,9 @@ the angles and the fall state shown are the frame's own person's, another person
 landmark recording (``.landmarks.jsonl``) with its fit (``--fit FIT.jsonl``, from ``posed fit``) and, when
 there is one, the source video (``--video``; otherwise the drawing is on a grey background). The fall
 detector runs on the fits when ``falls.enabled``. Camera intrinsics: the recording's header, else the
-config's ``source.fx``.. (as the daemon), else ``--hfov`` when given; without any the fit is orthographic.
+config's ``source.fx``.. (as the daemon), else ``--hfov`` when given (the camera's own lens, as if measured);
+without any a video is fitted as the daemon fits it, through the lens of ``falls.camera_hfov_deg`` assumed (no
+``root_cam_m``: the model is drawn scaled to the landmarks).
 
 Exit status: 0 written, 1 written but some frames or lines were unreadable, 2 nothing written.
 """
@@ -31,9 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--fit", metavar="FIT.jsonl", help="the fit of a landmark recording (posed fit output)")
     parser.add_argument("--video", metavar="VIDEO", help="the source video of a landmark recording")
     parser.add_argument("--hfov", type=float, metavar="DEG",
-                        help="assume a camera of this horizontal field of view when the input has no "
-                             "intrinsics (a video input is then fitted with the perspective model; a fit "
-                             "file keeps the model it was made with)")
+                        help="the camera's horizontal field of view when the input has no intrinsics (taken "
+                             "as its own lens: the fit of a video places the person in metres; without it the "
+                             "lens of falls.camera_hfov_deg is assumed, as the daemon does; a fit file keeps "
+                             "the model it was made with)")
     parser.add_argument("--camera-height", type=float, default=0.0, metavar="M",
                         help="the camera's height above the floor, for the side view's floor with a "
                              "perspective fit (default: the floor is estimated below the lowest joint)")
@@ -79,7 +82,8 @@ def _fit_video(args, config, progress_on):
     intrinsics = _intrinsics(source.camera, source.image_size, config, args.hfov)
     lm_config = replace(config.landmarks, tracking=True)
     landmarker = MultiPoseLandmarker(lm_config) if lm_config.max_people > 1 else PoseLandmarker(lm_config)
-    stream = PeopleFit(lambda: Fitter(config.fitting))   # the fitting stage's own logic, a fitter per person
+    # the fitting stage's own logic: a fitter per person, the assumed lens when the source has none
+    stream = PeopleFit(lambda: Fitter(config.fitting), config.falls.camera_hfov_deg)
     items, problems = [], 0
     count = _frame_count(args.input)
     bar = Progress(count, "landmarks + fit", progress_on)

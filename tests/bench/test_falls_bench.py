@@ -64,6 +64,21 @@ def test_real_fit_detects_a_fall_and_not_lying_on_a_bed():
     assert bed.min_pelvis_rel_lying is not None and bed.min_pelvis_rel_lying > 0.45
 
 
+def test_a_wall_camera_without_intrinsics_is_fitted_through_the_assumed_lens():
+    """--mount wall gives the fit what the daemon gives a source without intrinsics: the lens of
+    falls.camera_hfov_deg, assumed (perspective, no root_cam_m), with or without the fit cache."""
+    from posed.bench.falls import cached_fit, real_fitter, scenario_cases
+    from posed.camera_model import Intrinsics
+
+    case = next(c for c in scenario_cases("tune", "wall") if c.name.endswith("fall/standing-forward/fast-v100"))
+    lens = Intrinsics.assume(69.0, case.camera.width, case.camera.height)
+    fn = cached_fit(case, real_fitter(), None, False, None, lens)
+    fr = next(f for f in case.frames if f.landmarks is not None)
+    r = fn(fr.landmarks, fr.seq, fr.t, (case.camera.width, case.camera.height), None)
+    assert r.ok and r.extra["projection"] == "perspective" and r.extra["lens"] == "assumed"
+    assert r.root_cam_m is None
+
+
 def _labelled_folder(shared_data, tmp_path, clips):
     import shutil
 

@@ -60,6 +60,24 @@ def test_from_hfov():
     assert Intrinsics.from_hfov(90.0, 100, 50).fx == pytest.approx(50.0)
 
 
+def test_an_assumed_lens_says_so_through_resizing_and_json():
+    k = Intrinsics.assume(69.0, 640, 480)
+    assert k.assumed and not Intrinsics.from_hfov(69.0, 640, 480).assumed
+    assert (k.fx, k.cx, k.size) == (Intrinsics.from_hfov(69.0, 640, 480).fx, 320.0, (640, 480))
+    assert k != Intrinsics.from_hfov(69.0, 640, 480)      # a measured lens is not an assumed one
+    assert k.scaled(320, 240).assumed and k.scaled(320, 240).scaled(640, 480) == k
+    assert k.to_json()["assumed"] is True and "assumed" not in Intrinsics.from_hfov(69.0, 640, 480).to_json()
+    assert Intrinsics.from_json(k.to_json()) == k
+    assert Intrinsics.from_json(k.to_json(with_size=False), (640, 480)) == k
+    with pytest.raises(ValueError, match="assumed must be true or false"):
+        Intrinsics.from_json({**k.to_json(), "assumed": "yes"})
+    # a portrait image is the same camera turned: the field of view spans its long (vertical) side
+    p = Intrinsics.assume(69.0, 480, 640)
+    assert (p.fx, p.fy, p.cx, p.cy, p.size, p.assumed) == (k.fx, k.fy, 240.0, 320.0, (480, 640), True)
+    edge = p.deproject(240.0, np.array([0.0, 640.0]), 1.0)
+    assert math.degrees(math.atan2(edge[1, 1], 1.0) - math.atan2(edge[0, 1], 1.0)) == pytest.approx(69.0)
+
+
 def test_values_are_normalised_and_checked():
     k = Intrinsics(np.float32(600.0), 600, 320, np.float64(240.0), np.int64(640), 480.0)
     assert all(type(getattr(k, f)) is float for f in ("fx", "fy", "cx", "cy"))

@@ -42,6 +42,10 @@ def test_one_real_person_has_no_person_field(tmp_path, shared_data):
     assert run.code == 0, run.stderr[-2000:]
     assert run.got["pose"] and all("person" not in p for p in run.got["pose"])
     assert len({p["seq"] for p in run.got["pose"]}) == len(run.got["pose"])      # one object per frame
+    # a video knows no intrinsics: fitted through the assumed lens (falls.camera_hfov_deg), no metres published
+    ok = [p for p in run.got["pose"] if p["ok"]]
+    assert ok and all(p["projection"] == "perspective" and p["lens"] == "assumed" and "root_cam_m" not in p
+                      for p in ok)
 
 
 @pytest.mark.timeout(300)

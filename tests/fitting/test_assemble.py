@@ -19,7 +19,7 @@ from tests.fitting.walking import CAMERA, CONFIG, DIMS, walking_weights
 
 
 def _reference_assemble(seq, t, x, frame, fixed_deg, *, loss, mp, fit_ms, mode, evals, udeas_s, missing, gamma,
-                        depth, rotation=False):
+                        depth, rotation=False, lens_assumed=False):
     """The assembly in plain NumPy and Python (np.round of every value, the dicts built by name)."""
     pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
     FK.model_points(x, frame.data, pts_b, pts_c)
@@ -36,12 +36,14 @@ def _reference_assemble(seq, t, x, frame, fixed_deg, *, loss, mp, fit_ms, mode, 
     extra = {"mode": mode, "projection": "perspective" if frame.perspective else "orthographic",
              "err2d": float(f"{mp:.6g}"), "err2d_px": float(f"{mp * frame.scale_px:.4g}"), "evals": evals,
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
+    if frame.perspective:
+        extra["lens"] = "assumed" if lens_assumed else "given"
     root = reference_root(x, frame.data, pts_c, None if depth is None else depth.root_z)
     if rotation:
         extra["shoulder_rotation_deg"] = {"psi_sh_l": deg[L.X_PSISH_L], "psi_sh_r": deg[L.X_PSISH_R]}
     if depth is not None:
         extra["depth_inliers"] = depth.inliers
-    if root is not None:
+    if root is not None and not lens_assumed:
         extra["root_cam_m"] = [round(v, 4) for v in root]
     if missing:
         extra["missing"] = missing
@@ -78,7 +80,7 @@ def test_rounded_is_np_round_to_the_last_bit():
         assert got.tobytes() == np.round(v / P.DEG, 4).tobytes()
 
 
-@pytest.mark.parametrize("intrinsics", [True, False])
+@pytest.mark.parametrize("intrinsics", [True, False, "assumed"])
 def test_assemble_matches_the_plain_numpy_assembly(intrinsics):
     """Random solutions (signed zeros, halfway angles), with and without a measured depth and missing
     landmarks: every field of the result identical in value, type, bits and order."""
@@ -98,10 +100,12 @@ def test_assemble_matches_the_plain_numpy_assembly(intrinsics):
         missing = [] if i % 5 else ["left_wrist", "right_knee"]
         kw = dict(loss=float(rng.random()), mp=float(rng.random() * 0.1), fit_ms=float(rng.random() * 3),
                   mode="video", evals=int(i), udeas_s=float(rng.random() * 1e-3) if i % 2 else 0.0,
-                  missing=missing, gamma=float(rng.uniform(0.5, 2.0)), depth=depth, rotation=i % 3 == 1)
+                  missing=missing, gamma=float(rng.uniform(0.5, 2.0)), depth=depth, rotation=i % 3 == 1,
+                  lens_assumed=intrinsics == "assumed")
         got = assemble(i, 0.1 * i, x, frame, fixed_deg, **kw)
         want = _reference_assemble(i, 0.1 * i, x, frame, fixed_deg, **kw)
         assert _bits(got.to_json()) == _bits(want.to_json())
         assert json.dumps(got.to_json()) == json.dumps(want.to_json())
         assert _bits(got.joints_3d) == _bits(want.joints_3d)    # tuples, as the dataclass holds them
-        assert ("root_cam_m" in got.extra) == intrinsics
+        assert ("root_cam_m" in got.extra) == (intrinsics is True)   # never metres through an assumed lens
+        assert got.extra.get("lens") == {True: "given", False: None, "assumed": "assumed"}[intrinsics]

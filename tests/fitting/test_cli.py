@@ -37,11 +37,11 @@ def recording(path: Path, camera=None) -> Path:
     return path
 
 
-@pytest.mark.parametrize("camera", [False, True])
-def test_posed_fit_writes_one_result_per_frame(tmp_path, camera):
+@pytest.mark.parametrize("camera,projection", [(False, "auto"), (False, "orthographic"), (True, "auto")])
+def test_posed_fit_writes_one_result_per_frame(tmp_path, camera, projection):
     rec = recording(tmp_path / "in.landmarks.jsonl", camera)
     out = tmp_path / "out.jsonl"
-    p = posed("fit", rec, "-o", out)
+    p = posed("fit", rec, "-o", out, "--set", f"fitting.projection={projection}")
     assert p.returncode == 1, p.stderr  # one line was skipped
     assert f"{rec}:12: landmarks must be a list of 33 entries" in p.stderr
     lines = [json.loads(line) for line in out.read_text().splitlines()]
@@ -50,9 +50,13 @@ def test_posed_fit_writes_one_result_per_frame(tmp_path, camera):
     assert lines[8] == {"seq": 8, "t": 0.8, "ok": False, "reason": "no person"}
     assert not lines[9]["ok"] and "left_knee" in lines[9]["reason"] and "right_ankle" in lines[9]["reason"]
     assert lines[1]["mode"] == "video"
-    assert lines[0]["projection"] == ("perspective" if camera else "orthographic")
-    truth = S.sequence("stand_to_sit", 30.0).pose_at(0.7)
-    assert abs(lines[7]["variables"]["theta_hp_l"] - truth.joints["theta_hp_l"]) < 1.0
+    # without the header's camera: the daemon's assumed lens (perspective, no root_cam_m), unless orthographic
+    assert lines[0]["projection"] == ("orthographic" if projection == "orthographic" else "perspective")
+    assert lines[0].get("lens") == (None if projection == "orthographic" else "given" if camera else "assumed")
+    assert ("root_cam_m" in lines[0]) == camera
+    if camera or projection == "orthographic":   # the model the frames were rendered with: exact
+        truth = S.sequence("stand_to_sit", 30.0).pose_at(0.7)
+        assert abs(lines[7]["variables"]["theta_hp_l"] - truth.joints["theta_hp_l"]) < 1.0
 
 
 def test_posed_fit_image_mode_to_stdout_and_missing_input(tmp_path):

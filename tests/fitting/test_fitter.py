@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from posed.bench import simulate as S
+from posed.camera_model import Intrinsics
 from posed.fitting.config import FitConfig
 from posed.fitting.fitter import Fitter
 from posed.fitting.result import JOINT_3D_NAMES, JOINT_ANGLE_NAMES, VARIABLE_NAMES, FitResult
@@ -89,6 +90,23 @@ def test_perspective_with_intrinsics(fitter):
     # without intrinsics the orthographic model cannot fit the perspective image exactly
     r2 = fitter.fit(lm, 0, 0.0, SIZE, mode="image")
     assert r2.extra["projection"] == "orthographic" and r2.extra["err2d"] > 10 * r.extra["err2d"]
+    assert r.extra["lens"] == "given" and r.root_cam_m is not None and "lens" not in r2.extra
+
+
+def test_an_assumed_lens_projects_in_perspective_without_metres(fitter):
+    """The lens the daemon assumes for a source without intrinsics (camera_model.Intrinsics.assume): the fit
+    projects through it like the camera's own, but publishes no position in metres."""
+    cam = S.LevelCamera(model="pinhole", distance_m=3.0)
+    pose = S.pose("bend_grab", 30.0)
+    lm = S.render(pose, camera=cam)
+    true = cam.intrinsics(SIZE)
+    assumed = Intrinsics(true.fx, true.fy, true.cx, true.cy, *SIZE, assumed=True)   # right by luck
+    r = fitter.fit(lm, 0, 0.0, SIZE, mode="image", intrinsics=assumed)
+    assert r.ok and r.extra["projection"] == "perspective" and r.extra["lens"] == "assumed"
+    assert r.root_cam_m is None and "root_cam_m" not in r.to_json()
+    assert angle_error(r, pose) < 0.5                       # the same projection as the measured lens
+    wide = fitter.fit(lm, 0, 0.0, SIZE, mode="image", intrinsics=Intrinsics.assume(69.0, *SIZE))
+    assert wide.ok and wide.extra["lens"] == "assumed" and wide.root_cam_m is None
 
 
 def test_bad_inputs_never_raise(fitter):

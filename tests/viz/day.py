@@ -42,7 +42,7 @@ def build_day(folder: Path, data: Path, day: dt.date, tz: dt.tzinfo, ack_first: 
             header, frames, _ = read_recording(data / "falls" / "urfd_dev" / f"{clip}.landmarks.jsonl")
             clock = {"now": start}
             with EventJournal(folder / "events.sqlite3", clock=lambda c=clock: c["now"]) as journal:
-                for frame, result, messages in detect(cfg, header, fit_frames(cfg.fitting, header, frames)):
+                for frame, result, messages in detect(cfg, header, fit_frames(cfg, header, frames)):
                     clock["now"] = start + frame.t
                     written["rows"] += hist.add(result, wall=start + frame.t)
                     watched.add(start + frame.t, person=result.ok or result.reason != "no person",
