@@ -479,11 +479,17 @@ class FallDetector:
     def _raise(self, state: str, t_onset: float | None, t_impact: float, t: float, feats: list[str],
                confidence: float) -> FallEvent:
         self._event = _Event(id=self._new_id(), t_onset=t_onset, t_impact=t_impact, features=tuple(feats),
-                             confidence=round(confidence, 3), geometry=self.camera.used())
+                             confidence=round(confidence, 3), geometry=self._geometry_used())
         self.state = "down"
         self._descent = None
         self._up_start = None
         return self._message(state, t, tuple(feats), confidence)
+
+    def _geometry_used(self) -> dict:
+        """The camera geometry an event is judged with (``CameraGeometry.used``) and ``lens``: ``given`` (the
+        frame's intrinsics) or ``assumed`` (``camera_hfov_deg``'s, as the fit assumed it)."""
+        assumed = self.last_camera is not None and self.last_camera.assumed
+        return {**self.camera.used(), "lens": "assumed" if assumed else "given"}
 
     def _message(self, state: str, t: float, feats: tuple[str, ...], confidence: float) -> FallEvent:
         ev = self._event

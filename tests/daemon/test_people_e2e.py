@@ -76,4 +76,5 @@ def test_a_visitors_fall_is_reported_as_theirs(tmp_path, shared_data):
     assert events and {e["state"] for e in events} & {"falling", "on_floor"}, events
     assert all(e["person"] in faller for e in events), [(e["state"], e.get("person")) for e in events]
     assert all(len(e["root_cam_m"]) == 3 and e["root_cam_m"][2] > 0 for e in events)
+    assert all(e["geometry"]["lens"] == "given" for e in events)          # the recording's camera
     assert len({e["id"] for e in events}) == 1

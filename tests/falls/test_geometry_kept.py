@@ -63,6 +63,7 @@ def test_learned_geometry_survives_a_restart_and_catches_a_fall_never_seen_stand
     events = feed(second, FOUND)
     assert [e.state for e in events][:1] == ["on_floor"]
     assert events[0].extra["geometry"]["gravity"] == "body"
+    assert events[0].extra["geometry"]["lens"] == "assumed"      # the wall camera's frames carry no intrinsics
 
     fresh = watch_for(tmp_path / "other-camera.json")     # the same person found lying, nothing kept
     assert feed(fresh, FOUND) == []

@@ -57,7 +57,8 @@ def test_a_wall_camera_fall_is_caught_with_the_default_config(name):
     det, events = run(sc, FallsConfig())
     first = next(e for e in events if e.state in ("falling", "on_floor"))
     assert 0.0 <= first.t_detect - sc.truth.t_impact <= 1.5
-    assert first.extra["geometry"] == {"gravity": "body", "floor": "learned", "config": "guess"}
+    assert first.extra["geometry"] == {"gravity": "body", "floor": "learned", "config": "guess",
+                                      "lens": "assumed"}   # a wall camera without intrinsics
     assert det.geometry["tilt_from"] == "body" and abs(det.geometry["tilt_deg"] - sc.camera.tilt) < 6.0
     _, trusted = run(sc, FallsConfig(camera_geometry="measured"))
     assert not [e for e in trusted if e.state in ("falling", "on_floor")]
