@@ -221,8 +221,7 @@ def real_fitter(fit_config=None):
     return fit
 
 
-def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path | None,
-               intrinsics: Intrinsics | None = None):
+def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intrinsics | None = None):
     """``fit`` wrapped with a per-case cache of its results (key: the case's landmarks, the fit config, the
     intrinsics the fit is given and the fitting package's source), so that re-scoring the detector costs no
     fit. ``intrinsics``: given to the fit instead of the case camera's (an assumed lens)."""
@@ -239,7 +238,7 @@ def cached_fit(case: Case, fit, fit_config, with_intrinsics: bool, cache: Path |
     for fr in case.frames:
         h.update(b"none" if fr.landmarks is None else np.ascontiguousarray(fr.landmarks, float).tobytes())
     h.update(json.dumps(asdict(fit_config) if fit_config is not None else {}, sort_keys=True).encode())
-    h.update(f"{with_intrinsics}{intrinsics or case.camera.intrinsics}{_fitting_source_hash()}".encode())
+    h.update(f"{intrinsics or case.camera.intrinsics}{_fitting_source_hash()}".encode())
     path = cache / f"{case.name.replace('/', '_')}.{h.hexdigest()[:20]}.fits.jsonl"
     stored = None
     if path.is_file():
@@ -293,7 +292,7 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             fit.reset()  # type: ignore[union-attr]
             assumed = None if with_intrinsics else \
                 Intrinsics.assume(cfg.camera_hfov_deg, case.camera.width, case.camera.height)
-            fn = cached_fit(case, fit, fit_config, with_intrinsics, cache, assumed)
+            fn = cached_fit(case, fit, fit_config, cache, assumed)
         else:
             by_seq = {fr.seq: fr for fr in case.frames}
 

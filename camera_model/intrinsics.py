@@ -16,7 +16,7 @@ Capture times, seconds on the one ``time.monotonic()`` clock of the machine (the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -73,10 +73,8 @@ class Intrinsics:
         docs/body-model.md "An assumed lens"), marked ``assumed``: ``fov_deg`` across the image's longer side
         (square pixels, principal point at the centre). A camera's field of view is its sensor's long side's,
         and a portrait video is that camera turned: the same lens, its long side vertical."""
-        if height > width:
-            f = (height / 2.0) / math.tan(math.radians(fov_deg) / 2.0)
-            return cls(f, f, width / 2.0, height / 2.0, width, height, assumed=True)
-        return replace(cls.from_hfov(fov_deg, width, height), assumed=True)
+        f = (max(width, height) / 2.0) / math.tan(math.radians(fov_deg) / 2.0)
+        return cls(f, f, width / 2.0, height / 2.0, width, height, assumed=True)
 
     def scaled(self, width: int, height: int) -> Intrinsics:
         """The same camera seen at another resolution (a pure resize of the image)."""

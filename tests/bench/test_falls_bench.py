@@ -72,7 +72,7 @@ def test_a_wall_camera_without_intrinsics_is_fitted_through_the_assumed_lens():
 
     case = next(c for c in scenario_cases("tune", "wall") if c.name.endswith("fall/standing-forward/fast-v100"))
     lens = Intrinsics.assume(69.0, case.camera.width, case.camera.height)
-    fn = cached_fit(case, real_fitter(), None, False, None, lens)
+    fn = cached_fit(case, real_fitter(), None, None, lens)
     fr = next(f for f in case.frames if f.landmarks is not None)
     r = fn(fr.landmarks, fr.seq, fr.t, (case.camera.width, case.camera.height), None)
     assert r.ok and r.extra["projection"] == "perspective" and r.extra["lens"] == "assumed"
