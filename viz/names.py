@@ -46,3 +46,18 @@ def short_label(name: str) -> str:
 def side(name: str) -> str:
     """``left``, ``right`` or ``""`` (the trunk and the body)."""
     return {"l": "left", "r": "right"}.get(name.rsplit("_", 1)[-1], "") if name.count("_") >= 2 else ""
+
+
+# the fit's evidence and lens (docs/formats.md, fit result ``evidence`` and ``lens``) in the words the views use
+EVIDENCE_WORDS = {"landmarks": "2D landmarks", "world": "BlazePose 3D", "depth": "depth camera"}
+LENS_WORDS = {"assumed": "assumed lens"}   # "given" (the camera's own intrinsics) goes without saying
+
+
+def evidence_text(evidence, lens: str | None = None) -> str:
+    """``3D from: 2D landmarks + BlazePose 3D, assumed lens``; "" when the fit did not say (an older
+    recording's fit). The lens is named only when it was assumed (the source gave no intrinsics: the 3D's
+    depth is relative, with no distance in metres)."""
+    if not evidence:
+        return ""
+    text = "3D from: " + " + ".join(EVIDENCE_WORDS.get(e, str(e)) for e in evidence)
+    return text + (f", {LENS_WORDS[lens]}" if lens in LENS_WORDS else "")

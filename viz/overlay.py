@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from posed.viz import draw
-from posed.viz.names import MAIN_ANGLES, short_label
+from posed.viz.names import MAIN_ANGLES, evidence_text, short_label
 from posed.viz.reproject import Reprojection
 from posed.viz.skeleton import LANDMARK_BONES, MODEL_BONES, with_mid_shoulder
 
@@ -31,17 +31,7 @@ class FrameInfo:
     how: str = ""                  # how the skeleton was reprojected
     trunk_lean: float | None = None  # the trunk's lean from the vertical, degrees (None: not measured)
     evidence: tuple[str, ...] = ()   # what the fit used (FitResult.extra["evidence"]; () when not said)
-
-
-# the fit's evidence (docs/formats.md, fit result ``evidence``) in the words the overlay uses
-EVIDENCE_WORDS = {"landmarks": "2D landmarks", "world": "BlazePose 3D", "depth": "depth camera"}
-
-
-def evidence_text(evidence) -> str:
-    """``3D from: 2D landmarks + depth camera``; "" when the fit did not say (an older recording's fit)."""
-    if not evidence:
-        return ""
-    return "3D from: " + " + ".join(EVIDENCE_WORDS.get(e, str(e)) for e in evidence)
+    lens: str | None = None          # the fit's lens (FitResult.extra["lens"]: given, assumed; None: not said)
 
 
 def scale_of(img: np.ndarray) -> float:
@@ -117,7 +107,7 @@ def draw_info(img: np.ndarray, info: FrameInfo) -> None:
         lean = "not seen" if info.trunk_lean is None else f"{info.trunk_lean:5.0f} deg"
         y += draw.text(img, f"{'trunk from vertical':<22}{lean}", (x, y), fs, thickness=th)
         if info.evidence:
-            y += draw.text(img, evidence_text(info.evidence), (x, y), 0.8 * fs, (220, 220, 220), th)
+            y += draw.text(img, evidence_text(info.evidence, info.lens), (x, y), 0.8 * fs, (220, 220, 220), th)
     if info.fall_state is not None:
         state = info.fall_event if info.fall_event and info.fall_state != "up" else info.fall_state
         words = {"up": "no fall", "down": "FALL detected", "alarm": "FALL: ALARM"}.get(info.fall_state,

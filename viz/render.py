@@ -88,12 +88,14 @@ class ClipRenderer:
         note = ""
         lean = None
         evidence: tuple[str, ...] = ()
+        lens = None
         if result is not None and result.ok:
             # only what the frame measured (fitting.measured): an unseen limb is the model's guess
             reproj = reproject(result.measured_joints(), result.root_cam_m, self.intrinsics, item.landmarks)
             angles = result.measured_angles()
             lean = trunk_lean_deg(result)
             evidence = tuple(result.extra.get("evidence", ()))
+            lens = result.extra.get("lens")
         elif result is not None:
             note = result.reason or "fit failed"
         elif item.landmarks is None:
@@ -108,7 +110,7 @@ class ClipRenderer:
         if item.person is not None:
             overlay.draw_person_label(canvas, item.landmarks, f"person {item.person} (angles)")
         overlay.draw_info(canvas, FrameInfo(item.t, angles, note, item.fall_state, item.fall_event,
-                                            reproj.how if reproj else "", lean, evidence))
+                                            reproj.how if reproj else "", lean, evidence, lens))
         overlay.legend(canvas)
         side = render_side(joints_for_side(result, self.absolute), self.side, (self.side_width, h),
                            "" if self.absolute else "depth relative to the hips (no camera intrinsics)")

@@ -40,6 +40,15 @@ def test_poses_are_thinned_to_the_rate_and_json_clean():
     json.dumps(msg, allow_nan=False)                      # NaN became null
     assert msg["joints"]["left_knee"][2] is None
     assert msg["angles"]["theta_kn_l"] == 30.0 and msg["angles"]["theta_el_l"] is None
+    assert msg["evidence"] == ""                          # the fit did not say what it used
+
+
+def test_a_pose_says_what_its_3d_came_from():
+    """Issue 38 item 5: the page names the fit's evidence, and an assumed lens."""
+    hub = Hub("r", pose_rate_hz=10.0, clock=Clock())
+    q = hub.subscribe()
+    hub.on_pose("r", pose(1, 1000.0, evidence=["landmarks", "world"], lens="assumed"))
+    assert q.get()["evidence"] == "3D from: 2D landmarks + BlazePose 3D, assumed lens"
 
 
 def test_events_pass_once_and_the_snapshot_keeps_one_minute():

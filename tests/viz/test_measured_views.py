@@ -113,11 +113,14 @@ def test_writing_webm_leaves_no_opencv_note_on_stderr(tmp_path, capfd):
 def test_the_overlay_says_which_evidence_the_fit_used():
     """Issue 38 item 5: `posed render` names what the 3D came from (the fit result's `evidence`), and says
     nothing when the fit did not say (a fit file written before the field existed)."""
-    from posed.viz.overlay import evidence_text
+    from posed.viz.names import evidence_text
 
     assert evidence_text(("landmarks", "world")) == "3D from: 2D landmarks + BlazePose 3D"
     assert evidence_text(["landmarks", "depth"]) == "3D from: 2D landmarks + depth camera"
     assert evidence_text(()) == ""
+    # the lens is named only when it was assumed (a source without intrinsics: relative depth, no metres)
+    assert evidence_text(("landmarks", "world"), "assumed") == "3D from: 2D landmarks + BlazePose 3D, assumed lens"
+    assert evidence_text(("landmarks",), "given") == "3D from: 2D landmarks"
     seen = set(BODY_LANDMARK_NAMES)
     drawn = {}
     for ev in ((), ("landmarks", "world"), ("landmarks", "depth")):

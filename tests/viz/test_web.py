@@ -90,6 +90,8 @@ def test_live_view_shows_the_moving_skeleton_and_the_fps(live, shared_data):
     assert b.js("posedView.drawn") >= 10
     assert b.js("document.querySelectorAll('img, video, picture, iframe').length") == 0   # never an image
     assert b.js("document.getElementById('angles-now').textContent").count("knee flexion") == 2
+    # what the 3D came from: the video gives no intrinsics, the landmark stage keeps BlazePose's world landmarks
+    assert b.js("document.getElementById('st-evidence').textContent") == "2D landmarks + BlazePose 3D, assumed lens"
     b.screenshot(ARTIFACTS / "web_live_squat.png")
 
 

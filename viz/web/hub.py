@@ -18,7 +18,7 @@ import threading
 import time
 from collections import deque
 
-from posed.viz.names import MAIN_ANGLES, short_label
+from posed.viz.names import MAIN_ANGLES, evidence_text, short_label
 
 CHART_ANGLES = ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r", "theta_tr")
 WINDOW_S = 60.0
@@ -123,7 +123,8 @@ class Hub:
         msg = {"type": "pose", "seq": result.seq, "t": result.t, "time_unix": t_unix, "ok": result.ok,
                "reason": result.reason, "joints": {k: [_num(c) for c in v] for k, v in joints.items()},
                "root": list(result.root_cam_m) if result.root_cam_m is not None else None, "angles": angles,
-               "latency_ms": _num((result.extra.get("timing_ms") or {}).get("total"))}
+               "latency_ms": _num((result.extra.get("timing_ms") or {}).get("total")),
+               "evidence": evidence_text(result.extra.get("evidence"), result.extra.get("lens"))}
         with self._lock:
             self._pose = msg
             self._angles.append((t_unix, angles))

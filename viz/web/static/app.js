@@ -166,6 +166,10 @@ function drawChart() {
   c2.setLineDash([]);
 }
 
+function showEvidence(pose) {  // what the last fit used: "2D landmarks + BlazePose 3D, assumed lens" (the hub's words)
+  if (pose.ok && pose.evidence) setText("st-evidence", pose.evidence.replace(/^3D from: /, ""));
+}
+
 function showAnglesNow(pose) {
   const rows = Object.entries(pose.angles).map(([n, v]) =>
     `<tr><th>${label(n)}</th><td>${v === null ? "not seen" : Math.round(v) + "°"}</td></tr>`);
@@ -340,11 +344,12 @@ function onMessage(m) {
     for (const e of m.events) view.events[e.id + "/" + e.state] = e;
     for (const id of m.acked) view.acked[id] = true;
     showAlive(m.alive); showBus(m.bus);
-    if (m.pose) { view.lastPose = m.pose; if (m.pose.ok) view.lastGood = m.pose; drawSkeleton(); }
+    if (m.pose) { view.lastPose = m.pose; if (m.pose.ok) view.lastGood = m.pose; showEvidence(m.pose); drawSkeleton(); }
     showEvents(); drawChart();
   } else if (m.type === "pose") {
     view.poses += 1; view.lastPose = m; setText("st-poses", view.poses);
     if (m.ok && Object.keys(m.joints).length) view.lastGood = m;
+    showEvidence(m);
     angleLog.push({time_unix: m.time_unix, angles: m.angles});
     while (angleLog.length && angleLog[0].time_unix < m.time_unix - WINDOW_S) angleLog.shift();
     showAnglesNow(m);
