@@ -58,7 +58,7 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
     if frame.perspective:
         extra["lens"] = "assumed" if lens_assumed else "given"
-    if rotation:
+    if any(rotation) if isinstance(rotation, tuple) else rotation:
         extra["shoulder_rotation_deg"] = dict(zip(SHOULDER_ROTATION_NAMES, v[ROTATIONS:], strict=True))
     if depth is not None:
         extra["depth_inliers"] = depth.inliers

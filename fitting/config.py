@@ -107,10 +107,11 @@ class FitConfig:
     )
     shoulder_rotation: bool = field(
         default=False, metadata={"doc": "search each upper arm's rotation about its own axis (hands before "
-                                        "the chest, arms folded) when world landmarks tell the arms' depth; "
-                                        "off, or without them: the paper's shoulder, flexion and adduction "
-                                        "only. Off by default: on real video with 3D truth it costs 5 mm "
-                                        "PA-MPJPE at 10 fps (docs/body-model.md, 'Shoulder rotation')"}
+                                        "the chest, arms folded) where the world landmarks tell it (the elbow "
+                                        "bent 54-126 degrees); off, or without them: the paper's shoulder, "
+                                        "flexion and adduction only. Off by default: on real video with 3D "
+                                        "truth it costs 0.9 mm PA-MPJPE at 10 fps (docs/body-model.md, "
+                                        "'Shoulder rotation')"}
     )
     learn_proportions: bool = field(
         default=True, metadata={"doc": "video mode without a calibration file: learn the person's proportions "

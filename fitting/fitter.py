@@ -45,7 +45,7 @@ from posed.fitting.measured import Measured, measured_landmarks
 from posed.fitting.projection import image_scale
 from posed.fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
 from posed.fitting.result import FitResult
-from posed.fitting.world_term import SENSOR_WORLD, WORLD_WEIGHT, world_depths
+from posed.fitting.world_term import SENSOR_WORLD, WORLD_WEIGHT, rotation_observable, world_depths
 
 MODES = ("video", "image")
 _TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
@@ -84,7 +84,7 @@ class Fitter:
         self._learn_t: float | None = None  # time of the last frame the learner saw
         self._work = FK.empty_work()
         self._fixed_deg = np.zeros(L.N_FIXED)  # the joint angles that are not estimated (fitting.reported.FIXED_NAMES), degrees
-        self._rotation = False   # this frame searches the upper arms' rotations (world landmarks tell them)
+        self._rotation = (False, False)   # this frame searches the (left, right) upper arm's rotation
         self._depth: np.ndarray | None = None  # this frame's measured depth at the 12 body landmarks, metres
         self._sensor = SENSOR_DEPTH_CAMERA       # ... of this sensor: a depth camera, or the world landmarks
         self._depth_weight = DEPTH_WEIGHT        # ... and its weight against the 2D landmarks
@@ -221,7 +221,9 @@ class Fitter:
             self._sensor, self._depth_weight = SENSOR_WORLD, WORLD_WEIGHT
         camera_depth = self._sensor is SENSOR_DEPTH_CAMERA
         # the upper arms' rotations are searched where the world landmarks tell the arms' depth, else held at 0
-        self._rotation = cfg.shoulder_rotation and not camera_depth and self._depth is not None
+        self._rotation = (rotation_observable(self._world, self.dims, cfg.visibility_drop)
+                          if cfg.shoulder_rotation and not camera_depth and self._depth is not None
+                          else (False, False))
         frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg,
                        self._rotation)
         video_ok = (mode == "video" and self._prev_x is not None and self._prev_t is not None
@@ -229,10 +231,10 @@ class Fitter:
 
         self._udeas_s = 0.0
         x, loss, mp, evals, used_mode = self._solve(frame, video_ok, ppm0, t)
-        if self._rotation and self._depth is None:
+        if any(self._rotation) and self._depth is None:
             # the world landmarks were judged garbage (no hypothesis agrees with their depths: the tracker on
             # another body): nothing tells the arms' rotations either -- the frame is solved again without them
-            self._rotation = False
+            self._rotation = (False, False)
             frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg)
             x, loss, mp, more, used_mode = self._solve(frame, video_ok, ppm0, t)
             evals += more

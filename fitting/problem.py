@@ -68,14 +68,30 @@ _ROTATIONS = [L.X_PSISH_L, L.X_PSISH_R]
 # the same with the upper arms' rotations held at 0 (the paper's arm: no world landmarks to tell them)
 HELD_LO_RAD, HELD_HI_RAD = LIMIT_LO_RAD.copy(), LIMIT_HI_RAD.copy()
 HELD_LO_RAD[_ROTATIONS] = HELD_HI_RAD[_ROTATIONS] = 0.0
-for _a in (LIMIT_LO_RAD, LIMIT_HI_RAD, HELD_LO_RAD, HELD_HI_RAD):
+# per arm (left free, right free): the rotation of a held arm at 0
+_PER_ARM = {}
+for _free in ((False, False), (True, False), (False, True), (True, True)):
+    _lo, _hi = LIMIT_LO_RAD.copy(), LIMIT_HI_RAD.copy()
+    for _x, _f in zip(_ROTATIONS, _free, strict=True):
+        if not _f:
+            _lo[_x] = _hi[_x] = 0.0
+    _PER_ARM[_free] = (_lo, _hi)
+for _a in (LIMIT_LO_RAD, LIMIT_HI_RAD, HELD_LO_RAD, HELD_HI_RAD, *(a for pair in _PER_ARM.values() for a in pair)):
     _a.flags.writeable = False
 
 
-def limits(rotation: bool) -> tuple[np.ndarray, np.ndarray]:
-    """The joint limits (kernel units, read-only): the upper arms' rotations free within their range when
-    ``rotation`` (world landmarks tell the arms' depth), else held at 0."""
-    return (LIMIT_LO_RAD, LIMIT_HI_RAD) if rotation else (HELD_LO_RAD, HELD_HI_RAD)
+def arms(rotation) -> tuple[bool, bool]:
+    """(left, right) free of ``rotation``: one bool for both arms, or a pair."""
+    if isinstance(rotation, tuple):
+        return bool(rotation[0]), bool(rotation[1])
+    return bool(rotation), bool(rotation)
+
+
+def limits(rotation) -> tuple[np.ndarray, np.ndarray]:
+    """The joint limits (kernel units, read-only): each upper arm's rotation free within its range where
+    ``rotation`` says so (one bool for both arms or a (left, right) pair: world landmarks tell that arm's
+    rotation), else held at 0."""
+    return _PER_ARM[arms(rotation)]
 
 
 def to_degrees(x_rad: np.ndarray) -> np.ndarray:
@@ -243,8 +259,9 @@ def video_box(prev: np.ndarray, cfg: FitConfig, rotation: bool = False) -> tuple
     hi[0] = prev[0] * (1 + cfg.video_window_gamma)
     lim_lo, lim_hi = limits(rotation)
     lo, hi = np.maximum(lo, lim_lo), np.minimum(hi, lim_hi)
-    if not rotation:   # held at 0 whatever the previous frame had
-        lo[_ROTATIONS] = hi[_ROTATIONS] = 0.0
+    for x, free in zip(_ROTATIONS, arms(rotation), strict=True):
+        if not free:   # held at 0 whatever the previous frame had
+            lo[x] = hi[x] = 0.0
     return lo, hi
 
 

@@ -42,6 +42,9 @@ WORLD_WEIGHT = 1.0
 SENSOR_WORLD = np.array([0.0, 0.0, WORLD_SIGMA_M])   # fitting.depth_term's sensor: no surface, no occlusions
 WORLD_Z0_M = 10.0   # the world depths are relative; the term's median vote absorbs any offset: any positive one
 MIN_SEGMENT_M = 0.05  # a world segment shorter than this gives no scale sample
+ROTATION_STEP_DEG = 30.0   # the upper arm's rotation that must show in the world landmarks to be searched: the
+                           # sd of the pose prior's left-right tie on it (fitting.problem.PRIOR_SIG)
+_ARMS = ((11, 13, 15), (12, 14, 16))   # (shoulder, elbow, wrist), MediaPipe indices: left, right
 # the 8 limb segments as MediaPipe landmark indices (upper arm, forearm, thigh, shank; left, right)
 _SEGMENTS = ((11, 13), (13, 15), (23, 25), (25, 27), (12, 14), (14, 16), (24, 26), (26, 28))
 
@@ -79,3 +82,31 @@ def world_depths(world: np.ndarray | None, dims: BodyDimensions, visibility_drop
     out = WORLD_Z0_M + scale * rows[:, 2]
     out[~np.isfinite(out) | ~(rows[:, 3] >= visibility_drop)] = np.nan
     return out
+
+
+def rotation_observable(world: np.ndarray | None, dims: BodyDimensions, visibility_drop: float) -> tuple[bool, bool]:
+    """(left, right): whether BlazePose's world landmarks can tell that upper arm's rotation about its own axis.
+    Turning the upper arm by ``ROTATION_STEP_DEG`` moves the wrist by ``forearm * sin(elbow flexion) * step``;
+    the world landmarks tell it only where that exceeds their depth error ``WORLD_SIGMA_M``: with the model's
+    forearm (0.25 m for a 1.70 m body) an elbow flexed between about 54 and 126 degrees. A straighter elbow
+    leaves the rotation undefined (a straight arm looks the same however it is turned), and searching it there
+    lets the world landmarks' own errors, which are shared along a limb, turn the forearm; a forearm folded
+    back on the upper arm moves little too. An arm whose three world landmarks are not all known and visible
+    (``visibility_drop``) is not searched either."""
+    if world is None:
+        return False, False
+    w = np.asarray(world, dtype=np.float64)
+    need = WORLD_SIGMA_M / (dims.forearm_m * np.radians(ROTATION_STEP_DEG))
+    out = []
+    for sh, el, wr in _ARMS:
+        rows = w[[sh, el, wr]]
+        if not (np.isfinite(rows[:, :3]).all() and (rows[:, 3] >= visibility_drop).all()):
+            out.append(False)
+            continue
+        up, fore = rows[1, :3] - rows[0, :3], rows[2, :3] - rows[1, :3]
+        n_up, n_fore = float(np.linalg.norm(up)), float(np.linalg.norm(fore))
+        if n_up < MIN_SEGMENT_M or n_fore < MIN_SEGMENT_M:
+            out.append(False)
+            continue
+        out.append(float(np.linalg.norm(np.cross(up, fore))) / (n_up * n_fore) > need)
+    return out[0], out[1]

@@ -66,6 +66,54 @@ def test_the_rotations_are_held_at_zero_without_world_landmarks():
     assert frame.data[L.D_LIM_LO + L.X_PSISH_R] == frame.data[L.D_LIM_HI + L.X_PSISH_R] == 0.0
 
 
+def test_each_arm_is_free_or_held_on_its_own():
+    """A (left, right) pair frees one arm's rotation and holds the other's at 0, in the limits, the image box
+    and the video window (the previous frame's rotation of a held arm is not kept)."""
+    prev = np.zeros(L.N_VAR)
+    prev[0] = 1.0
+    prev[[L.X_PSISH_L, L.X_PSISH_R]] = np.radians(40.0)
+    for pair in ((True, False), (False, True)):
+        for lo, hi in (P.limits(pair), P.image_box(FitConfig(), pair), P.video_box(prev, FitConfig(), pair)):
+            free = [hi[x] > lo[x] for x in (L.X_PSISH_L, L.X_PSISH_R)]
+            assert free == list(pair)
+            held = L.X_PSISH_R if pair[0] else L.X_PSISH_L
+            assert lo[held] == hi[held] == 0.0
+    assert P.limits((True, True)) == P.limits(True) and P.limits((False, False)) == P.limits(False)
+
+
+def _arm_world(flex_deg: float, side: str = "l") -> np.ndarray:
+    """World landmarks with one arm hanging, its elbow flexed by ``flex_deg`` (forearm forward: -z)."""
+    w = np.full((33, 5), np.nan)
+    sh, el, wr = (11, 13, 15) if side == "l" else (12, 14, 16)
+    f = np.radians(flex_deg)
+    w[sh, :3] = (0.18, -0.5, 0.0)
+    w[el, :3] = (0.18, -0.2, 0.0)
+    w[wr, :3] = w[el, :3] + 0.25 * np.array([0.0, np.cos(f), -np.sin(f)])
+    w[[sh, el, wr], 3:] = 1.0
+    return w
+
+
+def test_an_arm_rotation_is_searched_only_where_the_world_landmarks_can_tell_it():
+    """Turning the upper arm by ROTATION_STEP_DEG moves the wrist by forearm * sin(flexion) * step: beyond the
+    world landmarks' depth error only for an elbow flexed between about 54 and 126 degrees (a 1.70 m body's
+    forearm); a straight or folded arm, or one with a hidden or unknown landmark, is held."""
+    from posed.fitting.world_term import WORLD_SIGMA_M, rotation_observable
+
+    edge = np.degrees(np.arcsin(WORLD_SIGMA_M / (DIMS.forearm_m * np.radians(30.0))))
+    assert 50.0 < edge < 58.0
+    for flex, want in ((5.0, False), (edge - 2, False), (edge + 2, True), (90.0, True), (180 - edge - 2, True),
+                       (180 - edge + 2, False), (170.0, False)):
+        assert rotation_observable(_arm_world(flex, "l"), DIMS, 0.5) == (want, False), flex
+        assert rotation_observable(_arm_world(flex, "r"), DIMS, 0.5) == (False, want), flex
+    hidden = _arm_world(90.0)
+    hidden[15, 3] = 0.2                          # the wrist below the visibility the fit drops landmarks at
+    assert rotation_observable(hidden, DIMS, 0.5) == (False, False)
+    assert rotation_observable(None, DIMS, 0.5) == (False, False)
+    # a shorter forearm moves the wrist less: the same bend tells less
+    child = BodyDimensions.from_height(1.1)
+    assert rotation_observable(_arm_world(70.0), DIMS, 0.5)[0] and not rotation_observable(_arm_world(70.0), child, 0.5)[0]
+
+
 @pytest.mark.parametrize("mode", ["image", "video"])
 def test_hands_clasped_before_the_chest_get_their_elbows_only_with_the_rotation(mode):
     """The paper's arm cannot put a bent forearm across the chest; searching the rotation (with world
