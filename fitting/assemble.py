@@ -36,7 +36,7 @@ def unobserved(missing: list[str]) -> list[str]:
 
 def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.ndarray, *, loss: float,
              mp: float, fit_ms: float, mode: str, evals: int, udeas_s: float, missing: list[str], gamma: float,
-             depth: DepthFit | None, measured: Measured | None = None, rotation: bool = False,
+             depth: DepthFit | None, measured: Measured | None = None, rotation: P.Rotation = False,
              lens_assumed: bool = False) -> FitResult:
     """The result of solution ``x`` (kernel units) of ``frame``; ``gamma`` the reported size factor, ``depth``
     the depth term at ``x`` (None without depth), ``measured`` what the frame's landmarks measured
@@ -58,7 +58,7 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
     if frame.perspective:
         extra["lens"] = "assumed" if lens_assumed else "given"
-    if any(rotation) if isinstance(rotation, tuple) else rotation:
+    if any(P.arms(rotation)):
         extra["shoulder_rotation_deg"] = dict(zip(SHOULDER_ROTATION_NAMES, v[ROTATIONS:], strict=True))
     if depth is not None:
         extra["depth_inliers"] = depth.inliers

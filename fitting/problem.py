@@ -65,10 +65,8 @@ LIMIT_HI_RAD = to_radians(LIMIT_HI)
 PRIOR_MU_RAD = to_radians(PRIOR_MU)
 PRIOR_SIG_RAD = to_radians(PRIOR_SIG)
 _ROTATIONS = [L.X_PSISH_L, L.X_PSISH_R]
-# the same with the upper arms' rotations held at 0 (the paper's arm: no world landmarks to tell them)
-HELD_LO_RAD, HELD_HI_RAD = LIMIT_LO_RAD.copy(), LIMIT_HI_RAD.copy()
-HELD_LO_RAD[_ROTATIONS] = HELD_HI_RAD[_ROTATIONS] = 0.0
-# per arm (left free, right free): the rotation of a held arm at 0
+# the same per arm, keyed (left free, right free): a held arm's rotation at 0 (the paper's arm: no world
+# landmarks to tell it)
 _PER_ARM = {}
 for _free in ((False, False), (True, False), (False, True), (True, True)):
     _lo, _hi = LIMIT_LO_RAD.copy(), LIMIT_HI_RAD.copy()
@@ -76,18 +74,20 @@ for _free in ((False, False), (True, False), (False, True), (True, True)):
         if not _f:
             _lo[_x] = _hi[_x] = 0.0
     _PER_ARM[_free] = (_lo, _hi)
-for _a in (LIMIT_LO_RAD, LIMIT_HI_RAD, HELD_LO_RAD, HELD_HI_RAD, *(a for pair in _PER_ARM.values() for a in pair)):
+for _a in (LIMIT_LO_RAD, LIMIT_HI_RAD, *(a for pair in _PER_ARM.values() for a in pair)):
     _a.flags.writeable = False
 
+Rotation = bool | tuple[bool, bool]   # the upper arms' rotations free: both (one bool) or (left, right)
 
-def arms(rotation) -> tuple[bool, bool]:
-    """(left, right) free of ``rotation``: one bool for both arms, or a pair."""
+
+def arms(rotation: Rotation) -> tuple[bool, bool]:
+    """(left, right) free of ``rotation``."""
     if isinstance(rotation, tuple):
         return bool(rotation[0]), bool(rotation[1])
     return bool(rotation), bool(rotation)
 
 
-def limits(rotation) -> tuple[np.ndarray, np.ndarray]:
+def limits(rotation: Rotation) -> tuple[np.ndarray, np.ndarray]:
     """The joint limits (kernel units, read-only): each upper arm's rotation free within its range where
     ``rotation`` says so (one bool for both arms or a (left, right) pair: world landmarks tell that arm's
     rotation), else held at 0."""
@@ -206,7 +206,7 @@ def _constants(cfg: FitConfig) -> np.ndarray:
 
 def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, ppm0: float,
          intrinsics: Intrinsics | None = None,
-         fixed_deg: np.ndarray | None = None, rotation: bool = False) -> Frame:
+         fixed_deg: np.ndarray | None = None, rotation: Rotation = False) -> Frame:
     """Build the kernels' data array of one frame (see the D_* layout in fitting.layout); ``rotation``: the
     upper arms' rotations are free (:func:`limits`)."""
     data = _constants_of(cfg).copy()
@@ -237,7 +237,7 @@ def with_prior(frame: Frame, weight: float, mu, sig, partner) -> np.ndarray:
     return data
 
 
-def image_box(cfg: FitConfig, rotation: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def image_box(cfg: FitConfig, rotation: Rotation = False) -> tuple[np.ndarray, np.ndarray]:
     """uDEAS search box of image mode (kernel units), within the joint limits (:func:`limits`: the upper arms'
     rotations held at 0 unless ``rotation``; every other bound of the boxes lies within them)."""
     lo, hi = _PAPER_BOX if cfg.bounds == "paper" else _WIDE_BOX
@@ -249,7 +249,7 @@ _PAPER_BOX = (to_radians(PAPER_LO), to_radians(PAPER_HI))
 _WIDE_BOX = (to_radians(WIDE_LO), to_radians(WIDE_HI))
 
 
-def video_box(prev: np.ndarray, cfg: FitConfig, rotation: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def video_box(prev: np.ndarray, cfg: FitConfig, rotation: Rotation = False) -> tuple[np.ndarray, np.ndarray]:
     """+- the window around the previous solution (kernel units), within the joint limits (:func:`limits`):
     knees and elbows never below 0."""
     win = cfg.video_window_deg * DEG
