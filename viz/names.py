@@ -1,6 +1,6 @@
 """Plain names of the fitted angles (what a caregiver reads), next to the model's symbols (fitting.result),
 and how the pictures group them. The names themselves are fitting's (``fitting.ANGLE_PLAIN_NAMES``: the client
-and every view use the same).
+and every view use the same). Also the words every view uses for what a fit's 3D came from (``evidence_text``).
 
 The model holds some of its 23 joint angles fixed (head, hip rotation, ankles: no landmark the fit uses
 observes them); they are not measurements and are never drawn. ``MEASURED_ANGLES`` are the ones the fit
