@@ -169,13 +169,16 @@ class CameraGeometry:
             return False
         return self._refresh()
 
-    def observe_seated_trunk(self, up_c: np.ndarray | None, dt: float) -> bool:
+    def observe_seated_trunk(self, up_c: np.ndarray | None, dt: float, ankles_c: np.ndarray | None = None,
+                             ankle_height_m: float = 0.0) -> bool:
         """A seated person's trunk axis (unit, camera axes) for ``dt`` seconds: weaker evidence of gravity
         (people lean back or forward in a chair), counted ``SEATED_WEIGHT`` as much as a standing body and only
-        until a standing body was seen. True when the gravity in use changed."""
+        until a standing body was seen. Their feet are on the floor as a standing person's are: ``ankles_c``
+        and ``ankle_height_m`` give a floor point as :meth:`observe_body_axis` takes one. True when the gravity
+        in use changed."""
         if self._body_s >= BODY_MIN_S or up_c is None:
             return False
-        return self.observe_body_axis(up_c, SEATED_WEIGHT * dt)
+        return self.observe_body_axis(up_c, SEATED_WEIGHT * dt, ankles_c, ankle_height_m)
 
     def _body_gravity(self) -> np.ndarray | None:
         """The standing body's gravity once ``BODY_MIN_S`` were seen and it contradicts the configured guess

@@ -182,7 +182,7 @@ class FallDetector:
                 self._gap()   # heights along the old gravity are not comparable: forget the motion
         if feats is not None and feats.seated_trunk_up_c is not None and self.state == "up":
             dt = t - self._prev_frame_t if self._prev_frame_t is not None else 0.1
-            if geo.observe_seated_trunk(feats.seated_trunk_up_c, dt):
+            if geo.observe_seated_trunk(feats.seated_trunk_up_c, dt, feats.ankles_c, ANKLE_OVER_LEG * feats.leg_length):
                 self._gap()
         sample = self._sample(feats) if feats is not None else None
         self.last_sample = sample

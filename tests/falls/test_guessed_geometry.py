@@ -167,3 +167,38 @@ def test_coming_down_to_another_level_is_not_a_fall(monkeypatch):
     monkeypatch.setattr(detector, "BELOW_FLOOR_REL", 10.0)
     _, out = events(cfg)
     assert [e.state for e in out][:1] == ["falling"]
+
+
+def test_a_seated_persons_feet_give_the_floor_when_the_guess_is_rejected():
+    """A wall camera 35 deg down, the config told nothing, a person only ever seen sitting (a fall from a
+    chair): their trunk rejects the level guess, and their feet, on the floor as a standing person's are,
+    give the floor along the body's gravity (before, nothing did: heights were then taken from the lowest
+    joint, and a fall from the chair lay at half a standing pelvis height)."""
+    import numpy as np
+
+    tilt = np.radians(35.0)
+    down = np.array([0.0, np.cos(tilt), np.sin(tilt)])          # gravity in camera axes
+    ahead = np.array([0.0, -np.sin(tilt), np.cos(tilt)])         # level, away from the camera
+    ankle_height = 0.08
+    ankles = 3.0 * ahead + (2.0 - ankle_height) * down            # the floor 2 m below the camera
+    geo = CameraGeometry(FallsConfig())
+    assert not geo.measured and geo.floor_below_camera == pytest.approx(1.0)   # the guess: level, 1 m
+    for _ in range(30):                                           # 3 s sitting at 10 fps
+        geo.observe_seated_trunk(-down, 0.1, ankles, ankle_height)
+    assert geo.used() == {"gravity": "body", "floor": "learned", "config": "guess"}
+    assert np.degrees(np.arccos(np.clip(geo.gravity @ down, -1.0, 1.0))) < 3.5     # within the body's step
+    assert geo.floor_below_camera == pytest.approx(2.0, abs=0.15)
+    # the same sitting without the feet in view: the guess is rejected and no floor is known
+    blind = CameraGeometry(FallsConfig())
+    for _ in range(30):
+        blind.observe_seated_trunk(-down, 0.1)
+    assert blind.used()["gravity"] == "body" and blind.floor_below_camera is None
+
+
+def test_a_fall_from_a_chair_on_a_wall_camera_is_judged_on_the_floor_under_the_seated_feet():
+    """The whole detector on a simulated fall from a chair, the wall camera and the default config: the event
+    says the floor was learned (under the seated person's feet), not taken from the lowest joint."""
+    sc = WALL["wall/tune/fall/sitting-forward/fast-v30"]
+    _, events = run(sc, FallsConfig())
+    first = next(e for e in events if e.state in ("falling", "on_floor"))
+    assert first.extra["geometry"]["gravity"] == "body" and first.extra["geometry"]["floor"] == "learned"
