@@ -11,6 +11,7 @@ import itertools
 import json
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from posed.bench.falls_scenarios import catalogue, frames, truth_result
@@ -174,8 +175,6 @@ def test_a_seated_persons_feet_give_the_floor_when_the_guess_is_rejected():
     chair): their trunk rejects the level guess, and their feet, on the floor as a standing person's are,
     give the floor along the body's gravity (before, nothing did: heights were then taken from the lowest
     joint, and a fall from the chair lay at half a standing pelvis height)."""
-    import numpy as np
-
     tilt = np.radians(35.0)
     down = np.array([0.0, np.cos(tilt), np.sin(tilt)])          # gravity in camera axes
     ahead = np.array([0.0, -np.sin(tilt), np.cos(tilt)])         # level, away from the camera
