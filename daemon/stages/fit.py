@@ -53,10 +53,9 @@ class StreamFit:
 class PeopleFit:
     """Every person of a frame fitted by a :class:`StreamFit` of their own (see the module doc)."""
 
-    def __init__(self, make_fitter, assumed_hfov_deg: float | None = None) -> None:
+    def __init__(self, make_fitter, assumed_hfov_deg: float) -> None:
         """``assumed_hfov_deg``: the field of view (across the image's longer side) of the lens assumed for
-        frames without intrinsics (``falls.camera_hfov_deg``); None: such frames are fitted without one
-        (orthographic)."""
+        frames without intrinsics (``falls.camera_hfov_deg``)."""
         self.make_fitter = make_fitter
         self.assumed_hfov_deg = assumed_hfov_deg
         self.main = StreamFit(make_fitter())     # the frame's own person (the only one without ``people``)
@@ -66,7 +65,7 @@ class PeopleFit:
 
     def fit(self, frame, t_capture: float, image_size, intrinsics):
         """(the frame's own person's result, the other people's results)."""
-        if intrinsics is None and self.assumed_hfov_deg:
+        if intrinsics is None:
             intrinsics = Intrinsics.assume(self.assumed_hfov_deg, int(image_size[0]), int(image_size[1]))
         people = frame.people
         if not people:
