@@ -235,6 +235,14 @@ class CameraGeometry:
         self.gravity = g
         self.roll_deg = tilt_roll_deg(g)[1]
 
+    @property
+    def gravity_measured(self) -> bool:
+        """Whether the gravity in use was measured: an IMU's, the depth floor's, tilt and roll learned from
+        image lines (:mod:`falls.geometry`) or configured for a measured mount; not a guess, nor a standing
+        body's axis (the fit's depth makes it good to some 10 degrees only)."""
+        return self._gravity_imu is not None or self._gravity_from in ("depth", "learned") or \
+            (self.measured and self._gravity_from == "config")
+
     # ------------------------------------------------------------------ floor and standing height
 
     @property
@@ -272,8 +280,10 @@ class CameraGeometry:
                       ankle_height_m: float = 0.0) -> None:
         """The floor seen below the feet of a person standing upright (m below the camera); ``ankles_c`` (their
         ankles' point, camera axes) and ``ankle_height_m`` (the ankles' height above the floor) keep it as a
-        point on the floor, so that a refined body gravity re-projects it instead of forgetting it."""
-        if self.cfg.learn_floor:
+        point on the floor, so that a refined body gravity re-projects it instead of forgetting it. Feet at or
+        above the camera's height are no floor (the gravity in use is wrong, as a guess 20 deg or more off puts
+        feet a few metres away): dropped."""
+        if self.cfg.learn_floor and below_camera_m > 0.0:   # feet above the camera: the gravity in use is wrong
             self._floor_learned, self._floor_weight = _ema(self._floor_learned, self._floor_weight, below_camera_m)
             if ankles_c is not None and np.all(np.isfinite(ankles_c)):
                 w = min(self._floor_weight, EMA_MAX_WEIGHT)

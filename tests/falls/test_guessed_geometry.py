@@ -16,6 +16,7 @@ import pytest
 
 from posed.bench.falls_scenarios import catalogue, frames, truth_result
 from posed.daemon.bus.payloads import event_message
+from posed.falls import detector as detector_module
 from posed.falls.camera_geometry import CameraGeometry
 from posed.falls.config import FallsConfig
 from posed.falls.detector import FallDetector
@@ -201,3 +202,55 @@ def test_a_fall_from_a_chair_on_a_wall_camera_is_judged_on_the_floor_under_the_s
     _, events = run(sc, FallsConfig())
     first = next(e for e in events if e.state in ("falling", "on_floor"))
     assert first.extra["geometry"]["gravity"] == "body" and first.extra["geometry"]["floor"] == "learned"
+
+
+def test_a_seated_persons_feet_teach_a_measured_mount_its_floor():
+    """The wall camera measured (35 deg, 2 m) but its lens assumed: the person's metres come out some 15 %
+    short, so under the configured 2 m a person who only sat before falling from the chair lies well above the
+    floor. Their feet rest on the floor as a standing person's do: the floor is learned from them, and the fall
+    is caught, judged on that floor."""
+    sc = WALL["wall/tune/fall/sitting-sideways/fast-v30"]
+    det, events = run(sc, FallsConfig(camera_tilt_deg=35.0, camera_height_m=2.0))
+    first = next(e for e in events if e.state in ("falling", "on_floor"))
+    assert 0.0 <= first.t_detect - sc.truth.t_impact <= 1.5
+    assert first.extra["geometry"]["floor"] == "learned" and first.extra["geometry"]["gravity"] == "config"
+    assert det.camera.floor_below_camera < 1.85     # the fit's metres, not the configured 2 m
+
+
+def test_seated_feet_teach_the_floor_only_along_a_measured_gravity(monkeypatch):
+    """Under the level guess a seated person's feet only give the point used once the body rejects the guess;
+    along a measured mount's gravity they teach the floor."""
+    assert not CameraGeometry(FallsConfig()).gravity_measured
+    assert CameraGeometry(FallsConfig(camera_tilt_deg=35.0, camera_height_m=2.0)).gravity_measured
+    imu = CameraGeometry(FallsConfig())
+    imu.set_imu(np.array([0.0, 0.8, 0.6]))
+    assert imu.gravity_measured
+    measured = []                                           # each frame's features, as the detector measured them
+    measure = detector_module.measure
+    monkeypatch.setattr(detector_module, "measure", lambda *a, **k: measured.append(measure(*a, **k)) or measured[-1])
+    seated_calls = []
+    observe_floor = CameraGeometry.observe_floor
+
+    def spy(self, *args, **kwargs):
+        if not measured[-1].upright_legs:                   # a seated frame's feet
+            seated_calls.append(self.gravity_measured)
+        return observe_floor(self, *args, **kwargs)
+
+    monkeypatch.setattr(CameraGeometry, "observe_floor", spy)
+    sc = WALL["wall/tune/fall/sitting-sideways/fast-v30"]
+    for cfg in (FallsConfig(), FallsConfig(camera_tilt_deg=35.0, camera_height_m=2.0)):
+        run(sc, cfg)
+    assert seated_calls and all(seated_calls)               # only along the measured mount's gravity
+
+
+def test_feet_above_the_camera_teach_no_floor():
+    """Along a gravity 20 deg or more off (a tilt left at 0 on a camera looking down), feet a few metres away
+    come out above the camera: no floor is there, and learning one put everyone at floor level (a person
+    sitting down on a chair raised a fall). Such observations are dropped; real ones are learned."""
+    geo = CameraGeometry(FallsConfig(camera_height_m=1.3))
+    for _ in range(10):
+        geo.observe_floor(-0.47)
+    assert geo.floor_below_camera == 1.3 and geo.used()["floor"] == "config"
+    for _ in range(5):
+        geo.observe_floor(1.1)
+    assert geo.floor_below_camera == pytest.approx(1.1) and geo.used()["floor"] == "learned"
