@@ -14,7 +14,7 @@ down. Heights are metres along ``g``.
   height above it, and each frame's heights are measured along that frame's true gravity, so they stay
   comparable: each reading is used as it comes, and nothing is forgotten.
 * **Floor**: the plane measured in the depth image (its distance along the gravity in use), else its distance
-  below the camera learned from the ankles of a person standing upright
+  below the camera learned from the ankles of a person standing or sitting upright
   (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m`` (0: unknown).
 * **Standing pelvis height**: learned the same way (after ``STAND_MIN_WEIGHT`` observations).
 * **Trust** (``camera_geometry``): configured values that were measured for this mount are used as they are.
@@ -216,14 +216,17 @@ class CameraGeometry:
         self._gravity_from = src
         if float(g @ self.gravity) >= math.cos(math.radians(step)):
             return False  # the learned estimate drifts by less than a step: keep the gravity in use
-        if src == "body" and previous in ("config", "body") and self._floor_point is None \
-                and self._body_floor_w >= BODY_MIN_S - 1e-9:
-            # the guess rejected before a floor was learned: the floor under the straight bodies seen
+        if src == "body" and previous in ("config", "body") and self._body_floor_w >= BODY_MIN_S - 1e-9 \
+                and (self._floor_point is None or self._floor_weight < FLOOR_MIN_WEIGHT):
+            # the guess rejected before a floor was learned (fewer than FLOOR_MIN_WEIGHT observations are none
+            # yet): the floor under the straight and seated bodies seen
             self._floor_point = self._body_floor_sum / self._body_floor_w
             self._floor_weight = FLOOR_MIN_WEIGHT
-        if src == "body" and previous in ("config", "body") and self._floor_point is not None:
+        if src == "body" and previous in ("config", "body") and self._floor_point is not None \
+                and float(self._floor_point @ g) > 0.0:
             # the guess rejected or the body's gravity refined: the floor seen under the feet is still a point on
-            # the floor, re-projected along the new gravity; the standing height (metres) is kept
+            # the floor, re-projected along the new gravity (unless it comes out at or above the camera, which no
+            # floor is: observe_floor); the standing height (metres) is kept
             self._floor_learned = float(self._floor_point @ g)
         else:
             self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
@@ -234,14 +237,6 @@ class CameraGeometry:
     def _use(self, g: np.ndarray) -> None:
         self.gravity = g
         self.roll_deg = tilt_roll_deg(g)[1]
-
-    @property
-    def gravity_measured(self) -> bool:
-        """Whether the gravity in use was measured: an IMU's, the depth floor's, tilt and roll learned from
-        image lines (:mod:`falls.geometry`) or configured for a measured mount; not a guess, nor a standing
-        body's axis (the fit's depth makes it good to some 10 degrees only)."""
-        return self._gravity_imu is not None or self._gravity_from in ("depth", "learned") or \
-            (self.measured and self._gravity_from == "config")
 
     # ------------------------------------------------------------------ floor and standing height
 
@@ -278,8 +273,8 @@ class CameraGeometry:
 
     def observe_floor(self, below_camera_m: float, ankles_c: np.ndarray | None = None,
                       ankle_height_m: float = 0.0) -> None:
-        """The floor seen below the feet of a person standing upright (m below the camera); ``ankles_c`` (their
-        ankles' point, camera axes) and ``ankle_height_m`` (the ankles' height above the floor) keep it as a
+        """The floor seen below the feet of a person standing or sitting upright (m below the camera); ``ankles_c``
+        (their ankles' point, camera axes) and ``ankle_height_m`` (the ankles' height above the floor) keep it as a
         point on the floor, so that a refined body gravity re-projects it instead of forgetting it. Feet at or
         above the camera's height are no floor (the gravity in use is wrong, as a guess 20 deg or more off puts
         feet a few metres away): dropped."""

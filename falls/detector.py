@@ -284,12 +284,12 @@ class FallDetector:
         cfg = self.cfg
         geo = self.camera
         # learn the floor and the standing height from a person standing upright with straight legs; the floor
-        # also from a person sitting upright (hips and knees flexed 60-120 deg: their feet rest on the floor)
-        # where gravity was measured (camera_geometry.gravity_measured; under a guess their feet give the floor
-        # point that is used once the body rejects the guess, CameraGeometry.observe_seated_trunk)
+        # also from a person sitting upright (hips and knees flexed 60-120 deg: their feet rest on the floor as
+        # a standing person's do), along whatever gravity is in use, as for standing feet (feet at or above the
+        # camera teach nothing: CameraGeometry.observe_floor)
         upright_trunk = f.trunk_incl_deg < cfg.upright_trunk_deg
         standing = upright_trunk and f.upright_legs
-        seated = upright_trunk and f.seated_trunk_up_c is not None and geo.gravity_measured
+        seated = upright_trunk and f.seated_trunk_up_c is not None
         if (standing or seated) and f.below_camera_ankles is not None:
             geo.observe_floor(f.below_camera_ankles + ANKLE_OVER_LEG * f.leg_length, f.ankles_c,
                               ANKLE_OVER_LEG * f.leg_length)
