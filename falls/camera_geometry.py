@@ -20,9 +20,12 @@ down. Heights are metres along ``g``.
 * **Trust** (``camera_geometry``): configured values that were measured for this mount are used as they are.
   A guess (a freshly started daemon with the default tilt 0 and height 1 m) is checked: gravity then comes from the
   person's own standing body once it contradicts the guess (the fit's mid-ankle -> mid-shoulder axis of
-  straight-body frames, averaged over time; ``BODY_REJECT_DEG``), and the configured height is then dropped
+  straight-body frames, averaged over time; ``BODY_REJECT_DEG``), and a guessed height is then dropped
   too: heights above the floor count once the floor was learned from their feet (before that the lowest
-  fitted joint stands in for the floor). :meth:`CameraGeometry.used` says which sources a frame was judged with.
+  fitted joint stands in for the floor). With ``auto`` each value is trusted on its own once set
+  (``tilt_measured``: the tilt or roll differs from 0; ``measured``: any of the three differs from its
+  default): a height set with the tilt left at 0 is kept while the tilt is checked against the body.
+  :meth:`CameraGeometry.used` says which sources a frame was judged with.
 * **Measured beats guessed**: a floor seen in the depth image is a measurement of this mount, now: it ranks
   above everything learned from people and above the configured values (even ``measured`` ones: a robot's
   camera moves). The IMU still gives the gravity when there is one (it follows the camera from frame to frame;
@@ -85,6 +88,9 @@ class CameraGeometry:
         mode = cfg.camera_geometry
         self.measured = mode == "measured" or (mode == "auto" and (cfg.camera_tilt_deg, cfg.camera_roll_deg,
                                                                    cfg.camera_height_m) != DEFAULT_GEOMETRY)
+        # the tilt and roll alone: a height set with them left at 0 is trusted, they are still checked (body)
+        self.tilt_measured = mode == "measured" or (mode == "auto" and (cfg.camera_tilt_deg, cfg.camera_roll_deg)
+                                                    != DEFAULT_GEOMETRY[:2])
         self._floor_point: np.ndarray | None = None   # a point on the learned floor, camera axes
         self._body_floor_sum = np.zeros(3)         # time-weighted sum of floor points under straight bodies
         self._body_floor_w = 0.0
@@ -149,7 +155,7 @@ class CameraGeometry:
         configured geometry is a guess and neither an IMU nor the learned tilt gives it; its ankles (camera axes)
         and their height above the floor give a point on the floor along that axis, used if the guess is
         rejected before the floor was learned. True when the gravity in use changed."""
-        if self.measured or up_c is None or not np.all(np.isfinite(up_c)):
+        if self.tilt_measured or up_c is None or not np.all(np.isfinite(up_c)):
             return False
         if ankles_c is not None and np.all(np.isfinite(ankles_c)):
             w = min(max(dt, 0.0), 0.2)
@@ -183,7 +189,7 @@ class CameraGeometry:
     def _body_gravity(self) -> np.ndarray | None:
         """The standing body's gravity once ``BODY_MIN_S`` were seen and it contradicts the configured guess
         by more than ``BODY_REJECT_DEG`` (None: keep the guess)."""
-        if self.measured or self._body_s < BODY_MIN_S - 1e-9:
+        if self.tilt_measured or self._body_s < BODY_MIN_S - 1e-9:
             return None
         g = self._body_sum / np.linalg.norm(self._body_sum)
         if self._gravity_from != "body" and float(g @ self._gravity_cfg) > math.cos(math.radians(BODY_REJECT_DEG)):
@@ -249,8 +255,9 @@ class CameraGeometry:
             return depth
         if self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT:
             return self._floor_learned
-        if self._gravity_from == "body":
+        if self._gravity_from == "body" and not self.measured:
             return None   # the body contradicted the configured guess: its height is no better (lowest joint)
+        # (a height configured on its own, with the tilt left at 0, is a measurement: kept along the body's gravity)
         return self._floor_cfg
 
     def metric_floor(self) -> float | None:

@@ -48,6 +48,29 @@ def test_the_configured_geometry_is_a_guess_only_at_its_defaults():
     assert CameraGeometry(FallsConfig(camera_tilt_deg=12.0)).measured
     assert CameraGeometry(FallsConfig(camera_geometry="measured")).measured
     assert not CameraGeometry(FallsConfig(camera_tilt_deg=12.0, camera_geometry="guess")).measured
+    # each value on its own: a height set with the tilt and roll left at 0 trusts the height, not the tilt
+    assert not CameraGeometry(FallsConfig(camera_height_m=0.85)).tilt_measured
+    assert CameraGeometry(FallsConfig(camera_roll_deg=-3.0)).tilt_measured
+    assert CameraGeometry(FallsConfig(camera_geometry="measured")).tilt_measured
+
+
+def test_a_configured_height_is_kept_while_a_tilt_left_at_0_is_checked_against_the_body():
+    """A wall camera 2 m up, 35 deg down, configured with its height only (the tilt left at 0): the standing
+    body rejects the level tilt, and the configured 2 m stays the floor along the body's gravity (before, a
+    height alone made the tilt 0 trusted as well, and a wall camera caught 5 of 111 simulated falls). A tilt
+    that was configured is never checked."""
+    tilt = np.radians(35.0)
+    down = np.array([0.0, np.cos(tilt), np.sin(tilt)])
+    geo = CameraGeometry(FallsConfig(camera_height_m=2.0))
+    for _ in range(30):                                           # 3 s standing, feet not in view
+        geo.observe_body_axis(-down, 0.1)
+    assert geo.used() == {"gravity": "body", "floor": "config", "config": "measured"}
+    assert np.degrees(np.arccos(np.clip(geo.gravity @ down, -1.0, 1.0))) < 3.5
+    assert geo.floor_below_camera == 2.0 and geo.metric_floor() == 2.0
+    told = CameraGeometry(FallsConfig(camera_tilt_deg=5.0, camera_height_m=2.0))
+    for _ in range(30):
+        told.observe_body_axis(-down, 0.1)
+    assert told.used()["gravity"] == "config" and told.floor_below_camera == 2.0
 
 
 @pytest.mark.parametrize("name", WALL_FALLS)
