@@ -42,11 +42,11 @@ class FallsConfig:
         default="auto", metadata={"doc": "how far the configured camera_tilt_deg, camera_roll_deg and camera_height_m "
                                          "are trusted: measured (for this mount), guess (checked against the "
                                          "person's standing body: one that contradicts the tilt and roll by more "
-                                         "than 20 deg replaces them and the height), auto (each measured once set: "
-                                         "the height when it differs from its default 1.0, the tilt and roll "
-                                         "when either differs from 0; what is left at its default is a guess, "
-                                         "so a height set with the tilt left at 0 is trusted while the tilt is "
-                                         "checked against the body); see docs/falls.md",
+                                         "than 20 deg replaces them and the height), auto (measured when any of the "
+                                         "three differs from its default 0, 0, 1.0, otherwise guess; the tilt "
+                                         "and roll, though, only when one of them was set: a height set with "
+                                         "the tilt left at 0 is trusted while the tilt is checked against the "
+                                         "body); see docs/falls.md",
                                   "choices": ("auto", "measured", "guess")}
     )
     camera_tilt_auto: bool = field(
