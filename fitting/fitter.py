@@ -45,7 +45,13 @@ from posed.fitting.measured import Measured, measured_landmarks
 from posed.fitting.projection import image_scale
 from posed.fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
 from posed.fitting.result import FitResult
-from posed.fitting.world_term import SENSOR_WORLD, WORLD_WEIGHT, rotation_observable, world_depths
+from posed.fitting.world_term import (
+    SENSOR_WORLD,
+    WORLD_WEIGHT,
+    rotation_observable,
+    world_depths,
+    world_joints,
+)
 
 MODES = ("video", "image")
 _TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
@@ -275,7 +281,9 @@ class Fitter:
                 use = (depth.weights >= DEPTH_MIN_WEIGHT) & (frame.weights > 0)
                 pts = joint_points(xy, self._depth, use, SURFACE_M, intrinsics)
                 sd = DEPTH_RMS_K * depth.root_z ** 2   # the camera's noise at the person's distance
-            self._learner.observe(obs, frame.weights, image_scale(x, frame.data), self.dims, pts, sd)
+            # the world landmarks' 3D joints give lengths too, where the fit used them (not judged garbage)
+            world = None if camera_depth or self._depth is None else world_joints(self._world, cfg.visibility_drop)
+            self._learner.observe(obs, frame.weights, image_scale(x, frame.data), self.dims, pts, sd, world)
             self._learn_t = t
         return result
 

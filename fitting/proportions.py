@@ -34,6 +34,24 @@ shrunk towards the model as a normal prior of spread ``PRIOR_SD`` shrinks it (``
 count of pseudo-samples (the image samples keep that: theirs is an upper envelope over poses, and a few
 frames of one pose agree with each other without measuring the length).
 
+**With BlazePose's world landmarks** (issue 38: they are metric; ``world`` of :meth:`ProportionLearner.observe`)
+the lengths are measured the same way, from the world landmarks' 3D joint positions on every frame whatever the
+pose: the median, shrunk by its scatter as the depth camera's samples are. They are the landmark model's own
+joint centres, the very points the 2D landmarks mark, so the lengths they give are the ones the 2D landmarks
+show (a motion-capture or another model's skeleton differs: a real video's upper arm 0.24 m in BlazePose's
+world landmarks against 0.28 m between another model's triangulated joints). Their metres assume an average
+body; only their ratios matter here: they teach the limbs and the trunk (``WORLD_GROUPS``), the three lengths
+stacked in the height among them, so that their scale cancels when the whole body is scaled to the configured
+height (below). Not the hip width: the image measures it as a ratio to the shoulders' (no scale), while
+BlazePose's world hips spread with the pose (the real squat video: 1.23-1.33 of the model's hip width over the
+squats, against 1.06-1.14 from the image's standing frames). Their errors are shared along a limb rather than
+independent at each end, so nothing is taken off for noise. A depth camera, when it has enough samples of a
+group, is used instead. Otherwise the world landmarks' lengths are the group's until the image has MIN_SAMPLES
+of its own, and then the prior the image's estimate is shrunk towards (PRIOR_SAMPLES pseudo-samples), in place
+of the configured body: the image measures a limb only in the image plane, the world landmarks on every frame
+but with an error of their own, and the image's measurement is the one the 2D fit must agree with. A person
+seen before (``retain``) keeps what was learned of them as that prior.
+
 What was learned outlives a while without anybody in view (``ProportionLearner.retain``): the samples start
 over, shrunk towards the learned ratios instead of the configured ones, so a person coming back is fitted with
 their own proportions at once and someone else's samples move them as they would move the configured ones;
@@ -77,6 +95,7 @@ MAX_IMAGE_TILT_DEG = 25.0   # a segment within this of the image's vertical (poi
 MAX_TRUNK_TILT_DEG = 30.0   # the trunk (mid-hip -> mid-shoulder) within this of the image's vertical (up)
 MAX_PAIR_MISMATCH = 0.3     # |r_upper / r_lower - 1| above this: one of the two is foreshortened
 MIN_FACING = 0.5            # hip width: the shoulders show at least this fraction of their width (not edge-on)
+WORLD_GROUPS = ("arm", "leg", "trunk")   # the groups BlazePose's world landmarks teach (module docstring)
 HISTORY = 600               # samples kept per group (newest win): 30 s of both sides at 10 fps
 DEPTH_SAMPLE_RANGE = (0.5, 2.0)   # a 3D sample outside this ratio to the configured length is garbage (left out)
 DEPTH_MIN_WEIGHT = 0.25     # a landmark's depth is used for lengths when its robust weight is at least this
@@ -102,12 +121,13 @@ _REL_FIELDS = (*LENGTH_FIELDS, "shoulder_half_m")   # the lengths the samples ar
 class LimbScale:
     """What was learned: each learned length field's ratio to the configured proportions (absent = 1.0), the
     size factor of the whole body (every length, the height included), the image samples per group and the 3D
-    samples per group (depth; groups without any left out)."""
+    samples per group (depth, and world landmarks; groups without any left out)."""
 
     ratio: dict[str, float] = field(default_factory=dict)
     size: float = 1.0
     samples: dict[str, int] = field(default_factory=dict)
     depth_samples: dict[str, int] = field(default_factory=dict)   # 3D samples per group (from depth)
+    world_samples: dict[str, int] = field(default_factory=dict)   # 3D samples per group (world landmarks)
 
     def of(self, name: str) -> float:
         """The factor on the configured length ``name`` (any BodyDimensions field)."""
@@ -126,6 +146,8 @@ class LimbScale:
         out["samples"] = dict(self.samples)
         if self.depth_samples:
             out["depth_samples"] = dict(self.depth_samples)
+        if self.world_samples:
+            out["world_samples"] = dict(self.world_samples)
         return out
 
 
@@ -262,6 +284,17 @@ class _Window:
                     self._learned[f] = r
         return self._learned
 
+    def learned_towards(self, prior: dict[str, float]) -> dict[str, float]:
+        """As :meth:`learned` for image samples (``min_samples`` of them at least), shrunk towards ``prior``
+        (ratios; absent fields: 1) instead of the window's own prior."""
+        n = len(self.ring)
+        out = {}
+        for f, v in zip(self.fields, self.rank(self.pct), strict=True):
+            r = toward_prior(v, n, PRIOR_SAMPLES, prior.get(f, 1.0))
+            if abs(r - 1.0) >= DEAD_ZONE:
+                out[f] = r
+        return out
+
 
 class ProportionLearner:
     """Learns the person's proportions from video frames; ``dims()`` gives the lengths to fit with."""
@@ -293,35 +326,42 @@ class ProportionLearner:
 
     def _start(self, prior: dict[str, float]) -> None:
         """Empty sample windows shrinking towards ``prior`` (ratios to the configured proportions; absent: 1)."""
+        self._retained = bool(prior)   # the samples start from what was learned of a person before (retain)
         # per group: the recent samples as multiples of the *configured* proportions
         self._win = {name: _Window(fs, pct, prior=prior) for name, fs, pct in GROUPS}   # GROUPS order
-        self._win3 = {name: _Window(fs, 50.0, scatter_prior=True, prior=prior)   # 3D (_add_depth)
+        self._win3 = {name: _Window(fs, 50.0, scatter_prior=True, prior=prior)   # 3D from depth (_add_3d)
                       for name, fs, _ in GROUPS}
+        self._winw = {name: _Window(fs, 50.0, scatter_prior=True, prior=prior)   # 3D, world landmarks
+                      for name, fs, _ in GROUPS if name in WORLD_GROUPS}
 
     @property
     def scale(self) -> LimbScale:
         return self._scale
 
     def observe(self, obs: np.ndarray, w: np.ndarray, k: np.ndarray, dims: BodyDimensions,
-                pts: np.ndarray | None = None, depth_sd_m: float = 0.0) -> None:
+                pts: np.ndarray | None = None, depth_sd_m: float = 0.0, world: np.ndarray | None = None) -> None:
         """Add one fitted frame (see ``samples``; ``dims`` the lengths its fit used; ``pts`` its joint centres
-        placed in 3D from depth with noise ``depth_sd_m`` along the optical axis, see :meth:`_add_depth`) and
-        update the estimate."""
+        placed in 3D from depth with noise ``depth_sd_m`` along the optical axis; ``world`` the 12 body joints
+        of BlazePose's world landmarks, metres, NaN rows where unknown; see :meth:`_add_3d`) and update the
+        estimate."""
         got = samples(obs, w, k, dims)
         if got:
             rel = self._relative(dims)
             for name, ratios in got:
                 factors, divisor = rel[name]
                 self.add(name, [r * f / divisor for r, f in zip(ratios, factors, strict=True)])
-        if (pts is not None and self._add_depth(pts, depth_sd_m)) or got:
+        added = pts is not None and self._add_3d(self._win3, pts, depth_sd_m)
+        added = (world is not None and self._add_3d(self._winw, world, 0.0)) or added
+        if added or got:
             self._scale = self._estimate()
 
-    def _add_depth(self, pts: np.ndarray, sd: float) -> bool:
-        """Add one frame's 3D samples (whether any was added): ``pts`` the 12 body joint centres (12 x 3,
-        metres, camera frame; NaN rows for landmarks without a usable depth, see :func:`joint_points`). Each
+    def _add_3d(self, windows: dict[str, _Window], pts: np.ndarray, sd: float) -> bool:
+        """Add one frame's 3D samples to ``windows`` (whether any was added): ``pts`` the 12 body joint centres
+        (12 x 3, metres; NaN rows for landmarks without a usable 3D position, see :func:`joint_points`). Each
         sample is a segment's 3D length over the configured length (``arm``, ``leg``: both segments of a side;
-        ``trunk``: mid-shoulder to mid-hip; ``hip``: the hip width). Depth noise of ``sd`` metres at each end
-        adds ``2 sd^2`` to a segment's expected squared length (``sd^2`` between two midpoints): taken off."""
+        ``trunk``: mid-shoulder to mid-hip; ``hip``: the hip width). Noise of ``sd`` metres at each end, along
+        one axis and independent, adds ``2 sd^2`` to a segment's expected squared length (``sd^2`` between two
+        midpoints): taken off."""
         p = np.asarray(pts, dtype=np.float64).tolist()   # plain floats: per-frame cost
         mid_sh = [0.5 * (a + b) for a, b in zip(p[0], p[1], strict=True)]
         mid_hp = [0.5 * (a + b) for a, b in zip(p[6], p[7], strict=True)]
@@ -341,8 +381,8 @@ class ProportionLearner:
         lo, hi = DEPTH_SAMPLE_RANGE
         added = False
         for name, row in rows:
-            if all(lo <= v <= hi for v in row):   # (False for NaN)
-                self._win3[name].add(row)
+            if name in windows and all(lo <= v <= hi for v in row):   # (False for NaN)
+                windows[name].add(row)
                 added = True
         return added
 
@@ -369,8 +409,17 @@ class ProportionLearner:
     def _estimate(self) -> LimbScale:
         ratio: dict[str, float] = {}   # LENGTH_FIELDS order (GROUPS order, each group's fields in order)
         for name, win in self._win.items():
-            measured = self._win3[name]   # 3D lengths from depth, where there are enough
-            ratio.update(measured.learned() if measured.ready() else win.learned())
+            depth, world = self._win3[name], self._winw.get(name)
+            if depth.ready():                           # a depth camera's 3D lengths
+                ratio.update(depth.learned())
+            elif world is None or not world.ready():    # the image alone
+                ratio.update(win.learned())
+            elif not win.ready():                       # the world landmarks' 3D lengths until the image has some
+                ratio.update(world.learned())
+            elif self._retained:                        # the image, from what was learned of the person before
+                ratio.update(win.learned())
+            else:                                       # the image, from the world landmarks' lengths
+                ratio.update(win.learned_towards(world.learned()))
         # the image shows proportions, not size: the whole body is scaled so that the legs and the trunk (stacked
         # when standing) add up to the configured ones, the person's height being what the user configured
         old = self._scale
@@ -379,7 +428,8 @@ class ProportionLearner:
         else:
             size = self._height / sum([m * ratio.get(f, 1.0) for f, m in self._height_pairs])
         return LimbScale(ratio, size, {name: win.added for name, win in self._win.items()},
-                         {name: win.added for name, win in self._win3.items() if win.added})
+                         {name: win.added for name, win in self._win3.items() if win.added},
+                         {name: win.added for name, win in self._winw.items() if win.added})
 
     def dims(self) -> BodyDimensions:
         """The configured dimensions with the learned proportions (built again only when they change)."""

@@ -25,6 +25,8 @@ Values (no test set tuned them):
   image plane) gives sigma = 12 / (0.81 sqrt 2) = 10.5 cm.
 * :data:`WORLD_WEIGHT`, its weight against the 2D landmarks: 1, the maximum-a-posteriori weighting (a world
   depth one sigma off costs what an image landmark one noise sigma off costs), where a depth camera gets 10.
+* The person's proportions: the world landmarks' 3D joints give each segment's length on every frame, whatever
+  the pose (:func:`world_joints`, learned in fitting.proportions); their scale is not used there either.
 * The scale: BlazePose's metres assume an average body; the depths are scaled by the median ratio of the
   model's limb lengths to the world landmarks' own (:func:`world_depths`), so a child or a tall man is
   compared in the model's units.
@@ -81,6 +83,16 @@ def world_depths(world: np.ndarray | None, dims: BodyDimensions, visibility_drop
     rows = w[list(BODY_LANDMARKS)]
     out = WORLD_Z0_M + scale * rows[:, 2]
     out[~np.isfinite(out) | ~(rows[:, 3] >= visibility_drop)] = np.nan
+    return out
+
+
+def world_joints(world: np.ndarray, visibility_drop: float) -> np.ndarray:
+    """The 12 body landmarks' world positions (12 x 3, metres, BlazePose's hip-centred axes) for the person's
+    lengths (fitting.proportions): NaN rows where the world landmark is unknown or its visibility is below
+    ``visibility_drop``, as the image landmarks are dropped."""
+    rows = np.asarray(world, dtype=np.float64)[list(BODY_LANDMARKS)]
+    out = rows[:, :3].copy()
+    out[~np.isfinite(out).all(axis=1) | ~(rows[:, 3] >= visibility_drop)] = np.nan
     return out
 
 

@@ -381,3 +381,110 @@ def test_joint_points_back_projects_pixels_at_the_measured_depth_behind_the_surf
     use[3] = False
     got = PR.joint_points(px, joints[:, 2] - surface, use, surface, k)
     assert np.allclose(got[use], joints[use], atol=1e-12) and np.isnan(got[3]).all()
+
+
+def test_world_landmarks_measure_the_proportions_in_their_own_metres():
+    """BlazePose's world landmarks as 3D samples: the person of ``_shorter_armed`` in metres that assume
+    another body (all 8 % short) with a few per cent of error on each frame and a joint unknown now and
+    then: the learned limb *proportions* are the person's within 2 % and the configured height is kept (their
+    scale is not taken); ``world_samples`` counts them; no image or depth sample is needed."""
+    base = BodyDimensions.from_height(1.7)
+    person = _shorter_armed(base)
+    rng = np.random.default_rng(11)
+    learner = PR.ProportionLearner(base)
+    for _ in range(40):
+        world = 0.92 * _joints_anywhere(rng, person, 0.0) * rng.normal(1.0, 0.02)
+        world -= 0.5 * (world[6] + world[7])                     # hip-centred, as BlazePose's
+        world[rng.integers(12)] = np.nan                          # a landmark below the visibility cut
+        learner.observe(np.zeros((12, 2)), np.zeros(12), np.ones(12), base, None, 0.0, world)
+    scale = learner.scale
+    assert not any(scale.samples.values()) and not scale.depth_samples
+    assert min(scale.world_samples.values()) >= PR.MIN_DEPTH_SAMPLES
+    assert scale.to_json()["world_samples"] == scale.world_samples
+    d = learner.dims()
+    assert d.thigh_m + d.shank_m + d.trunk_m == pytest.approx(base.thigh_m + base.shank_m + base.trunk_m)
+    for f in ("upper_arm_m", "forearm_m", "thigh_m", "shank_m"):       # proportions: relative to the trunk
+        want = getattr(person, f) / person.trunk_m
+        assert getattr(d, f) / d.trunk_m == pytest.approx(want, rel=0.02), f
+    assert set(scale.world_samples) == set(PR.WORLD_GROUPS) == {"arm", "leg", "trunk"}
+    assert "hip_half_m" not in scale.ratio               # not the hips: the image measures them, without scale
+
+
+def test_a_depth_camera_wins_over_the_world_landmarks():
+    """Both streams on every frame, the world landmarks of a body with the configured arms and the depth camera
+    measuring the person's 15 % shorter ones: the depth camera's lengths are the ones learned; without it the
+    world landmarks' are."""
+    base = BodyDimensions.from_height(1.7)
+    person = _shorter_armed(base)
+    rng = np.random.default_rng(12)
+    both, world_only = PR.ProportionLearner(base), PR.ProportionLearner(base)
+    for _ in range(20):
+        depth_pts, world = _joints_anywhere(rng, person, 0.01), _joints_anywhere(rng, base, 0.0)
+        both.observe(np.zeros((12, 2)), np.zeros(12), np.ones(12), base, depth_pts, 0.01, world)
+        world_only.observe(np.zeros((12, 2)), np.zeros(12), np.ones(12), base, None, 0.0, world)
+    assert both.scale.ratio["upper_arm_m"] == pytest.approx(0.85, abs=0.03)
+    assert both.scale.depth_samples and both.scale.world_samples
+    assert "upper_arm_m" not in world_only.scale.ratio               # the configured arms: the dead zone
+
+
+def test_video_mode_learns_the_mocap_subjects_arms_from_world_landmarks_at_once(walk):
+    """The CMU walk with world landmarks (its true joints, hip-centred; the fit gets them as BlazePose's):
+    within the first second video mode has the subject's short arms (14-16 % shorter than the model's), which
+    the image alone learns only from hanging arms after several seconds; every result says
+    ``world_samples``; image mode learns nothing."""
+    seq, clip, true = walk
+    k = seq.camera.intrinsics
+    lms = seq.landmarks[0]
+    world = np.full((len(lms), 33, 5), np.nan)
+    world[:, M.BODY12_IDX, :3] = seq.truth - 0.5 * (seq.truth[:, 6:7] + seq.truth[:, 7:8])
+    world[:, M.BODY12_IDX, 3:] = 1.0
+    cfg = FitConfig(body_height_m=round(clip.height_m, 3))
+    with_world, image_only = Fitter(cfg), Fitter(cfg)
+    n = 10                                                            # 1 s at 10 fps
+    res = [with_world.fit(lms[i], i, float(seq.times[i]), k.size, mode="video", intrinsics=k, world=world[i])
+           for i in range(n)]
+    _video(image_only, seq, n)
+    assert all(r.ok for r in res)
+    assert "world_samples" in res[-1].extra["limb_scale"] and "world" in res[-1].extra["evidence"]
+    base = with_world.base_dims
+    for f in ("upper_arm_m", "forearm_m"):
+        truth = getattr(true, f) / getattr(base, f)
+        assert with_world._learner.scale.of(f) == pytest.approx(truth, abs=0.05), f
+        assert image_only._learner.scale.of(f) > truth + 0.05, f         # the image: not yet (shrunk, few)
+    still = Fitter(cfg)
+    r = still.fit(lms[0], 0, 0.0, k.size, mode="image", intrinsics=k, world=world[0])
+    assert r.ok and "limb_scale" not in r.extra and still.dims == still.base_dims
+
+
+def test_image_samples_refine_the_world_landmarks_lengths_unless_the_person_was_seen_before():
+    """Once a group has MIN_SAMPLES image samples, its estimate is the image's, shrunk towards the world
+    landmarks' lengths (PRIOR_SAMPLES pseudo-samples) instead of towards the configured body; after ``retain``
+    (the person seen before) the image's estimate is shrunk towards what was learned of them, as without world
+    landmarks."""
+    base = BodyDimensions.from_height(1.7)
+    person = _shorter_armed(base)
+    rng = np.random.default_rng(13)
+    learner = PR.ProportionLearner(base)
+
+    def frame() -> None:
+        learner.observe(np.zeros((12, 2)), np.zeros(12), np.ones(12), base, None, 0.0,
+                        _joints_anywhere(rng, person, 0.0))
+
+    for _ in range(5):
+        frame()
+    world_arm = learner.scale.ratio["upper_arm_m"]
+    assert world_arm == pytest.approx(0.85, abs=0.01)               # the world landmarks alone so far
+    for _ in range(PR.MIN_SAMPLES):
+        learner.add("arm", [0.95, 0.95])
+    frame()
+    n = PR.MIN_SAMPLES
+    want = PR.toward_prior(0.95, n, PR.PRIOR_SAMPLES, learner._winw["arm"].learned()["upper_arm_m"])
+    assert learner.scale.ratio["upper_arm_m"] == pytest.approx(want, rel=1e-9)
+    assert 0.85 < want < 0.95
+    learned = learner.scale.ratio["upper_arm_m"]
+    learner.retain()
+    for _ in range(PR.MIN_SAMPLES):
+        learner.add("arm", [1.0, 1.0])
+    frame()
+    assert learner.scale.ratio["upper_arm_m"] == pytest.approx(
+        PR.toward_prior(1.0, PR.MIN_SAMPLES, PR.PRIOR_SAMPLES, learned), rel=1e-9)
