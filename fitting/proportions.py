@@ -67,6 +67,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 from statistics import NormalDist
 
@@ -268,32 +269,33 @@ class _Window:
         percentile shrunk towards the prior (by PRIOR_SAMPLES, or by the samples' scatter from their
         interquartile range, see ``shrink``), within BOUNDS; below ``min_samples`` the prior itself."""
         if self._learned is None:
-            self._learned = {}
             n = len(self.ring)
             if not self.ready():
-                got = list(zip(self.fields, self.prior, strict=True))
+                self._learned = _outside_dead_zone(zip(self.fields, self.prior, strict=True))
             elif self.pct_var is None:
-                got = [(f, toward_prior(v, n, PRIOR_SAMPLES, c))
-                       for f, v, c in zip(self.fields, self.rank(self.pct), self.prior, strict=True)]
+                self._learned = self._image_ratios(self.prior)
             else:
                 cols = zip(self.fields, self.rank(self.pct), self.rank(25.0), self.rank(75.0), self.prior,
                            strict=True)
-                got = [(f, shrink(v, n, (q3 - q1) / _IQR_SD, self.pct_var, c)) for f, v, q1, q3, c in cols]
-            for f, r in got:
-                if abs(r - 1.0) >= DEAD_ZONE:
-                    self._learned[f] = r
+                self._learned = _outside_dead_zone(
+                    (f, shrink(v, n, (q3 - q1) / _IQR_SD, self.pct_var, c)) for f, v, q1, q3, c in cols)
         return self._learned
 
     def learned_towards(self, prior: dict[str, float]) -> dict[str, float]:
         """As :meth:`learned` for image samples (``min_samples`` of them at least), shrunk towards ``prior``
         (ratios; absent fields: 1) instead of the window's own prior."""
+        return self._image_ratios([prior.get(f, 1.0) for f in self.fields])
+
+    def _image_ratios(self, priors: list[float]) -> dict[str, float]:
+        """Each field's percentile shrunk towards its entry of ``priors`` by PRIOR_SAMPLES, outside DEAD_ZONE."""
         n = len(self.ring)
-        out = {}
-        for f, v in zip(self.fields, self.rank(self.pct), strict=True):
-            r = toward_prior(v, n, PRIOR_SAMPLES, prior.get(f, 1.0))
-            if abs(r - 1.0) >= DEAD_ZONE:
-                out[f] = r
-        return out
+        return _outside_dead_zone((f, toward_prior(v, n, PRIOR_SAMPLES, c))
+                                  for f, v, c in zip(self.fields, self.rank(self.pct), priors, strict=True))
+
+
+def _outside_dead_zone(ratios: Iterable[tuple[str, float]]) -> dict[str, float]:
+    """The (field, ratio) pairs of ``ratios`` farther than DEAD_ZONE from 1 (closer: the configured length)."""
+    return {f: r for f, r in ratios if abs(r - 1.0) >= DEAD_ZONE}
 
 
 class ProportionLearner:
