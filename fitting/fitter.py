@@ -48,8 +48,10 @@ from posed.fitting.result import FitResult
 from posed.fitting.world_term import (
     SENSOR_WORLD,
     WORLD_WEIGHT,
+    flexion_prior,
     rotation_observable,
     world_depths,
+    world_flexion,
     world_joints,
 )
 
@@ -416,14 +418,20 @@ class Fitter:
         enough to rank them; the FINALISTS best are refined to convergence. With measured depth each
         refinement also carries the depth rows (robust weights from its start, re-solved from the trial's
         result for the finalists), unless no hypothesis agrees with the depth (garbage: the frame is fitted
-        without it)."""
+        without it). World landmarks that are used also measure the knees' and elbows' flexion, folded into the
+        prior (fitting.world_term.flexion_prior)."""
         cfg = self.config
         sig = np.full(L.N_VAR, math.radians(cfg.video_joint_speed_deg_s * max(dt, MIN_DT_S)))
         sig[0] = 0.0
-        data = P.with_prior(frame, cfg.video_smoothing * sigma2 / 12.0, prev, sig, -1.0)
-        w_depth = self._depth_weight * sigma2
         if self._depth is not None and not any(usable(self._depth_fit(frame, x), self._depth) for x in hypotheses):
             self._depth = None  # no hypothesis agrees with most of the measured depths: garbage, not used
+        mu = prev
+        if self._depth is not None and self._sensor is SENSOR_WORLD:
+            # the world landmarks (judged usable just above) measure the knees' and elbows' flexion too
+            mu = prev.copy()
+            flexion_prior(mu, sig, world_flexion(self._world, cfg.visibility_drop))
+        data = P.with_prior(frame, cfg.video_smoothing * sigma2 / 12.0, mu, sig, -1.0)
+        w_depth = self._depth_weight * sigma2
 
         best_x = np.empty(L.N_VAR)
         use_depth = self._depth is not None

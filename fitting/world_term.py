@@ -27,6 +27,18 @@ Values (no test set tuned them):
   depth one sigma off costs what an image landmark one noise sigma off costs), where a depth camera gets 10.
 * The person's proportions: the world landmarks' 3D joints give each segment's length on every frame, whatever
   the pose (:func:`world_joints`, learned in fitting.proportions); their scale is not used there either.
+* The knees' and elbows' flexion (:func:`world_flexion`, :func:`flexion_prior`): the angle between a hinge's
+  two segments depends neither on the similarity that relates BlazePose's frame to the camera's nor on its
+  scale, so the world landmarks measure it directly. Video mode takes it as a second measurement of each hinge
+  beside the previous frame's (the temporal prior of fitting.fitter), where the world landmarks were judged
+  usable: the two normal densities multiplied. The world's spread :data:`FLEXION_SIGMA_DEG` comes from issue
+  38's facts (BlazePose heavy's mean absolute error on the real-video benchmark: knees 12-13 degrees, elbows
+  21-30; a normal error's standard deviation is its mean absolute error times sqrt(pi / 2): 16 and 32). Its
+  tail is heavy (Cauchy): a world angle ``u`` combined spreads away from the previous frame's has its spread
+  widened by sqrt(1 + u^2), so with a tight temporal prior (a high frame rate) a limb BlazePose gets badly
+  wrong barely moves the fit's; at 10 fps the prior is wide (50 degrees) and the image landmarks are what
+  overrule it, as for any prior. It settles what a near-straight limb's image cannot: a 2D segment a few
+  pixels short reads as a 30-50 degree bend of that joint.
 * The scale: BlazePose's metres assume an average body; the depths are scaled by the median ratio of the
   model's limb lengths to the world landmarks' own (:func:`world_depths`), so a child or a tall man is
   compared in the model's units.
@@ -34,8 +46,11 @@ Values (no test set tuned them):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from posed.fitting import layout as L
 from posed.fitting.body import BodyDimensions
 from posed.fitting.kinematics import BODY_LANDMARKS
 
@@ -47,6 +62,14 @@ MIN_SEGMENT_M = 0.05  # a world segment shorter than this gives no scale sample
 ROTATION_STEP_DEG = 30.0   # the upper arm's rotation that must show in the world landmarks to be searched: the
                            # sd of the pose prior's left-right tie on it (fitting.problem.PRIOR_SIG)
 _ARMS = ((11, 13, 15), (12, 14, 16))   # (shoulder, elbow, wrist), MediaPipe indices: left, right
+# the hinges whose flexion the world landmarks give: (first, middle, last) MediaPipe indices, the variable (layout
+# X_*) and its spread; knees from hip-knee-ankle, elbows from shoulder-elbow-wrist
+FLEXION_SIGMA_DEG = {"knee": 16.0, "elbow": 32.0}
+_HINGES = ((23, 25, 27, L.X_TKN_L, "knee"), (24, 26, 28, L.X_TKN_R, "knee"),
+           (11, 13, 15, L.X_TEL_L, "elbow"), (12, 14, 16, L.X_TEL_R, "elbow"))
+_HINGE_IDX = np.array([h[:3] for h in _HINGES])
+_HINGE_VAR = tuple(h[3] for h in _HINGES)
+_HINGE_SIGMA = tuple(math.radians(FLEXION_SIGMA_DEG[h[4]]) for h in _HINGES)
 # the 8 limb segments as MediaPipe landmark indices (upper arm, forearm, thigh, shank; left, right)
 _SEGMENTS = ((11, 13), (13, 15), (23, 25), (25, 27), (12, 14), (14, 16), (24, 26), (26, 28))
 
@@ -94,6 +117,33 @@ def world_joints(world: np.ndarray, visibility_drop: float) -> np.ndarray:
     out = rows[:, :3].copy()
     out[~np.isfinite(out).all(axis=1) | ~(rows[:, 3] >= visibility_drop)] = np.nan
     return out
+
+
+def world_flexion(world: np.ndarray, visibility_drop: float) -> list[tuple[int, float, float]]:
+    """The knees' and elbows' flexion in BlazePose's world landmarks: (variable index (layout X_*), flexion in
+    radians (0 straight), its spread in radians (:data:`FLEXION_SIGMA_DEG`)) for each hinge whose three world
+    landmarks are known, visible (``visibility_drop``) and apart (segments longer than MIN_SEGMENT_M)."""
+    rows = np.asarray(world, dtype=np.float64)[_HINGE_IDX]            # (4 hinges, 3 landmarks, 5)
+    upper, lower = rows[:, 1, :3] - rows[:, 0, :3], rows[:, 2, :3] - rows[:, 1, :3]
+    n_up, n_low = np.linalg.norm(upper, axis=1), np.linalg.norm(lower, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ok = (rows[:, :, 3] >= visibility_drop).all(axis=1) & (n_up >= MIN_SEGMENT_M) & (n_low >= MIN_SEGMENT_M)
+        cos = np.einsum("ij,ij->i", upper, lower) / (n_up * n_low)
+    return [(k, math.acos(min(1.0, max(-1.0, float(c)))), s)
+            for k, c, s, good in zip(_HINGE_VAR, cos, _HINGE_SIGMA, ok, strict=True) if good]
+
+
+def flexion_prior(mu: np.ndarray, sig: np.ndarray, flexion: list[tuple[int, float, float]]) -> None:
+    """Fold the world landmarks' hinge ``flexion`` (:func:`world_flexion`) into a prior of independent normal
+    rows, in place: each hinge's mean ``mu[k]`` and spread ``sig[k]`` (radians; > 0) become those of the product
+    of the two densities, the world's spread first widened by sqrt(1 + u^2) for its distance ``u`` from
+    ``mu[k]`` in their combined spread (a Cauchy tail: a world angle far from the prior moves it less than a
+    normal measurement would)."""
+    for k, angle, s_w in flexion:
+        u2 = (angle - mu[k]) ** 2 / (s_w * s_w + sig[k] * sig[k])
+        p_prior, p_world = 1.0 / (sig[k] * sig[k]), 1.0 / (s_w * s_w * (1.0 + u2))
+        mu[k] = (mu[k] * p_prior + angle * p_world) / (p_prior + p_world)
+        sig[k] = 1.0 / math.sqrt(p_prior + p_world)
 
 
 def rotation_observable(world: np.ndarray | None, dims: BodyDimensions, visibility_drop: float) -> tuple[bool, bool]:
