@@ -49,6 +49,7 @@ from posed.fitting.world_term import (
     SENSOR_WORLD,
     WORLD_WEIGHT,
     flexion_prior,
+    flexion_rows,
     rotation_observable,
     world_depths,
     world_flexion,
@@ -390,6 +391,9 @@ class Fitter:
         if sigma2 < PRIOR_MIN_NOISE ** 2:
             return best  # (nearly) exact: no noise to regularize
         data = P.with_prior(frame, cfg.pose_prior * sigma2 / 12.0, P.PRIOR_MU_RAD, P.PRIOR_SIG_RAD, P.PRIOR_PARTNER)
+        if self._depth is not None and self._sensor is SENSOR_WORLD:
+            # the world landmarks (judged usable above) measure the knees' and elbows' flexion too
+            flexion_rows(data, world_flexion(self._world, cfg.visibility_drop), sigma2 / 12.0, best[0])
         order = np.argsort(total)
         best_x = np.empty(L.N_VAR)
         starts = pool[order[:PRIOR_CANDIDATES]]

@@ -1,14 +1,14 @@
 """numba kernels: the least-squares residuals of the refinement and their analytic Jacobian d res / d x.
 ``cache=True``; tested against central finite differences in ``tests/fitting/test_kinematics.py``.
 
-Residual layout (``R_*`` in fitting.layout, N_RES = 87 rows):
+Residual layout (``R_*`` in fitting.layout, N_RES = 91 rows):
 
 * R_LM + 2 i + c: landmark i, image axis c: sqrt(w_i / sum w) (b_ic - a_ic T_c), b = observed - model
   projection before the translation, a = d(model) / dT (1 orthographic, fn_c / Z'_i perspective), T the
   weighted least-squares translation. The sum of their squares is the weighted mean squared 2D error
   (normalized image units squared).
-* R_PEN.., R_LIM.., R_PRIOR..: penalty hinges, joint-limit hinges and pose-prior rows
-  (:mod:`fitting.penalties`).
+* R_PEN.., R_LIM.., R_PRIOR.., R_FLEX..: penalty hinges, joint-limit hinges, pose-prior rows and the
+  knees' and elbows' measured flexion (:mod:`fitting.penalties`; zero rows without a measurement).
 * R_DEPTH + i: landmark i's measured depth, w_i (Z_i - target_i): Z_i its camera-axes depth relative to the
   mid-hip (metres), the target and the weight set per refinement by fitting.depth_term (robust weights,
   re-solved between refinements); zero rows without depth. d Z_i / d x is the point Jacobian's z row.

@@ -72,7 +72,11 @@ D_PRIOR_SIG = D_PRIOR_MU + N_VAR  # 21: prior standard deviations (<= 0: no prio
 D_PRIOR_PARTNER = D_PRIOR_SIG + N_VAR  # 21: partner variable (prior on x_k - x_partner), -1 for none
 D_DEPTH = D_PRIOR_PARTNER + N_VAR  # 12: depth targets: landmark i's depth relative to the mid-hip (m)
 D_DEPTH_W = D_DEPTH + N_LM         # 12: weights of the depth rows (0 = no depth; refinement only)
-D_SIZE = D_DEPTH_W + N_LM
+FLEX_VARS = (X_TKN_L, X_TKN_R, X_TEL_L, X_TEL_R)   # the hinges whose flexion a measurement may pull on
+N_FLEX = 4
+D_FLEX = D_DEPTH_W + N_LM          # 4: measured flexion of the FLEX_VARS hinges (kernel units)
+D_FLEX_W = D_FLEX + N_FLEX         # 4: weights of the flexion rows (0 = none; refinement only)
+D_SIZE = D_FLEX_W + N_FLEX
 
 # --- work array of the loss: one (W_ROWS, 3) float64 array, no views in the hot path ---
 N_SLOTS = N_VAR + N_FIXED     # trig-table slots: x[k] at slot k (slot 0 unused), fixed[k] at slot N_VAR + k
@@ -91,5 +95,6 @@ R_LM = 0                      # 24: landmark i, axis c (0 = x, 1 = y) at R_LM + 
 R_PEN = R_LM + 2 * N_LM       # 9: penalty hinges, fitting.penalties.PENALTY_HINGES order
 R_LIM = R_PEN + N_PEN         # 21: joint-limit hinges, x order
 R_PRIOR = R_LIM + N_VAR       # 21: pose-prior rows, x order (zero where there is no prior)
-R_DEPTH = R_PRIOR + N_VAR     # 12: depth rows w_i (Z_i - target_i) (zero without depth)
+R_FLEX = R_PRIOR + N_VAR      # 4: flexion rows w_h (x_FLEX_VARS[h] - flex_h), FLEX_VARS order (zero without)
+R_DEPTH = R_FLEX + N_FLEX     # 12: depth rows w_i (Z_i - target_i) (zero without depth)
 N_RES = R_DEPTH + N_LM

@@ -92,7 +92,8 @@ def _prior_scale(data):
 @njit(cache=True)
 def hinge_residuals(x, data, res):
     """Residual rows R_PEN.. (sqrt(weight) times each penalty), R_LIM.. (sqrt(limit weight) times the distance
-    outside the joint limits) and R_PRIOR.. (sqrt(lambda) (x_k - x_partner - mu_k) / sigma_k, or 0)."""
+    outside the joint limits), R_PRIOR.. (sqrt(lambda) (x_k - x_partner - mu_k) / sigma_k, or 0) and R_FLEX..
+    (w_h (x_k - flex_h) for the hinge k = FLEX_VARS[h], or 0)."""
     for q in range(L.N_PEN):
         k, lw, th, kind = PENALTY_HINGES[q]
         res[L.R_PEN + q] = math.sqrt(data[L.D_LW + lw]) * _hinge(kind, x[k], data[L.D_TH + th])[0]
@@ -108,12 +109,14 @@ def hinge_residuals(x, data, res):
             res[L.R_PRIOR + k] = lam * (v - data[L.D_PRIOR_MU + k]) / sig
         else:
             res[L.R_PRIOR + k] = 0.0
+    for h in range(L.N_FLEX):
+        res[L.R_FLEX + h] = data[L.D_FLEX_W + h] * (x[L.FLEX_VARS[h]] - data[L.D_FLEX + h])
 
 
 @njit(cache=True)
 def hinge_jacobian(x, data, jac):
-    """Rows R_PEN .. R_PRIOR + N_VAR - 1 of d res / d x (see hinge_residuals); every other entry zero."""
-    for q in range(L.R_PEN, L.R_PRIOR + L.N_VAR):
+    """Rows R_PEN .. R_FLEX + N_FLEX - 1 of d res / d x (see hinge_residuals); every other entry zero."""
+    for q in range(L.R_PEN, L.R_FLEX + L.N_FLEX):
         for k in range(L.N_VAR):
             jac[q, k] = 0.0
     for q in range(L.N_PEN):
@@ -136,3 +139,5 @@ def hinge_jacobian(x, data, jac):
             p = int(data[L.D_PRIOR_PARTNER + q])
             if p >= 0:
                 jac[L.R_PRIOR + q, p] = -lam / sig
+    for h in range(L.N_FLEX):
+        jac[L.R_FLEX + h, L.FLEX_VARS[h]] = data[L.D_FLEX_W + h]

@@ -120,8 +120,9 @@ def normal_equations(jac, res, a, g, cols):
 
     The landmark rows are dense (with a pinhole camera every landmark depends on every variable through the
     solved translation); the penalty and joint-limit rows after them have at most one non-zero, in the
-    column of their variable (:func:`fitting.penalties.hinge_jacobian`); the prior rows have one or two and a
-    depth row those of its landmark's chain (none without depth), found per row (:func:`_sparse_rows`).
+    column of their variable (:func:`fitting.penalties.hinge_jacobian`); the prior rows have one or two, a
+    flexion row one, and a depth row those of its landmark's chain (none without depth), found per row
+    (:func:`_sparse_rows`).
     ``cols``: int64 work array (n)."""
     n = jac.shape[1]
     for i in range(n):

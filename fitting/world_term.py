@@ -27,18 +27,20 @@ Values (no test set tuned them):
   depth one sigma off costs what an image landmark one noise sigma off costs), where a depth camera gets 10.
 * The person's proportions: the world landmarks' 3D joints give each segment's length on every frame, whatever
   the pose (:func:`world_joints`, learned in fitting.proportions); their scale is not used there either.
-* The knees' and elbows' flexion (:func:`world_flexion`, :func:`flexion_prior`): the angle between a hinge's
-  two segments depends neither on the similarity that relates BlazePose's frame to the camera's nor on its
-  scale, so the world landmarks measure it directly. Video mode takes it as a second measurement of each hinge
-  beside the previous frame's (the temporal prior of fitting.fitter), where the world landmarks were judged
-  usable: the two normal densities multiplied. The world's spread :data:`FLEXION_SIGMA_DEG` comes from issue
-  38's facts (BlazePose heavy's mean absolute error on the real-video benchmark: knees 12-13 degrees, elbows
-  21-30; a normal error's standard deviation is its mean absolute error times sqrt(pi / 2): 16 and 32). Its
-  tail is heavy (Cauchy): a world angle ``u`` combined spreads away from the previous frame's has its spread
-  widened by sqrt(1 + u^2), so with a tight temporal prior (a high frame rate) a limb BlazePose gets badly
-  wrong barely moves the fit's; at 10 fps the prior is wide (50 degrees) and the image landmarks are what
-  overrule it, as for any prior. It settles what a near-straight limb's image cannot: a 2D segment a few
-  pixels short reads as a 30-50 degree bend of that joint.
+* The knees' and elbows' flexion (:func:`world_flexion`, :func:`flexion_prior`, :func:`flexion_rows`): the angle
+  between a hinge's two segments depends neither on the similarity that relates BlazePose's frame to the
+  camera's nor on its scale, so the world landmarks measure it directly, where they were judged usable. Video
+  mode takes it as a second measurement of each hinge beside the previous frame's (the temporal prior of
+  fitting.fitter): the two normal densities multiplied. Image mode, whose pose prior ties the left hinges to the
+  right ones, gets a row per hinge of its own (layout R_FLEX) at the same weight. The world's spread
+  :data:`FLEXION_SIGMA_DEG` comes from issue 38's facts (BlazePose heavy's mean absolute error on the real-video
+  benchmark: knees 12-13 degrees, elbows 21-30; a normal error's standard deviation is its mean absolute error
+  times sqrt(pi / 2): 16 and 32). Its tail is heavy (Cauchy): a world angle ``u`` combined spreads away from the
+  previous frame's (in image mode: ``u`` spreads from the best global-search candidate's) has its spread widened
+  by sqrt(1 + u^2), so with a tight temporal prior (a high frame rate) a limb BlazePose gets badly wrong barely
+  moves the fit's; at 10 fps the prior is wide (50 degrees) and the image landmarks are what overrule it, as for
+  any prior. It settles what a near-straight limb's image cannot: a 2D segment a few pixels short reads as a
+  30-50 degree bend of that joint.
 * The scale: BlazePose's metres assume an average body; the depths are scaled by the median ratio of the
   model's limb lengths to the world landmarks' own (:func:`world_depths`), so a child or a tall man is
   compared in the model's units.
@@ -144,6 +146,20 @@ def flexion_prior(mu: np.ndarray, sig: np.ndarray, flexion: list[tuple[int, floa
         p_prior, p_world = 1.0 / (sig[k] * sig[k]), 1.0 / (s_w * s_w * (1.0 + u2))
         mu[k] = (mu[k] * p_prior + angle * p_world) / (p_prior + p_world)
         sig[k] = 1.0 / math.sqrt(p_prior + p_world)
+
+
+def flexion_rows(data: np.ndarray, flexion: list[tuple[int, float, float]], weight: float,
+                 x_ref: np.ndarray) -> None:
+    """Set the refinement's flexion rows (layout R_FLEX, D_FLEX*) of ``data`` in place from the world
+    landmarks' hinge ``flexion`` (:func:`world_flexion`): a measurement of each hinge costing ``weight`` (the
+    prior rows' lambda) at one spread, the spread widened by sqrt(1 + u^2) for its distance ``u`` (in spreads)
+    from ``x_ref`` (the solution being refined: one reweighting step of a Cauchy loss). Image mode's pose
+    prior has no row of its own for these hinges (the left ones are ties to the right ones)."""
+    for k, angle, s_w in flexion:
+        h = L.FLEX_VARS.index(k)
+        u = (angle - x_ref[k]) / s_w
+        data[L.D_FLEX + h] = angle
+        data[L.D_FLEX_W + h] = math.sqrt(weight / (1.0 + u * u)) / s_w
 
 
 def rotation_observable(world: np.ndarray | None, dims: BodyDimensions, visibility_drop: float) -> tuple[bool, bool]:

@@ -11,6 +11,7 @@ from posed.fitting import forward_kinematics as FK
 from posed.fitting import jacobian as JAC
 from posed.fitting import layout as L
 from posed.fitting import problem as P
+from posed.fitting import refine
 from posed.fitting.body import BodyDimensions
 from posed.fitting.config import FitConfig
 from posed.fitting.kinematics import BODY_LANDMARKS, body_rotation, landmarks_camera, rot_x, rot_y, rot_z
@@ -113,6 +114,20 @@ def test_torso_uprightness_matches_reference():
         assert FK.torso_uprightness(x) == pytest.approx(max(0.0, -r[1, 2]), abs=1e-12)
 
 
+def _central_differences(x, d, h=1e-6):
+    """d res / d x (N_RES x N_VAR) by central differences of JAC.residuals_jacobian's residuals."""
+    out = np.empty((L.N_RES, L.N_VAR))
+    for k in range(L.N_VAR):
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        rp, rm = np.empty(L.N_RES), np.empty(L.N_RES)
+        JAC.residuals_jacobian(xp, d, rp, np.empty((1, 1)), False)
+        JAC.residuals_jacobian(xm, d, rm, np.empty((1, 1)), False)
+        out[:, k] = (rp - rm) / (2 * h)
+    return out
+
+
 def test_depth_rows_match_reference_and_finite_differences():
     """Rows R_DEPTH..: w_i (Z_i - target_i), Z_i landmark i's camera-axes depth relative to the mid-hip (the
     NumPy model's landmarks_camera), and their Jacobian row against central finite differences."""
@@ -132,15 +147,30 @@ def test_depth_rows_match_reference_and_finite_differences():
     JAC.residuals_jacobian(x, d, res, jac, True)
     w, target = d[L.D_DEPTH_W:L.D_DEPTH_W + L.N_LM], d[L.D_DEPTH:L.D_DEPTH + L.N_LM]
     np.testing.assert_allclose(res[L.R_DEPTH:], w * (z - target), atol=1e-10)
-    h = 1e-6
-    for k in range(L.N_VAR):
-        xp, xm = x.copy(), x.copy()
-        xp[k] += h
-        xm[k] -= h
-        rp, rm = np.empty(L.N_RES), np.empty(L.N_RES)
-        JAC.residuals_jacobian(xp, d, rp, np.empty((1, 1)), False)
-        JAC.residuals_jacobian(xm, d, rm, np.empty((1, 1)), False)
-        np.testing.assert_allclose(jac[L.R_DEPTH:, k], (rp - rm)[L.R_DEPTH:] / (2 * h), atol=1e-5)
+    np.testing.assert_allclose(jac[L.R_DEPTH:], _central_differences(x, d)[L.R_DEPTH:], atol=1e-5)
+
+
+def test_flexion_rows_match_reference_and_finite_differences():
+    """Rows R_FLEX..: w_h (x_k - flex_h) for the hinge k = FLEX_VARS[h] (zero where w_h is 0), and their
+    Jacobian against central finite differences; the normal equations count them."""
+    cfg = FitConfig()
+    xy = np.random.default_rng(1).normal(300, 50, (L.N_LM, 2))
+    d = P.pack(xy, np.ones(L.N_LM), DIMS, cfg, 200.0).data.copy()
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0.1, 1.5, L.N_VAR)
+    res, jac = np.empty(L.N_RES), np.empty((L.N_RES, L.N_VAR))
+    JAC.residuals_jacobian(x, d, res, jac, True)
+    assert not res[L.R_FLEX:L.R_FLEX + L.N_FLEX].any() and not jac[L.R_FLEX:L.R_FLEX + L.N_FLEX].any()
+    flex, w = rng.uniform(0.0, 2.0, L.N_FLEX), np.array([3.0, 0.0, 1.5, 7.0])
+    d[L.D_FLEX:L.D_FLEX + L.N_FLEX], d[L.D_FLEX_W:L.D_FLEX_W + L.N_FLEX] = flex, w
+    JAC.residuals_jacobian(x, d, res, jac, True)
+    rows = slice(L.R_FLEX, L.R_FLEX + L.N_FLEX)
+    np.testing.assert_allclose(res[rows], w * (x[list(L.FLEX_VARS)] - flex), atol=1e-12)
+    np.testing.assert_allclose(jac[rows], _central_differences(x, d)[rows], atol=1e-6)
+    a, g = np.empty((L.N_VAR, L.N_VAR)), np.empty(L.N_VAR)
+    refine.normal_equations(jac, res, a, g, np.empty(L.N_VAR, dtype=np.int64))
+    np.testing.assert_allclose(a, jac.T @ jac, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(g, jac.T @ res, rtol=1e-9, atol=1e-9)
 
 
 def test_residuals_into_and_jacobian_into_reuse_their_work():

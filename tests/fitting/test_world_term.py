@@ -20,6 +20,7 @@ from posed.fitting.world_term import (
     WORLD_SIGMA_M,
     WORLD_Z0_M,
     flexion_prior,
+    flexion_rows,
     world_depths,
     world_flexion,
     world_scale,
@@ -173,11 +174,27 @@ def test_flexion_prior_multiplies_the_two_densities_with_a_heavy_tail():
     assert moved(math.radians(150.0), 50.0) < 2.0 * moved(math.radians(60.0), 50.0)
 
 
-def test_video_mode_reads_the_knees_and_elbows_closer_with_the_world_flexion():
-    """Noisy image landmarks (3 px) and world landmarks with 3 cm errors per joint, four video frames of each
-    scene: the hinges' error over the last three with the world flexion in the prior against without it (the
-    world depths used in both)."""
-    rng = np.random.default_rng(7)
+def test_flexion_rows_weigh_each_measured_hinge_with_a_heavy_tail():
+    data = np.zeros(L.D_SIZE)
+    x_ref = np.zeros(L.N_VAR)
+    x_ref[L.X_TKN_R], x_ref[L.X_TEL_L] = 0.3, 1.0
+    flex = [(L.X_TKN_R, 0.5, 0.28), (L.X_TEL_L, 2.5, 0.56)]
+    flexion_rows(data, flex, 0.04, x_ref)
+    for k, angle, s_w in flex:
+        h = L.FLEX_VARS.index(k)
+        u = (angle - x_ref[k]) / s_w
+        assert data[L.D_FLEX + h] == angle
+        assert data[L.D_FLEX_W + h] == pytest.approx(math.sqrt(0.04) / (s_w * math.sqrt(1.0 + u * u)), rel=1e-12)
+    for k in (L.X_TKN_L, L.X_TEL_R):                                      # not measured: no row
+        assert data[L.D_FLEX_W + L.FLEX_VARS.index(k)] == 0.0
+    # the farther the measurement from the solution refined, the less it weighs (in spreads: 0.7 and 2.7)
+    assert data[L.D_FLEX_W + L.FLEX_VARS.index(L.X_TEL_L)] * 0.56 < data[L.D_FLEX_W + L.FLEX_VARS.index(L.X_TKN_R)] * 0.28
+
+
+def _hinge_errors(mode, rng, off_patch):
+    """Noisy image landmarks (3 px) and world landmarks with 3 cm errors per joint, four frames of each scene
+    in ``mode``: the hinges' mean error over the last three, with the world flexion and without it
+    (``off_patch``: the fitter's name to replace with a no-op; the world depths used in both)."""
     err = {"off": [], "on": []}
     for name, yaw in CASES:
         dims, camera, pose, pts = scene(name, yaw)
@@ -188,12 +205,22 @@ def test_video_mode_reads_the_knees_and_elbows_closer_with_the_world_flexion():
         for key in err:
             with pytest.MonkeyPatch.context() as mp:
                 if key == "off":
-                    mp.setattr(fitter_module, "flexion_prior", lambda mu, sig, flexion: None)
+                    mp.setattr(fitter_module, off_patch, lambda *args: None)
                 f = Fitter(FitConfig(body_height_m=1.6))
-                rs = [f.fit(frames[i], i, 0.1 * i, SIZE, mode="video", intrinsics=k, world=worlds[i])
+                rs = [f.fit(frames[i], i, 0.1 * i, SIZE, mode=mode, intrinsics=k, world=worlds[i])
                       for i in range(4)]
             assert all(r.ok for r in rs)
             err[key].append(np.mean([abs(r.variables[h] - pose.joints[h]) for r in rs[1:] for h in HINGES.values()]))
-    on, off = np.array(err["on"]), np.array(err["off"])
+    return np.array(err["on"]), np.array(err["off"])
+
+
+def test_image_mode_reads_the_knees_and_elbows_closer_with_the_world_flexion():
+    on, off = _hinge_errors("image", np.random.default_rng(8), "flexion_rows")
+    # measured: 7.0 -> 5.9 degrees, 11 of 15 scenes better
+    assert on.mean() < off.mean() - 0.2 and (on < off).sum() >= 10, (off.mean(), on.mean(), (on < off).sum())
+
+
+def test_video_mode_reads_the_knees_and_elbows_closer_with_the_world_flexion():
+    on, off = _hinge_errors("video", np.random.default_rng(7), "flexion_prior")
     # measured: 5.9 -> 5.4 degrees, 13 of 15 scenes better
     assert on.mean() < off.mean() - 0.2 and (on < off).sum() >= 10, (off.mean(), on.mean(), (on < off).sum())
