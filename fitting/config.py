@@ -110,9 +110,10 @@ class FitConfig:
                                         "the chest, arms folded) where the world landmarks tell it (the elbow "
                                         "bent 54-126 degrees); off, or without them: the paper's shoulder, "
                                         "flexion and adduction only. Off by default: its gain on real video "
-                                        "(0.8 mm PA-MPJPE at 10 fps; the squat's elbows) is not confirmed "
-                                        "by the untouched mocap source (docs/body-model.md, 'Shoulder "
-                                        "rotation')"}
+                                        "(0.9 mm PA-MPJPE at 10 fps; the squat's elbows) is not confirmed "
+                                        "by the untouched mocap source, whose subject's short forearms "
+                                        "leave the search idle on most frames (docs/body-model.md, "
+                                        "'Shoulder rotation')"}
     )
     learn_proportions: bool = field(
         default=True, metadata={"doc": "video mode without a calibration file: learn the person's proportions "
