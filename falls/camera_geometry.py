@@ -20,9 +20,11 @@ down. Heights are metres along ``g``.
 * **Trust** (``camera_geometry``): configured values that were measured for this mount are used as they are.
   A guess (a freshly started daemon with the default tilt 0 and height 1 m) is checked: gravity then comes from the
   person's own standing body once it contradicts the guess (the fit's mid-ankle -> mid-shoulder axis of
-  straight-body frames, averaged over time; ``BODY_REJECT_DEG``), and a guessed height is then dropped
-  too: heights above the floor count once the floor was learned from their feet (before that the lowest
-  fitted joint stands in for the floor). With ``auto`` each value is trusted on its own once set
+  straight-body frames, averaged over time; ``BODY_REJECT_DEG``), or once the guess puts the feet of the
+  bodies seen at or above the camera (no camera above a floor sees the feet of someone on it there), and a
+  guessed height is then dropped too, with the standing height measured along the guess: heights above the
+  floor count once the floor was learned from their feet (before that the lowest fitted joint stands in for
+  the floor). With ``auto`` each value is trusted on its own once set
   (``tilt_measured``: the tilt or roll differs from 0; ``measured``: any of the three differs from its
   default): a height set with the tilt left at 0 is kept while the tilt is checked against the body.
   :meth:`CameraGeometry.used` says which sources a frame was judged with.
@@ -53,8 +55,10 @@ EMA_MAX_WEIGHT = 30.0    # running means become exponential averages over about 
 # urfd_dev (a level camera) the per-clip mean of the fit's straight-body axis read a tilt of -1 to 20 deg
 # (median 8) and roll -4 to 17 deg. So the guess is kept unless, after BODY_MIN_S of straight-body frames,
 # the body contradicts it by more than BODY_REJECT_DEG (about twice that spread: a level guess on a wall camera
-# 30-45 deg down is rejected, a level camera's own body axis is not); then the body's gravity is used and
-# refined in steps of BODY_STEP_DEG, the floor seen under the feet re-projected.
+# 30-45 deg down is rejected, a level camera's own body axis is not), or the guess puts the feet of those
+# bodies at or above the camera (a camera 18-22 deg down with the person 4 m away: the body axis may read
+# half the tilt, but no camera above a floor sees the feet of someone on it above itself); then the body's
+# gravity is used and refined in steps of BODY_STEP_DEG, the floor seen under the feet re-projected.
 BODY_MIN_S = 1.0
 BODY_REJECT_DEG = 20.0
 BODY_MAX_S = 30.0
@@ -192,9 +196,17 @@ class CameraGeometry:
         if self.tilt_measured or self._body_s < BODY_MIN_S - 1e-9:
             return None
         g = self._body_sum / np.linalg.norm(self._body_sum)
-        if self._gravity_from != "body" and float(g @ self._gravity_cfg) > math.cos(math.radians(BODY_REJECT_DEG)):
+        if self._gravity_from != "body" and float(g @ self._gravity_cfg) > math.cos(math.radians(BODY_REJECT_DEG)) \
+                and not self._feet_above_guess():
             return None
         return g
+
+    def _feet_above_guess(self) -> bool:
+        """Whether the guessed gravity puts the floor under the straight and seated bodies seen (BODY_MIN_S of
+        them) at or above the camera: no camera above the floor sees the feet of a person on that floor there."""
+        if self._body_floor_w < BODY_MIN_S - 1e-9:
+            return False
+        return float(self._body_floor_sum @ self._gravity_cfg) <= 0.0
 
     def _refresh(self) -> bool:
         cfg = self.cfg
@@ -236,6 +248,9 @@ class CameraGeometry:
             self._floor_learned = float(self._floor_point @ g)
         else:
             self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
+            self._stand, self._stand_weight = None, 0.0
+        if src == "body" and previous == "config":
+            # the guess rejected: a standing height measured along it, above its floor, is no measurement
             self._stand, self._stand_weight = None, 0.0
         self._use(g)
         return True

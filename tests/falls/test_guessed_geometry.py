@@ -313,3 +313,60 @@ def test_a_floor_point_above_the_camera_is_not_taken_when_the_body_rejects_the_g
     for _ in range(30):
         good.observe_body_axis(-down, 0.1, 3.0 * ahead + (2.0 - ankle_height) * down, ankle_height)
     assert good.used()["floor"] == "learned" and good.floor_below_camera == pytest.approx(2.0, abs=0.15)
+
+
+def _standing(geo: CameraGeometry, down_read: np.ndarray, ankles: np.ndarray, ankle_height: float, s: float) -> None:
+    for _ in range(round(s / 0.1)):                               # standing, 10 fps
+        geo.observe_body_axis(-down_read, 0.1, ankles, ankle_height)
+
+
+def test_feet_above_the_camera_along_the_guess_reject_it():
+    """A robot's camera 1.3 m up and 22 deg down, the config told nothing, a person standing 4.4 m away. The
+    fit's body axis reads the tilt as 11 deg (its depth is poor): within BODY_REJECT_DEG of the level guess,
+    which the angle alone keeps. But along the level guess the person's feet come out above the camera, where
+    no camera above the floor sees the feet of someone on that floor: the guess is rejected all the same,
+    gravity comes from the body and the floor from under the feet (before, the guess stayed, no floor was
+    learned from feet "above the camera", and falls there lay at 0.6-0.8 of a standing pelvis height)."""
+    def down_at(deg: float) -> np.ndarray:
+        return np.array([0.0, np.cos(np.radians(deg)), np.sin(np.radians(deg))])
+
+    ahead = np.array([0.0, -np.sin(np.radians(22.0)), np.cos(np.radians(22.0))])   # level, away from the camera
+    ankle_height = 0.07
+    ankles = 4.4 * ahead + (1.3 - ankle_height) * down_at(22.0)
+    assert ankles[1] < 0.0                                       # above the camera along the level guess
+    geo = CameraGeometry(FallsConfig())
+    _standing(geo, down_at(11.0), ankles, ankle_height, 0.5)
+    assert geo.used()["gravity"] == "config"                     # not before BODY_MIN_S of them
+    _standing(geo, down_at(11.0), ankles, ankle_height, 1.0)
+    assert geo.used() == {"gravity": "body", "floor": "learned", "config": "guess"}
+    assert geo.summary()["tilt_deg"] == pytest.approx(11.0, abs=0.5)
+    assert geo.floor_below_camera > 0.0                          # the feet are below the camera along it
+    # the same body axis over feet below the camera (a camera 12 deg down, the person 2 m away): kept
+    near = 2.0 * np.array([0.0, -np.sin(np.radians(12.0)), np.cos(np.radians(12.0))]) \
+        + (1.0 - ankle_height) * down_at(12.0)
+    assert near[1] > 0.0
+    kept = CameraGeometry(FallsConfig())
+    _standing(kept, down_at(11.0), near, ankle_height, 3.0)
+    assert kept.used()["gravity"] == "config" and kept.floor_below_camera == pytest.approx(1.0)
+
+
+def test_a_standing_height_measured_along_a_rejected_guess_is_forgotten():
+    """The standing pelvis height learned along the level guess, above its 1 m floor, is no measurement once the
+    body rejects the guess: kept, it made a person sitting back on a sofa read as lying on the floor (a robot's
+    camera 18 deg down, the default config). Refining the body's gravity afterwards keeps what was learned."""
+    tilt = np.radians(35.0)
+    down = np.array([0.0, np.cos(tilt), np.sin(tilt)])
+    ahead = np.array([0.0, -np.sin(tilt), np.cos(tilt)])
+    ankle_height = 0.08
+    geo = CameraGeometry(FallsConfig())
+    for _ in range(5):
+        geo.observe_standing_pelvis(2.4)                          # along the guess: far above its floor
+    assert geo.standing_pelvis() == pytest.approx(2.4)
+    _standing(geo, down, 3.0 * ahead + (2.0 - ankle_height) * down, ankle_height, 3.0)
+    assert geo.used()["gravity"] == "body" and geo.standing_pelvis() is None
+    for _ in range(5):
+        geo.observe_standing_pelvis(0.9)
+    tilted = np.array([0.0, np.cos(tilt + 0.1), np.sin(tilt + 0.1)])   # the body's gravity refined by 5.7 deg
+    _standing(geo, tilted, 3.0 * ahead + (2.0 - ankle_height) * down, ankle_height, 30.0)
+    assert geo.summary()["tilt_deg"] > 37.0 and geo.standing_pelvis() == pytest.approx(0.9)
+
