@@ -244,13 +244,13 @@ class CameraGeometry:
                 and float(self._floor_point @ g) > 0.0:
             # the guess rejected or the body's gravity refined: the floor seen under the feet is still a point on
             # the floor, re-projected along the new gravity (unless it comes out at or above the camera, which no
-            # floor is: observe_floor); the standing height (metres) is kept
+            # floor is: observe_floor); the standing height (metres) is kept through a refinement, but one
+            # measured along a rejected guess, above its floor, is no measurement
             self._floor_learned = float(self._floor_point @ g)
+            if previous == "config":
+                self._stand, self._stand_weight = None, 0.0
         else:
             self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
-            self._stand, self._stand_weight = None, 0.0
-        if src == "body" and previous == "config":
-            # the guess rejected: a standing height measured along it, above its floor, is no measurement
             self._stand, self._stand_weight = None, 0.0
         self._use(g)
         return True
