@@ -58,7 +58,8 @@ EMA_MAX_WEIGHT = 30.0    # running means become exponential averages over about 
 # 30-45 deg down is rejected, a level camera's own body axis is not), or the guess puts the feet of those
 # bodies at or above the camera (a camera 18-22 deg down with the person 4 m away: the body axis may read
 # half the tilt, but no camera above a floor sees the feet of someone on it above itself); then the body's
-# gravity is used and refined in steps of BODY_STEP_DEG, the floor seen under the feet re-projected.
+# gravity is used and refined in steps of BODY_STEP_DEG, the floor seen under the feet re-projected; from
+# then on only bodies within upright_trunk_deg of it refine it (a fall's first half second is a straight body).
 BODY_MIN_S = 1.0
 BODY_REJECT_DEG = 20.0
 BODY_MAX_S = 30.0
@@ -170,6 +171,8 @@ class CameraGeometry:
         if float(up @ self._gravity_cfg) < math.cos(math.radians(BODY_MAX_FROM_CONFIG_DEG)) \
                 or float(up @ self.gravity) < math.cos(math.radians(BODY_MAX_FROM_CURRENT_DEG)):
             return False   # not an upright body (lying straight, a fit gone wrong) for any plausible mount
+        if self._gravity_from == "body" and float(up @ self.gravity) < math.cos(math.radians(self.cfg.upright_trunk_deg)):
+            return False   # tipping over: the first half second of a fall is a straight body too
         w = min(max(dt, 0.0), 0.2)   # a gap in the stream is no extra evidence
         if self._body_s >= BODY_MAX_S:
             self._body_sum *= 1.0 - w / BODY_MAX_S

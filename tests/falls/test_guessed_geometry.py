@@ -370,3 +370,27 @@ def test_a_standing_height_measured_along_a_rejected_guess_is_forgotten():
     _standing(geo, tilted, 3.0 * ahead + (2.0 - ankle_height) * down, ankle_height, 30.0)
     assert geo.summary()["tilt_deg"] > 37.0 and geo.standing_pelvis() == pytest.approx(0.9)
 
+
+
+def test_a_body_tipping_over_does_not_refine_the_gravity_it_rejected_the_guess_with():
+    """A fall's first half second is a straight body too (a person toppling like a plank). Once the standing
+    body has rejected the guess, such a body further than ``upright_trunk_deg`` from the gravity in use is no
+    evidence of gravity: before, the traced wall-camera fall (standing, sideways) pulled the body's tilt from
+    33 to 31 deg while tipping over, the motion was forgotten and the person read above lying height."""
+    tilt = np.radians(35.0)
+    down = np.array([0.0, np.cos(tilt), np.sin(tilt)])
+    geo = CameraGeometry(FallsConfig())
+    for _ in range(20):                                           # 2 s standing: the level guess is rejected
+        geo.observe_body_axis(-down, 0.1)
+    assert geo.used()["gravity"] == "body"
+    g0 = geo.gravity.copy()
+    for deg in range(25, 45, 2):                                  # toppling towards the camera, 25-43 deg
+        a = np.radians(-deg)
+        rot = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+        assert not geo.observe_body_axis(-(rot @ down), 0.1)
+    assert np.allclose(geo.gravity, g0)
+    for _ in range(5):                                            # standing again, 10 deg of sway: still evidence
+        a = np.radians(10.0)
+        rot = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+        geo.observe_body_axis(-(rot @ down), 0.1)
+    assert geo._body_s == pytest.approx(2.5)
