@@ -79,7 +79,8 @@ def scenario_cases(split: str, mount: str = "robot") -> list[Case]:
 # The CMU clips' cameras per mount: (distance from the middle of the path (m), height (m), tilt (deg),
 # width, height (px), horizontal field of view (deg)). The wall camera is nearer: at 35 deg down its image
 # starts 11 deg below the horizon, so shoulders further than ~2.8 m are cut off.
-CMU_MOUNTS = {"robot": (4.0, 1.0, 12.0, 640, 480, 69.0), "wall": (2.6, 2.0, 35.0, 320, 240, 62.0)}
+CMU_MOUNTS = {"robot": (4.0, 1.0, 12.0, 640, 480, 69.0), "wall": (2.6, 2.0, 35.0, 320, 240, 62.0),
+              "corner": (3.6, 2.4, 25.0, 320, 240, 74.0)}
 
 
 def cmu_cases(data_dir: Path, fps: float = 10.0, noise_frac: float = 0.01, seed: int = 77,
@@ -267,10 +268,10 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
               only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
               fit_config=None, with_intrinsics: bool = True, cache: Path | None = None,
               geometry: str = "given", mount: str = "robot") -> dict:
-    """``with_intrinsics`` False, and always with ``mount`` "wall" (the scenarios and CMU clips seen by
-    ``falls_scenarios.MOUNTS["wall"]``, as a recording without a camera header): the fit is given what the
+    """``with_intrinsics`` False, and always with a ``mount`` other than "robot" (the scenarios and CMU clips seen
+    by ``falls_scenarios.MOUNTS["wall"]`` or ``["corner"]``, as a recording without a camera header): the fit is given what the
     daemon gives a source without intrinsics, the assumed lens of ``camera_hfov_deg`` (orthographic when
-    ``fit_config.projection`` is), not the camera's true one. With the wall camera the detector gets no
+    ``fit_config.projection`` is), not the camera's true one. With a wall camera the detector gets no
     intrinsics either (it assumes the same lens)."""
     cfg = cfg or FallsConfig()
     cases: list[Case] = []

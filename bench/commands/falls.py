@@ -30,11 +30,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "tilt and roll 0 and nothing learned (unknown), 0 and learned from the person (auto), "
                              "0 with an accelerometer's gravity on every frame (imu), or the config as it is "
                              "(default: tilt 0, height 1 m, a daemon told nothing about the camera)")
-    parser.add_argument("--mount", choices=("robot", "wall"), default="robot",
+    parser.add_argument("--mount", choices=("robot", "wall", "corner"), default="robot",
                         help="simulated scenarios and CMU clips: the robot's camera (0.9-1.3 m, 8-22 deg down, "
-                             "640x480, intrinsics given) or a wall camera (2 m, 35 deg down, 320x240, 62 deg, no "
+                             "640x480, intrinsics given), a wall camera (2 m, 35 deg down, 320x240, 62 deg, no "
                              "intrinsics given to the fit or the detector: both assume falls.camera_hfov_deg's "
-                             "lens, as the daemon does)")
+                             "lens, as the daemon does) or a second one in a room's corner, never used while "
+                             "building the detector (2.4 m, 25 deg down, 320x240, 74 deg, no intrinsics)")
     parser.add_argument("--no-cache", action="store_true",
                         help="fit again, do not use the cached fits (~/.cache/posed/falls-fits)")
     parser.add_argument("--only", default="", metavar="TEXT", help="only scenarios whose name contains TEXT")

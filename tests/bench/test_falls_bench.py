@@ -148,6 +148,26 @@ def test_wall_mount_with_the_default_config(capsys):
     assert report["recall"] == 1.0 and code == 0
 
 
+def test_the_corner_mount_keeps_the_whole_standing_body_in_view():
+    """--mount corner (2.4 m, 25 deg, 320x240, 74 deg, people 3.0-4.2 m away): every landmark of a standing
+    person, and of a person lying where a fall away from the camera ends, projects inside the image; the CLI
+    renders it."""
+    from posed.bench.falls import scenario_cases
+
+    cases = {c.name: c for c in scenario_cases("tune", "corner")}
+    assert cases and all(n.startswith("corner/tune/") for n in cases)
+    for name in ("corner/tune/fall/standing-backward/fast-v30", "corner/tune/adl/sit-down-chair/normal-v30"):
+        case = cases[name]
+        assert (case.camera.z, case.camera.tilt, case.camera.width, case.camera.height) == (2.4, 25.0, 320, 240)
+        for fr in (case.frames[0], case.frames[-1]):
+            lm = np.asarray(fr.landmarks, float)
+            body = lm[11:29]
+            assert np.all(body[:, 0] > 0) and np.all(body[:, 0] < 320), name
+            assert np.all(body[:, 1] > 0) and np.all(body[:, 1] < 240), name
+    assert main(["bench", "falls", "--truth", "--mount", "corner", "--split", "tune", "--only",
+                 "fall/standing-sideways/fast-v30", "--json"]) == 0
+
+
 def test_cross_source_rows_and_gaps():
     from posed.bench.falls_cross import Row, table
 
