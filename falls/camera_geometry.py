@@ -14,9 +14,12 @@ down. Heights are metres along ``g``.
   height above it, and each frame's heights are measured along that frame's true gravity, so they stay
   comparable: each reading is used as it comes, and nothing is forgotten.
 * **Floor**: the plane measured in the depth image (its distance along the gravity in use), else its distance
-  below the camera learned from the ankles of a person standing or sitting upright
-  (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m`` (0: unknown).
-* **Standing pelvis height**: learned the same way (after ``STAND_MIN_WEIGHT`` observations).
+  below the camera learned from the ankles of a person standing or sitting upright, or from the stance foot of
+  one walking upright (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m``
+  (0: unknown).
+* **Standing pelvis height**: learned from a person standing upright (after ``STAND_MIN_WEIGHT``
+  observations); moved with the floor when the learned floor replaces the configured one
+  (``shift_standing_pelvis``).
 * **Trust** (``camera_geometry``): configured values that were measured for this mount are used as they are.
   A guess (a freshly started daemon with the default tilt 0 and height 1 m) is checked: gravity then comes from the
   person's own standing body once it contradicts the guess (the fit's mid-ankle -> mid-shoulder axis of
@@ -319,6 +322,12 @@ class CameraGeometry:
         """The pelvis height above the floor of a person standing upright (m)."""
         self._stand, self._stand_weight = _ema(self._stand, self._stand_weight, height_m)
 
+    def shift_standing_pelvis(self, delta_m: float) -> None:
+        """The floor the standing pelvis height was measured against moved ``delta_m`` further below: so is the
+        pelvis above it."""
+        if self._stand is not None:
+            self._stand += delta_m
+
     def standing_pelvis(self) -> float | None:
         """The learned standing pelvis height (m), or None until it is known."""
         return self._stand if self._stand is not None and self._stand_weight >= STAND_MIN_WEIGHT else None
@@ -373,16 +382,22 @@ class CameraGeometry:
 
     # ------------------------------------------------------------------ report
 
+    @property
+    def floor_source(self) -> str:
+        """Where :attr:`floor_below_camera` comes from: depth, learned (from feet), config or lowest_joint (unknown:
+        the lowest fitted joint stands in)."""
+        if self._depth_height() is not None:
+            return "depth"
+        if self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT:
+            return "learned"
+        return "config" if self.floor_below_camera is not None else "lowest_joint"
+
     def used(self) -> dict:
         """What a frame is judged with: ``gravity`` imu, depth (the floor plane in the depth image), learned, body
-        (the standing person's axis) or config; ``floor`` depth, learned (from standing feet), config or
+        (the standing person's axis) or config; ``floor`` depth, learned (from feet), config or
         lowest_joint (unknown: the lowest fitted joint stands in); ``config`` whether the configured values
         were measured (``camera_geometry``); ``depth_floor`` the depth floor's evidence when there is one."""
-        learned_floor = self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT
-        depth = self._depth_height() is not None
-        floor = "depth" if depth else "learned" if learned_floor else \
-            ("config" if self.floor_below_camera is not None else "lowest_joint")
-        out = {"gravity": "imu" if self._gravity_imu is not None else self._gravity_from, "floor": floor,
+        out = {"gravity": "imu" if self._gravity_imu is not None else self._gravity_from, "floor": self.floor_source,
                "config": "measured" if self.measured else "guess"}
         if self._depth is not None:
             out["depth_floor"] = self._depth_evidence()

@@ -119,6 +119,8 @@ class FallDetector:
         self._event: _Event | None = None
         self._last_result: FitResult | None = None
         self.last_sample: Sample | None = None
+        self._stand_used: float | None = None     # the standing pelvis height (m) the last sample was judged with
+        self._stand_learned = False               # ... and whether it was the learned one (else the leg's estimate)
         self.other_level = 0      # frames whose pelvis was far under the floor in use (BELOW_FLOOR_REL)
         self.last_features: FrameFeatures | None = None   # the last frame's, None when it was not judged
         self.last_camera: Intrinsics | None = None        # the intrinsics it was judged with
@@ -285,26 +287,52 @@ class FallDetector:
         geo = self.camera
         # learn the floor and the standing height from a person standing upright with straight legs; the floor
         # also from a person sitting upright (hips and knees flexed 60-120 deg: their feet rest on the floor as
-        # a standing person's do), along whatever gravity is in use, as for standing feet (feet at or above the
-        # camera teach nothing: CameraGeometry.observe_floor)
+        # a standing person's do) and from one walking upright (the stance foot), along whatever gravity is in
+        # use, as for standing feet (feet at or above the camera teach nothing: CameraGeometry.observe_floor)
         upright_trunk = f.trunk_incl_deg < cfg.upright_trunk_deg
         standing = upright_trunk and f.upright_legs
         seated = upright_trunk and f.seated_trunk_up_c is not None
+        walking = upright_trunk and f.straight_body
+        source, before = geo.floor_source, geo.floor_below_camera
         if (standing or seated) and f.below_camera_ankles is not None:
             geo.observe_floor(f.below_camera_ankles + ANKLE_OVER_LEG * f.leg_length, f.ankles_c,
                               ANKLE_OVER_LEG * f.leg_length)
+        elif walking and f.below_camera_low_ankle is not None:
+            # walking (legs extended, trunk upright, a knee may be bent in its swing): the lower ankle is the
+            # stance foot, on the floor
+            geo.observe_floor(f.below_camera_low_ankle + ANKLE_OVER_LEG * f.leg_length, f.low_ankle_c,
+                              ANKLE_OVER_LEG * f.leg_length)
         floor = geo.floor_below_camera
+        switched = geo.floor_source != source
+        delta = floor - before if switched and floor is not None and before is not None else 0.0
+        if delta:
+            geo.shift_standing_pelvis(delta)   # measured against the old floor
         if floor is None:  # no floor known: judge against the lowest fitted joint instead
             floor = f.below_camera_pelvis + max(max(f.offsets_down.values()), 0.0) + ANKLE_OVER_LEG * f.leg_length
         h_pelvis = floor - f.below_camera_pelvis
         if standing and f.below_camera_ankles is not None:
             geo.observe_standing_pelvis(h_pelvis)
-        stand = geo.standing_pelvis()
-        stand = max(stand if stand is not None else PELVIS_OVER_LEG * f.leg_length, 0.2)
+        learned = geo.standing_pelvis()
+        stand = max(learned if learned is not None else PELVIS_OVER_LEG * f.leg_length, 0.2)
+        if switched and (before is None or geo.floor_below_camera is None):
+            self._gap()   # no floor before or now (the lowest joint stood in): nothing to re-express against
+        elif (delta or (learned is not None) != self._stand_learned) and self._stand_used is not None:
+            # another floor (learned from the feet in place of the configured one), or the learned standing
+            # height in place of the leg's estimate: the step between the two is no motion of the body, so the
+            # heights seen so far are re-expressed against the new ones (same gravity: a shift and a scale)
+            self._reexpress(self._stand_used, stand, delta)
+        self._stand_used, self._stand_learned = stand, learned is not None
         shoulders = h_pelvis - 0.5 * (f.offsets_down.get("left_shoulder", 0.0)
                                       + f.offsets_down.get("right_shoulder", 0.0))
         return Sample(t=f.t, h_rel=h_pelvis / stand, shoulders_rel=shoulders / stand, incl=f.trunk_incl_deg,
                       aspect=f.bbox_aspect, flexion=f.flexion)
+
+    def _reexpress(self, stand_old: float, stand_new: float, delta_m: float) -> None:
+        """Every height seen (pelvis and shoulders, relative to ``stand_old``) against a floor ``delta_m`` further
+        below and relative to ``stand_new``."""
+        for x in [*self._samples, *([self._last_smoothed] if self._last_smoothed is not None else [])]:
+            x.h_rel = (x.h_rel * stand_old + delta_m) / stand_new
+            x.shoulders_rel = (x.shoulders_rel * stand_old + delta_m) / stand_new
 
     def _descent_velocity(self, t: float) -> float:
         """Downward pelvis speed (rel/s): least-squares slope over the velocity window (or the last two

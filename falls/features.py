@@ -77,6 +77,8 @@ class FrameFeatures:
     ankles_c: np.ndarray | None = None   # the mean visible ankle's position, camera axes (m)
     seated_trunk_up_c: np.ndarray | None = None   # sitting (hips and knees flexed 60-120 deg): the trunk's
                                                   # mid-hip -> mid-shoulder direction, unit, camera axes
+    below_camera_low_ankle: float | None = None   # the lower visible ankle's (a walking person's stance foot)
+    low_ankle_c: np.ndarray | None = None         # its position, camera axes (m)
 
 
 def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Intrinsics) -> np.ndarray | None:
@@ -153,6 +155,9 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
     leg = float(np.mean(legs)) if legs else 0.8
     ankles = [n for n in ("left_ankle", "right_ankle") if visible.get(n) and n in joints]
     below_ankles = float(pelvis @ d_c + np.mean([offsets[n] for n in ankles])) if ankles else None
+    low = max(ankles, key=lambda n: offsets[n]) if ankles else None
+    below_low_ankle = float(pelvis @ d_c + offsets[low]) if low else None
+    low_ankle_c = pelvis + r_fit @ (joints[low] - mid_hip) if low else None
     ankles_c = pelvis + r_fit @ np.mean([joints[n] - mid_hip for n in ankles], axis=0) if ankles else None
     pts = np.array([lm[LANDMARK_INDEX[n], :2] for n, ok in visible.items() if ok])
     if roll_deg:
@@ -201,4 +206,5 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
     return FrameFeatures(seated_trunk_up_c=seated, ankles_c=ankles_c, t=result.t, below_camera_pelvis=float(pelvis @ d_c), below_camera_ankles=below_ankles,
                          offsets_down=offsets, trunk_incl_deg=incl, leg_length=leg, bbox_aspect=aspect, flexion=flex,
                          upright_legs=upright_legs, unobserved=unobserved, body_up_c=body_up,
-                         axis_plane_c=axis_plane, straight_body=straight)
+                         axis_plane_c=axis_plane, straight_body=straight, below_camera_low_ankle=below_low_ankle,
+                         low_ankle_c=low_ankle_c)

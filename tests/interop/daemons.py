@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SQUAT = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"
 URFD = Path("falls") / "urfd_dev"
 FALL_CLIP = "urfd_02_fall"       # the person stays in view 1.2 s after the impact (labels.json), so a fall
-                                 # event comes; urfd_00 loses them 0.17 s after it, before any decision
+                                 # event comes; urfd_00 loses them 0.17 s after it
 
 
 def fall_overrides(shared_data: Path, clip: str = FALL_CLIP) -> list[str]:
