@@ -126,7 +126,7 @@ def run_cross(shared: Path, cfg, recordings: Path, cache: Path | None, videos_di
           "looked at (the body check and the floor rules, issue 33)", "default config, fitting.projection orthographic",
           replace(cfg.fitting, projection="orthographic"))
     synth(("tune", "heldout", "cmu"), "default", "corner", "synthetic + CMU, corner camera 2.4 m 25 deg 320x240 74 deg",
-          "held out (added 2026-12-05, after every rule)", "default config, no intrinsics (assumed lens)")
+          "held out (added 2026-12-05 after every rule; one CMU clip traced for the walking feet)", "default config, no intrinsics (assumed lens)")
     log("urfd_dev ...")
     looked = "looked at (lost_confirm_s, lost_descent_confirm_s, the body check's 20 deg)"
     r = run_recordings(recordings, cfg, "labels", cache)
