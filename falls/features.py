@@ -103,6 +103,25 @@ def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Intrinsics) -> np.
     return sol
 
 
+def _trunk_thigh_deg(joints: dict[str, np.ndarray], trunk: np.ndarray) -> list[float]:
+    """Each hip's flexion as the angle between the trunk (mid-hip -> mid-shoulder) and the thigh (hip -> knee),
+    from the fitted joint positions: 0 standing, 90 seated. Unlike the model's hip angle it does not depend on
+    how the fit split the pelvis tilt between the lumbar spine and the hips (no landmark tells them apart)."""
+    out = []
+    n_tr = float(np.linalg.norm(trunk))
+    for side in ("left", "right"):
+        h, k = joints.get(f"{side}_hip"), joints.get(f"{side}_knee")
+        if h is None or k is None:
+            continue
+        thigh = k - h
+        n_th = float(np.linalg.norm(thigh))
+        if n_tr < 1e-9 or n_th < 1e-9:
+            continue
+        c = max(-1.0, min(1.0, float(trunk @ thigh) / (n_tr * n_th)))
+        out.append(180.0 - math.degrees(math.acos(c)))
+    return out
+
+
 def landmark_ok(landmarks: np.ndarray, index: int, min_vis: float, width: float, height: float) -> bool:
     row = landmarks[index]
     if not np.all(np.isfinite(row[:2])):
@@ -200,7 +219,9 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
             if n_norm > 1e-9:
                 axis_plane = normal / n_norm
     seated = None
-    if len(flex) == 4 and all(SEATED_FLEX_DEG[0] <= abs(v) <= SEATED_FLEX_DEG[1] for v in flex.values()):
+    hips = _trunk_thigh_deg(joints, trunk)
+    if len(flex) == 4 and len(hips) == 2 and all(
+            SEATED_FLEX_DEG[0] <= abs(v) <= SEATED_FLEX_DEG[1] for v in (*hips, flex["theta_kn_l"], flex["theta_kn_r"])):
         seated = r_fit @ (trunk / norm)
     unobserved = tuple(n for n, ok in visible.items() if not ok)
     return FrameFeatures(seated_trunk_up_c=seated, ankles_c=ankles_c, t=result.t, below_camera_pelvis=float(pelvis @ d_c), below_camera_ankles=below_ankles,
