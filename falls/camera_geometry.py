@@ -171,10 +171,11 @@ class CameraGeometry:
                                                                - ankle_height_m * np.asarray(up_c, float))
             self._body_floor_w += w
         up = -np.asarray(up_c, float)
+        along = float(up @ self.gravity)   # cos of the body's angle from the gravity in use
         if float(up @ self._gravity_cfg) < math.cos(math.radians(BODY_MAX_FROM_CONFIG_DEG)) \
-                or float(up @ self.gravity) < math.cos(math.radians(BODY_MAX_FROM_CURRENT_DEG)):
+                or along < math.cos(math.radians(BODY_MAX_FROM_CURRENT_DEG)):
             return False   # not an upright body (lying straight, a fit gone wrong) for any plausible mount
-        if self._gravity_from == "body" and float(up @ self.gravity) < math.cos(math.radians(self.cfg.upright_trunk_deg)):
+        if self._gravity_from == "body" and along < math.cos(math.radians(self.cfg.upright_trunk_deg)):
             return False   # tipping over: the first half second of a fall is a straight body too
         w = min(max(dt, 0.0), 0.2)   # a gap in the stream is no extra evidence
         if self._body_s >= BODY_MAX_S:
@@ -416,15 +417,13 @@ class CameraGeometry:
         l_tilt, l_roll = self._learner.learned() if self._learner is not None else (None, None)
         src = "imu" if self._gravity_imu is not None else "depth" if self._depth is not None else None
         body = self._gravity_from == "body"
-        learned_floor = self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT
         extra = {} if self._depth is None else {"depth_floor": self._depth_evidence()}
         return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": self.floor_below_camera,
                 "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto
                                      else "body" if body else "config"),
                 "roll_from": src or ("learned" if l_roll is not None and self.cfg.camera_roll_auto
                                      else "body" if body else "config"),
-                "height_from": "depth" if self._depth_height() is not None else "learned" if learned_floor else (
-                    "config" if self.floor_below_camera is not None else "unknown"),
+                "height_from": "unknown" if self.floor_source == "lowest_joint" else self.floor_source,
                 "config": "measured" if self.measured else "guess",
                 "body_s": round(self._body_s, 2), "floor_weight": round(self._floor_weight, 1),
                 "restored": self.restored,

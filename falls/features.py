@@ -103,22 +103,24 @@ def locate(pixels: np.ndarray, offsets_c: np.ndarray, camera: Intrinsics) -> np.
     return sol
 
 
-def _trunk_thigh_deg(joints: dict[str, np.ndarray], trunk: np.ndarray) -> list[float]:
-    """Each hip's flexion as the angle between the trunk (mid-hip -> mid-shoulder) and the thigh (hip -> knee),
-    from the fitted joint positions: 0 standing, 90 seated. Unlike the model's hip angle it does not depend on
-    how the fit split the pelvis tilt between the lumbar spine and the hips (no landmark tells them apart)."""
+def _angle_deg(u: np.ndarray, v: np.ndarray, norm_u: float, norm_v: float) -> float:
+    """The angle between ``u`` and ``v`` (their norms given, both above 0), degrees."""
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(u @ v) / (norm_u * norm_v)))))
+
+
+def _trunk_thigh_deg(joints: dict[str, np.ndarray], trunk: np.ndarray, norm: float) -> list[float]:
+    """Each hip's flexion as the angle between the trunk (mid-hip -> mid-shoulder, of length ``norm`` > 0) and
+    the thigh (hip -> knee), from the fitted joint positions: 0 standing, 90 seated. Unlike the model's hip angle
+    it does not depend on how the fit split the pelvis tilt between the lumbar spine and the hips (no landmark
+    tells them apart)."""
     out = []
-    n_tr = float(np.linalg.norm(trunk))
     for side in ("left", "right"):
         h, k = joints.get(f"{side}_hip"), joints.get(f"{side}_knee")
         if h is None or k is None:
             continue
-        thigh = k - h
-        n_th = float(np.linalg.norm(thigh))
-        if n_tr < 1e-9 or n_th < 1e-9:
-            continue
-        c = max(-1.0, min(1.0, float(trunk @ thigh) / (n_tr * n_th)))
-        out.append(180.0 - math.degrees(math.acos(c)))
+        n_th = float(np.linalg.norm(k - h))
+        if n_th >= 1e-9:
+            out.append(180.0 - _angle_deg(trunk, k - h, norm, n_th))
     return out
 
 
@@ -201,7 +203,7 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
             # standing or walking, whatever the gravity: the trunk in line with the hips-to-ankles axis and
             # both legs nearly extended (hip-ankle at least 85 % of thigh + shank: not sitting, squatting or
             # kneeling); walking's bent swing knee keeps its ankle under the body
-            bend = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk @ leg_axis) / (norm * n_leg)))))
+            bend = _angle_deg(trunk, leg_axis, norm, n_leg)
             extended = all(
                 np.linalg.norm(joints[f"{sd}_ankle"] - joints[f"{sd}_hip"])
                 >= 0.85 * (np.linalg.norm(joints[f"{sd}_knee"] - joints[f"{sd}_hip"])
@@ -219,7 +221,7 @@ def measure(result: FitResult, landmarks: np.ndarray | None, image_size, camera:
             if n_norm > 1e-9:
                 axis_plane = normal / n_norm
     seated = None
-    hips = _trunk_thigh_deg(joints, trunk)
+    hips = _trunk_thigh_deg(joints, trunk, norm)
     if len(flex) == 4 and len(hips) == 2 and all(
             SEATED_FLEX_DEG[0] <= abs(v) <= SEATED_FLEX_DEG[1] for v in (*hips, flex["theta_kn_l"], flex["theta_kn_r"])):
         seated = r_fit @ (trunk / norm)
