@@ -27,6 +27,14 @@ the camera, each at a depth taken from elsewhere -- the true depth of each joint
 landmarks and the keypoint definitions leave, the floor of any estimate built on them), the true mid-hip
 depth plus BlazePose's world depths relative to its mid-hip (``world``), or plus the fit's (``fit``). The
 gap between ``true`` and the others is what each source's depths cost.
+
+Which way is down (fitting.vertical): the video mode 10 fps run is made a second time with each camera's
+gravity, from its calibration (the world's z is up), given to the fit, as a camera's IMU gives it (the row's
+``gravity``: calibration). The cameras look 18-25 degrees down and are rolled by up to 26. The scores above
+cannot see it (the pelvis tilt, traded against lumbar and hip flexion, moves no joint); what can is whether
+the four views agree on that split: ``views_split_spread_deg``, per reported angle (``theta_hp_l``,
+``theta_hp_r``, ``theta_tr``), the spread (standard deviation) of the four views' values on a frame, the mean
+over the frames every view answered.
 """
 
 from __future__ import annotations
@@ -55,6 +63,9 @@ CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 VIDEO_FPS = 60.0
 RUNS = (("video", 10.0), ("image", 10.0), ("video", 60.0))   # (mode, fps): the daemon's rate, and every frame
 EXTERNAL_RUN = ("video", 10.0)   # the run that also fits other extractors' recordings as `posed fit` does
+GRAVITY_RUN = ("video", 10.0)    # run again with each camera's gravity (from its calibration) given to the fit
+SPLIT_ANGLES = ("theta_hp_l", "theta_hp_r", "theta_tr")   # the fit's pelvis / hip / lumbar split (fitting.vertical)
+WORLD_UP = np.array([0.0, 0.0, 1.0])   # the calibration's world z points up (the man's ankles -> shoulders)
 # posed's joint names -> the triangulated markers' names (truth_3d.trc)
 TRC_NAMES = {"left_shoulder": "LShoulder", "right_shoulder": "RShoulder", "left_elbow": "LElbow",
              "right_elbow": "RElbow", "left_wrist": "LWrist", "right_wrist": "RWrist", "left_hip": "LHip",
@@ -242,32 +253,39 @@ class _Pool:
     depth_from: dict[str, _Scores] = field(default_factory=lambda: {s: _Scores() for s in ("true", "world", "fit")})
     root_err: list[float] = field(default_factory=list)
     roots: dict[int, np.ndarray] = field(default_factory=dict)   # frame -> the fit's mid-hip in the world
+    split: dict[int, np.ndarray] = field(default_factory=dict)   # frame -> the fit's SPLIT_ANGLES (degrees)
     frames: int = 0
     answered: int = 0
 
 
-def _fit_view(runs: list[_View], mode: str, fps: float, base: FitConfig) -> dict:
+def _fit_view(runs: list[_View], mode: str, fps: float, base: FitConfig, gravity: bool = False) -> dict:
     """One view's scores at ``fps``, pooled over its ``runs`` (one per starting frame: run p fits frames p,
-    p + step, ...; each a fresh fitter, as a daemon started at that frame)."""
+    p + step, ...; each a fresh fitter, as a daemon started at that frame); ``gravity``: the fit is given the
+    camera's gravity (from the calibration, as an IMU would give it)."""
     step = round(VIDEO_FPS / fps)
     pool = _Pool()
     for phase, view in enumerate(runs):
-        _fit_run(view, phase, step, mode, base, pool)
+        _fit_run(view, phase, step, mode, base, pool, gravity)
     return {"frames": pool.frames, "answered": pool.answered, "fit": pool.fit.summary(),
             "blazepose_world": pool.world.summary(), "flat_2d": {"pa_mpjpe_mm": pool.flat.summary().get("pa_mpjpe_mm")},
             "depth_sources": {s: sc.summary().get("pa_mpjpe_mm") for s, sc in pool.depth_from.items()},
-            "root_err_mm": round(float(np.median(pool.root_err)), 1) if pool.root_err else None, "_roots": pool.roots}
+            "root_err_mm": round(float(np.median(pool.root_err)), 1) if pool.root_err else None, "_roots": pool.roots,
+            "_split": pool.split}
 
 
-def _fit_run(view: _View, phase: int, step: int, mode: str, base: FitConfig, pool: _Pool) -> None:
+def _fit_run(view: _View, phase: int, step: int, mode: str, base: FitConfig, pool: _Pool,
+             gravity: bool = False) -> None:
     """Frames ``phase``, ``phase + step``, ... of one view through a fresh fitter, scored into ``pool``."""
     fitter = Fitter(base)
     k = view.camera.intrinsics(view.image_size)
+    down = view.camera.rot @ -WORLD_UP if gravity else None
     for i in range(phase, len(view.landmarks), step):
         pool.frames += 1
         lm = view.landmarks[i]
         w = view.world[i]
-        r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k, world=w)
+        r = fitter.fit(lm, i, i / VIDEO_FPS, view.image_size, mode=mode, intrinsics=k, world=w, gravity=down)
+        if r.ok:
+            pool.split[i] = np.array([r.joint_angles_deg[a] for a in SPLIT_ANGLES])
         ref = w if view.baseline_world is None else view.baseline_world[i]
         if not r.ok or ref is None or lm is None:
             continue
@@ -323,6 +341,9 @@ def run(shared_data: Path, base: FitConfig | None = None, cache: Path | None = N
             rows.append({"protocol": PROTOCOL, "domain": DOMAIN, "view": n, "mode": mode, "fps": fps,
                          **{k: v for k, v in res.items() if not k.startswith("_")}})
         rows.append(_overall(per_view, mode, fps))
+        if (mode, fps) == GRAVITY_RUN:
+            with_g = {n: _fit_view(v, mode, fps, base, gravity=True) for n, v in per_step[round(VIDEO_FPS / fps)].items()}
+            rows.append({**_overall(with_g, mode, fps), "gravity": "calibration"})
         if (mode, fps) == EXTERNAL_RUN:
             step = round(VIDEO_FPS / fps)
             rows[-1]["external_recordings"] = _external(
@@ -373,6 +394,11 @@ def _overall(per_view: dict[str, dict], mode: str, fps: float) -> dict:
     spread = [float(np.mean(np.linalg.norm(np.stack([r["_roots"][i] for r in per_view.values()]) -
                                            np.mean([r["_roots"][i] for r in per_view.values()], axis=0), axis=1)))
               * 1e3 for i in sorted(common)]
+    # the pelvis / hip / lumbar split is not observable: the views agree on it only if they share one "down"
+    shared = set.intersection(*(set(r["_split"]) for r in per_view.values()))
+    split_spread = {a: round(float(np.mean([np.std([r["_split"][i][j] for r in per_view.values()])
+                                            for i in sorted(shared)])), 1) if shared else None
+                    for j, a in enumerate(SPLIT_ANGLES)}
     keys = ("pa_mpjpe_mm", "mpjpe_hip_aligned_mm", "angle_err_deg", "depth_flips")
     frames = sum(r["frames"] for r in per_view.values())
     answered = sum(r["answered"] for r in per_view.values())
@@ -386,7 +412,8 @@ def _overall(per_view: dict[str, dict], mode: str, fps: float) -> dict:
             "fit_over_blazepose_pa": round(fit["pa_mpjpe_mm"] / world["pa_mpjpe_mm"], 3)
             if fit["pa_mpjpe_mm"] and world["pa_mpjpe_mm"] else None,
             "root_err_mm": round(float(np.median(roots)), 1) if roots else None,
-            "views_root_spread_mm": round(float(np.median(spread)), 1) if spread else None}
+            "views_root_spread_mm": round(float(np.median(spread)), 1) if spread else None,
+            "views_split_spread_deg": split_spread}
 
 
 def markdown(rows: list[dict]) -> list[str]:
@@ -398,7 +425,7 @@ def markdown(rows: list[dict]) -> list[str]:
         if r["view"] != "all":
             continue
         f, w = r["fit"], r["blazepose_world"]
-        out.append(f"| {r['mode']} | {r['fps']:g} | {r['answered']}/{r['frames']} | {f['pa_mpjpe_mm']} / "
+        out.append(f"| {r['mode']}{' + gravity' if r.get('gravity') else ''} | {r['fps']:g} | {r['answered']}/{r['frames']} | {f['pa_mpjpe_mm']} / "
                    f"{w['pa_mpjpe_mm']} ({r['fit_over_blazepose_pa']}) / {r['flat_2d']['pa_mpjpe_mm']} | "
                    f"{f['mpjpe_hip_aligned_mm']} / {w['mpjpe_hip_aligned_mm']} | {f['angle_err_deg']} / "
                    f"{w['angle_err_deg']} | {f['depth_flips']} / {w['depth_flips']} | {r['root_err_mm']} | "

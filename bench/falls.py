@@ -145,10 +145,12 @@ def _imu_gravity(cam, rng: np.random.Generator, bias_rad: np.ndarray) -> np.ndar
     return tilted / np.linalg.norm(tilted)
 
 
-def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int, int], Intrinsics], FitResult],
-             cfg: FallsConfig, fit_frame: str, geometry: str = "given", intrinsics: bool = True) -> Outcome:
-    """One case through ``fit`` and a fresh detector. ``intrinsics`` False: the detector is given none (a
-    recording without a camera header: it assumes ``camera_hfov_deg``)."""
+def run_case(case: Case, fit: Callable[..., FitResult], cfg: FallsConfig, fit_frame: str, geometry: str = "given",
+             intrinsics: bool = True) -> Outcome:
+    """One case through ``fit`` and a fresh detector. ``fit(landmarks, seq, t, image_size, intrinsics,
+    gravity)``: gravity the IMU's (geometry imu) or the measured mount's (given), else None, as the daemon's
+    fitting stage gives it. ``intrinsics`` False: the detector is given none (a recording without a camera
+    header: it assumes ``camera_hfov_deg``)."""
     cam = case.camera
     image_size = (cam.width, cam.height)
     if geometry not in GEOMETRIES:
@@ -167,15 +169,19 @@ def run_case(case: Case, fit: Callable[[np.ndarray | None, int, float, tuple[int
     fit_ms = []
     recent: list = []
     low = low_lying = None
+    # the fit is given the down the daemon's fitting stage gives it (daemon.stages.fit.frame_gravity): the IMU's,
+    # else a measured mount's
+    mount_down = np.asarray(gravity_from_tilt(cam.tilt, cam.roll), dtype=float) if geometry == "given" else None
     for fr in case.frames:
-        result = fit(fr.landmarks, fr.seq, fr.t, image_size, cam.intrinsics) if fr.landmarks is not None \
-            else FitResult.failure(fr.seq, fr.t, "no person")
+        imu = _imu_gravity(cam, imu_rng, imu_bias) if imu_rng is not None else None
+        result = fit(fr.landmarks, fr.seq, fr.t, image_size, cam.intrinsics, imu if imu is not None else mount_down) \
+            if fr.landmarks is not None else FitResult.failure(fr.seq, fr.t, "no person")
         if fr.landmarks is not None and not result.ok:
             failures += 1
         if result.fit_ms is not None:
             fit_ms.append(result.fit_ms)
-        if imu_rng is not None:
-            det.set_gravity(_imu_gravity(cam, imu_rng, imu_bias))
+        if imu is not None:
+            det.set_gravity(imu)
         messages += det.update(result, fr.landmarks, image_size, intrinsics=cam.intrinsics if intrinsics else None)
         if det.last_sample is not None:
             recent = (recent + [det.last_sample])[-3:]
@@ -215,19 +221,21 @@ def real_fitter(fit_config=None):
     fitter = Fitter(fit_config or FitConfig())
     fitter.warmup()
 
-    def fit(landmarks, seq, t, image_size, intrinsics):
-        return fitter.fit(landmarks, seq, t, image_size, mode="video", intrinsics=intrinsics)
+    def fit(landmarks, seq, t, image_size, intrinsics, gravity=None):
+        return fitter.fit(landmarks, seq, t, image_size, mode="video", intrinsics=intrinsics, gravity=gravity)
 
     fit.reset = fitter.reset  # type: ignore[attr-defined]
     return fit
 
 
-def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intrinsics | None = None):
+def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intrinsics | None = None,
+               down: str = "none"):
     """``fit`` wrapped with a per-case cache of its results (key: the case's landmarks, the fit config, the
-    intrinsics the fit is given and the fitting package's source), so that re-scoring the detector costs no
+    intrinsics the fit is given, ``down`` (which gravity the fit is given: none, given or imu; each is the same
+    for a case every time) and the fitting package's source), so that re-scoring the detector costs no
     fit. ``intrinsics``: given to the fit instead of the case camera's (an assumed lens)."""
     if cache is None:
-        return lambda lm, seq, t, size, intr: fit(lm, seq, t, size, intrinsics or intr)
+        return lambda lm, seq, t, size, intr, gravity=None: fit(lm, seq, t, size, intrinsics or intr, gravity)
     import hashlib
     import json
     from dataclasses import asdict
@@ -240,6 +248,8 @@ def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intr
         h.update(b"none" if fr.landmarks is None else np.ascontiguousarray(fr.landmarks, float).tobytes())
     h.update(json.dumps(asdict(fit_config) if fit_config is not None else {}, sort_keys=True).encode())
     h.update(f"{intrinsics or case.camera.intrinsics}{_fitting_source_hash()}".encode())
+    if down != "none":   # (keys of fits without gravity as before)
+        h.update(f"down={down}".encode())
     path = cache / f"{case.name.replace('/', '_')}.{h.hexdigest()[:20]}.fits.jsonl"
     stored = None
     if path.is_file():
@@ -248,11 +258,11 @@ def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intr
             stored = None
     if stored is not None:
         it = iter(stored)
-        return lambda lm, seq, t, size, intr: next(it)
+        return lambda lm, seq, t, size, intr, gravity=None: next(it)
     made: list[FitResult] = []
 
-    def fn(lm, seq, t, size, intr):
-        r = fit(lm, seq, t, size, intrinsics or intr)
+    def fn(lm, seq, t, size, intr, gravity=None):
+        r = fit(lm, seq, t, size, intrinsics or intr, gravity)
         made.append(r)
         if len(made) == sum(fr.landmarks is not None for fr in case.frames):
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -262,6 +272,14 @@ def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intr
         return r
 
     return fn
+
+
+def fit_down(geometry: str, fit_config=None) -> str:
+    """Which gravity a scenario's fit is given under ``geometry`` (run_case): the IMU's (imu), the measured
+    mount's (given), or none; none whatever the geometry when ``fitting.vertical`` is camera."""
+    if fit_config is not None and fit_config.vertical == "camera":
+        return "none"
+    return geometry if geometry in ("given", "imu") else "none"
 
 
 def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
@@ -293,11 +311,11 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             fit.reset()  # type: ignore[union-attr]
             assumed = None if with_intrinsics else \
                 Intrinsics.assume(cfg.camera_hfov_deg, case.camera.width, case.camera.height)
-            fn = cached_fit(case, fit, fit_config, cache, assumed)
+            fn = cached_fit(case, fit, fit_config, cache, assumed, fit_down(geometry, fit_config))
         else:
             by_seq = {fr.seq: fr for fr in case.frames}
 
-            def fn(lm, seq, t, size, intr, by_seq=by_seq, cam=case.camera):
+            def fn(lm, seq, t, size, intr, gravity=None, by_seq=by_seq, cam=case.camera):
                 return truth_result(by_seq[seq], cam)
 
         outcome = run_case(case, fn, cfg, fit_frame, geometry, intrinsics=mount == "robot")

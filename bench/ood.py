@@ -174,6 +174,9 @@ class OodPlan:
     noise_corr_s: tuple[float, ...] = (0.5,)
     # without depth, also with a simulated stream of BlazePose's world landmarks (bench.world_sim) given to the fit
     world: tuple[bool, ...] = (False, True)
+    # give the fit each camera's gravity (its rotation in the mocap world, whose z is up), as an IMU would:
+    # fitting.vertical (the cameras look 5-8 degrees down: 1.2 m high, aimed 0.8 m high from 3-4 m)
+    gravity: bool = False
 
 
 FULL_OOD = OodPlan()
@@ -346,22 +349,25 @@ def _r(v: float, nd: int = 3) -> float:
 
 
 def _fit(fitter: Fitter, lm, i: int, t: float, mode: str, k, depth: np.ndarray | None,
-         world: np.ndarray | None = None):
+         world: np.ndarray | None = None, gravity: np.ndarray | None = None):
     kw = {"depth_m": depth} if depth is not None else {}
     if world is not None:
         kw["world"] = world
+    if gravity is not None:
+        kw["gravity"] = gravity
     c0, w0 = time.thread_time(), time.perf_counter()
     r = fitter.fit(lm, i, t, k.size, mode=mode, intrinsics=k, **kw)
     return r, time.thread_time() - c0, time.perf_counter() - w0
 
 
-def _visit(fitter: Fitter, visit: Sequence, ni: int, step: int, use_depth: bool) -> float:
+def _visit(fitter: Fitter, visit: Sequence, ni: int, step: int, use_depth: bool, gravity: bool = False) -> float:
     """Video mode over ``visit`` (its landmarks of noise level ``ni``, every ``step``-th frame), as an earlier
     sighting of the person: what it learns stays; returns the time of its last frame (s)."""
     k = visit.camera.intrinsics
+    down = visit.camera.rot @ np.array([0.0, 0.0, -1.0]) if gravity else None
     for i in range(0, len(visit.times), step):
         _fit(fitter, visit.landmarks[ni][i], i, float(visit.times[i]), "video", k,
-             visit.depth[i] if use_depth else None)
+             visit.depth[i] if use_depth else None, None, down)
     fitter.reset()
     return float(visit.times[-1])
 
@@ -426,6 +432,7 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                 other = plan.clips[(ci + 1) % len(plan.clips)]
                 visit = build_sequence(clips[other], (az + SEEN_TURN_DEG) % 360.0, master, plan.noises,
                                        seed=1000 * ci + ai + seed + 500, max_s=plan.max_s)
+            down = cam.rot @ np.array([0.0, 0.0, -1.0]) if plan.gravity else None
             for noise, corr, lms in variants:
                 for body, fitter in fitters.items():
                     for use_depth, use_world in [(d, w) for d in plan.depth for w in plan.world if not (d and w)]:
@@ -444,7 +451,8 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                 for i in wanted:
                                     fitter.reset()
                                     res[i] = _fit(fitter, lms[i], i, float(seq.times[i]), "image",
-                                                  cam.intrinsics, seq.depth[i] if fit_depth else None, wl[i])
+                                                  cam.intrinsics, seq.depth[i] if fit_depth else None, wl[i],
+                                                  down)
                                 for f, s in steps.items():
                                     acc = accs.setdefault(("image", f, noise, corr, body, use_depth, use_world),
                                                           _Acc())
@@ -458,12 +466,12 @@ def run(plan: OodPlan = FULL_OOD, base: FitConfig | None = None, data_dir: Path 
                                     fitter.forget_body()   # each sequence is a new video of a new person ...
                                     t0 = 0.0
                                     if body == "seen":     # ... or of one seen before, a minute ago
-                                        t0 = _visit(fitter, visit, plan.noises.index(noise), s, fit_depth)
+                                        t0 = _visit(fitter, visit, plan.noises.index(noise), s, fit_depth, plan.gravity)
                                         t0 += base.proportions_forget_s + 30.0
                                     for i in range(0, len(lms), s):
                                         acc.add(seq, i, *_fit(fitter, lms[i], i, t0 + float(seq.times[i]), "video",
                                                               cam.intrinsics, seq.depth[i] if fit_depth else None,
-                                                              wl[i]))
+                                                              wl[i], down))
     tmp.cleanup()
     results = []
     for (mode, f, noise, corr, body, use_depth, use_world), acc in accs.items():

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from posed.fitting import layout as L
 from posed.fitting import problem as P
 from posed.fitting.depth_term import DepthFit
 from posed.fitting.measured import Measured
@@ -17,6 +18,7 @@ from posed.fitting.result import (
     VARIABLE_NAMES,
     FitResult,
 )
+from posed.fitting.vertical import camera_body_angles
 
 _DEPENDS = {  # variables that only these landmarks observe
     "left_elbow": ("theta_sh_l", "phi_sh_l"), "right_elbow": ("theta_sh_r", "phi_sh_r"),
@@ -37,15 +39,21 @@ def unobserved(missing: list[str]) -> list[str]:
 def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.ndarray, *, loss: float,
              mp: float, fit_ms: float, mode: str, evals: int, udeas_s: float, missing: list[str], gamma: float,
              depth: DepthFit | None, measured: Measured | None = None, rotation: P.Rotation = False,
-             lens_assumed: bool = False) -> FitResult:
+             lens_assumed: bool = False, level: np.ndarray | None = None) -> FitResult:
     """The result of solution ``x`` (kernel units) of ``frame``; ``gamma`` the reported size factor, ``depth``
     the depth term at ``x`` (None without depth), ``measured`` what the frame's landmarks measured
     (fitting.measured; None: judged from ``missing`` alone); ``rotation``: the upper arms' rotations were
     searched (reported as ``shoulder_rotation_deg``); ``lens_assumed``: the perspective frame's intrinsics
     were an assumed lens (camera_model.Intrinsics.assume): ``lens`` says so and ``root_cam_m``, metres
-    through a lens nobody measured, is left out."""
+    through a lens nobody measured, is left out; ``level``: the level frame R_CL ``x``'s body angles are taken
+    against (fitting.vertical; None: the camera's own), reported against the camera as always."""
     values = np.empty(N_REPORTED)
-    known, *root = reported_values(x, frame.data, fixed_deg, 0.0 if depth is None else depth.root_z,
+    data = frame.data
+    if level is not None:   # the same body, its angles against the camera: the kernels' data without the level
+        x = camera_body_angles(x, level)
+        data = data.copy()
+        data[L.D_LEVEL:L.D_LEVEL + 10] = 0.0
+    known, *root = reported_values(x, data, fixed_deg, 0.0 if depth is None else depth.root_z,
                                    depth is not None, values)
     v = values.tolist()
     variables = {"gamma": round(gamma, 5)}
@@ -58,6 +66,8 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
              "udeas_ms": float(f"{udeas_s * 1e3:.4g}")}
     if frame.perspective:
         extra["lens"] = "assumed" if lens_assumed else "given"
+    if level is not None:   # the body angles' down was gravity, not the camera's +y (fitting.vertical)
+        extra["vertical"] = "gravity"
     if any(P.arms(rotation)):
         extra["shoulder_rotation_deg"] = dict(zip(SHOULDER_ROTATION_NAMES, v[ROTATIONS:], strict=True))
     if depth is not None:

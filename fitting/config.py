@@ -132,6 +132,15 @@ class FitConfig:
                                          "falls.camera_hfov_deg, assumed: no root_cam_m)",
                                   "choices": ("auto", "orthographic", "perspective")}
     )
+    vertical: str = field(
+        default="auto", metadata={"doc": "which way is down for the pelvis-tilt prior and the centre of mass "
+                                         "over the feet: auto (gravity when the fit is given it: the daemon "
+                                         "gives a RealSense IMU's, else the camera's tilt and roll when "
+                                         "falls.camera_geometry trusts them as measured; else the camera's "
+                                         "+y) or camera (always the camera's +y: the paper's level camera); "
+                                         "see docs/body-model.md",
+                                  "choices": ("auto", "camera")}
+    )
     visibility_drop: float = field(
         default=0.3, metadata={"doc": "landmarks with visibility below this are not used", "range": (0.0, 1.0)}
     )

@@ -45,6 +45,7 @@ from posed.fitting.measured import Measured, measured_landmarks
 from posed.fitting.projection import image_scale
 from posed.fitting.proportions import DEPTH_MIN_WEIGHT, ProportionLearner, joint_points
 from posed.fitting.result import FitResult
+from posed.fitting.vertical import level_data, level_frame, reexpress
 from posed.fitting.world_term import (
     SENSOR_WORLD,
     WORLD_WEIGHT,
@@ -98,6 +99,7 @@ class Fitter:
         self._sensor = SENSOR_DEPTH_CAMERA       # ... of this sensor: a depth camera, or the world landmarks
         self._depth_weight = DEPTH_WEIGHT        # ... and its weight against the 2D landmarks
         self._world: np.ndarray | None = None    # this frame's world landmarks (33 x 5), when given
+        self._level: np.ndarray | None = None    # the level frame R_CL the body angles are taken against
         self.reset()
 
     # --- state ---
@@ -145,7 +147,8 @@ class Fitter:
 
     def fit(self, landmarks: np.ndarray | None, seq: int, t: float, image_size: tuple[int, int],
             mode: str = "video", intrinsics: Intrinsics | None = None,
-            depth_m: np.ndarray | None = None, world: np.ndarray | None = None) -> FitResult:
+            depth_m: np.ndarray | None = None, world: np.ndarray | None = None,
+            gravity=None) -> FitResult:
         """Fit one frame. ``landmarks``: (33, 5) ``[x_px, y_px, z, visibility, presence]`` or None (no person).
 
         ``intrinsics``: the camera's, in pixels of the landmarks' image, or None (unknown: with ``projection``
@@ -156,12 +159,22 @@ class Fitter:
         where unknown (interfaces.md section 1), or None: used by a robust term (fitting.depth_term) and for
         ``root_cam_m``. ``world``: BlazePose's world landmarks of the frame (33 x 5, metres, hip-centred;
         interfaces.md section 1), or None: without depth, the same robust term's evidence of each limb's depth
-        (fitting.world_term; ``world_landmarks`` in the config).
+        (fitting.world_term; ``world_landmarks`` in the config). ``gravity``: the direction of gravity (down)
+        in the camera's axes, any length (an IMU's, or a measured mount's tilt and roll), or None: the camera
+        is taken as level. With it the pelvis-tilt prior and the centre of mass over the feet measure against
+        the true vertical (fitting.vertical); the result's ``vertical`` says which one the fit used.
         """
         t0 = time.perf_counter()
         self._depth = None
         self._world = None
         try:
+            try:
+                level = level_frame(gravity if self.config.vertical == "auto" else None)
+            except ValueError as exc:
+                return FitResult.failure(seq, float(t) if _finite(t) else 0.0, str(exc))
+            if self._prev_x is not None and not _same_level(level, self._level):
+                self._prev_x = reexpress(self._prev_x, self._level, level)   # the same body, a new down
+            self._level = level
             if world is not None and self.config.world_landmarks:
                 wl = np.asarray(world, dtype=np.float64)
                 if wl.shape != (33, 5):
@@ -234,7 +247,7 @@ class Fitter:
                           if cfg.shoulder_rotation and not camera_depth and self._depth is not None
                           else (False, False))
         frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg,
-                       self._rotation)
+                       self._rotation, level_data(self._level))
         video_ok = (mode == "video" and self._prev_x is not None and self._prev_t is not None
                     and 0.0 <= t - self._prev_t <= cfg.video_max_gap_s)
 
@@ -244,7 +257,8 @@ class Fitter:
             # the world landmarks were judged garbage (no hypothesis agrees with their depths: the tracker on
             # another body): nothing tells the arms' rotations either -- the frame is solved again without them
             self._rotation = (False, False)
-            frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg)
+            frame = P.pack(xy, w, self.dims, cfg, ppm0, intrinsics if use_persp else None, self._fixed_deg,
+                           level=level_data(self._level))
             x, loss, mp, more, used_mode = self._solve(frame, video_ok, ppm0, t)
             evals += more
         if used_mode == "image":
@@ -266,7 +280,7 @@ class Fitter:
         result = assemble(seq, t, x, frame, self._fixed_deg, loss=loss, mp=mp, fit_ms=fit_ms, mode=used_mode,
                           evals=evals, udeas_s=self._udeas_s, missing=missing, gamma=gamma, depth=depth,
                           measured=Measured.from_landmarks(measured_landmarks(lm, cfg.visibility_drop)),
-                          rotation=self._rotation, lens_assumed=lens_assumed)
+                          rotation=self._rotation, lens_assumed=lens_assumed, level=self._level)
         # what the fit used: the 2D landmarks always; a depth camera's or the world landmarks' depths when they
         # were given and not judged garbage (fitting.depth_term.usable)
         evidence = ["landmarks"]
@@ -551,6 +565,10 @@ class Fitter:
             pool[i] = self._lm(frame.data, hyps[i])[0]
             mse[i] = refine.data_mse(pool[i], frame.data)
         return (*self._select(frame, pool, mse), int(evals))
+
+
+def _same_level(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
 
 
 def _finite(v) -> bool:

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from posed.fitting import layout as L
-from posed.fitting.rotations import body_rot, mm, put_point, r0, rx, rx_cs, ry, ry_cs, rz, rz_cs
+from posed.fitting.rotations import body_rot, level_rot, mm, put_point, r0, rx, rx_cs, ry, ry_cs, rz, rz_cs
 
 # Dempster / Winter segment masses (fitting.body.SEGMENT_MASS, fractions of body mass) and centre-of-mass
 # positions along the segments (fractions of their length from the proximal joint).
@@ -72,6 +72,13 @@ def update_trig(x, data, work):
     if work[L.W_SIG, 0] != sig:
         work[L.W_SIG, 0] = sig
         mask = G_ALL
+    # the level frame turns the whole body: its own signature (column 1)
+    lv = 0.0
+    for k in range(10):
+        lv += data[L.D_LEVEL + k] * (k + 1.5)
+    if work[L.W_SIG, 1] != lv:
+        work[L.W_SIG, 1] = lv
+        mask |= G_BODY
     for k in range(1, L.N_VAR):
         r = L.W_TRIG + k
         if work[r, 0] != x[k]:
@@ -125,9 +132,10 @@ def load_rot(work, row):
 
 
 @njit(cache=True)
-def body_rot_w(work):
-    """R_CB = R0 Rz(psi_bd) Rx(-phi_bd) Ry(theta_bd) from the trig table."""
-    r_z = mm(r0(), _rz_slot(work, L.X_SBD, 1.0))
+def body_rot_w(data, work):
+    """R_CB = R_CL R0 Rz(psi_bd) Rx(-phi_bd) Ry(theta_bd) from the trig table (R_CL: the level frame of
+    ``data``, fitting.rotations.level_rot; the body angles are taken against it)."""
+    r_z = mm(mm(level_rot(data, L.D_LEVEL), r0()), _rz_slot(work, L.X_SBD, 1.0))
     return mm(mm(r_z, _rx_slot(work, L.X_PBD, -1.0)), _ry_slot(work, L.X_TBD, 1.0))
 
 
@@ -242,7 +250,7 @@ def fk_update(mask, data, work):
     if mask & ~G_BODY:
         _com(data, work)
     if mask & G_BODY:
-        store_rot(work, L.W_RBD, body_rot_w(work))
+        store_rot(work, L.W_RBD, body_rot_w(data, work))
     r_bd = load_rot(work, L.W_RBD)
     if mask & G_BODY:
         _rotate_rows(work, r_bd, 0, L.N_POINTS)
@@ -293,7 +301,7 @@ def model_points_into(x, data, pts_b, pts_c, work):
         work[r, 0] = np.nan
     update_trig(x, data, work)
     fk_work(data, work)
-    r_bd = body_rot_w(work)
+    r_bd = body_rot_w(data, work)
     for i in range(L.N_POINTS):
         for c in range(3):
             pts_b[i, c] = work[L.W_PTS_B + i, c]
@@ -303,10 +311,11 @@ def model_points_into(x, data, pts_b, pts_c, work):
 
 @njit(cache=True)
 def torso_uprightness(x):
-    """cos of the torso's inclination from vertical, clipped at 0 (1 upright, 0 horizontal or below)."""
+    """cos of the torso's inclination from vertical, clipped at 0 (1 upright, 0 horizontal or below); the body
+    angles of ``x`` are taken against the level frame (R_CL aside), whose -y is up."""
     r_tr = mm(mm(ry(x[L.X_TTR]), rx(-x[L.X_PTR])), rz(x[L.X_STR]))
     r = mm(body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD]), r_tr)
-    c = -r[5]  # -(R_CB R_tr)[1, 2]: the torso's z axis against camera up (-y)
+    c = -r[5]  # -(R_LB R_tr)[1, 2]: the torso's z axis against up (-y of the level frame)
     return c if c > 0.0 else 0.0
 
 

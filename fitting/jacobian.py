@@ -35,7 +35,7 @@ from posed.fitting.forward_kinematics import empty_work as empty_fk_work
 from posed.fitting.forward_kinematics import model_points_into
 from posed.fitting.penalties import hinge_jacobian, hinge_residuals
 from posed.fitting.projection import MIN_DEPTH, project
-from posed.fitting.rotations import body_rot, column, mm, r0, rx, ry, rz
+from posed.fitting.rotations import column, level_rot, mm, r0, rx, ry, rz
 
 ORIGIN = (0.0, 0.0, 0.0)  # the mid-hip: centre of the body and lumbar rotations
 
@@ -83,11 +83,12 @@ def _rate(jp, i, k, a, p, o):
 @njit(cache=True)
 def _point_jacobian(x, data, pts_c, jp):
     """jp[i] (3 x 21): d (camera-axes position of landmark i) / d x, metres per radian (gamma column 0)."""
-    # body R_CB = R0 Rz(psi_bd) Rx(-phi_bd) Ry(theta_bd): moves every point about the mid-hip
-    r_bd = body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD])
-    r_z = mm(r0(), rz(x[L.X_SBD]))
+    # body R_CB = R_CL R0 Rz(psi_bd) Rx(-phi_bd) Ry(theta_bd): moves every point about the mid-hip
+    r_cl0 = mm(level_rot(data, L.D_LEVEL), r0())
+    r_bd = mm(r_cl0, mm(mm(rz(x[L.X_SBD]), rx(-x[L.X_PBD])), ry(x[L.X_TBD])))
+    r_z = mm(r_cl0, rz(x[L.X_SBD]))
     r_zx = mm(r_z, rx(-x[L.X_PBD]))
-    a_psi = column(r0(), 2)
+    a_psi = column(r_cl0, 2)
     a_phi = _neg(column(r_z, 0))
     a_theta = column(r_zx, 1)
     for i in range(L.N_LM):

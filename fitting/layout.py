@@ -76,7 +76,9 @@ FLEX_VARS = (X_TKN_L, X_TKN_R, X_TEL_L, X_TEL_R)   # the hinges whose flexion a 
 N_FLEX = 4
 D_FLEX = D_DEPTH_W + N_LM          # 4: measured flexion of the FLEX_VARS hinges (kernel units)
 D_FLEX_W = D_FLEX + N_FLEX         # 4: weights of the flexion rows (0 = none; refinement only)
-D_SIZE = D_FLEX_W + N_FLEX
+D_LEVEL = D_FLEX_W + N_FLEX      # 10: the level frame: a flag (0 = the camera is level, the rest unused), then
+#                                   R_CL row-major (camera axes of the level frame's x, y = down, z; fitting.vertical)
+D_SIZE = D_LEVEL + 10
 
 # --- work array of the loss: one (W_ROWS, 3) float64 array, no views in the hot path ---
 N_SLOTS = N_VAR + N_FIXED     # trig-table slots: x[k] at slot k (slot 0 unused), fixed[k] at slot N_VAR + k
@@ -86,7 +88,7 @@ W_PROJ = W_PTS_C + N_POINTS   # 12 rows: normalized image coordinates (columns 0
 W_TRIG = W_PROJ + N_LM        # 29 rows: (angle, cos, sin) per slot, recomputed only when the angle changes
 W_RTR = W_TRIG + N_SLOTS      # 3 rows: torso rotation (pelvis from torso), row-major
 W_RBD = W_RTR + 3             # 3 rows: body rotation R_CB
-W_SIG = W_RBD + 3             # 1 row: signature of the dims the cached points were computed with
+W_SIG = W_RBD + 3             # 1 row: signatures of the dims (column 0) and level frame (1) the points were computed with
 W_ROWS = W_SIG + 1
 
 # --- least-squares residual vector of the refinement (fitting.jacobian) ---

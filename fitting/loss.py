@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from posed.fitting import layout as L
 from posed.fitting.forward_kinematics import fk_update, load_rot, update_trig
 from posed.fitting.penalties import penalties
 from posed.fitting.projection import project_w
+from posed.fitting.rotations import level_rot, mm, transposed
 
 
 @njit(cache=True)
@@ -89,14 +91,24 @@ SUPPORT_CANDIDATES = (L.P_HEEL_L, L.P_HEEL_R, L.P_TOE_L, L.P_TOE_R, L.P_KN_L, L.
 def com_deviation(pts_c, r0, data):
     """CoM deviation (the paper's missing eq. 8), normalized by the leg length l_leg.
 
-    ``pts_c[r0 + P_*]``: model points in camera axes. The camera is level: gravity is +y, the floor is
-    the x-z plane. ``feet`` mode (paper): the distance on the floor from the CoM to the centre of the
-    supporting feet (heel and toe points within ``contact`` of the lowest foot point). ``support`` mode:
-    every body point within ``contact`` of the lowest one supports (feet, knees, hips, hands, elbows,
-    shoulders, head; the hips also when they are not above their knees: a seat); the deviation is the
-    distance of the CoM from the centre of the support points' bounding box (x-z) beyond ``margin`` times
-    half its diagonal (zero for a stable pose).
+    ``pts_c[r0 + P_*]``: model points in camera axes. Gravity is +y of the level frame (the camera's own
+    axes unless ``data`` gives one: fitting.rotations.level_rot), the floor its x-z plane. ``feet`` mode
+    (paper): the distance on the floor from the CoM to the centre of the supporting feet (heel and toe
+    points within ``contact`` of the lowest foot point). ``support`` mode: every body point within
+    ``contact`` of the lowest one supports (feet, knees, hips, hands, elbows, shoulders, head; the hips also
+    when they are not above their knees: a seat); the deviation is the distance of the CoM from the centre
+    of the support points' bounding box (x-z) beyond ``margin`` times half its diagonal (zero for a stable
+    pose).
     """
+    if data[L.D_LEVEL] != 0.0:   # the points in the level frame: p_L = R_CL^T p_C
+        r = level_rot(data, L.D_LEVEL)
+        lv = np.empty((L.N_POINTS, 3))
+        for i in range(L.N_POINTS):
+            px, py, pz = pts_c[r0 + i, 0], pts_c[r0 + i, 1], pts_c[r0 + i, 2]
+            for c in range(3):
+                lv[i, c] = r[c] * px + r[3 + c] * py + r[6 + c] * pz
+        pts_c = lv
+        r0 = 0
     l_leg = data[L.D_DIMS + L.DM_TH] + data[L.D_DIMS + L.DM_SK] + data[L.D_DIMS + L.DM_ANK]
     contact = data[L.D_LW + L.LW_CONTACT] * data[L.D_DIMS + L.DM_H]
     if data[L.D_LW + L.LW_COM_MODE] == L.COM_FEET:
@@ -162,9 +174,11 @@ def pose_loss_terms(x, data, work):
     t_pen = penalties(x, data)
     t_null = 0.0
     if data[lw + L.LW_NULL] > 0.0:
-        # pelvis tilt from vertical: cos = (pelvis up) . (world up) = -R_CB[1, 2]
+        if data[L.D_LEVEL] != 0.0:   # the body against the level frame: R_LB = R_CL^T R_CB
+            r_bd = mm(transposed(level_rot(data, L.D_LEVEL)), r_bd)
+        # pelvis tilt from vertical: cos = (pelvis up) . (world up) = -R_LB[1, 2]
         c = min(max(-r_bd[5], -1.0), 1.0)
-        # torso uprightness: -(R_CB R_tr)[1, 2]
+        # torso uprightness: -(R_LB R_tr)[1, 2]
         u = -(r_bd[3] * r_tr[2] + r_bd[4] * r_tr[5] + r_bd[5] * r_tr[8])
         u = u if u > 0.0 else 0.0
         # the tilt angle as its chord 2 sin(a / 2) (monotone, slope 1 at 0, cheaper than acos): this term

@@ -17,6 +17,7 @@ import math
 from numba import njit
 
 from posed.fitting import layout as L
+from posed.fitting.rotations import level_rot
 
 MAX_SEEDS = 4
 # R0 is a signed permutation: row i of R0^T R_CB is s times row k of R_CB, (k, s) = R0T_ROWS[i]
@@ -56,11 +57,20 @@ def _seed(ex, ey, ez, lo, hi, out):
 
 
 @njit(cache=True)
-def orientation_seeds_into(obs, w, h, hip_half, shoulder_half, trunk, lo, hi, out):
+def _to_level(r, e):
+    """R_CL^T e: camera-axes vector ``e`` in the level frame ``r`` (R_CL, row-major)."""
+    return (r[0] * e[0] + r[3] * e[1] + r[6] * e[2], r[1] * e[0] + r[4] * e[1] + r[7] * e[2],
+            r[2] * e[0] + r[5] * e[1] + r[8] * e[2])
+
+
+@njit(cache=True)
+def orientation_seeds_into(obs, w, h, hip_half, shoulder_half, trunk, lo, hi, level, out):
     """The seeds of one frame into ``out`` (MAX_SEEDS x 19); returns how many (0 without both hips and both
     shoulders). ``obs``: the 12 body landmarks' x, y in turn (24, normalized units); ``w``: their weights;
     ``h``, ``hip_half``, ``shoulder_half``, ``trunk``: the body height and those lengths (metres); ``lo``,
-    ``hi``: the search box (19, kernel units)."""
+    ``hi``: the search box (19, kernel units); ``level``: the level frame (fitting.layout.D_LEVEL's 10 values,
+    flag first), against which the body angles are taken."""
+    r = level_rot(level, 0)
     if not (w[0] > 0 and w[1] > 0 and w[6] > 0 and w[7] > 0):
         return 0
     o = obs
@@ -94,6 +104,8 @@ def orientation_seeds_into(obs, w, h, hip_half, shoulder_half, trunk, lo, hi, ou
             continue
         ez = (ez[0] / nz, ez[1] / nz, ez[2] / nz)
         ex = (ey[1] * ez[2] - ey[2] * ez[1], ey[2] * ez[0] - ey[0] * ez[2], ey[0] * ez[1] - ey[1] * ez[0])
+        if level[0] != 0.0:   # the pelvis axes in the level frame: R_CL^T e
+            ex, ey, ez = _to_level(r, ex), _to_level(r, ey), _to_level(r, ez)
         _seed(ex, ey, ez, lo, hi, out[n])
         n += 1
     return n

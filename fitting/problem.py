@@ -206,9 +206,11 @@ def _constants(cfg: FitConfig) -> np.ndarray:
 
 def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, ppm0: float,
          intrinsics: Intrinsics | None = None,
-         fixed_deg: np.ndarray | None = None, rotation: Rotation = False) -> Frame:
+         fixed_deg: np.ndarray | None = None, rotation: Rotation = False,
+         level: np.ndarray | None = None) -> Frame:
     """Build the kernels' data array of one frame (see the D_* layout in fitting.layout); ``rotation``: the
-    upper arms' rotations are free (:func:`limits`)."""
+    upper arms' rotations are free (:func:`limits`); ``level``: the frame's D_LEVEL values
+    (fitting.vertical.level_data; None: the camera is level)."""
     data = _constants_of(cfg).copy()
     data[L.D_LIM_LO:L.D_LIM_LO + L.N_VAR], data[L.D_LIM_HI:L.D_LIM_HI + L.N_VAR] = limits(rotation)
     scale_px = ppm0 * dims.body_height_m
@@ -222,6 +224,8 @@ def pack(xy: np.ndarray, w: np.ndarray, dims: BodyDimensions, cfg: FitConfig, pp
         fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
         # camera-centred normalized coordinates = data obs + offset
         data[L.D_PROJ:L.D_PROJ + 5] = (1.0, fx / scale_px, fy / scale_px, (c_x - cx) / scale_px, (c_y - cy) / scale_px)
+    if level is not None:
+        data[L.D_LEVEL:L.D_LEVEL + 10] = level
     return Frame(data, ppm0, scale_px, np.array([c_x, c_y]), w, perspective)
 
 
@@ -272,7 +276,8 @@ def orientation_seeds(frame: Frame, dims: BodyDimensions, lo: np.ndarray, hi: np
     the image plane), limbs straight down, gamma 1; none without both hips and both shoulders."""
     out = np.empty((MAX_SEEDS, L.N_VAR))
     n = orientation_seeds_into(frame.data[L.D_OBS:L.D_OBS + 24], frame.weights, dims.body_height_m,
-                               dims.hip_half_m, dims.shoulder_half_m, dims.trunk_m, lo, hi, out)
+                               dims.hip_half_m, dims.shoulder_half_m, dims.trunk_m, lo, hi,
+                               frame.data[L.D_LEVEL:L.D_LEVEL + 10], out)
     return out[:n]
 
 

@@ -392,13 +392,13 @@ def limb_from_observation(x, data, limb, sign_u, out):
     if arm:
         i0, i1, i2 = L.P_SH_L + k, L.P_EL_L + k, L.P_WR_L + k
         l1, l2 = data[d + L.DM_UA], data[d + L.DM_FA]
-        r_root = ROT.mm(ROT.body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD]),
-                      ROT.mm(ROT.mm(ROT.ry(x[L.X_TTR]), ROT.rx(-x[L.X_PTR])), ROT.rz(x[L.X_STR])))
+        r_root = ROT.mm(ROT.mm(ROT.level_rot(data, L.D_LEVEL), ROT.body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD])),
+                        ROT.mm(ROT.mm(ROT.ry(x[L.X_TTR]), ROT.rx(-x[L.X_PTR])), ROT.rz(x[L.X_STR])))
         xt, xp, xj = (L.X_TSH_L, L.X_PSH_L, L.X_TEL_L) if k == 0 else (L.X_TSH_R, L.X_PSH_R, L.X_TEL_R)
     else:
         i0, i1, i2 = L.P_HP_L + k, L.P_KN_L + k, L.P_AN_L + k
         l1, l2 = data[d + L.DM_TH], data[d + L.DM_SK]
-        r_root = ROT.body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD])
+        r_root = ROT.mm(ROT.level_rot(data, L.D_LEVEL), ROT.body_rot(x[L.X_TBD], x[L.X_PBD], x[L.X_SBD]))
         xt, xp, xj = (L.X_THP_L, L.X_PHP_L, L.X_TKN_L) if k == 0 else (L.X_THP_R, L.X_PHP_R, L.X_TKN_R)
     if data[L.D_W + i0] <= 0.0 or data[L.D_W + i1] <= 0.0:
         return

@@ -76,6 +76,23 @@ def body_rot(theta, phi, psi):
 
 
 @njit(cache=True)
+def level_rot(data, at):
+    """R_CL, the camera axes of the level frame (x level, y down along gravity, z level), from ``data[at]``
+    (fitting.layout.D_LEVEL: a flag, then the 9 entries row-major); the identity when the flag is 0 (the camera
+    is level)."""
+    if data[at] == 0.0:
+        return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    return (data[at + 1], data[at + 2], data[at + 3], data[at + 4], data[at + 5], data[at + 6],
+            data[at + 7], data[at + 8], data[at + 9])
+
+
+@njit(cache=True)
+def transposed(r):
+    """The transpose (inverse) of rotation ``r``."""
+    return (r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8])
+
+
+@njit(cache=True)
 def column(r, c):
     """Column ``c`` of ``r``: where ``r`` takes the unit vector of axis c."""
     return r[c], r[3 + c], r[6 + c]

@@ -17,6 +17,11 @@ A source without intrinsics (a webcam, a video file, a recording without ``camer
 assumed lens of ``falls.camera_hfov_deg`` (camera_model.Intrinsics.assume; the fall detector assumes the same
 one): in perspective, so a camera looking down shows in the body's axes, but with no ``root_cam_m`` (the
 result's ``lens``: assumed). ``fitting.projection: orthographic`` keeps the paper's orthographic fit.
+
+Which way is down (``fitting.vertical: auto``; fitting.vertical): the frame's own gravity (a RealSense IMU's
+or a recording's ``gravity``, when ``falls.imu_gravity`` is on), else the camera's configured tilt and roll when
+``falls.camera_geometry`` trusts them as measured, else none (the camera's +y). What the fall detector learns
+later from people or from the depth floor does not come back here: this stage runs before it.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from posed.camera_model import Intrinsics
 from posed.daemon import clock
 from posed.daemon.messages import FitMsg, origin
 from posed.daemon.stages.base import StageRuntime
+from posed.fitting.vertical import level_frame
 
 RESET_GAP_S = 1.0
 FORGET_S = 5.0          # a person of several unseen this long (capture seconds) loses their fitter
@@ -41,23 +47,52 @@ class StreamFit:
         self.fitter = fitter
         self.last: tuple[int, float] | None = None
 
-    def fit(self, frame, t_capture: float, image_size, intrinsics):
-        """Fit one LandmarkFrame (``landmarks`` None: no person, an ``ok: false`` result)."""
+    def fit(self, frame, t_capture: float, image_size, intrinsics, gravity=None):
+        """Fit one LandmarkFrame (``landmarks`` None: no person, an ``ok: false`` result); ``gravity``: down in
+        the camera's axes, or None (:func:`frame_gravity`)."""
         if self.last is not None and (frame.seq <= self.last[0] or t_capture - self.last[1] > RESET_GAP_S):
             self.fitter.reset()
         self.last = (frame.seq, t_capture)
         return self.fitter.fit(frame.landmarks, frame.seq, t_capture, image_size, mode="video",
-                               intrinsics=intrinsics, depth_m=frame.depth_m, world=frame.world)
+                               intrinsics=intrinsics, depth_m=frame.depth_m, world=frame.world, gravity=gravity)
+
+
+def mount_gravity(falls_cfg) -> np.ndarray | None:
+    """Down in the camera's axes from ``falls.camera_tilt_deg`` and ``camera_roll_deg`` when
+    ``falls.camera_geometry`` trusts them as measured (falls.camera_geometry.CameraGeometry.tilt_measured),
+    else None."""
+    from posed.falls.camera_geometry import CameraGeometry
+
+    geometry = CameraGeometry(falls_cfg)
+    return np.array(geometry.gravity, dtype=np.float64) if geometry.tilt_measured else None
+
+
+def frame_gravity(frame, mount: np.ndarray | None, use_imu: bool = True) -> np.ndarray | None:
+    """The down a frame is fitted with: the frame's own ``gravity`` (an IMU's) when ``use_imu`` and it is three
+    finite numbers not all 0, else ``mount`` (:func:`mount_gravity`). A malformed one is not this stage's to
+    report: the fall detector counts it (``bad_gravity`` in the status)."""
+    g = getattr(frame, "gravity", None) if use_imu else None
+    if g is not None:
+        try:
+            level_frame(g)
+            return np.asarray(g, dtype=np.float64)
+        except ValueError:
+            pass
+    return mount
 
 
 class PeopleFit:
     """Every person of a frame fitted by a :class:`StreamFit` of their own (see the module doc)."""
 
-    def __init__(self, make_fitter, assumed_hfov_deg: float) -> None:
+    def __init__(self, make_fitter, assumed_hfov_deg: float, mount: np.ndarray | None = None,
+                 use_imu: bool = True) -> None:
         """``assumed_hfov_deg``: the field of view (across the image's longer side) of the lens assumed for
-        frames without intrinsics (``falls.camera_hfov_deg``)."""
+        frames without intrinsics (``falls.camera_hfov_deg``); ``mount``, ``use_imu``: which way is down
+        (:func:`frame_gravity`)."""
         self.make_fitter = make_fitter
         self.assumed_hfov_deg = assumed_hfov_deg
+        self.mount = mount
+        self.use_imu = use_imu
         self.main = StreamFit(make_fitter())     # the frame's own person (the only one without ``people``)
         self.main_id: int | None = None
         self.others: dict[int, StreamFit] = {}
@@ -67,9 +102,10 @@ class PeopleFit:
         """(the frame's own person's result, the other people's results)."""
         if intrinsics is None:
             intrinsics = Intrinsics.assume(self.assumed_hfov_deg, int(image_size[0]), int(image_size[1]))
+        gravity = frame_gravity(frame, self.mount, self.use_imu)
         people = frame.people
         if not people:
-            return self.main.fit(frame, t_capture, image_size, intrinsics), ()
+            return self.main.fit(frame, t_capture, image_size, intrinsics, gravity), ()
         primary = next((p.id for p in people if frame.landmarks is not None
                         and np.array_equal(p.landmarks, frame.landmarks, equal_nan=True)), None)
         if primary is not None and self.main_id is not None and primary != self.main_id:
@@ -78,7 +114,7 @@ class PeopleFit:
         if primary is not None:
             self.main_id = primary
             self.seen[primary] = t_capture
-        result = self.main.fit(frame, t_capture, image_size, intrinsics)
+        result = self.main.fit(frame, t_capture, image_size, intrinsics, gravity)
         if primary is not None:
             result = replace(result, extra={**result.extra, "person": primary})
         out = []
@@ -90,7 +126,7 @@ class PeopleFit:
                 stream = self.others[p.id] = StreamFit(self.make_fitter())
             self.seen[p.id] = t_capture
             own = replace(frame, landmarks=p.landmarks, world=p.world, depth_m=p.depth_m, people=None)
-            r = stream.fit(own, t_capture, image_size, intrinsics)
+            r = stream.fit(own, t_capture, image_size, intrinsics, gravity)
             out.append(replace(r, extra={**r.extra, "person": p.id}))
         for pid in [i for i, t in self.seen.items() if t_capture - t > FORGET_S and i != self.main_id]:
             self.others.pop(pid, None)
@@ -102,6 +138,11 @@ class PeopleFit:
         self.others.clear()
         self.seen.clear()
         self.main_id = None
+
+
+def people_fit(make_fitter, config) -> PeopleFit:
+    """The :class:`PeopleFit` of a daemon configuration (the stage's, ``posed falls``'s and ``posed render``'s)."""
+    return PeopleFit(make_fitter, config.falls.camera_hfov_deg, mount_gravity(config.falls), config.falls.imu_gravity)
 
 
 def run(rt: StageRuntime) -> None:
@@ -121,7 +162,7 @@ def run(rt: StageRuntime) -> None:
     def make_fitter():
         return spare.pop() if spare else Fitter(rt.config.fitting)
 
-    people = PeopleFit(make_fitter, rt.config.falls.camera_hfov_deg)
+    people = people_fit(make_fitter, rt.config)
     while True:
         rt.beat()
         rt.check_stop()

@@ -66,12 +66,12 @@ def sides_kept(header, frames: Iterable, enabled: bool = True) -> Iterator:
 
 def fit_frames(cfg, header, frames: Iterable) -> Iterator[tuple[object, object, tuple]]:
     """(LandmarkFrame, FitResult, the other people's FitResults) per frame, fitted as the fitting stage fits
-    them (:class:`daemon.stages.fit.PeopleFit`: a frame without ``people`` has no others; a recording
+    them (:func:`daemon.stages.fit.people_fit`: a frame without ``people`` has no others; a recording
     without ``camera`` through the assumed lens of ``falls.camera_hfov_deg``). ``cfg``: the whole config."""
-    from posed.daemon.stages.fit import PeopleFit
+    from posed.daemon.stages.fit import people_fit
     from posed.fitting import Fitter
 
-    people = PeopleFit(lambda: Fitter(cfg.fitting), cfg.falls.camera_hfov_deg)
+    people = people_fit(lambda: Fitter(cfg.fitting), cfg)
     for frame in frames:
         result, others = people.fit(frame, frame.t, tuple(header.image_size), header.camera)
         yield frame, result, others

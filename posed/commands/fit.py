@@ -80,6 +80,10 @@ def run(args: argparse.Namespace) -> int:
     # left and right put back where the recording's extractor flipped them (landmarks.sides), unless the
     # recording says its landmark stage did that already
     sides = RecordingSides() if RecordingSides.needed(header, config.landmarks.keep_sides) else None
+    # which way is down: a line's own gravity, else the configured mount's when trusted (daemon.stages.fit)
+    from posed.daemon.stages.fit import frame_gravity, mount_gravity
+
+    mount = mount_gravity(config.falls)
     skipped = fitted = ok = 0
     try:
         for item in frames:
@@ -90,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
             if sides is not None:
                 item = sides(item)
             result = fitter.fit(item.landmarks, item.seq, item.t, header.image_size, mode=args.mode,
-                                intrinsics=intrinsics, depth_m=item.depth_m, world=item.world)
+                                intrinsics=intrinsics, depth_m=item.depth_m, world=item.world,
+                                gravity=frame_gravity(item, mount, config.falls.imu_gravity))
             try:
                 line = dumps(result.to_json())
             except ValueError as exc:  # a non-finite number must never reach the output

@@ -73,7 +73,7 @@ def _fit_video(args, config, progress_on):
     from dataclasses import replace
 
     from posed.commands.landmarks import open_input
-    from posed.daemon.stages.fit import PeopleFit
+    from posed.daemon.stages.fit import people_fit
     from posed.fitting import Fitter
     from posed.landmarks import MultiPoseLandmarker, PoseLandmarker
     from posed.viz.video import Progress
@@ -83,7 +83,7 @@ def _fit_video(args, config, progress_on):
     lm_config = replace(config.landmarks, tracking=True)
     landmarker = MultiPoseLandmarker(lm_config) if lm_config.max_people > 1 else PoseLandmarker(lm_config)
     # the fitting stage's own logic: a fitter per person, the assumed lens when the source has none
-    stream = PeopleFit(lambda: Fitter(config.fitting), config.falls.camera_hfov_deg)
+    stream = people_fit(lambda: Fitter(config.fitting), config)
     items, problems = [], 0
     count = _frame_count(args.input)
     bar = Progress(count, "landmarks + fit", progress_on)

@@ -85,6 +85,16 @@ def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, reco
     rows = B.run(shared_data, cache=recordings[0])
     assert {(r["view"], r["mode"], r["fps"]) for r in rows} == {
         (v, m, f) for v in (*B.CAMERAS, "all") for m, f in B.RUNS}
+    # the 10 fps video run again with each camera's gravity (fitting.vertical): the four views, filmed from
+    # 18-25 degrees above, agree better on the hips' share of the pelvis-hip-lumbar split they cannot observe
+    with_gravity = [r for r in rows if r.get("gravity")]
+    assert [(r["view"], r["mode"], r["fps"], r["gravity"]) for r in with_gravity] == [
+        ("all", *B.GRAVITY_RUN, "calibration")]
+    as_before = next(r for r in rows if r["view"] == "all" and (r["mode"], r["fps"]) == B.GRAVITY_RUN
+                     and not r.get("gravity"))
+    hips = ("theta_hp_l", "theta_hp_r")
+    assert sum(with_gravity[0]["views_split_spread_deg"][a] for a in hips) < \
+        sum(as_before["views_split_spread_deg"][a] for a in hips), (with_gravity, as_before)
     for r in rows:
         assert r["answered"] == r["frames"] > 0                              # the man is in every frame
         for who in ("fit", "blazepose_world"):
@@ -97,7 +107,7 @@ def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, reco
         # the 2D landmarks at the true depths leave far less than at any estimate's depths
         depth = r["depth_sources"]
         assert 0 < depth["true"] < 0.8 * min(depth["world"], depth["fit"]), depth
-    assert len(B.markdown(rows)) == 2 + len(B.RUNS)
+    assert len(B.markdown(rows)) == 2 + len(B.RUNS) + 1   # and the gravity row
     # the baseline is the landmark stage with MediaPipe's own left/right labels, at each rate the fit runs at;
     # at 10 fps one run per starting frame (0-5), so that every frame is scored once
     names = sorted(p.name for p in recordings[0].glob("*.landmarks.jsonl"))

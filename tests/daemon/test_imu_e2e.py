@@ -24,11 +24,21 @@ def _angle(a, b) -> float:
     return math.degrees(math.acos(float(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0))))
 
 
-def _run(tmp_path, source, robot: str) -> tuple[list[dict], list[dict]]:
-    """The landmarks messages by seq and the status messages (every 0.1 s) in arrival order."""
-    got = replay_to_end(tmp_path, source, robot, ("landmarks", "status"), "pipeline.status_period_s=0.1",
+def _run(tmp_path, source, robot: str) -> tuple[list[dict], list[dict], list[dict]]:
+    """The landmarks messages by seq, the status messages (every 0.1 s) in arrival order and the poses."""
+    got = replay_to_end(tmp_path, source, robot, ("landmarks", "status", "pose"), "pipeline.status_period_s=0.1",
                         "zenoh.publish_landmarks=true")
-    return sorted(got["landmarks"], key=lambda m: m["seq"]), got["status"]
+    return sorted(got["landmarks"], key=lambda m: m["seq"]), got["status"], got["pose"]
+
+
+def _fitted_with_gravity(poses: list[dict], landmarks: list[dict]) -> None:
+    """Every fitted frame whose landmarks carried gravity was fitted with it (fitting.vertical), the others
+    not."""
+    carried = {m["seq"] for m in landmarks if "gravity" in m}
+    fitted = [p for p in poses if p["ok"]]
+    assert len(fitted) >= IMU_FRAMES - 2, [p.get("reason") for p in poses if not p["ok"]]
+    for p in fitted:
+        assert p.get("vertical") == ("gravity" if p["seq"] in carried else None), p["seq"]
 
 
 def _imu_geometry(statuses: list[dict]) -> dict:
@@ -43,7 +53,7 @@ def _imu_geometry(statuses: list[dict]) -> dict:
 def test_accelerometer_gravity_reaches_the_topic_and_the_fall_detector(tmp_path, squat_imu_db3, capsys):
     run_dir = tmp_path / "db3"
     run_dir.mkdir()
-    msgs, statuses = _run(run_dir, squat_imu_db3.path, "imu")
+    msgs, statuses, poses = _run(run_dir, squat_imu_db3.path, "imu")
     assert [m["seq"] for m in msgs] == list(range(IMU_FRAMES))
     with_gravity = [m for m in msgs if "gravity" in m]
     assert len(with_gravity) >= IMU_FRAMES - 1                          # all but possibly the first frame
@@ -53,6 +63,7 @@ def test_accelerometer_gravity_reaches_the_topic_and_the_fall_detector(tmp_path,
     assert geo["roll_from"] == "imu"
     assert geo["tilt_deg"] == pytest.approx(IMU_TILT_DEG, abs=ANGLE_TOL_DEG)
     assert geo["roll_deg"] == pytest.approx(IMU_ROLL_DEG, abs=ANGLE_TOL_DEG)
+    _fitted_with_gravity(poses, msgs)
 
     # posed landmarks writes the gravity into the recording; its replay gives the detector the same geometry
     recording = tmp_path / "squat_imu.landmarks.jsonl"
@@ -66,8 +77,9 @@ def test_accelerometer_gravity_reaches_the_topic_and_the_fall_detector(tmp_path,
             assert _angle(f.gravity, by_seq[f.seq]["gravity"]) < 0.05
     run_dir = tmp_path / "jsonl"
     run_dir.mkdir()
-    replayed, statuses = _run(run_dir, recording, "replay")
+    replayed, statuses, poses = _run(run_dir, recording, "replay")
     assert [m.get("gravity") for m in replayed] == [None if f.gravity is None else list(f.gravity) for f in frames]
     geo = _imu_geometry(statuses)
     assert geo["tilt_deg"] == pytest.approx(IMU_TILT_DEG, abs=ANGLE_TOL_DEG)
+    _fitted_with_gravity(poses, replayed)
 

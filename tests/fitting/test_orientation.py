@@ -17,6 +17,7 @@ from posed.fitting.warmup import POSE, warmup_landmarks
 
 DIMS = BodyDimensions.from_height(1.7)
 DEG = math.pi / 180.0
+LEVEL = np.zeros(10)   # the camera is level (fitting.layout.D_LEVEL)
 
 
 def reference_seeds(obs: list[float], w: list[float], dims: BodyDimensions, lo: np.ndarray,
@@ -108,7 +109,7 @@ def test_kernel_matches_the_python_function_to_the_last_bit(bounds):
             obs[[2, 3]] = obs[[0, 1]]   # both shoulders on one point
         got = np.empty((O.MAX_SEEDS, L.N_VAR))
         n = O.orientation_seeds_into(obs, w, DIMS.body_height_m, DIMS.hip_half_m, DIMS.shoulder_half_m,
-                                     DIMS.trunk_m, lo, hi, got)
+                                     DIMS.trunk_m, lo, hi, LEVEL, got)
         want = reference_seeds(obs.tolist(), w.tolist(), DIMS, lo, hi)
         assert n == len(want)
         np.testing.assert_array_equal(got[:n], want)
@@ -123,7 +124,7 @@ def test_no_seeds_without_both_hips_and_shoulders():
         w[i] = 0.0
         out = np.empty((O.MAX_SEEDS, L.N_VAR))
         assert O.orientation_seeds_into(frame.data[L.D_OBS:L.D_OBS + 24], w, DIMS.body_height_m, DIMS.hip_half_m,
-                                        DIMS.shoulder_half_m, DIMS.trunk_m, lo, hi, out) == 0
+                                        DIMS.shoulder_half_m, DIMS.trunk_m, lo, hi, LEVEL, out) == 0
 
 
 def test_a_turned_person_gets_the_true_facing_and_its_depth_mirror():
