@@ -135,9 +135,9 @@ class FitConfig:
     vertical: str = field(
         default="auto", metadata={"doc": "which way is down for the pelvis-tilt prior and the centre of mass "
                                          "over the feet: auto (gravity when the fit is given it: the daemon "
-                                         "gives a RealSense IMU's, else the camera's tilt and roll when "
-                                         "falls.camera_geometry trusts them as measured; else the camera's "
-                                         "+y) or camera (always the camera's +y: the paper's level camera); "
+                                         "gives a RealSense IMU's, else the floor plane measured in the depth "
+                                         "image, else the camera's tilt and roll when falls.camera_geometry "
+                                         "trusts them as measured; else the camera's +y) or camera (always the camera's +y: the paper's level camera); "
                                          "see docs/body-model.md",
                                   "choices": ("auto", "camera")}
     )

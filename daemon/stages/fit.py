@@ -19,9 +19,11 @@ one): in perspective, so a camera looking down shows in the body's axes, but wit
 result's ``lens``: assumed). ``fitting.projection: orthographic`` keeps the paper's orthographic fit.
 
 Which way is down (``fitting.vertical: auto``; fitting.vertical): the frame's own gravity (a RealSense IMU's
-or a recording's ``gravity``, when ``falls.imu_gravity`` is on), else the camera's configured tilt and roll when
-``falls.camera_geometry`` trusts them as measured, else none (the camera's +y). What the fall detector learns
-later from people or from the depth floor does not come back here: this stage runs before it.
+or a recording's ``gravity``, when ``falls.imu_gravity`` is on), else the floor plane the landmark stage
+measured in the depth image (the frame's ``floor``, its ``down``, when ``falls.floor_from_depth`` is on), else
+the camera's configured tilt and roll when ``falls.camera_geometry`` trusts them as measured, else none (the
+camera's +y): the order the fall detector takes them in. What the detector learns later from people does not
+come back here: this stage runs before it.
 """
 
 from __future__ import annotations
@@ -67,17 +69,22 @@ def mount_gravity(falls_cfg) -> np.ndarray | None:
     return np.array(geometry.gravity, dtype=np.float64) if geometry.tilt_measured else None
 
 
-def frame_gravity(frame, mount: np.ndarray | None, use_imu: bool = True) -> np.ndarray | None:
-    """The down a frame is fitted with: the frame's own ``gravity`` (an IMU's) when ``use_imu`` and it is three
-    finite numbers not all 0, else ``mount`` (:func:`mount_gravity`). A malformed one is not this stage's to
-    report: the fall detector counts it (``bad_gravity`` in the status)."""
-    g = getattr(frame, "gravity", None) if use_imu else None
-    if g is not None:
-        try:
-            level_frame(g)
-            return np.asarray(g, dtype=np.float64)
-        except ValueError:
-            pass
+def frame_gravity(frame, mount: np.ndarray | None, use_imu: bool = True,
+                  use_floor: bool = True) -> np.ndarray | None:
+    """The down a frame is fitted with: the frame's own ``gravity`` (an IMU's) when ``use_imu``, else the
+    ``down`` of its depth ``floor`` (daemon.stages.depth_floor) when ``use_floor``, each only when it is three
+    finite numbers not all 0; else ``mount`` (:func:`mount_gravity`). A malformed one is not this stage's to
+    report: the fall detector counts it (``bad_gravity``, ``bad_floor`` in the status)."""
+    floor = (getattr(frame, "extra", None) or {}).get("floor") if use_floor else None
+    candidates = (getattr(frame, "gravity", None) if use_imu else None,
+                  floor.get("down") if isinstance(floor, dict) else None)
+    for g in candidates:
+        if g is not None:
+            try:
+                level_frame(g)
+                return np.asarray(g, dtype=np.float64)
+            except ValueError:
+                pass
     return mount
 
 
@@ -85,14 +92,15 @@ class PeopleFit:
     """Every person of a frame fitted by a :class:`StreamFit` of their own (see the module doc)."""
 
     def __init__(self, make_fitter, assumed_hfov_deg: float, mount: np.ndarray | None = None,
-                 use_imu: bool = True) -> None:
+                 use_imu: bool = True, use_floor: bool = True) -> None:
         """``assumed_hfov_deg``: the field of view (across the image's longer side) of the lens assumed for
-        frames without intrinsics (``falls.camera_hfov_deg``); ``mount``, ``use_imu``: which way is down
-        (:func:`frame_gravity`)."""
+        frames without intrinsics (``falls.camera_hfov_deg``); ``mount``, ``use_imu``, ``use_floor``: which way
+        is down (:func:`frame_gravity`)."""
         self.make_fitter = make_fitter
         self.assumed_hfov_deg = assumed_hfov_deg
         self.mount = mount
         self.use_imu = use_imu
+        self.use_floor = use_floor
         self.main = StreamFit(make_fitter())     # the frame's own person (the only one without ``people``)
         self.main_id: int | None = None
         self.others: dict[int, StreamFit] = {}
@@ -102,7 +110,7 @@ class PeopleFit:
         """(the frame's own person's result, the other people's results)."""
         if intrinsics is None:
             intrinsics = Intrinsics.assume(self.assumed_hfov_deg, int(image_size[0]), int(image_size[1]))
-        gravity = frame_gravity(frame, self.mount, self.use_imu)
+        gravity = frame_gravity(frame, self.mount, self.use_imu, self.use_floor)
         people = frame.people
         if not people:
             return self.main.fit(frame, t_capture, image_size, intrinsics, gravity), ()
@@ -142,7 +150,8 @@ class PeopleFit:
 
 def people_fit(make_fitter, config) -> PeopleFit:
     """The :class:`PeopleFit` of a daemon configuration (the stage's, ``posed falls``'s and ``posed render``'s)."""
-    return PeopleFit(make_fitter, config.falls.camera_hfov_deg, mount_gravity(config.falls), config.falls.imu_gravity)
+    return PeopleFit(make_fitter, config.falls.camera_hfov_deg, mount_gravity(config.falls), config.falls.imu_gravity,
+                     config.falls.floor_from_depth)
 
 
 def run(rt: StageRuntime) -> None:

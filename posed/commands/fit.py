@@ -80,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
     # left and right put back where the recording's extractor flipped them (landmarks.sides), unless the
     # recording says its landmark stage did that already
     sides = RecordingSides() if RecordingSides.needed(header, config.landmarks.keep_sides) else None
-    # which way is down: a line's own gravity, else the configured mount's when trusted (daemon.stages.fit)
+    # which way is down: a line's own gravity or depth floor, else the configured mount's when trusted
+    # (daemon.stages.fit)
     from posed.daemon.stages.fit import frame_gravity, mount_gravity
 
     mount = mount_gravity(config.falls)
@@ -95,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
                 item = sides(item)
             result = fitter.fit(item.landmarks, item.seq, item.t, header.image_size, mode=args.mode,
                                 intrinsics=intrinsics, depth_m=item.depth_m, world=item.world,
-                                gravity=frame_gravity(item, mount, config.falls.imu_gravity))
+                                gravity=frame_gravity(item, mount, config.falls.imu_gravity,
+                                                      config.falls.floor_from_depth))
             try:
                 line = dumps(result.to_json())
             except ValueError as exc:  # a non-finite number must never reach the output

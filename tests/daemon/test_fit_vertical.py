@@ -1,5 +1,5 @@
 """Which way is down for the fitting stage (daemon.stages.fit.frame_gravity, mount_gravity; fitting.vertical):
-the frame's own IMU gravity, else a measured mount's tilt and roll, else none; and the stage's fit of a person
+the frame's own IMU gravity, else its depth floor's down, else a measured mount's tilt and roll, else none; and the stage's fit of a person
 seated under a tilted camera with each."""
 
 from __future__ import annotations
@@ -44,6 +44,15 @@ def test_the_frame_s_own_gravity_comes_first_and_a_malformed_one_falls_back():
     assert frame_gravity(LandmarkFrame(0, 0.0, None), mount) is mount
     assert frame_gravity(LandmarkFrame(0, 0.0, None, gravity=imu), mount, use_imu=False) is mount
     assert frame_gravity(LandmarkFrame(0, 0.0, None, extra={"gravity": [1.0, 2.0]}), None) is None
+    # the floor plane the landmark stage measured in the depth image: after the IMU, before the mount
+    floor = {"tries": 3, "misses": 0, "down": [0.0, 0.9, 0.436], "height_m": 1.2}
+    assert frame_gravity(LandmarkFrame(0, 0.0, None, extra={"floor": floor}), mount) == pytest.approx(floor["down"])
+    assert frame_gravity(LandmarkFrame(0, 0.0, None, gravity=imu, extra={"floor": floor}), mount) == \
+        pytest.approx(imu)
+    assert frame_gravity(LandmarkFrame(0, 0.0, None, extra={"floor": floor}), mount, use_floor=False) is mount
+    # a floor fitted no plane yet (only its counters), or a malformed one: the mount's
+    assert frame_gravity(LandmarkFrame(0, 0.0, None, extra={"floor": {"tries": 1, "misses": 1}}), mount) is mount
+    assert frame_gravity(LandmarkFrame(0, 0.0, None, extra={"floor": {"down": [0, 0, 0]}}), mount) is mount
 
 
 def _seated(tilt_deg: float) -> np.ndarray:
