@@ -68,6 +68,7 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
         extra["lens"] = "assumed" if lens_assumed else "given"
     if level is not None:   # the body angles' down was gravity, not the camera's +y (fitting.vertical)
         extra["vertical"] = "gravity"
+        extra["down"] = [round(float(v), 5) for v in level[:, 1]]
     if any(P.arms(rotation)):
         extra["shoulder_rotation_deg"] = dict(zip(SHOULDER_ROTATION_NAMES, v[ROTATIONS:], strict=True))
     if depth is not None:

@@ -46,9 +46,10 @@ def joints_for_side(result, absolute: bool) -> dict[str, np.ndarray] | None:
 
 
 def trunk_lean_deg(result) -> float | None:
-    """How far the trunk (mid-hip to mid-shoulder) leans from the vertical, degrees, the camera taken as level
-    (its y axis vertical); None when the frame did not measure the torso. Trunk flexion is measured against
-    the pelvis, so a person lying straight on the floor has none: this says they are lying."""
+    """How far the trunk (mid-hip to mid-shoulder) leans from the vertical, degrees: against the gravity the fit
+    was given (the result's ``down``, fitting.vertical), else the camera taken as level (its y axis vertical);
+    None when the frame did not measure the torso. Trunk flexion is measured against the pelvis, so a person
+    lying straight on the floor has none: this says they are lying."""
     if "theta_tr" not in result.measured.angles:
         return None
     j = result.joints_3d
@@ -58,7 +59,10 @@ def trunk_lean_deg(result) -> float | None:
     except KeyError:
         return None
     n = float(np.linalg.norm(up))
-    return float(np.degrees(np.arccos(np.clip(-up[1] / n, -1.0, 1.0)))) if n > 0 else None
+    down = np.asarray(result.extra.get("down", (0.0, 1.0, 0.0)), float)
+    if n == 0 or down.shape != (3,) or not np.isfinite(down).all() or not np.linalg.norm(down) > 0:
+        return None
+    return float(np.degrees(np.arccos(np.clip(-(up @ down) / (n * np.linalg.norm(down)), -1.0, 1.0))))
 
 
 class ClipRenderer:

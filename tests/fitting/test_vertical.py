@@ -197,6 +197,7 @@ def test_a_person_seated_under_a_tilted_camera_reads_seated_hips_given_gravity()
     assert abs(a["theta_hp_l"] - 88) < 5 and abs(a["theta_hp_r"] - 86) < 5 and abs(a["theta_tr"] - 4) < 5
     assert c["theta_hp_l"] < 70 and c["theta_tr"] > 20        # the camera's own down: the tilt went to the lumbar
     assert given.extra["vertical"] == "gravity" and "vertical" not in camera.extra
+    np.testing.assert_allclose(given.extra["down"], g, atol=1e-5)     # the unit down it used, camera axes
     # reported against the camera, as without gravity: the body angles of the body the camera saw
     assert given.variables["theta_bd"] == pytest.approx(seen.theta_bd, abs=5)
     for name, p in given.joints_3d.items():

@@ -5,6 +5,8 @@ shows where the camera is, and writing a .webm leaves no OpenCV FFMPEG note on s
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -28,9 +30,10 @@ STANDING = {   # metres, mid-hip origin, camera axes (y down); arms out to the s
     "left_ankle": (0.1, 0.88, 0.0), "right_ankle": (-0.1, 0.88, 0.0)}
 
 
-def _result(seen, joints=STANDING, root=(0.0, 0.0, 3.0)):
+def _result(seen, joints=STANDING, root=(0.0, 0.0, 3.0), **extra):
     return FitResult(0, 0.0, True, joint_angles_deg={"theta_el_l": 90.0, "theta_kn_l": 5.0, "theta_tr": 0.0},
-                     joints_3d=joints, extra={"root_cam_m": list(root)}, measured=Measured.from_landmarks(seen))
+                     joints_3d=joints, extra={"root_cam_m": list(root), **extra},
+                     measured=Measured.from_landmarks(seen))
 
 
 def _near(img, uv, colour, r=5) -> int:
@@ -64,6 +67,10 @@ def test_the_trunk_lean_tells_lying_from_standing_and_is_unknown_without_the_tor
     lying = {n: (x, -0.05, -y) for n, (x, y, z) in STANDING.items()}      # the body along the depth axis
     assert trunk_lean_deg(_result(BODY_LANDMARK_NAMES, lying)) == pytest.approx(90.0, abs=1e-6)
     assert trunk_lean_deg(_result(set(BODY_LANDMARK_NAMES) - {"right_shoulder"})) is None
+    # the fit's gravity, when it had one: a body upright in the camera's axes, seen by a camera tilted 30 degrees
+    # down, leans 30 degrees from the true vertical
+    down = [0.0, math.cos(math.radians(30)), math.sin(math.radians(30))]
+    assert trunk_lean_deg(_result(BODY_LANDMARK_NAMES, down=down)) == pytest.approx(30.0, abs=1e-6)
 
 
 def test_the_side_view_fills_its_height_and_shows_the_camera():
