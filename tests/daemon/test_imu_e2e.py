@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from posed.cli import main
+from posed.client import contract
 from posed.landmarks import read_recording
 from tests.daemon.replay_util import replay_to_end
 from tests.hal.conftest import IMU_FRAMES, IMU_ROLL_DEG, IMU_TILT_DEG, imu_down
@@ -39,6 +40,7 @@ def _fitted_with_gravity(poses: list[dict], landmarks: list[dict]) -> None:
     assert len(fitted) >= IMU_FRAMES - 2, [p.get("reason") for p in poses if not p["ok"]]
     for p in fitted:
         assert p.get("vertical") == ("gravity" if p["seq"] in carried else None), p["seq"]
+        assert contract.errors(p) == [], p["seq"]        # vertical and down follow the shipped schema
 
 
 def _imu_geometry(statuses: list[dict]) -> dict:
