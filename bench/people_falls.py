@@ -42,6 +42,7 @@ from posed.bench.falls import DETECTING_STATES as DETECTING
 from posed.bench.falls_body import Body
 from posed.bench.falls_scenarios import STAND, Key, Scenario, catalogue, frames, kneel, truth_result, walk
 from posed.bench.people_tracks import NamedBodies, switches
+from posed.daemon.stages.fit import mount_gravity
 from posed.falls.config import FallsConfig, HouseholdMember
 from posed.falls.detector import FallDetector
 from posed.falls.people import PeopleFalls
@@ -119,11 +120,12 @@ def cases(split: str = "heldout") -> list[TwoPeople]:
 
 
 def _fitter_factory(kind: str) -> Callable[[], Callable]:
-    """A new per-person ``fit(landmarks, seq, t, size, intrinsics, joints_world)``: the real fitter (video mode)
-    or ``truth`` (a perfect fit from the renderer's joints, for tests of the detector path)."""
+    """A new per-person ``fit(landmarks, seq, t, size, intrinsics, frame, camera, gravity)``: the real fitter
+    (video mode; ``gravity`` what the daemon's fitting stage gives it, daemon.stages.fit.frame_gravity) or
+    ``truth`` (a perfect fit from the renderer's joints, for tests of the detector path)."""
     if kind == "truth":
         def make_truth():
-            return lambda lm, seq, t, size, intr, frame, cam: truth_result(frame, cam)
+            return lambda lm, seq, t, size, intr, frame, cam, gravity=None: truth_result(frame, cam)
         return make_truth
     from posed.fitting import FitConfig, Fitter
 
@@ -134,8 +136,8 @@ def _fitter_factory(kind: str) -> Callable[[], Callable]:
         fitter.reset()
         fitter.forget_body()          # a new person: not the proportions the pooled fitter learned of another
 
-        def fit(lm, seq, t, size, intr, frame, cam):
-            return fitter.fit(lm, seq, t, size, mode="video", intrinsics=intr)
+        def fit(lm, seq, t, size, intr, frame, cam, gravity=None):
+            return fitter.fit(lm, seq, t, size, mode="video", intrinsics=intr, gravity=gravity)
         fit.release = lambda: pool.append(fitter)  # type: ignore[attr-defined]
         return fit
     return make_real
@@ -154,6 +156,7 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
     if not alone:         # who is who: the person who falls is the household's member (their true height)
         cfg = replace(cfg, household=(HouseholdMember("resident", case.faller.body.height),))
     detectors = PeopleFalls(FallDetector(replace(cfg), "bench"))
+    down = mount_gravity(cfg)     # a measured mount's down, given to the fit as the daemon gives it
     followed: list[str | None] = []
     fits: dict[int, Callable] = {}
     ids: dict[str, list[int]] = {"faller": [], "bystander": []}
@@ -166,7 +169,7 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
         for (who, fr), tid in zip(seen, track_ids, strict=True):
             ids[who].append(tid)
             fit = fits.get(tid) or fits.setdefault(tid, make_fit())
-            r = fit(fr.landmarks, seq, t, size, intr, fr, cam)
+            r = fit(fr.landmarks, seq, t, size, intr, fr, cam, down)
             people.append((tid, replace(r, extra={**r.extra, "person": tid}), fr.landmarks))
         if people:
             main = bodies.tracker.longest_followed([p[0] for p in people])
