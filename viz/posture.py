@@ -2,7 +2,9 @@
 
 Each stored sample's angles are put back on the model (``fitting.Pose`` -> ``fitting.joints_3d``, a 1.6 m
 body: only directions are used, so the size does not matter) and two inclinations from the vertical are
-measured in the camera frame, the camera taken as level (as the fit and the fall detector take it):
+measured in the camera frame against the vertical: the camera's down when the report knows it (a measured
+mount's tilt and roll, or what the fall detector learned of the camera: ``down``), else the camera taken as
+level:
 
 * trunk: mid-hip -> mid-shoulder;  thigh: hip -> knee (the more inclined of the two).
 
@@ -20,8 +22,9 @@ in view without a measured posture, nobody in view, posed not watching, or not y
 
 Limits, said plainly: the classification trusts the fit, so a fit with a wrong depth mirror (a thigh flipped
 toward the camera) can turn standing into sitting for a moment; a deep squat or kneeling counts as sitting;
-someone lying on a sofa seen end-on (trunk along the camera's axis) is correctly "lying", but a trunk lying
-across the image seen from above is beyond a level camera's assumption. A sit-to-stand transition is
+someone lying on a sofa seen end-on (trunk along the camera's axis) is correctly "lying", but without the
+camera's down a trunk lying along the view of a camera tilted down reads less inclined by the tilt; one down
+for the whole day is assumed (a robot that tilts its head between samples is not followed). A sit-to-stand transition is
 counted when at least ``MIN_RUN_S`` of sitting is followed within ``MAX_SWITCH_S`` by at least
 ``MIN_RUN_S`` of standing. A walking bout is at least ``WALK_MIN_S`` of standing in which the two hip
 flexions swap sign against each other (left ahead, right ahead) at least ``WALK_MIN_SWAPS`` times with a
@@ -30,6 +33,7 @@ difference above ``WALK_SWING_DEG``: stepping in place counts, and shuffling wit
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -54,17 +58,28 @@ def _dims():
     return BodyDimensions.from_height(1.6)
 
 
-def _incline(v: np.ndarray) -> float:
+def _up(down) -> np.ndarray:
+    """Unit up in the camera frame: against ``down`` (camera axes, any length), or the level camera's."""
+    if down is None:
+        return _UP
+    d = np.asarray(down, float)
+    return -d / np.linalg.norm(d)
+
+
+def _incline(v: np.ndarray, up: np.ndarray = _UP) -> float:
     n = float(np.linalg.norm(v))
-    return float(np.degrees(np.arccos(np.clip(v @ _UP / n, -1.0, 1.0)))) if n > 0 else float("nan")
+    return float(np.degrees(np.arccos(np.clip(v @ up / n, -1.0, 1.0)))) if n > 0 else float("nan")
 
 
-def method_text() -> list[str]:
-    """The rules above in plain sentences, for the report (numbers from this module's constants)."""
+def method_text(down=None) -> list[str]:
+    """The rules above in plain sentences, for the report (numbers from this module's constants); ``down``:
+    the camera's down the inclinations were measured against (None: the camera taken as level)."""
     return [
         "Posture is worked out from the stored joint angles alone: each sample's angles are put back on the "
         "body model, and the trunk (hips to shoulders) and thigh (hip to knee) inclinations from the vertical "
-        "are measured, the camera taken as level.",
+        "are measured, "
+        + ("the camera taken as level." if down is None else
+           f"the vertical taken as the camera's down ({_tilt_text(down)})."),
         f"Lying: the trunk more than {LYING_TRUNK_DEG:.0f} degrees from vertical. Sitting: the trunk within "
         f"that and a thigh more than {SITTING_THIGH_DEG:.0f} degrees from vertical (on a chair, a bed's edge, "
         "squatting, kneeling). Standing: trunk and thighs near vertical (standing and walking).",
@@ -77,30 +92,41 @@ def method_text() -> list[str]:
         f"{WALK_SWING_DEG:.0f} degrees.",
         "Limits: it trusts the fit, so a fit with a limb mirrored in depth can turn standing into sitting for "
         "a moment; a deep squat or kneeling counts as sitting; stepping in place counts as walking and "
-        "shuffling with little hip swing is missed; a tilted camera (not level) biases every inclination.",
+        "shuffling with little hip swing is missed; "
+        + ("a tilted camera (not level) biases every inclination." if down is None else
+           "one down is assumed for the whole day."),
     ]
 
 
-def inclinations(angles: Mapping[str, float]) -> tuple[float, float]:
+def _tilt_text(down) -> str:
+    d = np.asarray(down, float) / np.linalg.norm(down)
+    tilt = math.degrees(math.atan2(d[2], d[1]))
+    roll = math.degrees(math.atan2(d[0], math.hypot(d[1], d[2])))
+    return f"looking {tilt:.0f} degrees down, rolled {roll:.0f}"
+
+
+def inclinations(angles: Mapping[str, float], down=None) -> tuple[float, float]:
     """(trunk, steeper thigh) inclination from the vertical in degrees for one sample's angles (joint angles
-    by ``fitting.JOINT_ANGLE_NAMES`` and body angles ``theta_bd``..; missing joint angles 0)."""
+    by ``fitting.JOINT_ANGLE_NAMES`` and body angles ``theta_bd``..; missing joint angles 0); ``down``: the
+    camera's down (camera axes; None: the camera taken as level)."""
     from posed.fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, Pose, joints_3d
 
     joints = {k: float(v) for k, v in angles.items() if k in JOINT_ANGLE_NAMES and np.isfinite(v)}
     body = {k: float(angles.get(k, 0.0)) for k in BODY_ANGLE_NAMES}
     j = {k: np.asarray(v) for k, v in joints_3d(Pose(joints, **body), _dims()).items()}
-    trunk = _incline((j["left_shoulder"] + j["right_shoulder"]) / 2 - j["mid_hip"])
-    thigh = max(_incline(j["left_hip"] - j["left_knee"]), _incline(j["right_hip"] - j["right_knee"]))
+    up = _up(down)
+    trunk = _incline((j["left_shoulder"] + j["right_shoulder"]) / 2 - j["mid_hip"], up)
+    thigh = max(_incline(j["left_hip"] - j["left_knee"], up), _incline(j["right_hip"] - j["right_knee"], up))
     return trunk, thigh
 
 
-def classify(angles: Mapping[str, float]) -> str | None:
+def classify(angles: Mapping[str, float], down=None) -> str | None:
     """``standing``, ``sitting`` or ``lying`` for one sample; None when the body angles are unknown (the
     torso not measured), or when the trunk is up and neither thigh was measured (sitting and standing then
     look the same)."""
     if any(not np.isfinite(angles.get(k, np.nan)) for k in ("theta_bd", "phi_bd", "psi_bd")):
         return None
-    trunk, thigh = inclinations(angles)
+    trunk, thigh = inclinations(angles, down)
     if trunk > LYING_TRUNK_DEG:
         return "lying"
     if not any(np.isfinite(angles.get(k, np.nan)) for k in ("theta_hp_l", "theta_hp_r")):
@@ -130,12 +156,12 @@ class DaySummary:
 
 
 def summarise(time: np.ndarray, angles: Mapping[str, np.ndarray], span: tuple[float, float],
-              max_step_s: float = 1.0) -> DaySummary:
+              max_step_s: float = 1.0, down=None) -> DaySummary:
     """The posture summary of samples at ``time`` (seconds, increasing) with their ``angles`` (name -> array,
-    NaN unknown) over ``span`` (start, end) of the day."""
+    NaN unknown) over ``span`` (start, end) of the day; ``down``: the camera's down (None: level)."""
     t = np.asarray(time, float)
     n = len(t)
-    labels = [classify({k: float(v[i]) for k, v in angles.items()}) for i in range(n)]
+    labels = [classify({k: float(v[i]) for k, v in angles.items()}, down) for i in range(n)]
     seconds = dict.fromkeys((*POSTURES, "not seen"), 0.0)
     runs: list[Run] = []
     for i in range(n):

@@ -207,18 +207,19 @@ def angle_ranges(series: AngleSeries) -> list[tuple[str, int, float, float, floa
 
 def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: dt.tzinfo, *, robot: str,
                sources: str, max_step_s: float = 1.0, watched: Sequence[tuple] | None = None,
-               now: float | None = None) -> str:
+               now: float | None = None, down=None) -> str:
     """The HTML text of the day's report. ``series`` on the robot's clock (unix seconds), ``falls`` the
     day's episodes (journal), ``sources`` a line naming the files it was made from, ``watched`` the minutes
     posed watched (``WatchLog.minutes`` rows; None: this history does not record them), ``now`` the time
-    the report is made (unix; default now): nothing after it is counted."""
+    the report is made (unix; default now): nothing after it is counted; ``down``: the camera's down the
+    postures are measured against (camera axes; None: the camera taken as level; viz.posture)."""
     import time
 
     now = time.time() if now is None else now
     start = dt.datetime.combine(day, dt.time(0), tz).timestamp()
     end = dt.datetime.combine(day + dt.timedelta(days=1), dt.time(0), tz).timestamp()
     span = (start, end)
-    summary = posture.summarise(series.time, series.angles, span, max_step_s)
+    summary = posture.summarise(series.time, series.angles, span, max_step_s, down)
     acct = day_time(summary, watched, span, now)
 
     def fmt(t: float) -> str:
@@ -278,7 +279,7 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         png = plot_angles(series, [(k, PANELS[k]) for k in ("legs", "trunk")], falls, tz=tz,
                           title="Hips, knees and trunk over the day")
         parts.append("<h2>Joint angles</h2>" + _png_tag(png, "joint angles over the day"))
-    parts.append("<h2>How this is worked out</h2><div class='small'>" + _method_html() + "</div>")
+    parts.append("<h2>How this is worked out</h2><div class='small'>" + _method_html(down) + "</div>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
@@ -319,8 +320,8 @@ def _falls_sentence(acct: DayTime, n_falls: int) -> str:
     return text + "."
 
 
-def _method_html() -> str:
-    return "".join(f"<p>{html.escape(p)}</p>" for p in posture.method_text()) + (
+def _method_html(down=None) -> str:
+    return "".join(f"<p>{html.escape(p)}</p>" for p in posture.method_text(down)) + (
         "<p>Watching: posed counts, minute by minute, the frames that came through it and the seconds with a "
         "person in view. A minute with no frame is 'not watching': posed was off or had no camera, and nothing "
         "that happened then is in this report. 'In view, posture not measured': a person was there, but the "

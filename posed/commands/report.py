@@ -48,6 +48,31 @@ def _day(text: str, tz):
                          "yesterday") from None
 
 
+def camera_down(config, state_dir: Path):
+    """The camera's down the day's postures are measured against (viz.posture): the configured tilt and roll
+    when ``falls.camera_geometry`` trusts them as measured (daemon.stages.fit.mount_gravity), else the
+    gravity the fall detector learned of this camera and kept in ``state_dir`` (from people, image lines or
+    the depth floor: its geometry file), else None (the camera taken as level). A missing or unreadable
+    geometry file is no error: the report is made without it."""
+    import json
+
+    from posed.daemon.stages.fall_watch import geometry_file
+    from posed.daemon.stages.fit import mount_gravity
+    from posed.fitting.vertical import level_frame
+
+    mount = mount_gravity(config.falls)
+    if mount is not None:
+        return mount
+    try:
+        state = json.loads(geometry_file(state_dir, config.source).read_text(encoding="utf-8"))
+        if state.get("gravity_from") in (None, "config"):
+            return None
+        level_frame(state["gravity"])            # three finite numbers, not all 0
+        return state["gravity"]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 def run(args: argparse.Namespace) -> int:
     import datetime as dt
 
@@ -101,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
             return 1
     step = float(np.median(np.diff(series.time))) if len(series.time) > 1 else 1.0
     text = day_report(series, falls, day, tz, robot=config.robot_id, max_step_s=max(1.0, 3.0 * step),
-                      watched=watched,
+                      watched=watched, down=camera_down(config, db.parent),
                       sources=f"{db} ({len(rows)} samples) and "
                               + (f"{journal_path}" if journal_path.is_file() else "no event journal"))
     try:

@@ -122,6 +122,53 @@ def test_posture_rules_on_the_model():
     assert trunk == pytest.approx(30.0, abs=0.5) and thigh == pytest.approx(30.0, abs=0.5)
 
 
+def test_posture_is_measured_against_the_camera_s_down_when_it_is_known():
+    """Seen by a camera 35 degrees down: a person lying on their back, head towards it (the trunk along its
+    view), reads 55 degrees from the vertical against the camera taken as level (not lying), 90 against its
+    down; a person standing reads 35 and 0."""
+    from posed.falls.features import gravity_from_tilt
+    from posed.fitting.kinematics import body_angles_from_rotation, body_rotation
+    from posed.fitting.vertical import level_frame
+
+    down = gravity_from_tilt(35.0)
+
+    def seen(theta_bd: float, psi_bd: float) -> dict:
+        """The stored angles (body angles against the camera) of a body with these angles against gravity."""
+        t, p, q = body_angles_from_rotation(level_frame(down) @ body_rotation(theta_bd, 0.0, psi_bd))
+        return {"theta_bd": t, "phi_bd": p, "psi_bd": q, "theta_hp_l": 0.0, "theta_hp_r": 0.0}
+
+    lying, standing = seen(-90.0, 0.0), seen(0.0, 30.0)
+    assert posture.classify(lying, down) == "lying" and posture.classify(lying) != "lying"
+    assert posture.inclinations(lying, down)[0] == pytest.approx(90.0, abs=0.5)
+    assert posture.inclinations(lying)[0] == pytest.approx(55.0, abs=0.5)
+    assert posture.classify(standing, down) == posture.classify(standing) == "standing"
+    assert posture.inclinations(standing, down)[0] == pytest.approx(0.0, abs=0.5)
+    assert posture.inclinations(standing)[0] == pytest.approx(35.0, abs=0.5)
+    assert "looking 35 degrees down" in " ".join(posture.method_text(down))
+
+
+def test_the_report_takes_the_measured_mount_or_the_learned_geometry_as_down(tmp_path):
+    import json
+    from dataclasses import replace
+
+    from posed.commands.report import camera_down
+    from posed.daemon.config.schema import Config
+    from posed.daemon.stages.fall_watch import geometry_file
+    from posed.falls.features import gravity_from_tilt
+
+    c = Config()
+    assert camera_down(c, tmp_path) is None                                  # nothing known: level
+    measured = replace(c, falls=replace(c.falls, camera_tilt_deg=30.0))
+    np.testing.assert_allclose(camera_down(measured, tmp_path), gravity_from_tilt(30.0))
+    path = geometry_file(tmp_path, c.source)
+    path.write_text(json.dumps({"gravity": list(gravity_from_tilt(22.0)), "gravity_from": "body"}))
+    np.testing.assert_allclose(camera_down(c, tmp_path), gravity_from_tilt(22.0))
+    path.write_text(json.dumps({"gravity": [0.0, 1.0, 0.0], "gravity_from": "config"}))
+    assert camera_down(c, tmp_path) is None                                  # nothing was learned
+    path.write_text("{not json")
+    assert camera_down(c, tmp_path) is None                                  # unreadable: made without it
+
+
 def test_report_is_one_self_contained_html_with_the_day(day, tmp_path):
     folder, written = day
     out = tmp_path / "r.html"
