@@ -3,8 +3,9 @@
 Other packages import these names from ``fitting`` itself, never from its modules:
 
 * the fit: ``Fitter(config: FitConfig)`` with ``fit(landmarks (33x5) | None, seq, t, image_size, mode,
-  intrinsics) -> FitResult``, ``reset()`` and ``warmup()`` (compiles the numba kernels); ``FitConfig`` is
-  the config section ``fitting``.
+  intrinsics, depth_m, world, gravity) -> FitResult``, ``reset()`` and ``warmup()`` (compiles the numba
+  kernels); ``FitConfig`` is the config section ``fitting``; ``level_frame`` checks a gravity the fit would
+  take (fitting.vertical: ValueError for anything but three finite numbers not all 0).
 * the result of one frame: ``FitResult`` and the names of its fields: ``VARIABLE_NAMES`` (the 19 fitted
   variables), ``JOINT_ANGLE_NAMES`` (23), ``BODY_ANGLE_NAMES`` (3), ``JOINT_3D_NAMES`` (12).
 * what a frame measured, the one rule every view and topic applies (fitting.measured): ``Measured`` (a
@@ -50,6 +51,7 @@ if TYPE_CHECKING:
         VARIABLE_NAMES,
         FitResult,
     )
+    from posed.fitting.vertical import level_frame
 
 __all__ = [
     "ANGLE_NEEDS",
@@ -74,6 +76,7 @@ __all__ = [
     "calibrate",
     "joints_3d",
     "landmarks_camera",
+    "level_frame",
     "measured_landmarks",
     "read_calibration",
     "write_calibration",
@@ -106,6 +109,7 @@ _ORIGIN = {
     "JOINT_ANGLE_NAMES": ("posed.fitting.result", "JOINT_ANGLE_NAMES"),
     "VARIABLE_NAMES": ("posed.fitting.result", "VARIABLE_NAMES"),
     "FitResult": ("posed.fitting.result", "FitResult"),
+    "level_frame": ("posed.fitting.vertical", "level_frame"),
 }
 
 

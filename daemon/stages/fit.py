@@ -36,7 +36,7 @@ from posed.camera_model import Intrinsics
 from posed.daemon import clock
 from posed.daemon.messages import FitMsg, origin
 from posed.daemon.stages.base import StageRuntime
-from posed.fitting.vertical import level_frame
+from posed.fitting import level_frame
 
 RESET_GAP_S = 1.0
 FORGET_S = 5.0          # a person of several unseen this long (capture seconds) loses their fitter

@@ -58,7 +58,7 @@ def camera_down(config, state_dir: Path):
 
     from posed.daemon.stages.fall_watch import geometry_file
     from posed.daemon.stages.fit import mount_gravity
-    from posed.fitting.vertical import level_frame
+    from posed.fitting import level_frame
 
     mount = mount_gravity(config.falls)
     if mount is not None:
