@@ -137,7 +137,8 @@ class FitConfig:
                                          "over the feet: auto (gravity when the fit is given it: the daemon "
                                          "gives a RealSense IMU's, else the floor plane measured in the depth "
                                          "image, else the camera's tilt and roll when falls.camera_geometry "
-                                         "trusts them as measured; else the camera's +y) or camera (always the camera's +y: the paper's level camera); "
+                                         "trusts them as measured, else what the fall detector learned of the "
+                                         "camera from people and kept; else the camera's +y) or camera (always the camera's +y: the paper's level camera); "
                                          "see docs/body-model.md",
                                   "choices": ("auto", "camera")}
     )

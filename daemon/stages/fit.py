@@ -21,24 +21,31 @@ result's ``lens``: assumed). ``fitting.projection: orthographic`` keeps the pape
 Which way is down (``fitting.vertical: auto``; fitting.vertical): the frame's own gravity (a RealSense IMU's
 or a recording's ``gravity``, when ``falls.imu_gravity`` is on), else the floor plane the landmark stage
 measured in the depth image (the frame's ``floor``, its ``down``, when ``falls.floor_from_depth`` is on), else
-the camera's configured tilt and roll when ``falls.camera_geometry`` trusts them as measured, else none (the
-camera's +y): the order the fall detector takes them in. What the detector learns later from people does not
-come back here: this stage runs before it.
+the camera's configured tilt and roll when ``falls.camera_geometry`` trusts them as measured, else what the
+detector learned of the camera from people and kept in the state dir (:class:`KeptDown`: read again every
+``SAVE_EVERY_S`` of capture time, as often as the detector writes it), else none (the camera's +y): the order
+the fall detector takes them in. The detector's learning reaches the fit only through that file: this stage
+runs before it.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
 from posed.camera_model import Intrinsics
 from posed.daemon import clock
+from posed.daemon.config import paths
 from posed.daemon.messages import FitMsg, origin
 from posed.daemon.stages.base import StageRuntime
+from posed.daemon.stages.fall_watch import SAVE_EVERY_S, geometry_file
 from posed.fitting import level_frame
 
 RESET_GAP_S = 1.0
+LEARNED = ("body", "learned")   # falls.camera_geometry's gravity sources learned from people
 FORGET_S = 5.0          # a person of several unseen this long (capture seconds) loses their fitter
 
 
@@ -67,6 +74,39 @@ def mount_gravity(falls_cfg) -> np.ndarray | None:
 
     geometry = CameraGeometry(falls_cfg)
     return np.array(geometry.gravity, dtype=np.float64) if geometry.tilt_measured else None
+
+
+def kept_gravity(falls_cfg, path: Path) -> np.ndarray | None:
+    """The gravity the fall detector learned of this camera from people (their standing bodies, or a learned
+    tilt: ``body`` or ``learned``) and kept in its geometry file ``path`` (daemon.stages.fall_watch), as the
+    detector takes it back (falls.camera_geometry.CameraGeometry.restore: the same version, learned under the
+    same configured values); None otherwise, a missing or unreadable file included (the detector, not this
+    stage, reports a bad one)."""
+    from posed.falls.camera_geometry import CameraGeometry
+
+    geometry = CameraGeometry(falls_cfg)
+    try:
+        if geometry.restore(json.loads(path.read_text(encoding="utf-8"))) is not None:
+            return None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+    return np.array(geometry.gravity, dtype=np.float64) if geometry.used()["gravity"] in LEARNED else None
+
+
+class KeptDown:
+    """:func:`kept_gravity`, read again every ``every_s`` of capture time (the detector writes it at most every
+    ``SAVE_EVERY_S``), or when the clock goes back."""
+
+    def __init__(self, falls_cfg, path: Path, every_s: float = SAVE_EVERY_S) -> None:
+        self.falls_cfg, self.path, self.every_s = falls_cfg, Path(path), every_s
+        self._t: float | None = None
+        self.gravity: np.ndarray | None = None
+
+    def at(self, t: float) -> np.ndarray | None:
+        if self._t is None or t < self._t or t - self._t >= self.every_s:
+            self._t = t
+            self.gravity = kept_gravity(self.falls_cfg, self.path)
+        return self.gravity
 
 
 def frame_gravity(frame, mount: np.ndarray | None, use_imu: bool = True,
@@ -172,6 +212,9 @@ def run(rt: StageRuntime) -> None:
         return spare.pop() if spare else Fitter(rt.config.fitting)
 
     people = people_fit(make_fitter, rt.config)
+    # no measured mount: what the fall detector learned of the camera from people, kept in the state dir
+    kept = None if people.mount is not None else KeptDown(
+        rt.config.falls, geometry_file(paths.state_dir(rt.config.pipeline), rt.config.source))
     while True:
         rt.beat()
         rt.check_stop()
@@ -183,6 +226,8 @@ def run(rt: StageRuntime) -> None:
             t_in = clock.now()
             others = ()
             try:
+                if kept is not None:
+                    people.mount = kept.at(msg.t_capture)
                 result, others = people.fit(frame, msg.t_capture, msg.image_size, msg.intrinsics)
             except Exception as exc:  # the fitter should never raise; if it does, keep the pipeline going
                 failures += 1

@@ -50,27 +50,14 @@ def _day(text: str, tz):
 
 def camera_down(config, state_dir: Path):
     """The camera's down the day's postures are measured against (viz.posture): the configured tilt and roll
-    when ``falls.camera_geometry`` trusts them as measured (daemon.stages.fit.mount_gravity), else the
-    gravity the fall detector learned of this camera and kept in ``state_dir`` (from people, image lines or
-    the depth floor: its geometry file), else None (the camera taken as level). A missing or unreadable
-    geometry file is no error: the report is made without it."""
-    import json
-
+    when ``falls.camera_geometry`` trusts them as measured, else the gravity the fall detector learned of
+    this camera from people and kept in ``state_dir`` (its geometry file), as the fitting stage takes them
+    (daemon.stages.fit: ``mount_gravity``, ``kept_gravity``); else None (the camera taken as level)."""
     from posed.daemon.stages.fall_watch import geometry_file
-    from posed.daemon.stages.fit import mount_gravity
-    from posed.fitting import level_frame
+    from posed.daemon.stages.fit import kept_gravity, mount_gravity
 
     mount = mount_gravity(config.falls)
-    if mount is not None:
-        return mount
-    try:
-        state = json.loads(geometry_file(state_dir, config.source).read_text(encoding="utf-8"))
-        if state.get("gravity_from") in (None, "config"):
-            return None
-        level_frame(state["gravity"])            # three finite numbers, not all 0
-        return state["gravity"]
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return None
+    return mount if mount is not None else kept_gravity(config.falls, geometry_file(state_dir, config.source))
 
 
 def run(args: argparse.Namespace) -> int:

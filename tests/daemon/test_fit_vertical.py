@@ -85,3 +85,54 @@ def test_the_stage_fits_a_seated_person_under_a_tilted_camera_with_the_down_it_h
         assert max(hips) < 70          # the camera's +y as down: the tilt read as lumbar flexion
     else:
         assert all(math.isclose(h, 88.0, abs_tol=5.0) for h in hips)
+
+
+def test_the_kept_geometry_is_read_again_only_every_save_period(tmp_path):
+    import json
+
+    from posed.daemon.stages.fit import KeptDown
+    from posed.falls.camera_geometry import CameraGeometry
+
+    cfg = _config().falls
+    path = tmp_path / "geometry.json"
+    kept = KeptDown(cfg, path, every_s=30.0)
+    assert kept.at(0.0) is None                                       # no file yet
+    path.write_text(json.dumps(_learned(cfg, 22.0).state()))
+    assert kept.at(10.0) is None                                      # not read again before 30 s
+    np.testing.assert_allclose(kept.at(30.0), gravity_from_tilt(22.0), atol=1e-9)
+    path.write_text(json.dumps(CameraGeometry(cfg).state()))         # nothing learned (a new guess)
+    assert kept.at(5.0) is None                                       # the clock went back: read again
+
+
+def _learned(cfg, tilt_deg: float):
+    """A camera geometry that learned its down from a person standing ``tilt_deg`` off the level guess."""
+    from posed.falls.camera_geometry import CameraGeometry
+
+    geometry = CameraGeometry(cfg)
+    for _ in range(30):
+        geometry.observe_body_axis(-gravity_from_tilt(tilt_deg), 0.1)
+    assert geometry.used()["gravity"] == "body"
+    return geometry
+
+
+@pytest.mark.timeout(300)
+def test_posed_run_fits_with_the_geometry_the_detector_kept(tmp_path, shared_data):
+    """``posed run`` on the real squat video's landmarks (no IMU, no depth, nothing configured) with a
+    geometry file in the state dir from an earlier run that learned the camera 22 degrees down: every pose is
+    fitted against that down (real processes, a Zenoh router on 127.0.0.1)."""
+    import json
+
+    from posed.daemon.stages.fall_watch import geometry_file
+    from tests.daemon.replay_util import replay_to_end
+    from tests.landmarks import flipped_squat
+
+    source = flipped_squat.write(shared_data, tmp_path / "squat.landmarks.jsonl", flip=())
+    c = _config()
+    path = geometry_file(tmp_path / "state", replace(c.source, type="file", path=str(source)))
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(_learned(c.falls, 22.0).state()))
+    poses = [p for p in replay_to_end(tmp_path, source, "kept", ("pose",))["pose"] if p["ok"]]
+    assert len(poses) > 10
+    for p in poses:
+        assert p["vertical"] == "gravity", p["seq"]
+        np.testing.assert_allclose(p["down"], gravity_from_tilt(22.0), atol=1e-4)

@@ -154,20 +154,25 @@ def test_the_report_takes_the_measured_mount_or_the_learned_geometry_as_down(tmp
     from posed.commands.report import camera_down
     from posed.daemon.config.schema import Config
     from posed.daemon.stages.fall_watch import geometry_file
+    from posed.falls.camera_geometry import CameraGeometry
     from posed.falls.features import gravity_from_tilt
 
     c = Config()
     assert camera_down(c, tmp_path) is None                                  # nothing known: level
     measured = replace(c, falls=replace(c.falls, camera_tilt_deg=30.0))
     np.testing.assert_allclose(camera_down(measured, tmp_path), gravity_from_tilt(30.0))
+    # the fall detector learned the camera from a standing person (its axis 22 degrees from the level guess)
+    geometry = CameraGeometry(c.falls)
+    for _ in range(30):
+        geometry.observe_body_axis(-gravity_from_tilt(22.0), 0.1)
+    assert geometry.used()["gravity"] == "body"
     path = geometry_file(tmp_path, c.source)
-    path.write_text(json.dumps({"gravity": list(gravity_from_tilt(22.0)), "gravity_from": "body"}))
-    np.testing.assert_allclose(camera_down(c, tmp_path), gravity_from_tilt(22.0))
-    path.write_text(json.dumps({"gravity": [0.0, 1.0, 0.0], "gravity_from": "config"}))
+    path.write_text(json.dumps(geometry.state()))
+    np.testing.assert_allclose(camera_down(c, tmp_path), gravity_from_tilt(22.0), atol=1e-9)
+    path.write_text(json.dumps(CameraGeometry(c.falls).state()))
     assert camera_down(c, tmp_path) is None                                  # nothing was learned
     path.write_text("{not json")
     assert camera_down(c, tmp_path) is None                                  # unreadable: made without it
-
 
 def test_report_is_one_self_contained_html_with_the_day(day, tmp_path):
     folder, written = day
