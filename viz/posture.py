@@ -2,7 +2,8 @@
 
 Each stored sample's angles are put back on the model (``fitting.Pose`` -> ``fitting.joints_3d``, a 1.6 m
 body: only directions are used, so the size does not matter) and two inclinations from the vertical are
-measured in the camera frame against the vertical: the camera's down when the report knows it (a measured
+measured in the camera frame against the vertical: the down each sample was fitted against (an IMU's, a
+depth floor's, ...: stored with it in the history), else the camera's down when the report knows it (a measured
 mount's tilt and roll, or what the fall detector learned of the camera: ``down``), else the camera taken as
 level:
 
@@ -23,8 +24,7 @@ in view without a measured posture, nobody in view, posed not watching, or not y
 Limits, said plainly: the classification trusts the fit, so a fit with a wrong depth mirror (a thigh flipped
 toward the camera) can turn standing into sitting for a moment; a deep squat or kneeling counts as sitting;
 someone lying on a sofa seen end-on (trunk along the camera's axis) is correctly "lying", but without the
-camera's down a trunk lying along the view of a camera tilted down reads less inclined by the tilt; one down
-for the whole day is assumed (a robot that tilts its head between samples is not followed). A sit-to-stand transition is
+camera's down a trunk lying along the view of a camera tilted down reads less inclined by the tilt. A sit-to-stand transition is
 counted when at least ``MIN_RUN_S`` of sitting is followed within ``MAX_SWITCH_S`` by at least
 ``MIN_RUN_S`` of standing. A walking bout is at least ``WALK_MIN_S`` of standing in which the two hip
 flexions swap sign against each other (left ahead, right ahead) at least ``WALK_MIN_SWAPS`` times with a
@@ -73,13 +73,15 @@ def _incline(v: np.ndarray, up: np.ndarray = _UP) -> float:
 
 def method_text(down=None) -> list[str]:
     """The rules above in plain sentences, for the report (numbers from this module's constants); ``down``:
-    the camera's down the inclinations were measured against (None: the camera taken as level)."""
+    the camera's down for the samples fitted without one (None: the camera taken as level)."""
     return [
         "Posture is worked out from the stored joint angles alone: each sample's angles are put back on the "
         "body model, and the trunk (hips to shoulders) and thigh (hip to knee) inclinations from the vertical "
-        "are measured, "
+        "are measured: against the direction of gravity the fit used for that sample (a camera's "
+        "accelerometer, the floor in a depth image, a measured mount), stored with it; for a sample fitted "
+        "without one, "
         + ("the camera taken as level." if down is None else
-           f"the vertical taken as the camera's down ({_tilt_text(down)})."),
+           f"against the camera's down as it is known now ({_tilt_text(down)})."),
         f"Lying: the trunk more than {LYING_TRUNK_DEG:.0f} degrees from vertical. Sitting: the trunk within "
         f"that and a thigh more than {SITTING_THIGH_DEG:.0f} degrees from vertical (on a chair, a bed's edge, "
         "squatting, kneeling). Standing: trunk and thighs near vertical (standing and walking).",
@@ -93,8 +95,8 @@ def method_text(down=None) -> list[str]:
         "Limits: it trusts the fit, so a fit with a limb mirrored in depth can turn standing into sitting for "
         "a moment; a deep squat or kneeling counts as sitting; stepping in place counts as walking and "
         "shuffling with little hip swing is missed; "
-        + ("a tilted camera (not level) biases every inclination." if down is None else
-           "one down is assumed for the whole day."),
+        + ("a tilted camera (not level) biases every inclination of a sample fitted without gravity." if down is None
+           else "a sample fitted without gravity is measured against the camera's down as it is known now."),
     ]
 
 
@@ -158,10 +160,13 @@ class DaySummary:
 def summarise(time: np.ndarray, angles: Mapping[str, np.ndarray], span: tuple[float, float],
               max_step_s: float = 1.0, down=None) -> DaySummary:
     """The posture summary of samples at ``time`` (seconds, increasing) with their ``angles`` (name -> array,
-    NaN unknown) over ``span`` (start, end) of the day; ``down``: the camera's down (None: level)."""
+    NaN unknown) over ``span`` (start, end) of the day; each sample measured against the down it was fitted
+    against (``down_x``, ``down_y``, ``down_z`` in ``angles``, the history's), else ``down`` (the camera's;
+    None: level)."""
     t = np.asarray(time, float)
     n = len(t)
-    labels = [classify({k: float(v[i]) for k, v in angles.items()}, down) for i in range(n)]
+    labels = [classify(sample, _sample_down(sample, down))
+              for sample in ({k: float(v[i]) for k, v in angles.items()} for i in range(n))]
     seconds = dict.fromkeys((*POSTURES, "not seen"), 0.0)
     runs: list[Run] = []
     for i in range(n):
@@ -179,6 +184,13 @@ def summarise(time: np.ndarray, angles: Mapping[str, np.ndarray], span: tuple[fl
               if a.posture == "sitting" and b.posture == "standing" and a.seconds >= MIN_RUN_S
               and b.seconds >= MIN_RUN_S and b.start - a.end <= MAX_SWITCH_S)
     return DaySummary(seconds, runs, sts, _walking(t, angles, runs))
+
+
+def _sample_down(sample: Mapping[str, float], down):
+    """The down a sample was fitted against (its ``down_x``, ``down_y``, ``down_z``: the history's
+    ``DOWN_COLUMNS``), else ``down``."""
+    d = np.array([sample.get(k, np.nan) for k in ("down_x", "down_y", "down_z")], float)
+    return d if np.isfinite(d).all() and np.linalg.norm(d) > 0 else down
 
 
 def _walking(t: np.ndarray, angles: Mapping[str, np.ndarray], runs: list[Run]) -> list[Run]:

@@ -2,7 +2,8 @@
 
 One row per kept frame: wall time (unix seconds; what ``--since/--until`` select on), the capture time ``t``
 and ``seq``, and the 23 joint angles plus the body angles (degrees, interfaces.md section 2) — those the frame
-measured (``FitResult.measured``, fitting.measured); the rest are NULL, never the model's guess. Rows are
+measured (``FitResult.measured``, fitting.measured); the rest are NULL, never the model's guess — and the
+gravity the fit measured against (``DOWN_COLUMNS``, NULL when it took the camera as level). Rows are
 buffered and committed every ``falls.history_commit_every_s`` of capture time (WAL, ``synchronous=NORMAL``: a power loss
 may drop the last uncommitted seconds, never corrupts the file — the angles are a record, not an alarm).
 
@@ -33,12 +34,16 @@ from posed.falls.config import FallsConfig
 from posed.fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, FitResult
 
 ANGLE_COLUMNS = JOINT_ANGLE_NAMES + BODY_ANGLE_NAMES
-CSV_HEADER = ("wall_time", "wall", "t", "seq", "level", *ANGLE_COLUMNS)
+# the direction of gravity the fit measured the body angles against (its result's ``down``, camera axes, unit;
+# fitting.vertical), NULL when it took the camera as level: what the day's postures are measured against
+DOWN_COLUMNS = ("down_x", "down_y", "down_z")
+ROW_COLUMNS = ANGLE_COLUMNS + DOWN_COLUMNS
+CSV_HEADER = ("wall_time", "wall", "t", "seq", "level", *ROW_COLUMNS)
 
 _SCHEMA = (
     "CREATE TABLE IF NOT EXISTS angles (wall REAL NOT NULL, t REAL NOT NULL, seq INTEGER NOT NULL, "
     "level INTEGER NOT NULL DEFAULT 0, "
-    + ", ".join(f"{name} REAL" for name in ANGLE_COLUMNS)
+    + ", ".join(f"{name} REAL" for name in ROW_COLUMNS)
     + "); CREATE INDEX IF NOT EXISTS angles_wall ON angles (wall);"
 )
 
@@ -61,6 +66,7 @@ class AngleHistory:
         self._last_commit_t: float | None = None
         self._log = logs.get("history", path=str(self.path))
         self._db: sqlite3.Connection | None = None
+        self._columns: set[str] = set(ROW_COLUMNS)   # the file's columns (a history from before DOWN_COLUMNS lacks them)
         self.last_error = ""
         self.dropped = 0
         self._next_open = 0.0
@@ -70,6 +76,7 @@ class AngleHistory:
                 raise FileNotFoundError(f"no joint-angle history at {self.path}: the daemon writes it while it "
                                         "runs (falls.history_enabled); check pipeline.state_dir")
             self._db = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, check_same_thread=False)
+            self._columns = _columns(self._db)
         else:
             self._open()
 
@@ -83,6 +90,11 @@ class AngleHistory:
             db.execute("PRAGMA journal_mode=WAL")
             db.execute("PRAGMA synchronous=NORMAL")
             db.executescript(_SCHEMA)
+            have = _columns(db)
+            for name in DOWN_COLUMNS:          # a history written before them: the columns added, old rows NULL
+                if name not in have:
+                    db.execute(f"ALTER TABLE angles ADD COLUMN {name} REAL")
+            self._columns = _columns(db)
         except (sqlite3.Error, OSError) as exc:
             if db is not None:
                 db.close()
@@ -114,7 +126,8 @@ class AngleHistory:
             self._last_kept_t = result.t
             measured = result.measured_angles()   # fitting.measured: an angle this frame did not see is NULL
             values = [_num(measured.get(n)) for n in ANGLE_COLUMNS]
-            self._buffer.append((self._clock() if wall is None else wall, result.t, result.seq, 0, *values))
+            down = _down(result.extra.get("down"))
+            self._buffer.append((self._clock() if wall is None else wall, result.t, result.seq, 0, *values, *down))
             if self._last_commit_t is None:
                 self._last_commit_t = result.t
             if abs(result.t - self._last_commit_t) >= self.cfg.history_commit_every_s:
@@ -140,7 +153,7 @@ class AngleHistory:
         try:
             with self._db:
                 self._db.execute("BEGIN")
-                self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, {', '.join(ANGLE_COLUMNS)}) "
+                self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, {', '.join(ROW_COLUMNS)}) "
                                      f"VALUES ({marks})", self._buffer)
             if self.last_error:
                 self._log.info("history_recovered", previous_error=self.last_error, dropped=self.dropped)
@@ -161,7 +174,7 @@ class AngleHistory:
             cutoff_old = now - self.cfg.history_downsample_after_h * 3600.0
             cutoff_gone = now - self.cfg.history_retention_days * 86400.0
             bucket = self.cfg.history_downsample_period_s
-            avg = ", ".join(f"AVG({n})" for n in ANGLE_COLUMNS)
+            avg = ", ".join(f"AVG({n})" for n in ROW_COLUMNS)
             try:
                 with self._db:
                     self._db.execute("BEGIN")
@@ -170,7 +183,7 @@ class AngleHistory:
                                               (cutoff_old,)).fetchone()[0]
                     if before:
                         self._db.execute(
-                            f"INSERT INTO angles (wall, t, seq, level, {', '.join(ANGLE_COLUMNS)}) "
+                            f"INSERT INTO angles (wall, t, seq, level, {', '.join(ROW_COLUMNS)}) "
                             f"SELECT MIN(wall), MIN(t), MIN(seq), 1, {avg} FROM angles "
                             "WHERE level = 0 AND wall < ? GROUP BY CAST(wall / ? AS INTEGER)",
                             (cutoff_old, bucket))
@@ -185,16 +198,18 @@ class AngleHistory:
 
     def rows(self, since: float | None = None, until: float | None = None,
              columns: Iterable[str] = ANGLE_COLUMNS) -> Iterator[tuple]:
-        """(wall, t, seq, level, *columns) rows in time order, between two unix times (inclusive)."""
+        """(wall, t, seq, level, *columns) rows in time order, between two unix times (inclusive); ``columns``
+        of ROW_COLUMNS (a column the file does not have, from before it was added, reads NULL)."""
         columns = tuple(columns)
-        bad = [c for c in columns if c not in ANGLE_COLUMNS]
+        bad = [c for c in columns if c not in ROW_COLUMNS]
         if bad:
-            raise ValueError(f"unknown angle(s) {', '.join(bad)}; known: {', '.join(ANGLE_COLUMNS)}")
+            raise ValueError(f"unknown angle(s) {', '.join(bad)}; known: {', '.join(ROW_COLUMNS)}")
         with self._lock:
             self._commit()
             if self._db is None:
                 return
-            sql = f"SELECT wall, t, seq, level{''.join(', ' + c for c in columns)} FROM angles WHERE 1"
+            picked = (c if c in self._columns else "NULL" for c in columns)
+            sql = f"SELECT wall, t, seq, level{''.join(', ' + c for c in picked)} FROM angles WHERE 1"
             args: list[float] = []
             if since is not None:
                 sql += " AND wall >= ?"
@@ -210,7 +225,7 @@ class AngleHistory:
         writer = csv.writer(out, lineterminator="\n")
         writer.writerow(CSV_HEADER)
         n = 0
-        for wall, t, seq, level, *values in self.rows(since, until):
+        for wall, t, seq, level, *values in self.rows(since, until, ROW_COLUMNS):
             writer.writerow([iso(wall), repr(wall),
                              repr(t), seq, level, *("" if v is None else repr(v) for v in values)])
             n += 1
@@ -239,10 +254,23 @@ def read_csv(text: str) -> list[dict]:
     for row in csv.DictReader(io.StringIO(text)):
         rec: dict = {"wall_time": row["wall_time"], "wall": float(row["wall"]), "t": float(row["t"]),
                      "seq": int(row["seq"]), "level": int(row["level"])}
-        for name in ANGLE_COLUMNS:
-            rec[name] = float(row[name]) if row[name] != "" else None
+        for name in ROW_COLUMNS:            # a file exported before DOWN_COLUMNS lacks them: None
+            rec[name] = float(row[name]) if row.get(name) not in (None, "") else None
         out.append(rec)
     return out
+
+
+def _columns(db: sqlite3.Connection) -> set[str]:
+    return {r[1] for r in db.execute("PRAGMA table_info(angles)")}
+
+
+def _down(v) -> tuple:
+    """A result's ``down`` as three finite numbers, or three NULLs (none, or not three finite numbers)."""
+    try:
+        d = tuple(float(x) for x in v)
+    except (TypeError, ValueError):
+        return (None, None, None)
+    return d if len(d) == 3 and all(math.isfinite(x) for x in d) else (None, None, None)
 
 
 def _num(v) -> float | None:

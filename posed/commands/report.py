@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.commands._history_series import angle_series, event_marks
     from posed.commands.history import history_path
     from posed.daemon.config.paths import EVENTS_FILE
-    from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory
+    from posed.daemon.history.store import ROW_COLUMNS, AngleHistory
     from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError
     from posed.viz.plots import local_zone
@@ -96,13 +96,13 @@ def run(args: argparse.Namespace) -> int:
     end = dt.datetime.combine(day + dt.timedelta(days=1), dt.time(0), tz).timestamp()
     try:
         with AngleHistory(db, readonly=True) as hist:
-            rows = list(hist.rows(start, end))
+            rows = list(hist.rows(start, end, ROW_COLUMNS))
         with WatchLog(db, readonly=True) as watch_log:
             watched = watch_log.minutes(start, end)
     except FileNotFoundError as exc:
         _err(str(exc))
         return 2
-    series = angle_series(rows, ANGLE_COLUMNS)
+    series = angle_series(rows, ROW_COLUMNS)     # the angles and the down each sample was fitted against
     falls = []
     if journal_path.is_file():
         try:

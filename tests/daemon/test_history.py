@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import io
 import math
+import sqlite3
+from dataclasses import replace
 
 import cv2
 
 from posed.cli import main
-from posed.daemon.history.store import ANGLE_COLUMNS, AngleHistory, read_csv
+from posed.daemon.history.store import ANGLE_COLUMNS, DOWN_COLUMNS, AngleHistory, read_csv
 from posed.daemon.outbox.journal import EventJournal
 from posed.falls.config import FallsConfig
 from posed.falls.event import FallEvent
@@ -165,3 +167,40 @@ def test_recorder_adds_on_capture_time_and_maintains_about_once_a_minute(tmp_pat
     off.add(result(2, 0.1), 0.0)
     off.tick(1e6)
     off.close()
+
+
+def test_each_row_keeps_the_down_its_fit_measured_against(tmp_path):
+    """A result fitted against gravity (``down``, fitting.vertical) stores it; one taken as level stores NULLs;
+    the CSV carries both."""
+    down = [0.0, 0.81915, 0.57358]
+    with AngleHistory(tmp_path / "h.sqlite3", FallsConfig(history_rate_hz=100.0)) as hist:
+        level = result(0, 0.0)
+        tilted = replace(result(1, 0.1), extra={"vertical": "gravity", "down": down})
+        assert hist.add(level, wall=1_700_000_000.0) and hist.add(tilted, wall=1_700_000_000.1)
+        rows = list(hist.rows(columns=("theta_bd", *DOWN_COLUMNS)))
+        buf = io.StringIO()
+        hist.export_csv(buf)
+    assert rows[0][5:] == (None, None, None) and list(rows[1][5:]) == down
+    csv_rows = read_csv(buf.getvalue())
+    assert [[r[c] for c in DOWN_COLUMNS] for r in csv_rows] == [[None] * 3, down]
+
+
+def test_a_history_from_before_the_down_columns_gets_them_and_reads_null(tmp_path):
+    """A file written by a posed without DOWN_COLUMNS: opened to write, the columns are added (old rows NULL,
+    new rows stored); opened read-only as it is, they read NULL."""
+    path = tmp_path / "old.sqlite3"
+    db = sqlite3.connect(path)
+    db.executescript("CREATE TABLE angles (wall REAL NOT NULL, t REAL NOT NULL, seq INTEGER NOT NULL, "
+                     "level INTEGER NOT NULL DEFAULT 0, " + ", ".join(f"{n} REAL" for n in ANGLE_COLUMNS) + ");")
+    db.execute("INSERT INTO angles (wall, t, seq, level, theta_bd) VALUES (1.0, 0.0, 0, 0, 7.0)")
+    db.commit()
+    db.close()
+    with AngleHistory(path, readonly=True) as old:
+        assert list(old.rows(columns=("theta_bd", *DOWN_COLUMNS))) == [(1.0, 0.0, 0, 0, 7.0, None, None, None)]
+        buf = io.StringIO()
+        old.export_csv(buf)
+    assert read_csv(buf.getvalue())[0]["down_x"] is None
+    with AngleHistory(path, FallsConfig(history_rate_hz=100.0)) as hist:
+        hist.add(replace(result(1, 0.1), extra={"down": [0.0, 1.0, 0.0]}), wall=2.0)
+        got = list(hist.rows(columns=("theta_bd", *DOWN_COLUMNS)))
+    assert got[0][5:] == (None, None, None) and got[1][5:] == (0.0, 1.0, 0.0)

@@ -145,6 +145,14 @@ def test_posture_is_measured_against_the_camera_s_down_when_it_is_known():
     assert posture.inclinations(standing, down)[0] == pytest.approx(0.0, abs=0.5)
     assert posture.inclinations(standing)[0] == pytest.approx(35.0, abs=0.5)
     assert "looking 35 degrees down" in " ".join(posture.method_text(down))
+    # the day's summary takes each sample's own down (the history's down_x, down_y, down_z: a robot that
+    # tilts its head), before the one given for samples fitted without one
+    series = {k: np.array([lying[k], lying[k]]) for k in lying}
+    series.update({f"down_{a}": np.array([v, np.nan]) for a, v in zip("xyz", down, strict=True)})
+    day = posture.summarise(np.array([0.0, 1.0]), series, (0.0, 2.0), 1.0)
+    assert day.seconds["lying"] == pytest.approx(1.0)            # the first sample only: the second has no down
+    day = posture.summarise(np.array([0.0, 1.0]), series, (0.0, 2.0), 1.0, down)
+    assert day.seconds["lying"] == pytest.approx(2.0)
 
 
 def test_the_report_takes_the_measured_mount_or_the_learned_geometry_as_down(tmp_path):
