@@ -26,6 +26,7 @@ from posed.bench.bvh import cmu_landmark_world, read_bvh
 from posed.bench.falls_body import Body, WorldCamera
 from posed.bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
 from posed.camera_model import Intrinsics
+from posed.daemon.stages.fit import mount_gravity
 from posed.falls.config import FallsConfig
 from posed.falls.detector import FallDetector
 from posed.falls.features import gravity_from_tilt
@@ -170,8 +171,8 @@ def run_case(case: Case, fit: Callable[..., FitResult], cfg: FallsConfig, fit_fr
     recent: list = []
     low = low_lying = None
     # the fit is given the down the daemon's fitting stage gives it (daemon.stages.fit.frame_gravity): the IMU's,
-    # else a measured mount's
-    mount_down = np.asarray(gravity_from_tilt(cam.tilt, cam.roll), dtype=float) if geometry == "given" else None
+    # else the measured mount's (geometry given: cfg measured above)
+    mount_down = mount_gravity(cfg) if geometry == "given" else None
     for fr in case.frames:
         imu = _imu_gravity(cam, imu_rng, imu_bias) if imu_rng is not None else None
         result = fit(fr.landmarks, fr.seq, fr.t, image_size, cam.intrinsics, imu if imu is not None else mount_down) \

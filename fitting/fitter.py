@@ -172,8 +172,8 @@ class Fitter:
                 level = level_frame(gravity if self.config.vertical == "auto" else None)
             except ValueError as exc:
                 return FitResult.failure(seq, float(t) if _finite(t) else 0.0, str(exc))
-            if self._prev_x is not None and not _same_level(level, self._level):
-                self._prev_x = reexpress(self._prev_x, self._level, level)   # the same body, a new down
+            if self._prev_x is not None:
+                self._prev_x = reexpress(self._prev_x, self._level, level)   # the same body, maybe a new down
             self._level = level
             if world is not None and self.config.world_landmarks:
                 wl = np.asarray(world, dtype=np.float64)
@@ -565,10 +565,6 @@ class Fitter:
             pool[i] = self._lm(frame.data, hyps[i])[0]
             mse[i] = refine.data_mse(pool[i], frame.data)
         return (*self._select(frame, pool, mse), int(evals))
-
-
-def _same_level(a: np.ndarray | None, b: np.ndarray | None) -> bool:
-    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
 
 
 def _finite(v) -> bool:

@@ -90,10 +90,13 @@ def camera_body_angles(x: np.ndarray, r_cl: np.ndarray | None) -> np.ndarray:
 
 
 def reexpress(x: np.ndarray, r_old: np.ndarray | None, r_new: np.ndarray | None) -> np.ndarray:
-    """A copy of ``x`` whose body angles, taken against level frame ``r_old``, are taken against ``r_new``
-    (None: the camera's own): the same body in the camera, for a fit whose down changed between frames."""
+    """``x`` with its body angles, taken against level frame ``r_old``, taken against ``r_new`` (None: the
+    camera's own): the same body in the camera, for a fit whose down changed between frames. ``x`` itself when
+    the frame did not change, else a copy."""
+    if r_old is None and r_new is None:
+        return x
     a = np.eye(3) if r_old is None else np.asarray(r_old)
     b = np.eye(3) if r_new is None else np.asarray(r_new)
     if np.array_equal(a, b):
-        return np.array(x, dtype=np.float64)
+        return x
     return _set_body(x, b.T @ a @ _body(x))

@@ -33,7 +33,6 @@ difference above ``WALK_SWING_DEG``: stepping in place counts, and shuffling wit
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -58,15 +57,20 @@ def _dims():
     return BodyDimensions.from_height(1.6)
 
 
-def _up(down) -> np.ndarray:
-    """Unit up in the camera frame: against ``down`` (camera axes, any length), or the level camera's."""
-    if down is None:
-        return _UP
-    d = np.asarray(down, float)
-    return -d / np.linalg.norm(d)
+def valid_down(down) -> np.ndarray | None:
+    """``down`` (a fit result's or a history sample's gravity, camera axes, any length) as an array, or None
+    when it is not three finite numbers, not all 0."""
+    try:
+        d = np.asarray(down, float)
+    except (TypeError, ValueError):
+        return None
+    return d if d.shape == (3,) and np.isfinite(d).all() and np.linalg.norm(d) > 0 else None
 
 
-def _incline(v: np.ndarray, up: np.ndarray = _UP) -> float:
+def incline_deg(v: np.ndarray, down=None) -> float:
+    """The angle of camera-frame vector ``v`` from the vertical, degrees: against ``down`` (a
+    :func:`valid_down`), or the level camera's when None; NaN for a zero ``v``."""
+    up = _UP if down is None else -np.asarray(down, float) / np.linalg.norm(down)
     n = float(np.linalg.norm(v))
     return float(np.degrees(np.arccos(np.clip(v @ up / n, -1.0, 1.0)))) if n > 0 else float("nan")
 
@@ -101,9 +105,9 @@ def method_text(down=None) -> list[str]:
 
 
 def _tilt_text(down) -> str:
-    d = np.asarray(down, float) / np.linalg.norm(down)
-    tilt = math.degrees(math.atan2(d[2], d[1]))
-    roll = math.degrees(math.atan2(d[0], math.hypot(d[1], d[2])))
+    from posed.falls.geometry import tilt_roll_deg
+
+    tilt, roll = tilt_roll_deg(down)
     return f"looking {tilt:.0f} degrees down, rolled {roll:.0f}"
 
 
@@ -116,9 +120,8 @@ def inclinations(angles: Mapping[str, float], down=None) -> tuple[float, float]:
     joints = {k: float(v) for k, v in angles.items() if k in JOINT_ANGLE_NAMES and np.isfinite(v)}
     body = {k: float(angles.get(k, 0.0)) for k in BODY_ANGLE_NAMES}
     j = {k: np.asarray(v) for k, v in joints_3d(Pose(joints, **body), _dims()).items()}
-    up = _up(down)
-    trunk = _incline((j["left_shoulder"] + j["right_shoulder"]) / 2 - j["mid_hip"], up)
-    thigh = max(_incline(j["left_hip"] - j["left_knee"], up), _incline(j["right_hip"] - j["right_knee"], up))
+    trunk = incline_deg((j["left_shoulder"] + j["right_shoulder"]) / 2 - j["mid_hip"], down)
+    thigh = max(incline_deg(j["left_hip"] - j["left_knee"], down), incline_deg(j["right_hip"] - j["right_knee"], down))
     return trunk, thigh
 
 
@@ -189,8 +192,8 @@ def summarise(time: np.ndarray, angles: Mapping[str, np.ndarray], span: tuple[fl
 def _sample_down(sample: Mapping[str, float], down):
     """The down a sample was fitted against (its ``down_x``, ``down_y``, ``down_z``: the history's
     ``DOWN_COLUMNS``), else ``down``."""
-    d = np.array([sample.get(k, np.nan) for k in ("down_x", "down_y", "down_z")], float)
-    return d if np.isfinite(d).all() and np.linalg.norm(d) > 0 else down
+    d = valid_down([sample.get(k, np.nan) for k in ("down_x", "down_y", "down_z")])
+    return d if d is not None else down
 
 
 def _walking(t: np.ndarray, angles: Mapping[str, np.ndarray], runs: list[Run]) -> list[Run]:

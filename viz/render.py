@@ -3,13 +3,14 @@ and beside it the side view of the fitted skeleton (``side_view``)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from posed.camera_model import Intrinsics
-from posed.viz import overlay
+from posed.viz import overlay, posture
 from posed.viz.overlay import FrameInfo
 from posed.viz.reproject import camera_joints, reproject
 from posed.viz.side_view import SideFrame, panel_width, render_side
@@ -58,11 +59,12 @@ def trunk_lean_deg(result) -> float | None:
             - np.asarray(j["mid_hip"], float)
     except KeyError:
         return None
-    n = float(np.linalg.norm(up))
-    down = np.asarray(result.extra.get("down", (0.0, 1.0, 0.0)), float)
-    if n == 0 or down.shape != (3,) or not np.isfinite(down).all() or not np.linalg.norm(down) > 0:
+    given = result.extra.get("down")
+    down = None if given is None else posture.valid_down(given)
+    if given is not None and down is None:
         return None
-    return float(np.degrees(np.arccos(np.clip(-(up @ down) / (n * np.linalg.norm(down)), -1.0, 1.0))))
+    lean = posture.incline_deg(up, down)
+    return lean if math.isfinite(lean) else None
 
 
 class ClipRenderer:

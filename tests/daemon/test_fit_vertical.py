@@ -15,9 +15,8 @@ from posed.daemon.stages.fit import frame_gravity, mount_gravity, people_fit
 from posed.falls.features import gravity_from_tilt
 from posed.fitting import Fitter
 from posed.fitting.body import BodyDimensions
-from posed.fitting.kinematics import body_angles_from_rotation, body_rotation
-from posed.fitting.vertical import level_frame
 from posed.landmarks import LandmarkFrame
+from tests.fitting.seated_scene import seated_under
 
 DIMS = BodyDimensions.from_height(1.6)
 
@@ -55,17 +54,6 @@ def test_the_frame_s_own_gravity_comes_first_and_a_malformed_one_falls_back():
     assert frame_gravity(LandmarkFrame(0, 0.0, None, extra={"floor": {"down": [0, 0, 0]}}), mount) is mount
 
 
-def _seated(tilt_deg: float) -> np.ndarray:
-    """A person seated upright (hips 86-88, lumbar 4 degrees) as a camera pitched down ``tilt_deg`` sees them."""
-    from posed.bench import simulate as S
-
-    level = S.pose("sit_chair", 30.0)
-    r = level_frame(gravity_from_tilt(tilt_deg)) @ body_rotation(level.theta_bd, level.phi_bd, level.psi_bd)
-    t, p, s = body_angles_from_rotation(r)
-    return S.render(level.replace(theta_bd=t, phi_bd=p, psi_bd=s), dims=DIMS,
-                    camera=S.LevelCamera(model="pinhole"))
-
-
 @pytest.mark.parametrize("how", ["mount", "imu", "none"])
 def test_the_stage_fits_a_seated_person_under_a_tilted_camera_with_the_down_it_has(how):
     from posed.bench import simulate as S
@@ -73,7 +61,7 @@ def test_the_stage_fits_a_seated_person_under_a_tilted_camera_with_the_down_it_h
     cfg = _config(camera_tilt_deg=35.0) if how == "mount" else _config()
     stage = people_fit(lambda: Fitter(replace(cfg.fitting, body_height_m=1.6)), cfg)
     k = S.LevelCamera(model="pinhole").intrinsics((640, 480))
-    lm = _seated(35.0)
+    lm = seated_under(35.0, DIMS)[0]
     imu = tuple(gravity_from_tilt(35.0)) if how == "imu" else None
     hips = []
     for seq in range(5):

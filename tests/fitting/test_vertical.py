@@ -2,11 +2,11 @@
 against the NumPy reference and finite differences, and what it is for: a person seated under a camera tilted
 down reads hips of 90 degrees, not 90 minus the tilt."""
 
-import math
 
 import numpy as np
 import pytest
 
+from posed.falls.features import gravity_from_tilt
 from posed.fitting import FitConfig, Fitter
 from posed.fitting import forward_kinematics as FK
 from posed.fitting import layout as L
@@ -18,16 +18,10 @@ from posed.fitting.kinematics import Pose, body_angles_from_rotation, body_rotat
 from posed.fitting.result import MODEL_VARIABLE_NAMES
 from posed.fitting.vertical import camera_body_angles, level_data, level_frame, reexpress
 from tests.fitting.jacobian_check import assert_jacobian_matches_finite_differences
+from tests.fitting.seated_scene import seated_under
 
 DIMS = BodyDimensions.from_height(1.72)
 FIXED = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
-
-
-def tilted(tilt_deg: float, roll_deg: float = 0.0) -> tuple[float, float, float]:
-    """Gravity in the axes of a camera pitched down by ``tilt_deg`` and rolled by ``roll_deg`` (clockwise in
-    the image)."""
-    t, r = math.radians(tilt_deg), math.radians(roll_deg)
-    return (-math.sin(r) * math.cos(t), math.cos(r) * math.cos(t), math.sin(t))
 
 
 def kernel_x(pose: Pose) -> np.ndarray:
@@ -53,7 +47,7 @@ def test_the_level_frame_of_a_level_camera_is_none_and_of_a_tilted_one_puts_y_al
     assert level_frame(None) is None
     assert level_frame((0.0, 9.81, 0.0)) is None
     for tilt, roll in ((35.0, 0.0), (12.0, -7.0), (-20.0, 30.0), (0.0, 90.0)):
-        g = np.array(tilted(tilt, roll))
+        g = np.array(gravity_from_tilt(tilt, roll))
         r = level_frame(3.0 * g)
         np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-12)
         assert np.linalg.det(r) == pytest.approx(1.0)
@@ -61,7 +55,7 @@ def test_the_level_frame_of_a_level_camera_is_none_and_of_a_tilted_one_puts_y_al
         # x_L is the camera's x made level: in the plane of the camera's x and gravity (no heading added)
         assert float(r[:, 0] @ np.cross((1.0, 0.0, 0.0), g)) == pytest.approx(0.0, abs=1e-12)
     # a camera tilted down: its x axis is level, so x_L is the camera's x
-    np.testing.assert_allclose(level_frame(tilted(35.0))[:, 0], (1.0, 0.0, 0.0), atol=1e-12)
+    np.testing.assert_allclose(level_frame(gravity_from_tilt(35.0))[:, 0], (1.0, 0.0, 0.0), atol=1e-12)
 
 
 @pytest.mark.parametrize("bad", [(0.0, 0.0, 0.0), (np.nan, 1.0, 0.0), (1.0, 2.0), "down"])
@@ -74,7 +68,7 @@ def test_kernel_points_with_a_level_frame_are_the_reference_turned_by_it():
     rng = np.random.default_rng(11)
     for _ in range(10):
         pose = random_pose(rng)
-        r_cl = level_frame(tilted(rng.uniform(-40, 40), rng.uniform(-30, 30)))
+        r_cl = level_frame(gravity_from_tilt(rng.uniform(-40, 40), rng.uniform(-30, 30)))
         pts_b, pts_c = np.empty((L.N_POINTS, 3)), np.empty((L.N_POINTS, 3))
         FK.model_points(kernel_x(pose), kernel_data(pose, r_cl), pts_b, pts_c)
         ref = landmarks_camera(pose, DIMS) @ r_cl.T     # the body angles are taken against the level frame
@@ -93,7 +87,7 @@ def test_a_changed_level_frame_moves_the_cached_points():
     x = kernel_x(pose)
     work = FK.empty_work()
     a = kernel_data(pose, None)
-    b = kernel_data(pose, level_frame(tilted(30.0)))
+    b = kernel_data(pose, level_frame(gravity_from_tilt(30.0)))
     for data in (a, b, a):
         LOSS.pose_loss(x, data, work)
         fresh = FK.empty_work()
@@ -116,7 +110,7 @@ def test_the_prior_and_the_centre_of_mass_measure_against_the_level_frame():
             flat[L.D_LW + L.LW_COM] = 1.0
             flat[L.D_LW + L.LW_NULL] = 1.0
             lev = flat.copy()
-            lev[L.D_LEVEL:L.D_LEVEL + 10] = level_data(level_frame(tilted(rng.uniform(5, 45), rng.uniform(-20, 20))))
+            lev[L.D_LEVEL:L.D_LEVEL + 10] = level_data(level_frame(gravity_from_tilt(rng.uniform(5, 45), rng.uniform(-20, 20))))
             t_flat = LOSS.pose_loss_terms(x, flat, FK.empty_work())
             t_lev = LOSS.pose_loss_terms(x, lev, FK.empty_work())
             assert t_lev[2] == pytest.approx(t_flat[2], abs=1e-12)   # centre of mass over the support
@@ -135,7 +129,7 @@ def test_analytic_jacobian_with_a_level_frame_matches_finite_differences(perspec
     xy, w, _ = P.landmark_weights(lm, cfg)
     frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS),
                    S.LevelCamera(model="pinhole").intrinsics((640, 480)) if perspective else None,
-                   level=level_data(level_frame(tilted(28.0, 9.0))))
+                   level=level_data(level_frame(gravity_from_tilt(28.0, 9.0))))
     for _ in range(3):
         x = kernel_x(pose) + rng.normal(0, 0.3, L.N_VAR)
         x[0] = 0.9 + 0.2 * rng.random()
@@ -150,7 +144,7 @@ def test_orientation_seeds_with_a_level_frame_are_the_camera_seeds_turned_into_i
     xy, w, _ = P.landmark_weights(lm, cfg)
     frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS))
     lo, hi = np.full(L.N_VAR, -10.0), np.full(L.N_VAR, 10.0)   # no clipping
-    r_cl = level_frame(tilted(30.0, -10.0))
+    r_cl = level_frame(gravity_from_tilt(30.0, -10.0))
     obs = frame.data[L.D_OBS:L.D_OBS + 24]
     cam, lev = np.empty((O.MAX_SEEDS, L.N_VAR)), np.empty((O.MAX_SEEDS, L.N_VAR))
     args = (obs, frame.weights, DIMS.body_height_m, DIMS.hip_half_m, DIMS.shoulder_half_m, DIMS.trunk_m, lo, hi)
@@ -166,28 +160,15 @@ def test_reexpressed_state_is_the_same_body_in_the_camera():
     rng = np.random.default_rng(2)
     pose = random_pose(rng)
     x = kernel_x(pose)
-    a, b = level_frame(tilted(20.0)), level_frame(tilted(33.0, 5.0))
+    a, b = level_frame(gravity_from_tilt(20.0)), level_frame(gravity_from_tilt(33.0, 5.0))
     y = reexpress(x, a, b)
     np.testing.assert_allclose(camera_body_angles(y, b), camera_body_angles(x, a), atol=1e-9)
     np.testing.assert_allclose(camera_body_angles(reexpress(x, a, None), None), camera_body_angles(x, a),
                                atol=1e-9)
 
 
-def _seated_under(tilt_deg: float):
-    """The landmarks of a person seated upright (hips 86-88, lumbar 4 degrees) seen by a camera pitched down
-    ``tilt_deg``, and that camera's gravity."""
-    from posed.bench import simulate as S
-
-    g = tilted(tilt_deg)
-    level = S.pose("sit_chair", 30.0)
-    t, p, s = body_angles_from_rotation(level_frame(g) @ body_rotation(level.theta_bd, level.phi_bd, level.psi_bd))
-    seen = level.replace(theta_bd=t, phi_bd=p, psi_bd=s)
-    cam = S.LevelCamera(model="pinhole")
-    return S.render(seen, dims=DIMS, camera=cam), cam.intrinsics((640, 480)), g, seen
-
-
 def test_a_person_seated_under_a_tilted_camera_reads_seated_hips_given_gravity():
-    lm, k, g, seen = _seated_under(35.0)
+    lm, k, g, seen = seated_under(35.0, DIMS)
     fitter = Fitter(FitConfig(body_height_m=DIMS.body_height_m))
     given = fitter.fit(lm, 0, 0.0, (640, 480), "image", k, gravity=g)
     fitter.reset()
@@ -207,7 +188,7 @@ def test_a_person_seated_under_a_tilted_camera_reads_seated_hips_given_gravity()
 def test_video_mode_keeps_the_body_when_gravity_arrives_mid_track():
     """An IMU's first reading after some frames: the previous solution is re-expressed, not read in a new
     frame, so the next frame still tracks the same body."""
-    lm, k, g, _ = _seated_under(25.0)
+    lm, k, g, _ = seated_under(25.0, DIMS)
     fitter = Fitter(FitConfig(body_height_m=DIMS.body_height_m))
     first = fitter.fit(lm, 0, 0.0, (640, 480), "video", k)
     second = fitter.fit(lm, 1, 0.1, (640, 480), "video", k, gravity=g)
