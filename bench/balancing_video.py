@@ -18,7 +18,8 @@ Per frame where both the fit and BlazePose answered (the same frames for both), 
 (shoulders, elbows, wrists, hips, knees, ankles) in the camera frame: PA-MPJPE (similarity-aligned, mm),
 MPJPE with the mid-hips together but no rotation (mm: depth order counts), limb depth flips (limb segments
 whose true depth difference exceeds 5 cm and whose estimate has the other sign), the 8 angles from 3D joint
-positions (the same formula for truth and estimate, ``bench.ood.segment_angles``), and for the fit also the
+positions (the same formula for truth and estimate, ``bench.ood.segment_angles``; also each angle's mean absolute
+and signed error, ``per_angle_deg``: a joint read less bent than it is shows as a negative ``signed``), and for the fit also the
 mid-hip's position (``root_cam_m``) against the truth and the four views' agreement on it (the spread of the
 four world positions). Baseline: the 2D landmarks with zero depth (PA-MPJPE).
 
@@ -219,6 +220,7 @@ class _Scores:
         self.pa: list[float] = []
         self.rel: list[float] = []
         self.angle: list[float] = []
+        self.angle_signed: list[np.ndarray] = []   # per frame, estimate - truth for each of O.ANGLE_NAMES
         self.flips = [0, 0]
         self.per_joint: list[np.ndarray] = []
 
@@ -227,7 +229,8 @@ class _Scores:
         self.per_joint.append(np.linalg.norm(aligned - truth, axis=1) * 1e3)
         self.pa.append(float(self.per_joint[-1].mean()))
         self.rel.append(O.mpjpe(est - _mid_hip(est), truth - _mid_hip(truth)) * 1e3)
-        self.angle.append(float(np.abs(O.segment_angles(est) - O.segment_angles(truth)).mean()))
+        self.angle_signed.append(O.segment_angles(est) - O.segment_angles(truth))
+        self.angle.append(float(np.abs(self.angle_signed[-1]).mean()))
         f, c = O.depth_flips(est, truth)
         self.flips[0] += f
         self.flips[1] += c
@@ -240,7 +243,16 @@ class _Scores:
                 "mpjpe_hip_aligned_mm": round(float(np.mean(self.rel)), 1),
                 "angle_err_deg": round(float(np.mean(self.angle)), 2),
                 "depth_flips": round(self.flips[0] / max(self.flips[1], 1), 3),
-                "per_joint_pa_mm": {n: round(float(v), 1) for n, v in zip(BODY12, joints, strict=True)}}
+                "per_joint_pa_mm": {n: round(float(v), 1) for n, v in zip(BODY12, joints, strict=True)},
+                "per_angle_deg": _per_angle(np.array(self.angle_signed))}
+
+
+def _per_angle(signed: np.ndarray) -> dict[str, dict[str, float]]:
+    """Each of the 8 angles (``bench.ood.ANGLE_NAMES``): mean absolute error (``abs``) and mean signed error
+    (``signed``: estimate - truth; negative reads the joint less bent than it is), degrees, over the frames
+    ``signed`` holds (one row each)."""
+    return {n: {"abs": round(float(np.abs(signed[:, k]).mean()), 1), "signed": round(float(signed[:, k].mean()), 1)}
+            for k, n in enumerate(O.ANGLE_NAMES)}
 
 
 @dataclass
@@ -405,6 +417,12 @@ def _overall(per_view: dict[str, dict], mode: str, fps: float) -> dict:
     roots = [r["root_err_mm"] for r in per_view.values() if r["root_err_mm"] is not None]
     fit = {k: mean(k, "fit") for k in keys}
     world = {k: mean(k, "blazepose_world") for k in keys}
+    for who, out in (("fit", fit), ("blazepose_world", world)):
+        rows = [(r[who]["per_angle_deg"], r["answered"]) for r in per_view.values() if r[who].get("per_angle_deg")]
+        n = sum(w for _, w in rows)
+        if n:
+            out["per_angle_deg"] = {a: {s: round(sum(p[a][s] * w for p, w in rows) / n, 1) for s in ("abs", "signed")}
+                                    for a in O.ANGLE_NAMES}
     return {"protocol": PROTOCOL, "domain": DOMAIN, "view": "all", "mode": mode, "fps": fps, "frames": frames,
             "answered": answered, "fit": fit, "blazepose_world": world,
             "flat_2d": {"pa_mpjpe_mm": mean("pa_mpjpe_mm", "flat_2d")},

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from posed.bench import balancing_video as B
+from posed.bench import ood as O
 from posed.bench.mocap_landmarks import BODY12_IDX
 from posed.landmarks import read_recording
 
@@ -66,6 +67,7 @@ def test_the_truth_scores_zero_and_a_mirrored_limb_counts_as_a_flip(folder):
     s.add(truth, truth)
     summary = s.summary()
     assert summary["pa_mpjpe_mm"] == 0 and summary["mpjpe_hip_aligned_mm"] == 0 and summary["angle_err_deg"] == 0
+    assert summary["per_angle_deg"] == {a: {"abs": 0.0, "signed": 0.0} for a in O.ANGLE_NAMES}
     # the distal segment (forearm or shank) most inclined in depth, its end mirrored about its start
     from posed.bench.ood import SEGMENTS
 
@@ -79,6 +81,13 @@ def test_the_truth_scores_zero_and_a_mirrored_limb_counts_as_a_flip(folder):
     s2.add(mirrored, truth)
     counted = sum(abs(truth[q, 2] - truth[p, 2]) > 0.05 for p, q in SEGMENTS)
     assert s2.flips == [1, counted]
+    # the per-angle errors are the same frame's angles, signed as estimate - truth, and average to angle_err_deg
+    moved = O.segment_angles(mirrored) - O.segment_angles(truth)
+    per = s2.summary()["per_angle_deg"]
+    assert [per[a]["signed"] for a in O.ANGLE_NAMES] == pytest.approx(moved, abs=0.051)
+    assert [per[a]["abs"] for a in O.ANGLE_NAMES] == pytest.approx(np.abs(moved), abs=0.051)
+    assert np.mean([per[a]["abs"] for a in O.ANGLE_NAMES]) == pytest.approx(s2.summary()["angle_err_deg"], abs=0.06)
+    assert any(abs(v) > 1.0 for v in moved)        # the mirrored segment bends a joint
 
 
 def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, recordings):
@@ -99,6 +108,11 @@ def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, reco
         assert r["answered"] == r["frames"] > 0                              # the man is in every frame
         for who in ("fit", "blazepose_world"):
             assert 0 < r[who]["pa_mpjpe_mm"] < 1000 and 0 <= r[who]["depth_flips"] <= 1
+            per = r[who]["per_angle_deg"]
+            assert list(per) == list(O.ANGLE_NAMES)
+            assert all(0 < p["abs"] < 180 and abs(p["signed"]) <= p["abs"] + 0.05 for p in per.values()), per
+            # the eight angles' mean is the row's angle error (each rounded to 0.1 first)
+            assert np.mean([p["abs"] for p in per.values()]) == pytest.approx(r[who]["angle_err_deg"], abs=0.1)
     overall = [r for r in rows if r["view"] == "all"]
     for r in overall:
         assert r["fit_over_blazepose_pa"] == pytest.approx(r["fit"]["pa_mpjpe_mm"] / r["blazepose_world"]["pa_mpjpe_mm"],
