@@ -160,6 +160,6 @@ def run(args: argparse.Namespace) -> int:
         f"{n} of the recording's {read} frames judged (at most pipeline.target_fps = {cfg.pipeline.target_fps:g} "
         "a second of capture time, as the daemon's capture stage takes them; posed fit fits them all)")
     swapped = 0 if sides is None else sides.frames_put_back
-    _err(f"{judged}, {events} event message(s), {skipped} lines skipped"
+    _err(f"{judged}, {events} event message(s), {skipped} line(s) skipped"
          + (f"; left and right put back on {swapped} (landmarks.sides)" if swapped else ""))
     return 1 if skipped else 0

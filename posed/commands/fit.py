@@ -111,6 +111,6 @@ def run(args: argparse.Namespace) -> int:
         else:
             out.flush()
     swapped = 0 if sides is None else sides.frames_put_back
-    _err(f"{fitted} frames fitted ({ok} ok, {fitted - ok} not ok), {skipped} lines skipped"
+    _err(f"{fitted} frame(s) fitted ({ok} ok, {fitted - ok} not ok), {skipped} line(s) skipped"
          + (f"; left and right put back on {swapped} (landmarks.sides)" if swapped else ""))
     return 1 if skipped else 0
