@@ -451,9 +451,25 @@ def markdown(rows: list[dict]) -> list[str]:
     return out
 
 
+def per_angle_markdown(rows: list[dict]) -> list[str]:
+    """Each angle's error over the four views, one column per four-view row (``per_angle_deg``: mean absolute /
+    mean signed, estimate - truth, degrees; the fit, then BlazePose's world landmarks)."""
+    overall = [r for r in rows if r["view"] == "all" and r["fit"].get("per_angle_deg")]
+    heads = [f"{r['mode']}{' + gravity' if r.get('gravity') else ''} {r['fps']:g} fps" for r in overall]
+    out = ["| angle: abs / signed deg, fit; BlazePose world | " + " | ".join(heads) + " |",
+           "|---|" + "---|" * len(overall)]
+    for a in O.ANGLE_NAMES:
+        cells = []
+        for r in overall:
+            f, w = r["fit"]["per_angle_deg"][a], r["blazepose_world"]["per_angle_deg"][a]
+            cells.append(f"{f['abs']} / {f['signed']:+}; {w['abs']} / {w['signed']:+}")
+        out.append(f"| {a} | " + " | ".join(cells) + " |")
+    return out
+
+
 if __name__ == "__main__":        # a quick look: python -m posed.bench.balancing_video
     from posed.daemon.preflight import shared_data
 
     rows = run(shared_data())
-    print("\n".join(markdown(rows)))
+    print("\n".join(markdown(rows) + [""] + per_angle_markdown(rows)))
     print(json.dumps([r for r in rows if r["view"] == "all"], indent=1))

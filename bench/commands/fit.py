@@ -80,10 +80,12 @@ def markdown(report: dict) -> str:
     bal = [r for r in report["results"] if r["protocol"] == "balancing_video"]
     if bal:
         from posed.bench.balancing_video import markdown as balancing_markdown
+        from posed.bench.balancing_video import per_angle_markdown
 
         lines += ["", "Real video with 3D truth (balancing_video: 4 calibrated views, posed's own landmarks, the "
                       "cameras' intrinsics; the fit and BlazePose's world landmarks on the same frames):", ""]
         lines += balancing_markdown(bal)
+        lines += ["", "Each angle (negative signed: read less bent than it is):", ""] + per_angle_markdown(bal)
     t3 = [r for r in report["results"] if r["protocol"] == "table3"]
     if t3:
         lines += ["", "Table 3 (paper's uDEAS alone, Table 1 bounds, noise-free six poses):", "",

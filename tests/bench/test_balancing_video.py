@@ -122,6 +122,11 @@ def test_a_run_scores_the_fit_and_blazepose_on_the_same_frames(shared_data, reco
         depth = r["depth_sources"]
         assert 0 < depth["true"] < 0.8 * min(depth["world"], depth["fit"]), depth
     assert len(B.markdown(rows)) == 2 + len(B.RUNS) + 1   # and the gravity row
+    # each angle a line, each four-view row a column; the cells are the rows' own numbers
+    table = B.per_angle_markdown(rows)
+    assert len(table) == 2 + len(O.ANGLE_NAMES) and table[1].count("---") == 1 + len(overall)
+    first = overall[0]["fit"]["per_angle_deg"]["knee_l"]
+    assert table[2].startswith("| knee_l | ") and f"{first['abs']} / {first['signed']:+}; " in table[2]
     # the baseline is the landmark stage with MediaPipe's own left/right labels, at each rate the fit runs at;
     # at 10 fps one run per starting frame (0-5), so that every frame is scored once
     names = sorted(p.name for p in recordings[0].glob("*.landmarks.jsonl"))
