@@ -4,6 +4,22 @@ import numpy as np
 
 from posed.fitting import jacobian as JAC
 from posed.fitting import layout as L
+from posed.fitting import problem as P
+
+
+def rendered_frame(pose, dims, cfg, perspective: bool, weights: dict[int, float] | None = None, **pack_kw):
+    """``pose`` (bench.simulate) rendered through the simulator's level camera (pinhole when ``perspective``,
+    else orthographic) and packed as the fitter packs a frame: landmark weights (``weights`` overrides some,
+    by landmark index), reference scale, the camera's intrinsics when perspective; ``pack_kw`` to P.pack."""
+    from posed.bench import simulate as S
+
+    camera = S.LevelCamera(model="pinhole")   # 600, 600, 320, 240 at 640x480
+    lm = S.render(pose, dims=dims, camera=camera if perspective else None)
+    xy, w, _ = P.landmark_weights(lm, cfg)
+    for i, v in (weights or {}).items():
+        w[i] = v
+    return P.pack(xy, w, dims, cfg, P.reference_scale(xy, w, dims),
+                  camera.intrinsics((640, 480)) if perspective else None, **pack_kw)
 
 
 def assert_jacobian_matches_finite_differences(x: np.ndarray, data: np.ndarray) -> np.ndarray:

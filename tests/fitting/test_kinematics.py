@@ -21,7 +21,7 @@ from posed.fitting.kinematics import (
     skeleton,
 )
 from posed.fitting.result import JOINT_ANGLE_NAMES, MODEL_VARIABLE_NAMES
-from tests.fitting.jacobian_check import assert_jacobian_matches_finite_differences
+from tests.fitting.jacobian_check import assert_jacobian_matches_finite_differences, rendered_frame
 
 DIMS = BodyDimensions.from_height(1.72)
 FIXED = ("theta_hd", "psi_hd", "psi_hp_l", "psi_hp_r", "theta_an_l", "phi_an_l", "theta_an_r", "phi_an_r")
@@ -142,12 +142,8 @@ def test_analytic_jacobian_matches_finite_differences(perspective):
     cfg = FitConfig(w_limit=0.5)
     rng = np.random.default_rng(7 + perspective)
     pose = S.pose("kneel", 35.0)
-    lm = S.render(pose, dims=DIMS, camera=S.LevelCamera(model="pinhole") if perspective else None)
-    xy, w, _ = P.landmark_weights(lm, cfg)
-    w[3] = 0.4  # a down-weighted landmark
-    frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS),
-                   S.LevelCamera(model="pinhole").intrinsics((640, 480)) if perspective else None,   # 600, 600, 320, 240
-                   fixed_deg=np.array([5, -3, 10, -8, 4, 2, -3, 1.0]))
+    frame = rendered_frame(pose, DIMS, cfg, perspective, weights={3: 0.4},   # a down-weighted landmark
+                           fixed_deg=np.array([5, -3, 10, -8, 4, 2, -3, 1.0]))
     data = frame.data.copy()
     data[L.D_PRIOR] = 1e-4
     data[L.D_PRIOR_MU:L.D_PRIOR_MU + L.N_VAR] = P.PRIOR_MU_RAD

@@ -17,7 +17,7 @@ from posed.fitting.body import BodyDimensions
 from posed.fitting.kinematics import Pose, body_angles_from_rotation, body_rotation, landmarks_camera
 from posed.fitting.result import MODEL_VARIABLE_NAMES
 from posed.fitting.vertical import camera_body_angles, level_data, level_frame, reexpress
-from tests.fitting.jacobian_check import assert_jacobian_matches_finite_differences
+from tests.fitting.jacobian_check import assert_jacobian_matches_finite_differences, rendered_frame
 from tests.fitting.seated_scene import seated_under
 
 DIMS = BodyDimensions.from_height(1.72)
@@ -125,11 +125,7 @@ def test_analytic_jacobian_with_a_level_frame_matches_finite_differences(perspec
     cfg = FitConfig(w_limit=0.5)
     rng = np.random.default_rng(17 + perspective)
     pose = S.pose("sit_chair", 35.0)
-    lm = S.render(pose, dims=DIMS, camera=S.LevelCamera(model="pinhole") if perspective else None)
-    xy, w, _ = P.landmark_weights(lm, cfg)
-    frame = P.pack(xy, w, DIMS, cfg, P.reference_scale(xy, w, DIMS),
-                   S.LevelCamera(model="pinhole").intrinsics((640, 480)) if perspective else None,
-                   level=level_data(level_frame(gravity_from_tilt(28.0, 9.0))))
+    frame = rendered_frame(pose, DIMS, cfg, perspective, level=level_data(level_frame(gravity_from_tilt(28.0, 9.0))))
     for _ in range(3):
         x = kernel_x(pose) + rng.normal(0, 0.3, L.N_VAR)
         x[0] = 0.9 + 0.2 * rng.random()
