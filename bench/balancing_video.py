@@ -117,15 +117,20 @@ def load_cameras(folder: Path) -> dict[str, Camera]:
     return out
 
 
-def load_truth(folder: Path) -> np.ndarray:
-    """(frames, 12, 3) the 12 body joints (``BODY12`` order) in the calibration's world frame, metres; a .trc
-    point (X, Y, Z) is the world point (Z, X, Y) (data README)."""
+def load_trc(folder: Path) -> tuple[list[str], np.ndarray]:
+    """Every point of truth_3d.trc: its names (``RHip``, ..., ``Head``, ``Nose``, ...) and (frames, points, 3)
+    in the calibration's world frame, metres; a .trc point (X, Y, Z) is the world point (Z, X, Y) (data README)."""
     lines = (folder / "balancing" / "truth_3d.trc").read_text().splitlines()
     names = [n for n in lines[3].split("\t")[2:] if n]
     rows = [ln.split("\t") for ln in lines[5:] if ln.strip()]
     data = np.array([[float(v) for v in r[2:2 + 3 * len(names)]] for r in rows]).reshape(len(rows), len(names), 3)
-    idx = [names.index(TRC_NAMES[n]) for n in BODY12]
-    return data[:, idx][:, :, [2, 0, 1]]
+    return names, data[:, :, [2, 0, 1]]
+
+
+def load_truth(folder: Path) -> np.ndarray:
+    """(frames, 12, 3) the 12 body joints (``BODY12`` order) in the calibration's world frame, metres."""
+    names, data = load_trc(folder)
+    return data[:, [names.index(TRC_NAMES[n]) for n in BODY12]]
 
 
 def landmark_recording(video: Path, cache: Path, *, mediapipe_sides: bool = False, step: int = 1,

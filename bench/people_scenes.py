@@ -4,10 +4,15 @@ Person A is the woman of the real squat video (tfjs_pose_squats, 65 frames at 5 
 full landmarks the tfjs-models project published (``pose_squats.full.json``: the truth A's errors are taken
 against). Her room is the scene: each of her frames, scaled to the 1280x720 canvas's height, sits in its middle
 (x 420..825), the canvas's sides continuing its edge columns (a plain wall and floor). Person B is the man of
-pose2sim's real "balancing" video, camera 3 (``B_CAMERA``; 1088x1920, 60 fps; its first 65 frames), cut out of his video by
-a foreground mask (the pixels that differ from the clip's median frame, the camera being still; the largest
-connected parts: no learned segmentation, no image leaves the machine) and pasted in, scaled to the canvas
-height times his scenario's scale (smaller is farther away).
+pose2sim's real "balancing" video, camera 3 (``B_CAMERA``; 1088x1920, 60 fps; its first 65 frames), cut out of his video
+and pasted in, scaled to the canvas height times his scenario's scale (smaller is farther away). His cut-out
+(:func:`skeleton_masks`) is a GrabCut segmentation seeded by his own triangulated skeleton projected into the
+view: the bones and the shoulder-hip quad are surely him, everything farther than ``BODY_REACH`` of his height
+from them surely not, and in between the pixels that differ from the clip's median frame (the camera is still:
+:func:`difference_masks`) start as probably him. The difference alone misses most of him (he is bare-armed in
+grey-green shorts in a dim grey room: about half of his bones' pixels fall outside it, and what was pasted was
+a scatter of skin patches, not a person who hides what is behind him). No learned segmentation, no image
+leaves the machine. Person A keeps the difference mask: her white room makes it whole.
 
 Scenarios (``SCENARIOS``): ``apart`` (B on the right, never touching A); ``cross_behind`` (B, smaller, walks
 from the right edge past A to the left, drawn behind A: she hides him as they cross); ``cross_front`` (B, full
@@ -33,6 +38,17 @@ B_CAMERA = "cam03"                       # the reported view; cam01 and cam04: d
 CANVAS = (1280, 720)                     # width, height
 FRAMES = 65                              # the squat video's length
 MASK_THRESHOLD = 40                      # summed |BGR - median| above which a pixel is the person's
+BONE_WIDTH = 0.03                        # B's bones drawn this wide (fraction of his height): surely him
+BODY_REACH = 0.08                        # farther than this (fraction of his height) from his bones: surely not
+GRABCUT_SCALE = 0.35                     # GrabCut runs on his box scaled by this (0.2 s per frame, not 4.7)
+GRABCUT_ITERATIONS = 4
+GRABCUT_SEED = 0
+# B's bones for his cut-out's seeds: names of pose2sim's .trc points
+BONES = (("Nose", "Head"), ("Head", "Neck"), ("Neck", "RShoulder"), ("Neck", "LShoulder"),
+         ("RShoulder", "RElbow"), ("RElbow", "RWrist"), ("LShoulder", "LElbow"), ("LElbow", "LWrist"),
+         ("Neck", "RHip"), ("Neck", "LHip"), ("RHip", "RKnee"), ("RKnee", "RAnkle"), ("LHip", "LKnee"),
+         ("LKnee", "LAnkle"), ("RAnkle", "RHeel"), ("RAnkle", "RBigToe"), ("LAnkle", "LHeel"), ("LAnkle", "LBigToe"))
+TORSO = ("RShoulder", "LShoulder", "LHip", "RHip")
 
 
 @dataclass(frozen=True)
@@ -92,7 +108,9 @@ def _read(path: Path, n: int) -> list[np.ndarray]:
     return out
 
 
-def _masks(frames: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
+def difference_masks(frames: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
+    """Per frame, the pixels that differ from the clip's median frame (the largest connected parts, closed and
+    dilated), and that median frame (the background: the camera is still)."""
     background = np.median(np.stack(frames[:: max(1, len(frames) // 25)]), axis=0).astype(np.uint8)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9))
     masks = []
@@ -109,30 +127,73 @@ def _masks(frames: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
     return masks, background
 
 
+def skeleton_masks(frames: list[np.ndarray], difference: list[np.ndarray],
+                   skeletons: list[dict[str, np.ndarray]]) -> list[np.ndarray]:
+    """The person's pixels per frame: GrabCut seeded by their projected skeleton (``skeletons``: per frame, a
+    .trc point's name -> its pixel), see the module doc; run on the skeleton's box scaled by ``GRABCUT_SCALE``
+    and scaled back. OpenCV's RNG is seeded before each frame (``GRABCUT_SEED``): the same masks on every run."""
+    out = []
+    for frame, diff, joints in zip(frames, difference, skeletons, strict=True):
+        h, w = frame.shape[:2]
+        pts = np.array(list(joints.values()))
+        height = max(float(np.ptp(pts[:, 1])), 1.0)
+        sure = np.zeros((h, w), np.uint8)
+        width = max(2, round(BONE_WIDTH * height))
+        for p, q in BONES:
+            cv2.line(sure, tuple(np.round(joints[p]).astype(int)), tuple(np.round(joints[q]).astype(int)), 1, width)
+        cv2.fillConvexPoly(sure, np.round([joints[n] for n in TORSO]).astype(np.int32), 1)
+        near = cv2.distanceTransform(1 - sure, cv2.DIST_L2, 5) <= BODY_REACH * height
+        seeds = np.full((h, w), cv2.GC_BGD, np.uint8)
+        seeds[near] = cv2.GC_PR_BGD
+        seeds[near & diff] = cv2.GC_PR_FGD
+        seeds[sure > 0] = cv2.GC_FGD
+        ys, xs = np.nonzero(near)
+        mask = np.zeros((h, w), bool)
+        if xs.size:
+            x0, x1, y0, y1 = xs.min(), xs.max() + 1, ys.min(), ys.max() + 1
+            small = cv2.resize(frame[y0:y1, x0:x1], None, fx=GRABCUT_SCALE, fy=GRABCUT_SCALE,
+                               interpolation=cv2.INTER_AREA)
+            sub = cv2.resize(seeds[y0:y1, x0:x1], (small.shape[1], small.shape[0]), interpolation=cv2.INTER_NEAREST)
+            models = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+            cv2.setRNGSeed(GRABCUT_SEED)         # its colour models start from k-means++ on OpenCV's own RNG
+            cv2.grabCut(small, sub, None, *models, GRABCUT_ITERATIONS, cv2.GC_INIT_WITH_MASK)
+            fg = ((sub == cv2.GC_FGD) | (sub == cv2.GC_PR_FGD)).astype(np.uint8)
+            mask[y0:y1, x0:x1] = cv2.resize(fg, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR) > 0
+        out.append(mask)
+    return out
+
+
 def load_clips(shared: Path, b_camera: str = B_CAMERA) -> tuple[Clip, Clip]:
     """Person A (the squat video, with its published landmarks) and person B (pose2sim's ``b_camera``)."""
+    from posed.bench.balancing_video import TRC_NAMES
+    from posed.bench.mocap_landmarks import BODY12
+
     a_frames = _read(shared / SQUAT / "pose_squats.mp4", FRAMES)
     truth = [np.asarray(f, dtype=np.float64) for f in json.loads((shared / SQUAT / "pose_squats.full.json").read_text())]
-    a_masks, a_bg = _masks(a_frames)
+    a_masks, a_bg = difference_masks(a_frames)
     b_frames = _read(shared / BALANCING / f"{b_camera}.mp4", FRAMES)
-    b_masks, b_bg = _masks(b_frames)
+    b_diff, b_bg = difference_masks(b_frames)
+    skeletons = _b_skeletons(shared, len(b_frames), b_camera)
+    b_masks = skeleton_masks(b_frames, b_diff, skeletons)
+    truth12 = [np.array([s[TRC_NAMES[n]] for n in BODY12]) for s in skeletons]
     return (Clip(a_frames, a_masks, a_bg, truth[: len(a_frames)]),
-            Clip(b_frames, b_masks, b_bg, truth12=_b_truth(shared, len(b_frames), b_camera)))
+            Clip(b_frames, b_masks, b_bg, truth12=truth12))
 
 
-def _b_truth(shared: Path, n: int, b_camera: str) -> list[np.ndarray]:
-    """B's 12 body joints triangulated from pose2sim's four views (truth_3d.trc, the same frames as the video),
-    projected into ``b_camera`` through its calibration, lens distortion included: (12, 2) pixels per frame."""
+def _b_skeletons(shared: Path, n: int, b_camera: str) -> list[dict[str, np.ndarray]]:
+    """B's points triangulated from pose2sim's four views (truth_3d.trc, the same frames as the video: the 12
+    body joints his errors are taken against, and his head, neck, heels and toes), projected into ``b_camera``
+    through its calibration, lens distortion included: per frame, name -> (2,) pixels."""
     from posed.bench import balancing_video as bv
 
     folder = shared / bv.DATA
     cam = bv.load_cameras(folder)[b_camera]
-    world = bv.load_truth(folder)[:n]
+    names, world = bv.load_trc(folder)
     rvec, _ = cv2.Rodrigues(cam.rot)
     out = []
-    for joints in world:
+    for joints in world[:n]:
         px, _ = cv2.projectPoints(joints.reshape(-1, 1, 3), rvec, cam.t, cam.k, cam.dist)
-        out.append(px.reshape(-1, 2))
+        out.append(dict(zip(names, px.reshape(-1, 2), strict=True)))
     return out
 
 
