@@ -110,9 +110,11 @@ def test_b_is_cut_out_whole_and_nothing_far_from_his_bones(b_clips, shared_data)
 
     from posed.bench import people_scenes as scenes
 
-    def along(joints: dict, pairs) -> np.ndarray:
+    def along(joints: dict, pairs, shape: tuple[int, int]) -> np.ndarray:
+        """Pixels along the bones ``pairs`` of ``joints`` that lie inside an image of ``shape``."""
         s = np.linspace(0.0, 1.0, 25)[:, None]
-        return np.round(np.concatenate([joints[p] * (1 - s) + joints[q] * s for p, q in pairs])).astype(int)
+        p = np.round(np.concatenate([joints[a] * (1 - s) + joints[b] * s for a, b in pairs])).astype(int)
+        return p[(p[:, 0] >= 0) & (p[:, 0] < shape[1]) & (p[:, 1] >= 0) & (p[:, 1] < shape[0])]
 
     limbs = (("LShoulder", "LElbow"), ("LElbow", "LWrist"), ("RShoulder", "RElbow"), ("RElbow", "RWrist"),
              ("LHip", "LKnee"), ("LKnee", "LAnkle"), ("RHip", "RKnee"), ("RKnee", "RAnkle"))
@@ -124,12 +126,11 @@ def test_b_is_cut_out_whole_and_nothing_far_from_his_bones(b_clips, shared_data)
         for k in range(0, scenes.FRAMES, 8):
             mask = clip.masks[k]
             h, w = mask.shape
-            inside = lambda p: p[(p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)]  # noqa: E731
-            pts = inside(along(skeletons[k], limbs))
+            pts = along(skeletons[k], limbs, (h, w))
             assert mask[pts[:, 1], pts[:, 0]].all(), (cam, k)
             lost.append(1.0 - difference[k][pts[:, 1], pts[:, 0]].mean())
             bones = np.zeros((h, w), np.uint8)
-            allp = inside(along(skeletons[k], scenes.BONES))
+            allp = along(skeletons[k], scenes.BONES, (h, w))
             bones[allp[:, 1], allp[:, 0]] = 1
             cv2.fillConvexPoly(bones, np.round([skeletons[k][n] for n in scenes.TORSO]).astype(np.int32), 1)
             height = float(np.ptp(np.array(list(skeletons[k].values()))[:, 1]))
