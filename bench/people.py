@@ -150,7 +150,7 @@ def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_d
 def run_bench(shared: Path, models_dir: Path | None = None, only: str = "", progress=lambda m: None,
               b_camera: str = scenes.B_CAMERA) -> dict:
     """Every scenario (or ``only``), B cut from pose2sim's ``b_camera`` (cam03, the reported view, by default;
-    cam01 and cam04 are the development views a change to the landmarker is tried on first)."""
+    cam01, cam02 and cam04 are the development views a change to the landmarker is tried on first)."""
     a, b = scenes.load_clips(shared, b_camera)
     rows = []
     for sc in scenes.SCENARIOS:

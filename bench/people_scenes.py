@@ -16,7 +16,8 @@ leaves the machine. Person A keeps the difference mask: her white room makes it 
 
 Scenarios (``SCENARIOS``): ``apart`` (B on the right, never touching A); ``cross_behind`` (B, smaller, walks
 from the right edge past A to the left, drawn behind A: she hides him as they cross); ``cross_front`` (B, full
-size, walks across in front of A: he hides her). Each scene also exists with one person only (the same
+size, walks across in front of A: he hides her); ``cross_behind_ltr`` and ``cross_front_ltr`` (the same, left to
+right). Each scene also exists with one person only (the same
 placement; for A alone, her own frames; for B alone, her empty room, the median of her frames with the
 canvas's sides): what the landmarker gives for each person alone is the reference of their two-person error.
 
@@ -34,7 +35,7 @@ import numpy as np
 
 SQUAT = Path("reference") / "tfjs_pose_squats"
 BALANCING = Path("reference") / "pose2sim_demo" / "balancing"
-B_CAMERA = "cam03"                       # the reported view; cam01 and cam04: development views
+B_CAMERA = "cam03"                       # the reported view; cam01, cam02 and cam04: development views
 CANVAS = (1280, 720)                     # width, height
 FRAMES = 65                              # the squat video's length
 MASK_THRESHOLD = 40                      # summed |BGR - median| above which a pixel is the person's
@@ -78,6 +79,10 @@ SCENARIOS = (
     Scenario("apart", (Placement(A_X),) * FRAMES, (Placement(930),) * FRAMES, False),
     Scenario("cross_behind", (Placement(A_X),) * FRAMES, _linear(1000, -150, 0.75), True),
     Scenario("cross_front", (Placement(A_X),) * FRAMES, _linear(1000, -150, 1.0), False),
+    # the same crossings the other way (left to right): another instant of both people's motion at the
+    # crossing, so that one crossing's luck is not all a view says
+    Scenario("cross_behind_ltr", (Placement(A_X),) * FRAMES, _linear(-150, 1000, 0.75), True),
+    Scenario("cross_front_ltr", (Placement(A_X),) * FRAMES, _linear(-150, 1000, 1.0), False),
 )
 
 

@@ -25,11 +25,12 @@ PARTS = ("scenes", "falls", "recordings", "stature")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--part", action="append", choices=PARTS,
                         help="run only this part (repeatable; default: all)")
-    parser.add_argument("--scenario", default="", choices=("", "apart", "cross_behind", "cross_front"),
+    parser.add_argument("--scenario", default="", choices=("", "apart", "cross_behind", "cross_front",
+                                                             "cross_behind_ltr", "cross_front_ltr"),
                         help="scenes: one scenario only (default: all)")
-    parser.add_argument("--b-camera", default="cam03", choices=("cam01", "cam03", "cam04"),
-                        help="scenes: the pose2sim view B is cut from (default cam03, the reported one; cam01 and "
-                             "cam04 are development views; cam02's foreground mask does not hold him)")
+    parser.add_argument("--b-camera", default="cam03", choices=("cam01", "cam02", "cam03", "cam04"),
+                        help="scenes: the pose2sim view B is cut from (default cam03, the reported one; cam01, "
+                             "cam02 and cam04 are development views)")
     parser.add_argument("--split", default="heldout", choices=("tune", "heldout"),
                         help="falls: the scenario split (default: heldout, never used to tune)")
 
@@ -74,12 +75,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_scenes(rep: dict) -> None:
-    print(f"{'scenario':13} {'switches A/B':>12} {'found A/B with other':>21} {'A err alone':>11} {'with B':>7} "
+    print(f"{'scenario':16} {'switches A/B':>12} {'found A/B with other':>21} {'A err alone':>11} {'with B':>7} "
           f"{'ratio':>6} {'B err alone':>11} {'with A':>7} {'ratio':>6} {'B dev':>6} {'ms/frame 2p':>11} {'1p':>6} "
           f"{'passes':>6}")
     for r in rep["scenarios"]:
         e, b = r["a_error_px"], r["b_error_px"]
-        print(f"{r['scenario']:13} {r['identity_switches']['a']:>5} / {r['identity_switches']['b']:<4} "
+        print(f"{r['scenario']:16} {r['identity_switches']['a']:>5} / {r['identity_switches']['b']:<4} "
               f"{r['found']['a_both']:>9.2f} / {r['found']['b_both']:<9.2f} {e['alone']:>11} {e['with_b']:>7} "
               f"{e['ratio']!s:>6} {b['alone']!s:>11} {b['with_a']!s:>7} {b['ratio']!s:>6} "
               f"{r['b_deviation_from_alone_px']!s:>6} {r['ms_per_frame']['two_people']:>11} "

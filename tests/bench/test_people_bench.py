@@ -68,7 +68,7 @@ def b_clips(shared_data):
     """The man of pose2sim's balancing video as each selectable ``--b-camera`` view cuts him out."""
     from posed.bench import people_scenes as scenes
 
-    return {cam: scenes.load_clips(shared_data, cam)[1] for cam in ("cam01", "cam03", "cam04")}
+    return {cam: scenes.load_clips(shared_data, cam)[1] for cam in ("cam01", "cam02", "cam03", "cam04")}
 
 
 def test_every_view_b_can_be_cut_from_has_his_projected_joints_on_what_differs_from_its_background(b_clips):
