@@ -14,7 +14,8 @@ ROI tracking, one-euro filters and rotated ROI) sharing the two onnxruntime sess
    someone already followed start free slots, best first; when nobody is followed, finds nobody and
    ``rotate_on_miss`` is on, the frame rotated by +90° then −90° is tried (a person lying on the floor).
    The search for a newcomer while someone is followed runs *ahead*: started in a background thread on the
-   frame where it is due (the people followed blanked out), its detections collected by the next frame,
+   frame where it is due (the people followed blanked out: their landmark boxes, but where someone was lost a
+   moment ago only their bodies, :func:`_reopened`), its detections collected by the next frame,
    which starts their landmark passes. So it is off the frame's critical path (the detector runs in the time
    between frames, or on the other core alongside the next frame's landmark passes), at the price of one
    frame (0.1 s at 10 fps) later for a newcomer; the output is the same whatever the timing (the next frame
@@ -36,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from posed.landmarks.blanking import body_mask
 from posed.landmarks.config import LandmarkConfig
 from posed.landmarks.crop import detector_input
 from posed.landmarks.detector import Detection
@@ -245,11 +247,15 @@ class MultiPoseLandmarker:
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="newcomer-search")
         own = image.copy()          # the caller may draw on its image once this frame is done
-        boxes = [landmark_box(r.frame.landmarks) for r in found.values() if r.frame.landmarks is not None]
+        bodies = [r.frame.landmarks for r in found.values() if r.frame.landmarks is not None]
+        boxes = [landmark_box(lms) for lms in bodies]
+        cfg = self.tracker.config
+        t = next(iter(found.values())).frame.t
+        lost = [tr.box for tr in self.tracker.tracks if cfg.lost_after_s < t - tr.last_t <= cfg.lost_keep_s]
 
         def search() -> tuple[list[Detection], float]:
             t0 = time.perf_counter()
-            dets = self._detections(_blanked(own, boxes), 0)
+            dets = self._detections(_reopened(_blanked(own.copy(), boxes), own, bodies, lost), 0)
             return dets, (time.perf_counter() - t0) * 1e3
 
         self._pending = self._pool.submit(search)
@@ -326,6 +332,30 @@ def _blanked(out: np.ndarray, boxes: list[np.ndarray]) -> np.ndarray:
         if x1 > x0 and y1 > y0:
             out[y0:y1, x0:x1] = fill
     return out
+
+
+def _reopened(blanked: np.ndarray, image: np.ndarray, bodies: list[np.ndarray], lost: list[np.ndarray]) -> np.ndarray:
+    """``blanked`` (changed in place) with the last box of each person lost a moment ago (``lost``: tracks
+    unseen for more than ``lost_after_s`` and at most ``lost_keep_s``) shown again as in ``image``, but for the
+    followed people's bodies (:func:`landmarks.blanking.body_mask`): someone hidden behind a person followed
+    reappears there, in what that person's box covers but their body does not."""
+    if not lost:
+        return blanked
+    h, w = image.shape[:2]
+    fill = image[::8, ::8].reshape(-1, image.shape[2]).mean(axis=0).astype(image.dtype)    # as _blanked's
+    body = np.zeros((h, w), bool)
+    for lms in bodies:
+        body |= body_mask((h, w), lms)
+    for box in lost:
+        if not np.isfinite(box).all():
+            continue
+        x0, y0 = int(max(0, box[0])), int(max(0, box[1]))
+        x1, y1 = int(min(w, box[2] + 1)), int(min(h, box[3] + 1))
+        if x1 > x0 and y1 > y0:
+            region = blanked[y0:y1, x0:x1]
+            region[:] = image[y0:y1, x0:x1]
+            region[body[y0:y1, x0:x1]] = fill
+    return blanked
 
 
 def _add_timings(total: dict[str, float], step: dict) -> None:
