@@ -178,14 +178,14 @@ def load_clips(shared: Path, b_camera: str = B_CAMERA) -> tuple[Clip, Clip]:
     a_masks, a_bg = difference_masks(a_frames)
     b_frames = _read(shared / BALANCING / f"{b_camera}.mp4", FRAMES)
     b_diff, b_bg = difference_masks(b_frames)
-    skeletons = _b_skeletons(shared, len(b_frames), b_camera)
+    skeletons = b_skeletons(shared, len(b_frames), b_camera)
     b_masks = skeleton_masks(b_frames, b_diff, skeletons)
     truth12 = [np.array([s[TRC_NAMES[n]] for n in BODY12]) for s in skeletons]
     return (Clip(a_frames, a_masks, a_bg, truth[: len(a_frames)]),
             Clip(b_frames, b_masks, b_bg, truth12=truth12))
 
 
-def _b_skeletons(shared: Path, n: int, b_camera: str) -> list[dict[str, np.ndarray]]:
+def b_skeletons(shared: Path, n: int, b_camera: str) -> list[dict[str, np.ndarray]]:
     """B's points triangulated from pose2sim's four views (truth_3d.trc, the same frames as the video: the 12
     body joints his errors are taken against, and his head, neck, heels and toes), projected into ``b_camera``
     through its calibration, lens distortion included: per frame, name -> (2,) pixels."""

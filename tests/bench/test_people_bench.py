@@ -121,7 +121,7 @@ def test_b_is_cut_out_whole_and_nothing_far_from_his_bones(b_clips, shared_data)
     rounding = 2.0 / scenes.GRABCUT_SCALE
     for cam, clip in b_clips.items():
         difference = scenes.difference_masks(clip.frames)[0]
-        skeletons = scenes._b_skeletons(shared_data, scenes.FRAMES, cam)
+        skeletons = scenes.b_skeletons(shared_data, scenes.FRAMES, cam)
         lost = []
         for k in range(0, scenes.FRAMES, 8):
             mask = clip.masks[k]
