@@ -255,7 +255,8 @@ class MultiPoseLandmarker:
 
         def search() -> tuple[list[Detection], float]:
             t0 = time.perf_counter()
-            dets = self._detections(_reopened(_blanked(own.copy(), boxes), own, bodies, lost), 0)
+            # the box painting works in place: on a copy only when lost people's boxes are shown again from own
+            dets = self._detections(_reopened(_blanked(own.copy() if lost else own, boxes), own, bodies, lost), 0)
             return dets, (time.perf_counter() - t0) * 1e3
 
         self._pending = self._pool.submit(search)
@@ -318,10 +319,16 @@ def _without_followed(image: np.ndarray, found: dict[int, PoseResult]) -> np.nda
     return _blanked(image.copy(), boxes)
 
 
+def _fill_colour(image: np.ndarray) -> np.ndarray:
+    """What a painted-out region is filled with: the image's mean colour, taken on every 8th pixel of every 8th
+    row (the same colour to a unit, 60x less work)."""
+    return image[::8, ::8].reshape(-1, image.shape[2]).mean(axis=0).astype(image.dtype)
+
+
 def _blanked(out: np.ndarray, boxes: list[np.ndarray]) -> np.ndarray:
     """``out`` (changed in place) with each box, enlarged by ``BLANK_MARGIN`` per side, filled with the image's
-    mean colour (taken on every 8th pixel of every 8th row: the same colour to a unit, 60x less work)."""
-    fill = out[::8, ::8].reshape(-1, out.shape[2]).mean(axis=0).astype(out.dtype)
+    mean colour (:func:`_fill_colour`)."""
+    fill = _fill_colour(out)
     h, w = out.shape[:2]
     for box in boxes:
         if not np.isfinite(box).all():
@@ -342,7 +349,7 @@ def _reopened(blanked: np.ndarray, image: np.ndarray, bodies: list[np.ndarray], 
     if not lost:
         return blanked
     h, w = image.shape[:2]
-    fill = image[::8, ::8].reshape(-1, image.shape[2]).mean(axis=0).astype(image.dtype)    # as _blanked's
+    fill = _fill_colour(image)
     body = np.zeros((h, w), bool)
     for lms in bodies:
         body |= body_mask((h, w), lms)

@@ -71,7 +71,16 @@ def b_clips(shared_data):
     return {cam: scenes.load_clips(shared_data, cam)[1] for cam in ("cam01", "cam02", "cam03", "cam04")}
 
 
-def test_every_view_b_can_be_cut_from_has_his_projected_joints_on_what_differs_from_its_background(b_clips):
+@pytest.fixture(scope="module")
+def b_differences(b_clips):
+    """Per view, the pixels of each of his frames that differ from that view's background."""
+    from posed.bench import people_scenes as scenes
+
+    return {cam: scenes.difference_masks(clip.frames)[0] for cam, clip in b_clips.items()}
+
+
+def test_every_view_b_can_be_cut_from_has_his_projected_joints_on_what_differs_from_its_background(b_clips,
+                                                                                                    b_differences):
     """``--b-camera``: each selectable pose2sim view's triangulated joints, projected through that view's own
     calibration, fall on the pixels that differ from that view's background far more often than another view's
     projection does (the difference misses much of him, so not every joint is on it). The check uses the
@@ -81,13 +90,11 @@ def test_every_view_b_can_be_cut_from_has_his_projected_joints_on_what_differs_f
 
     from posed.bench import people_scenes as scenes
 
-    difference = {cam: scenes.difference_masks(clip.frames)[0] for cam, clip in b_clips.items()}
-
     def off_mask_px(masks_of: str, joints_of: str) -> float:
         """Median distance (pixels) from the projected joints to the nearest pixel that differs."""
         dist = []
         for k in range(0, scenes.FRAMES, 8):
-            mask = difference[masks_of][k]
+            mask = b_differences[masks_of][k]
             to_mask = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, 5)
             for x, y in np.round(b_clips[joints_of].truth12[k]).astype(int):
                 inside = 0 <= x < mask.shape[1] and 0 <= y < mask.shape[0]
@@ -100,7 +107,7 @@ def test_every_view_b_can_be_cut_from_has_his_projected_joints_on_what_differs_f
         assert own < 3.0 and min(others) > 10.0, (cam, own, others)
 
 
-def test_b_is_cut_out_whole_and_nothing_far_from_his_bones(b_clips, shared_data):
+def test_b_is_cut_out_whole_and_nothing_far_from_his_bones(b_clips, b_differences, shared_data):
     """His cut-out (GrabCut seeded by his projected skeleton) holds every pixel along his limbs, where the
     background difference alone loses a share of them (he is bare-armed in a dim grey room); no pixel lies
     farther from his bones and his shoulder-hip quad than ``BODY_REACH`` of his height (plus the scaled GrabCut's rounding: a pixel of
@@ -120,7 +127,7 @@ def test_b_is_cut_out_whole_and_nothing_far_from_his_bones(b_clips, shared_data)
              ("LHip", "LKnee"), ("LKnee", "LAnkle"), ("RHip", "RKnee"), ("RKnee", "RAnkle"))
     rounding = 2.0 / scenes.GRABCUT_SCALE
     for cam, clip in b_clips.items():
-        difference = scenes.difference_masks(clip.frames)[0]
+        difference = b_differences[cam]
         skeletons = scenes.b_skeletons(shared_data, scenes.FRAMES, cam)
         lost = []
         for k in range(0, scenes.FRAMES, 8):

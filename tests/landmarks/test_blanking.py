@@ -10,6 +10,7 @@ import numpy as np
 
 from posed.landmarks.blanking import HEAD_RADIUS, LIMB_WIDTH, body_mask, torso_length
 from posed.landmarks.people import _blanked, _reopened
+from posed.landmarks.tracks import landmark_box
 
 
 def spread_arms(scale: float = 1.0, dx: float = 0.0) -> np.ndarray:
@@ -62,8 +63,7 @@ def test_where_someone_was_just_lost_only_the_followed_body_stays_painted():
     rng = np.random.default_rng(0)
     image = rng.integers(0, 255, (420, 640, 3), dtype=np.uint8)
     him = spread_arms()
-    box = np.array([np.nanmin(him[:, 0]), np.nanmin(him[:, 1]), np.nanmax(him[:, 0]), np.nanmax(him[:, 1])])
-    painted = _blanked(image.copy(), [box])
+    painted = _blanked(image.copy(), [landmark_box(him)])
     fill = painted[250, 300]
     assert (painted[300, 430] == fill).all()                        # under his arm: inside his box, painted
     lost = np.array([380.0, 150.0, 470.0, 390.0])                   # where she was last seen, under his arm
