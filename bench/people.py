@@ -4,7 +4,8 @@ footage (bench.people_scenes), against each person alone.
 Per scenario the scene is run three times through a fresh :class:`landmarks.people.MultiPoseLandmarker`
 (``max_people`` 3, the default): with both people, with A alone and with B alone. In the two-person run each
 frame's people are matched to A and B by their landmark overlap (:func:`landmarks.tracks.oks`) with the
-one-person runs of the same frame. Reported per scenario:
+one-person runs of the same frame, both at once (the pairing whose overlaps sum highest: a body is not scored
+as A's because it covers the place where she stands hidden). Reported per scenario:
 
 * **identity switches**: for each of A and B, how often the track id given to them changes from one frame
   where they were found to the next (target: 0 while apart or crossing without touching, at most one per
@@ -15,6 +16,11 @@ one-person runs of the same frame. Reported per scenario:
   body joints to his joints triangulated from pose2sim's four calibrated views and projected into B's camera
   (another model's keypoints: a floor of a few pixels either way), alone and with A, on the frames where both
   runs found him, and the ratio; and his median distance to his own one-person run;
+* **what the other hides**: the same ratios over only the landmarks whose truth does not fall on the other
+  person's pixels drawn over them (``a_error_seen_px``, ``b_error_seen_px``: what the camera can see of the
+  person; the frames where any is seen), the share of landmarks hidden, and posed's mean visibility on the
+  hidden landmarks and on the rest (``a_hidden``, ``b_hidden``). The target stays the ratio over all
+  landmarks; the split says whether a miss is on what the camera sees or on what nobody could;
 * **speed**: milliseconds per frame of the two-person and the one-person runs, landmark passes per frame.
 
 Pixels are the 1280x720 canvas's; times wall-clock on this machine, one thread per onnxruntime session as
@@ -32,6 +38,7 @@ import numpy as np
 from posed.bench import people_scenes as scenes
 from posed.bench.mocap_landmarks import BODY12_IDX
 from posed.bench.people_tracks import switches
+from posed.landmarks import oks
 
 MATCH_MIN = 0.3          # landmark overlap with a person's own one-person run to count as them
 
@@ -83,18 +90,60 @@ def _ratio(alone: list[float], both: list[float]) -> dict:
             "ratio": round(m_both / m_alone, 3) if m_alone > 0 else None, "frames": len(alone)}
 
 
-def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_dir: Path | None) -> dict:
-    from posed.landmarks import oks
+def _assign(own: dict[str, np.ndarray | None], people: list[tuple[int, np.ndarray]]) -> dict[str, int | None]:
+    """A and B to distinct people of the two-person frame (indices into ``people``; None: not found): of the
+    pairings where each overlap with the person's own one-person run is at least ``MATCH_MIN``, the one whose
+    overlaps sum highest. Matching one person first would score the other's track as theirs where they are
+    hidden and the other covers the place they were."""
+    score = {who: [oks(lms_own, lms, _size(lms_own)) if lms_own is not None else 0.0 for _tid, lms in people]
+             for who, lms_own in own.items()}
+    best, pick = -1.0, {"a": None, "b": None}
+    for ia in [None, *range(len(people))]:
+        for ib in [None, *range(len(people))]:
+            if ia is not None and ia == ib:
+                continue
+            pair = {"a": ia, "b": ib}
+            if any(i is not None and score[w][i] < MATCH_MIN for w, i in pair.items()):
+                continue
+            total = sum(score[w][i] for w, i in pair.items() if i is not None)
+            if total > best:
+                best, pick = total, pair
+    return pick
 
+
+def _covered(points: np.ndarray, cover: np.ndarray) -> np.ndarray:
+    """Which of ``points`` (n, 2) canvas pixels fall on ``cover`` (height, width) bool."""
+    xy = np.round(points).astype(int)
+    inside = (xy[:, 0] >= 0) & (xy[:, 0] < cover.shape[1]) & (xy[:, 1] >= 0) & (xy[:, 1] < cover.shape[0])
+    out = np.zeros(len(points), bool)
+    out[inside] = cover[xy[inside, 1], xy[inside, 0]]
+    return out
+
+
+def _hidden(cov: list[np.ndarray], vis: list[np.ndarray]) -> dict:
+    """Share of a person's truth landmarks hidden by the other person over the frames they were found with
+    them, and posed's mean visibility on the hidden ones and on the rest."""
+    if not cov:
+        return {"share": None, "visibility_hidden": None, "visibility_seen": None}
+    c, v = np.concatenate(cov), np.concatenate(vis)
+    return {"share": round(float(c.mean()), 3),
+            "visibility_hidden": round(float(v[c].mean()), 2) if c.any() else None,
+            "visibility_seen": round(float(v[~c].mean()), 2) if (~c).any() else None}
+
+
+def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_dir: Path | None) -> dict:
     both, maps = scenes.compose(a, b, scenario, "ab")
     only_a, _ = scenes.compose(a, b, scenario, "a")
     only_b, _ = scenes.compose(a, b, scenario, "b")
+    cover = scenes.covers(a, b, scenario)
     run_ab, ms_ab, passes_ab = _run(both, models_dir)
     run_a, ms_a, _ = _run(only_a, models_dir)
     run_b, _, _ = _run(only_b, models_dir)
     ids = {"a": [], "b": []}
-    err = {"a_alone": [], "a_both": [], "b_dev": [], "b_alone": [], "b_both": []}
-    b_alone_at: dict[int, float] = {}
+    err = {"a_alone": [], "a_both": [], "b_dev": [], "b_alone": [], "b_both": [],
+           "a_seen_alone": [], "a_seen_both": [], "b_seen_alone": [], "b_seen_both": []}
+    hid = {"a": ([], []), "b": ([], [])}
+    b_alone_at: dict[int, np.ndarray] = {}
     found = {"a_alone": 0, "b_alone": 0, "a_both": 0, "b_both": 0}
     for k in range(len(both)):
         ref = {"a": _persons(run_a[k]), "b": _persons(run_b[k])}
@@ -106,30 +155,37 @@ def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_d
         if ref["b"]:
             found["b_alone"] += 1
             if truth_b is not None:
-                b_alone_at[k] = _median_px(ref["b"][0][1][BODY12_IDX], truth_b)
+                b_alone_at[k] = ref["b"][0][1][BODY12_IDX]
         people = _persons(run_ab[k])
-        taken: set[int] = set()
+        pick = _assign({w: ref[w][0][1] if ref[w] else None for w in ("a", "b")}, people)
         for who in ("a", "b"):
-            if not ref[who]:
+            if pick[who] is None:
                 ids[who].append(None)
                 continue
-            own = ref[who][0][1]
-            scores = [(oks(own, lms, _size(own)), i) for i, (_tid, lms) in enumerate(people) if i not in taken]
-            best = max(scores, default=(0.0, -1))
-            if best[0] < MATCH_MIN:
-                ids[who].append(None)
-                continue
-            taken.add(best[1])
-            tid, lms = people[best[1]]
+            tid, lms = people[pick[who]]
             ids[who].append(tid)
             found[f"{who}_both"] += 1
+            own = ref[who][0][1]
             if who == "a":
                 err["a_both"].append(_median_px(lms, truth_a))
+                cov = _covered(truth_a, cover[k]["a"])
+                hid["a"][0].append(cov)
+                hid["a"][1].append(lms[:, 3])
+                if (~cov).any():               # A's landmarks the camera sees, with B and alone
+                    err["a_seen_both"].append(_median_px(lms[~cov], truth_a[~cov]))
+                    err["a_seen_alone"].append(_median_px(own[~cov], truth_a[~cov]))
             else:
                 err["b_dev"].append(_median_px(lms, own))
                 if k in b_alone_at:           # B's error where both runs found him, with A and alone
-                    err["b_both"].append(_median_px(lms[BODY12_IDX], truth_b))
-                    err["b_alone"].append(b_alone_at[k])
+                    mine = lms[BODY12_IDX]
+                    err["b_both"].append(_median_px(mine, truth_b))
+                    err["b_alone"].append(_median_px(b_alone_at[k], truth_b))
+                    cov = _covered(truth_b, cover[k]["b"])
+                    hid["b"][0].append(cov)
+                    hid["b"][1].append(mine[:, 3])
+                    if (~cov).any():
+                        err["b_seen_both"].append(_median_px(mine[~cov], truth_b[~cov]))
+                        err["b_seen_alone"].append(_median_px(b_alone_at[k][~cov], truth_b[~cov]))
     a_alone = float(np.nanmean(err["a_alone"])) if err["a_alone"] else float("nan")
     a_both = float(np.nanmean(err["a_both"])) if err["a_both"] else float("nan")
     n = len(both)
@@ -140,8 +196,12 @@ def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_d
         "found": {k: round(v / n, 3) for k, v in found.items()},
         "a_error_px": {"alone": round(a_alone, 1), "with_b": round(a_both, 1),
                        "ratio": round(a_both / a_alone, 3) if a_alone > 0 else None},
+        "a_error_seen_px": _ratio(err["a_seen_alone"], err["a_seen_both"]),
+        "a_hidden": _hidden(*hid["a"]),
         "b_deviation_from_alone_px": round(float(np.nanmedian(err["b_dev"])), 1) if err["b_dev"] else None,
         "b_error_px": _ratio(err["b_alone"], err["b_both"]),
+        "b_error_seen_px": _ratio(err["b_seen_alone"], err["b_seen_both"]),
+        "b_hidden": _hidden(*hid["b"]),
         "ms_per_frame": {"two_people": round(ms_ab, 1), "a_alone": round(ms_a, 1)},
         "landmark_passes_per_frame": round(passes_ab, 2),
     }

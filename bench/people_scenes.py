@@ -227,22 +227,57 @@ def empty_room(a: Clip) -> np.ndarray:
     return bg
 
 
-def _paste(canvas: np.ndarray, clip: Clip, k: int, place: Placement) -> tuple[float, float, float]:
-    """Paste frame ``k`` of ``clip``'s person at ``place``; returns (scale, dx, dy): clip pixels -> canvas."""
-    w, h = CANVAS
+def _placed(clip: Clip, k: int, place: Placement) -> tuple[np.ndarray, np.ndarray, int, int, float]:
+    """Frame ``k`` of ``clip`` and its mask scaled for ``place``: (image, mask, x0, y0, scale), where (x0, y0)
+    is the scaled frame's top-left corner on the canvas (its bottom on the canvas's bottom)."""
+    h = CANVAS[1]
     frame, mask = clip.frames[k % len(clip.frames)], clip.masks[k % len(clip.masks)]
     s = h * place.scale / frame.shape[0]
     size = (max(1, round(frame.shape[1] * s)), max(1, round(frame.shape[0] * s)))
     img = cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
     m = cv2.resize(mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
-    x0, y0 = round(place.x), h - size[1]
-    cx0, cx1 = max(0, x0), min(w, x0 + size[0])
+    return img, m, round(place.x), h - size[1], s
+
+
+def _paste(canvas: np.ndarray, clip: Clip, k: int, place: Placement) -> tuple[float, float, float]:
+    """Paste frame ``k`` of ``clip``'s person at ``place``; returns (scale, dx, dy): clip pixels -> canvas."""
+    img, m, x0, y0, s = _placed(clip, k, place)
+    cx0, cx1 = max(0, x0), min(CANVAS[0], x0 + img.shape[1])
     cy0 = max(0, y0)                          # a person taller than the canvas loses the top rows
     if cx1 > cx0:
         sub = m[cy0 - y0:, cx0 - x0: cx1 - x0]
-        region = canvas[cy0: y0 + size[1], cx0:cx1]
+        region = canvas[cy0: y0 + img.shape[0], cx0:cx1]
         region[sub] = img[cy0 - y0:, cx0 - x0: cx1 - x0][sub]
     return s, float(x0), float(y0)
+
+
+def _mask_on_canvas(clip: Clip, k: int, place: Placement) -> np.ndarray:
+    """The canvas pixels :func:`_paste` draws ``clip``'s person on, (height, width) bool."""
+    img, m, x0, y0, _ = _placed(clip, k, place)
+    out = np.zeros(CANVAS[::-1], bool)
+    cx0, cx1 = max(0, x0), min(CANVAS[0], x0 + img.shape[1])
+    cy0 = max(0, y0)
+    if cx1 > cx0:
+        out[cy0: y0 + img.shape[0], cx0:cx1] = m[cy0 - y0:, cx0 - x0: cx1 - x0]
+    return out
+
+
+def _a_mask_on_canvas(a: Clip, k: int) -> np.ndarray:
+    return room((a.masks[k] * 255).astype(np.uint8))[0] > 127
+
+
+def covers(a: Clip, b: Clip, scenario: Scenario) -> list[dict[str, np.ndarray]]:
+    """Per frame of the two-person scene, the canvas pixels where each person is hidden by the other drawn over
+    them: ``{"a": B's pixels when B is in front, "b": A's pixels when A is}``, (height, width) bool each. A
+    landmark of a person that falls there has no pixel of that person to be found from."""
+    none = np.zeros(CANVAS[::-1], bool)
+    out = []
+    for k in range(FRAMES):
+        if scenario.b_first:
+            out.append({"a": none, "b": _a_mask_on_canvas(a, k)})
+        else:
+            out.append({"a": _mask_on_canvas(b, k, scenario.b[k]), "b": none})
+    return out
 
 
 def compose(a: Clip, b: Clip, scenario: Scenario, who: str = "ab") -> tuple[list[np.ndarray], list[dict]]:
@@ -260,7 +295,7 @@ def compose(a: Clip, b: Clip, scenario: Scenario, who: str = "ab") -> tuple[list
             if scenario.b_first and "a" in who:    # B behind A: only where A's mask leaves him visible
                 behind = empty.copy()
                 m["b"] = _paste(behind, b, k, scenario.b[k])
-                a_mask = room((a.masks[k] * 255).astype(np.uint8))[0] > 127
+                a_mask = _a_mask_on_canvas(a, k)
                 changed = np.any(behind != empty, axis=2) & ~a_mask
                 canvas[changed] = behind[changed]
             else:

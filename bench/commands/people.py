@@ -85,6 +85,15 @@ def _print_scenes(rep: dict) -> None:
               f"{e['ratio']!s:>6} {b['alone']!s:>11} {b['with_a']!s:>7} {b['ratio']!s:>6} "
               f"{r['b_deviation_from_alone_px']!s:>6} {r['ms_per_frame']['two_people']:>11} "
               f"{r['ms_per_frame']['a_alone']:>6} {r['landmark_passes_per_frame']:>6}")
+    print(f"\n{'hidden by the other':16} {'A: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10} "
+          f"{'B: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10}")
+    for r in rep["scenarios"]:
+        cells = []
+        for who in ("a", "b"):
+            h, e = r[f"{who}_hidden"], r[f"{who}_error_seen_px"]
+            cells.append(f"{h['share']!s:>9} {h['visibility_hidden']!s:>7} / {h['visibility_seen']!s:<5} "
+                         f"{e['ratio']!s:>10}")
+        print(f"{r['scenario']:16} {' '.join(cells)}")
 
 
 def _print_falls(rep: dict) -> None:

@@ -147,3 +147,54 @@ def test_b_is_cut_out_whole_and_nothing_far_from_his_bones(b_clips, b_difference
         assert np.mean(lost) > 0.2, (cam, lost)     # what the cut-out is for
         again = scenes.skeleton_masks(clip.frames[:2], difference[:2], skeletons[:2])
         assert all((x == y).all() for x, y in zip(again, clip.masks[:2], strict=True)), cam
+
+
+def test_a_hidden_person_is_not_scored_on_the_track_of_the_one_in_front():
+    """Where B stands in front of A, the one body the frame has is B's: it overlaps A's place enough to pass
+    the match bound, but the pairing gives it to B (whose own run it matches best) and leaves A not found;
+    with both bodies in view each gets their own, and a body nobody matches is nobody's."""
+    import numpy as np
+
+    from posed.bench.people import MATCH_MIN, _assign
+    from posed.landmarks import oks
+
+    rng = np.random.default_rng(0)
+    a_own = np.zeros((33, 5))
+    a_own[:, 0] = 600 + rng.uniform(-60, 60, 33)
+    a_own[:, 1] = rng.uniform(200, 700, 33)
+    a_own[:, 3:] = 1.0
+    b_own = a_own.copy()
+    b_own[:, 0] += 45                       # B a little to the side, over her
+    assert MATCH_MIN <= oks(a_own, b_own, 500.0) < 0.95   # his body alone would pass as hers
+    assert _assign({"a": a_own, "b": b_own}, [(2, b_own.copy())]) == {"a": None, "b": 0}
+    assert _assign({"a": a_own, "b": b_own}, [(2, b_own.copy()), (1, a_own.copy())]) == {"a": 1, "b": 0}
+    far = a_own.copy()
+    far[:, 0] += 600
+    assert _assign({"a": a_own, "b": None}, [(5, far)]) == {"a": None, "b": None}
+
+
+def test_a_person_is_hidden_where_the_other_is_drawn_over_them(b_clips, shared_data):
+    """``covers``: in a crossing in front, A is hidden exactly where the scene shows B's pixels (the two-person
+    frame equals B's one-person frame there and B is nowhere hidden); in a crossing behind, B is hidden where A
+    is drawn, and nowhere is A hidden."""
+
+    from posed.bench import people_scenes as scenes
+
+    a = scenes.load_clips(shared_data, "cam01")[0]
+    b = b_clips["cam01"]
+    front = next(s for s in scenes.SCENARIOS if s.name == "cross_front")
+    both, _ = scenes.compose(a, b, front, "ab")
+    only_b, _ = scenes.compose(a, b, front, "b")
+    cover = scenes.covers(a, b, front)
+    for k in (20, 32, 44):
+        hid = cover[k]["a"]
+        assert hid.sum() > 10_000 and not cover[k]["b"].any(), k
+        assert (both[k][hid] == only_b[k][hid]).all(), k
+    behind = next(s for s in scenes.SCENARIOS if s.name == "cross_behind")
+    both, _ = scenes.compose(a, b, behind, "ab")
+    only_a, _ = scenes.compose(a, b, behind, "a")
+    cover = scenes.covers(a, b, behind)
+    for k in (20, 32, 44):
+        hid = cover[k]["b"]
+        assert hid.sum() > 10_000 and not cover[k]["a"].any(), k
+        assert (both[k][hid] == only_a[k][hid]).all(), k
