@@ -86,6 +86,26 @@ SCENARIOS = (
 )
 
 
+def crossings(n: int, seed: int = 0) -> tuple[Scenario, ...]:
+    """``n`` crossings drawn at random (``seed``), for a rate where one crossing's luck decides a fixed
+    scenario: each is B walking across A, in front (scale 0.9-1.1) or behind (0.65-0.85), either way, from a
+    start 950-1250 px to an end -350 to -100 px (mirrored for left to right), so that he passes her at a
+    different instant of both people's motion. Named ``crossing_NN_front|behind_rtl|ltr``: in front and
+    behind alternate, and so does the direction every two."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        front = i % 2 == 0
+        rtl = (i // 2) % 2 == 0
+        scale = float(rng.uniform(0.9, 1.1) if front else rng.uniform(0.65, 0.85))
+        start, end = float(rng.uniform(950.0, 1250.0)), float(rng.uniform(-350.0, -100.0))
+        if not rtl:
+            start, end = end, start
+        name = f"crossing_{i:02d}_{'front' if front else 'behind'}_{'rtl' if rtl else 'ltr'}"
+        out.append(Scenario(name, (Placement(A_X),) * FRAMES, _linear(start, end, scale), not front))
+    return tuple(out)
+
+
 @dataclass
 class Clip:
     """A person's frames, their foreground masks and (A only) the published landmarks, in the clip's pixels."""

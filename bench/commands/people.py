@@ -11,7 +11,7 @@
   cameras (what the household recognition measures), against his triangulated joints.
 
 Run: ``posed bench people [--json] [--part scenes|falls|recordings|stature] [--scenario NAME]
-[--b-camera CAM] [--split S]``."""
+[--b-camera CAM] [--crossings N [--seed S]] [--split S]``."""
 
 from __future__ import annotations
 
@@ -31,6 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--b-camera", default="cam03", choices=("cam01", "cam02", "cam03", "cam04"),
                         help="scenes: the pose2sim view B is cut from (default cam03, the reported one; cam01, "
                              "cam02 and cam04 are development views)")
+    parser.add_argument("--crossings", type=int, default=0, metavar="N",
+                        help="scenes: N crossings drawn at random (B in front and behind, either way, at "
+                             "random scales and paths) instead of the five fixed scenarios, with a summary")
+    parser.add_argument("--seed", type=int, default=0, help="scenes: the seed of --crossings (default 0)")
     parser.add_argument("--split", default="heldout", choices=("tune", "heldout"),
                         help="falls: the scenario split (default: heldout, never used to tune)")
 
@@ -45,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         from posed.bench.people import run_bench  # not at import: `posed bench` lists this module
 
         report["scenes"] = run_bench(shared_data(), only=args.scenario, progress=progress,
-                                     b_camera=args.b_camera)
+                                     b_camera=args.b_camera, crossings=args.crossings, seed=args.seed)
     if "falls" in parts:
         from posed.bench.people_falls import run_bench as run_falls
 
@@ -75,17 +79,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_scenes(rep: dict) -> None:
-    print(f"{'scenario':16} {'switches A/B':>12} {'found A/B with other':>21} {'A err alone':>11} {'with B':>7} "
+    print(f"{'scenario':22} {'switches A/B':>12} {'found A/B with other':>21} {'A err alone':>11} {'with B':>7} "
           f"{'ratio':>6} {'B err alone':>11} {'with A':>7} {'ratio':>6} {'B dev':>6} {'ms/frame 2p':>11} {'1p':>6} "
           f"{'passes':>6}")
     for r in rep["scenarios"]:
         e, b = r["a_error_px"], r["b_error_px"]
-        print(f"{r['scenario']:16} {r['identity_switches']['a']:>5} / {r['identity_switches']['b']:<4} "
+        print(f"{r['scenario']:22} {r['identity_switches']['a']:>5} / {r['identity_switches']['b']:<4} "
               f"{r['found']['a_both']:>9.2f} / {r['found']['b_both']:<9.2f} {e['alone']:>11} {e['with_b']:>7} "
               f"{e['ratio']!s:>6} {b['alone']!s:>11} {b['with_a']!s:>7} {b['ratio']!s:>6} "
               f"{r['b_deviation_from_alone_px']!s:>6} {r['ms_per_frame']['two_people']:>11} "
               f"{r['ms_per_frame']['a_alone']:>6} {r['landmark_passes_per_frame']:>6}")
-    print(f"\n{'hidden by the other':16} {'A: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10} "
+    print(f"\n{'hidden by the other':22} {'A: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10} "
           f"{'B: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10}")
     for r in rep["scenarios"]:
         cells = []
@@ -93,7 +97,11 @@ def _print_scenes(rep: dict) -> None:
             h, e = r[f"{who}_hidden"], r[f"{who}_error_seen_px"]
             cells.append(f"{h['share']!s:>9} {h['visibility_hidden']!s:>7} / {h['visibility_seen']!s:<5} "
                          f"{e['ratio']!s:>10}")
-        print(f"{r['scenario']:16} {' '.join(cells)}")
+        print(f"{r['scenario']:22} {' '.join(cells)}")
+    for kind, c in rep.get("summary", {}).items():
+        print(f"B {kind} of A, {c['crossings']} crossings: the hidden person within 1.2x on {c['hidden_within_1_2']}, "
+              f"the one in front on {c['in_front_within_1_2']}; at most one "
+              f"switch each on {c['at_most_one_switch_each']}")
 
 
 def _print_falls(rep: dict) -> None:

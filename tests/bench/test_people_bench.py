@@ -198,3 +198,31 @@ def test_a_person_is_hidden_where_the_other_is_drawn_over_them(b_clips, shared_d
         hid = cover[k]["b"]
         assert hid.sum() > 10_000 and not cover[k]["a"].any(), k
         assert (both[k][hid] == only_a[k][hid]).all(), k
+
+
+def test_random_crossings_each_pass_the_person_and_are_the_same_for_a_seed():
+    """``crossings``: every crossing takes B from one side of A to the other (his frame's middle passes hers),
+    in front at about her scale or behind smaller, both ways; a seed gives the same crossings, another seed
+    others; and the summary counts a crossing as meeting a target only where its ratio and switches do."""
+    from posed.bench import people_scenes as scenes
+    from posed.bench.people import summary
+
+    made = scenes.crossings(8, seed=3)
+    assert made == scenes.crossings(8, seed=3) and made != scenes.crossings(8, seed=4)
+    assert {(s.b_first, s.b[0].x < s.b[-1].x) for s in made} == {(f, d) for f in (True, False) for d in (True, False)}
+    a_mid = scenes.A_X + 0.5 * 405                    # her frame is 405 px wide on the canvas
+    for s in made:
+        mids = [p.x + 0.5 * 1088 * scenes.CANVAS[1] * p.scale / 1920 for p in s.b]
+        assert min(mids) < a_mid - 300 and max(mids) > a_mid + 300, s.name
+        assert (0.65 <= s.b[0].scale <= 0.85) if s.b_first else (0.9 <= s.b[0].scale <= 1.1), s.name
+
+    def row(name, ra, rb, sa, sb):
+        return {"scenario": name, "a_error_px": {"ratio": ra}, "b_error_px": {"ratio": rb},
+                "identity_switches": {"a": sa, "b": sb}}
+
+    got = summary([row("crossing_00_front_rtl", 1.3, 1.1, 0, 1), row("crossing_02_front_ltr", 1.1, None, 2, 0),
+                   row("crossing_01_behind_rtl", 1.0, 1.25, 0, 0), row("apart", 1.0, 1.0, 0, 0)])
+    assert got == {"front": {"crossings": 2, "hidden_within_1_2": 1, "in_front_within_1_2": 1,
+                             "at_most_one_switch_each": 1},
+                   "behind": {"crossings": 1, "hidden_within_1_2": 0, "in_front_within_1_2": 1,
+                              "at_most_one_switch_each": 1}}
