@@ -219,7 +219,7 @@ def summary(rows: list[dict]) -> dict:
     within 1.2x of alone, on the frames scored; at most one identity switch per person)."""
     out: dict = {}
     for kind, hidden, seen in (("front", "a", "b"), ("behind", "b", "a")):
-        mine = [r for r in rows if r["scenario"].startswith(("cross", "crossing")) and
+        mine = [r for r in rows if r["scenario"].startswith("cross") and
                 ("behind" in r["scenario"]) == (kind == "behind")]
         if not mine:
             continue

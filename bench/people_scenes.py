@@ -259,26 +259,34 @@ def _placed(clip: Clip, k: int, place: Placement) -> tuple[np.ndarray, np.ndarra
     return img, m, round(place.x), h - size[1], s
 
 
+def _window(x0: int, y0: int, shape: tuple[int, ...]) -> tuple[tuple[slice, slice], tuple[slice, slice]] | None:
+    """Where an image of ``shape`` with its top-left corner at canvas (x0, y0) lands: (canvas rows, cols) and
+    the same pixels' (rows, cols) in the image; None when it is off the canvas. A person taller than the canvas
+    loses the top rows."""
+    cx0, cx1 = max(0, x0), min(CANVAS[0], x0 + shape[1])
+    cy0 = max(0, y0)
+    if cx1 <= cx0:
+        return None
+    return (slice(cy0, y0 + shape[0]), slice(cx0, cx1)), (slice(cy0 - y0, None), slice(cx0 - x0, cx1 - x0))
+
+
 def _paste(canvas: np.ndarray, clip: Clip, k: int, place: Placement) -> tuple[float, float, float]:
     """Paste frame ``k`` of ``clip``'s person at ``place``; returns (scale, dx, dy): clip pixels -> canvas."""
     img, m, x0, y0, s = _placed(clip, k, place)
-    cx0, cx1 = max(0, x0), min(CANVAS[0], x0 + img.shape[1])
-    cy0 = max(0, y0)                          # a person taller than the canvas loses the top rows
-    if cx1 > cx0:
-        sub = m[cy0 - y0:, cx0 - x0: cx1 - x0]
-        region = canvas[cy0: y0 + img.shape[0], cx0:cx1]
-        region[sub] = img[cy0 - y0:, cx0 - x0: cx1 - x0][sub]
+    win = _window(x0, y0, img.shape)
+    if win is not None:
+        sub = m[win[1]]
+        canvas[win[0]][sub] = img[win[1]][sub]
     return s, float(x0), float(y0)
 
 
 def _mask_on_canvas(clip: Clip, k: int, place: Placement) -> np.ndarray:
     """The canvas pixels :func:`_paste` draws ``clip``'s person on, (height, width) bool."""
-    img, m, x0, y0, _ = _placed(clip, k, place)
+    _img, m, x0, y0, _ = _placed(clip, k, place)
     out = np.zeros(CANVAS[::-1], bool)
-    cx0, cx1 = max(0, x0), min(CANVAS[0], x0 + img.shape[1])
-    cy0 = max(0, y0)
-    if cx1 > cx0:
-        out[cy0: y0 + img.shape[0], cx0:cx1] = m[cy0 - y0:, cx0 - x0: cx1 - x0]
+    win = _window(x0, y0, m.shape)
+    if win is not None:
+        out[win[0]] = m[win[1]]
     return out
 
 
