@@ -177,27 +177,19 @@ def test_a_person_is_hidden_where_the_other_is_drawn_over_them(b_clips, shared_d
     """``covers``: in a crossing in front, A is hidden exactly where the scene shows B's pixels (the two-person
     frame equals B's one-person frame there and B is nowhere hidden); in a crossing behind, B is hidden where A
     is drawn, and nowhere is A hidden."""
-
     from posed.bench import people_scenes as scenes
 
     a = scenes.load_clips(shared_data, "cam01")[0]
     b = b_clips["cam01"]
-    front = next(s for s in scenes.SCENARIOS if s.name == "cross_front")
-    both, _ = scenes.compose(a, b, front, "ab")
-    only_b, _ = scenes.compose(a, b, front, "b")
-    cover = scenes.covers(a, b, front)
-    for k in (20, 32, 44):
-        hid = cover[k]["a"]
-        assert hid.sum() > 10_000 and not cover[k]["b"].any(), k
-        assert (both[k][hid] == only_b[k][hid]).all(), k
-    behind = next(s for s in scenes.SCENARIOS if s.name == "cross_behind")
-    both, _ = scenes.compose(a, b, behind, "ab")
-    only_a, _ = scenes.compose(a, b, behind, "a")
-    cover = scenes.covers(a, b, behind)
-    for k in (20, 32, 44):
-        hid = cover[k]["b"]
-        assert hid.sum() > 10_000 and not cover[k]["a"].any(), k
-        assert (both[k][hid] == only_a[k][hid]).all(), k
+    for name, hidden, seen, front_alone in (("cross_front", "a", "b", "b"), ("cross_behind", "b", "a", "a")):
+        scenario = next(s for s in scenes.SCENARIOS if s.name == name)
+        both, _ = scenes.compose(a, b, scenario, "ab")
+        alone, _ = scenes.compose(a, b, scenario, front_alone)
+        cover = scenes.covers(a, b, scenario)
+        for k in (20, 32, 44):
+            hid = cover[k][hidden]
+            assert hid.sum() > 10_000 and not cover[k][seen].any(), (name, k)
+            assert (both[k][hid] == alone[k][hid]).all(), (name, k)
 
 
 def test_random_crossings_each_pass_the_person_and_are_the_same_for_a_seed():
