@@ -99,7 +99,8 @@ def _print_scenes(rep: dict) -> None:
                          f"{e['ratio']!s:>10}")
         print(f"{r['scenario']:22} {' '.join(cells)}")
     for kind, c in rep.get("summary", {}).items():
-        print(f"B {kind} of A, {c['crossings']} crossings: the hidden person within 1.2x on {c['hidden_within_1_2']}, "
+        where = "in front of" if kind == "front" else "behind"
+        print(f"B {where} A, {c['crossings']} crossings: the hidden person within 1.2x on {c['hidden_within_1_2']}, "
               f"the one in front on {c['in_front_within_1_2']}; at most one "
               f"switch each on {c['at_most_one_switch_each']}")
 
