@@ -40,6 +40,12 @@ from posed.falls.features import ANKLE_OVER_LEG, PELVIS_OVER_LEG, FrameFeatures,
 from posed.fitting import FitResult
 
 LOST_HORIZON_S = 0.4     # lost while falling: the pelvis would reach floor level this soon at its last speed
+# A person judged for less than this before a descent's fast phase is not judged on that descent once lost: a
+# landmark track's first frames are placed by the pose detector, not by tracking, and settle over the next few
+# (a newcomer's first 3-4 frames are 18-39 px off on the composited scenes, against 6-10 px for the same frames
+# tracked: docs/benchmarks.md, "Several people"; the landmark stage trusts a track's left and right only after
+# the same 0.5 s, landmarks.sides.SETTLED_S). Their drift is a descent that did not happen.
+TRACK_SETTLE_S = 0.5
 PROFILE_WINDOW_S = 0.25  # descent profile: speeds over this window (three frames at 10 fps)
 # Heights and angles are judged on the median of the last three frames within this much capture time (three
 # frames at 10 fps, the rate every other window was set at): one wrong fit among three changes nothing, and
@@ -219,6 +225,8 @@ class FallDetector:
         lost_for = t - self._last_valid_t
         if self._last_valid_t - d.t_fast > cfg.impact_window_s or lost_for < cfg.lost_descent_confirm_s - 1e-9:
             return []
+        if not self._samples or d.t_fast - self._samples[0].t < TRACK_SETTLE_S - 1e-9:
+            return []   # a descent in the first frames of a track: the landmarks were still settling
         tipping = s.incl > cfg.recover_trunk_deg
         # at floor level; or low with the trunk tipping over; or still falling fast with the trunk tipping over
         # and on course to reach floor level within LOST_HORIZON_S (lost in mid-air, the last frames before

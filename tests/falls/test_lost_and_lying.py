@@ -25,14 +25,15 @@ from tests.falls.test_detector import long_fall
 TUNE = {sc.name: sc for sc in catalogue("tune")}
 
 
-def run(sc, cfg: FallsConfig | None = None, lose_after: float | None = None, landmark_edit=None):
+def run(sc, cfg: FallsConfig | None = None, lose_after: float | None = None, landmark_edit=None,
+        seen_from: float | None = None):
     cfg = replace(cfg or FallsConfig(), camera_tilt_deg=sc.camera.tilt, camera_height_m=sc.camera.z)
     counter = itertools.count()
     det = FallDetector(cfg, "r1", fit_frame="camera", id_factory=lambda: f"ev{next(counter)}")
     out = []
     for fr in frames(sc):
         lm = fr.landmarks
-        if lose_after is not None and fr.t >= lose_after:
+        if lose_after is not None and fr.t >= lose_after or seen_from is not None and fr.t < seen_from:
             lm = None                                   # the extractor found nobody
         if lm is not None and landmark_edit is not None:
             lm = landmark_edit(lm.copy())
@@ -72,6 +73,26 @@ def test_lost_after_descent_confidence_and_alarm_timer():
     assert fall.t_impact <= ti + 1e-9
     assert alarm.id == fall.id and "not_recovered" in alarm.features
     assert 4.0 <= alarm.t_detect - alarm.t_impact <= 4.0 + 1 / sc.fps + 1e-9
+
+
+def test_a_descent_in_a_tracks_first_frames_is_not_judged_once_lost(monkeypatch):
+    """A fall lost in mid-air (last seen 0.1 s before the impact, falling fast), first seen only 0.3 s before
+    that (a track just started, its landmarks still settling: TRACK_SETTLE_S): not judged on that descent --
+    and it is the rule that holds it back (with no settling time the same frames raise ``falling``). Seen from
+    more than TRACK_SETTLE_S before, it is judged."""
+    from posed.falls import detector as det_module
+
+    sc = long_fall(after=8.0, get_up=False)
+    cfg = FallsConfig(alarm_after_s=4.0)
+    ti = sc.truth.t_impact
+    last_seen = ti - 1.0 / sc.fps
+    late = run(sc, cfg, lose_after=ti, seen_from=last_seen - 0.3)
+    assert late == [], [(e.state, e.features) for e in late]
+    early = run(sc, cfg, lose_after=ti, seen_from=last_seen - det_module.TRACK_SETTLE_S - 0.15)
+    assert early and early[0].state == "falling" and "lost_after_descent" in early[0].features
+    monkeypatch.setattr(det_module, "TRACK_SETTLE_S", 0.0)
+    unsettled = run(sc, cfg, lose_after=ti, seen_from=last_seen - 0.3)
+    assert unsettled and "lost_after_descent" in unsettled[0].features
 
 
 def test_seen_up_again_before_the_alarm_recovers():
