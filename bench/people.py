@@ -21,6 +21,13 @@ as A's because it covers the place where she stands hidden). Reported per scenar
   person; the frames where any is seen), the share of landmarks hidden, and posed's mean visibility on the
   hidden landmarks and on the rest (``a_hidden``, ``b_hidden``). The target stays the ratio over all
   landmarks; the split says whether a miss is on what the camera sees or on what nobody could;
+* **what the daemon makes of it**: each run goes on through what ``posed falls`` runs after the landmark stage
+  (a fitter and a fall detector per person, the default config, the lens assumed): each person's eight
+  flexions (knees, elbows, hips, shoulders) with the other in view against their fit alone, the mean
+  |difference| over the frames both fitted (``flexion_vs_alone_deg``), and the ``falling``/``on_floor``
+  messages raised with both in view (all, and those of A's, of B's and of anyone else's tracks) and in each
+  one-person run (``fall_messages``; nobody falls in these scenes: she squats, he balances on one leg), and
+  in the summary the crossings where the other's presence raised one that the person's run alone did not;
 * **speed**: milliseconds per frame of the two-person and the one-person runs, landmark passes per frame.
 
 With ``--crossings N`` the five fixed scenarios give way to N crossings drawn at random
@@ -95,6 +102,65 @@ def _ratio(alone: list[float], both: list[float]) -> dict:
             "ratio": round(m_both / m_alone, 3) if m_alone > 0 else None, "frames": len(alone)}
 
 
+FLEXIONS = ("theta_kn_l", "theta_kn_r", "theta_el_l", "theta_el_r", "theta_hp_l", "theta_hp_r", "theta_sh_l",
+            "theta_sh_r")     # the fit's angles compared with and without the other person
+DETECTING = ("falling", "on_floor")
+
+
+def _watched(run: list) -> tuple[list[dict], list[tuple[int | None, str]]]:
+    """What the daemon makes of a landmark run after the landmark stage (``posed falls``'s path, default
+    config, the lens assumed: the scenes have no intrinsics): per frame, track id -> that person's FitResult
+    (None: the frame's own person of a run that never saw two), and every fall message as (person, state)."""
+    from posed.commands.falls import detect, fit_frames
+    from posed.daemon.config import Config
+    from posed.landmarks import RecordingHeader
+
+    cfg = Config()
+    header = RecordingHeader(scenes.CANVAS, 5.0, "bench people scene")
+    fitted = list(fit_frames(cfg, header, (r.frame for r in run)))
+    fits = [{res.extra.get("person"): res for res in (result, *others)} for _frame, result, others in fitted]
+    messages = [(m.extra.get("person"), m.state) for _f, _r, msgs in detect(cfg, header, fitted) for m in msgs]
+    return fits, messages
+
+
+def _alone_a(a: scenes.Clip, b: scenes.Clip, scenario: scenes.Scenario, models_dir: Path | None) -> tuple:
+    """A's one-person run of ``scenario``: (results, ms per frame, :func:`_watched` of it)."""
+    run, ms, _ = _run(scenes.compose(a, b, scenario, "a")[0], models_dir)
+    return run, ms, _watched(run)
+
+
+def _fall_messages(watched: dict, ids: dict) -> dict:
+    """``falling``/``on_floor`` messages: with both in view (all; and those of A's tracks, of B's, of anyone
+    else), and in each one-person run. A track that was scored as A's on some frame counts as A's."""
+    both = [pid for pid, state in watched["ab"][1] if state in DETECTING]
+    a_ids, b_ids = {i for i in ids["a"] if i is not None}, {i for i in ids["b"] if i is not None}
+    return {"with_both": len(both), "a": sum(1 for p in both if p in a_ids),
+            "b": sum(1 for p in both if p in b_ids and p not in a_ids),
+            "other": sum(1 for p in both if p not in a_ids and p not in b_ids),
+            "a_alone": sum(1 for _p, state in watched["a"][1] if state in DETECTING),
+            "b_alone": sum(1 for _p, state in watched["b"][1] if state in DETECTING)}
+
+
+def _fit_of(fits: dict, tid: int | None, primary: int | None):
+    """The FitResult of track ``tid`` in one frame's :func:`_watched` fits (None: the frame's own person, as a
+    one-person run gives it); a frame before two people were ever seen names nobody, its fit is the primary's."""
+    if tid is None:
+        return fits.get(None) if None in fits else (next(iter(fits.values())) if len(fits) == 1 else None)
+    return fits.get(tid) or (fits.get(None) if tid == primary else None)
+
+
+def _flexion_gaps(mine, alone) -> list[float]:
+    """|difference| (degrees) of each of ``FLEXIONS`` both fits measured."""
+    if mine is None or alone is None or not (mine.ok and alone.ok):
+        return []
+    out = []
+    for name in FLEXIONS:
+        x, y = mine.angle(name), alone.angle(name)
+        if x is not None and y is not None:
+            out.append(abs(x - y))
+    return out
+
+
 def _assign(own: dict[str, np.ndarray | None], people: list[tuple[int, np.ndarray]]) -> dict[str, int | None]:
     """A and B to distinct people of the two-person frame (indices into ``people``; None: not found): of the
     pairings where each overlap with the person's own one-person run is at least ``MATCH_MIN``, the one whose
@@ -137,15 +203,17 @@ def _hidden(cov: list[np.ndarray], vis: list[np.ndarray]) -> dict:
 
 
 def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_dir: Path | None,
-             a_alone: tuple[list, float] | None = None) -> dict:
-    """One scenario's row (see the module doc); ``a_alone``: A's one-person run (results, ms per frame) when
-    already made (A stands at the same place in every scenario)."""
+             a_alone: tuple[list, float, tuple] | None = None) -> dict:
+    """One scenario's row (see the module doc); ``a_alone``: A's one-person run (results, ms per frame,
+    :func:`_watched` of it) when already made (A stands at the same place in every scenario)."""
     both, maps = scenes.compose(a, b, scenario, "ab")
     only_b, _ = scenes.compose(a, b, scenario, "b")
     cover = scenes.covers(a, b, scenario)
     run_ab, ms_ab, passes_ab = _run(both, models_dir)
-    run_a, ms_a = a_alone if a_alone is not None else _run(scenes.compose(a, b, scenario, "a")[0], models_dir)[:2]
+    run_a, ms_a, watched_a = a_alone if a_alone is not None else _alone_a(a, b, scenario, models_dir)
     run_b, _, _ = _run(only_b, models_dir)
+    watched = {"ab": _watched(run_ab), "a": watched_a, "b": _watched(run_b)}
+    flex = {"a": [], "b": []}
     ids = {"a": [], "b": []}
     err = {"a_alone": [], "a_both": [], "b_dev": [], "b_alone": [], "b_both": [],
            "a_seen_alone": [], "a_seen_both": [], "b_seen_alone": [], "b_seen_both": []}
@@ -172,6 +240,8 @@ def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_d
             tid, lms = people[pick[who]]
             ids[who].append(tid)
             found[f"{who}_both"] += 1
+            flex[who] += _flexion_gaps(_fit_of(watched["ab"][0][k], tid, run_ab[k].primary),
+                                       _fit_of(watched[who][0][k], None, None))
             own = ref[who][0][1]
             if who == "a":
                 err["a_both"].append(_median_px(lms, truth_a))
@@ -209,6 +279,8 @@ def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_d
         "b_error_px": _ratio(err["b_alone"], err["b_both"]),
         "b_error_seen_px": _ratio(err["b_seen_alone"], err["b_seen_both"]),
         "b_hidden": _hidden(*hid["b"]),
+        "flexion_vs_alone_deg": {who: round(float(np.mean(g)), 1) if g else None for who, g in flex.items()},
+        "fall_messages": _fall_messages(watched, ids),
         "ms_per_frame": {"two_people": round(ms_ab, 1), "a_alone": round(ms_a, 1)},
         "landmark_passes_per_frame": round(passes_ab, 2),
     }
@@ -232,7 +304,23 @@ def summary(rows: list[dict]) -> dict:
         out[kind] = {"crossings": len(mine), "hidden_within_1_2": within[hidden],
                      "in_front_within_1_2": within[seen],
                      "at_most_one_switch_each": sum(1 for r in mine if max(r["identity_switches"].values()) <= 1)}
+        if all("fall_messages" in r for r in mine):
+            gaps = {who: [r["flexion_vs_alone_deg"][who] for r in mine if r["flexion_vs_alone_deg"][who] is not None]
+                    for who in (hidden, seen)}
+            out[kind] |= {"with_fall_messages": sum(1 for r in mine if r["fall_messages"]["with_both"]),
+                          "raised_by_the_other": sum(1 for r in mine if _raised_by_the_other(r["fall_messages"])),
+                          "fall_messages_alone": sum(r["fall_messages"]["a_alone"] + r["fall_messages"]["b_alone"]
+                                                     for r in mine),
+                          "flexion_vs_alone_deg_median": {
+                              "hidden": round(float(np.median(gaps[hidden])), 1) if gaps[hidden] else None,
+                              "in_front": round(float(np.median(gaps[seen])), 1) if gaps[seen] else None}}
     return out
+
+
+def _raised_by_the_other(m: dict) -> bool:
+    """Whether someone got a fall message with the other person in view that their own one-person run did not
+    give (or a message went to a track that was neither of them)."""
+    return bool((m["a"] and not m["a_alone"]) or (m["b"] and not m["b_alone"]) or m["other"])
 
 
 def run_bench(shared: Path, models_dir: Path | None = None, only: str = "", progress=lambda m: None,
@@ -246,7 +334,7 @@ def run_bench(shared: Path, models_dir: Path | None = None, only: str = "", prog
     chosen = [sc for sc in chosen if not only or only == sc.name]
     a_alone = None
     if len(chosen) > 1 and all(sc.a == chosen[0].a for sc in chosen):       # A alone: one run for all
-        a_alone = _run(scenes.compose(a, b, chosen[0], "a")[0], models_dir)[:2]
+        a_alone = _alone_a(a, b, chosen[0], models_dir)
     rows = []
     for sc in chosen:
         t0 = time.monotonic()

@@ -90,19 +90,29 @@ def _print_scenes(rep: dict) -> None:
               f"{r['b_deviation_from_alone_px']!s:>6} {r['ms_per_frame']['two_people']:>11} "
               f"{r['ms_per_frame']['a_alone']:>6} {r['landmark_passes_per_frame']:>6}")
     print(f"\n{'hidden by the other':22} {'A: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10} "
-          f"{'B: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10}")
+          f"{'B: share':>9} {'vis hidden/seen':>15} {'ratio seen':>10} {'flexion vs alone A/B':>20} "
+          f"{'fall msgs 2p/alone':>18}")
     for r in rep["scenarios"]:
         cells = []
         for who in ("a", "b"):
             h, e = r[f"{who}_hidden"], r[f"{who}_error_seen_px"]
             cells.append(f"{h['share']!s:>9} {h['visibility_hidden']!s:>7} / {h['visibility_seen']!s:<5} "
                          f"{e['ratio']!s:>10}")
+        flex, falls = r["flexion_vs_alone_deg"], r["fall_messages"]
+        cells.append(f"{flex['a']!s:>11} / {flex['b']!s:<6} {falls['with_both']:>9} / "
+                     f"{falls['a_alone'] + falls['b_alone']:<6}")
         print(f"{r['scenario']:22} {' '.join(cells)}")
     for kind, c in rep.get("summary", {}).items():
         where = "in front of" if kind == "front" else "behind"
         print(f"B {where} A, {c['crossings']} crossings: the hidden person within 1.2x on {c['hidden_within_1_2']}, "
               f"the one in front on {c['in_front_within_1_2']}; at most one "
               f"switch each on {c['at_most_one_switch_each']}")
+        if "with_fall_messages" in c:
+            m = c["flexion_vs_alone_deg_median"]
+            print(f"  fall messages on {c['with_fall_messages']} crossings, raised by the other's presence on "
+                  f"{c['raised_by_the_other']} ({c['fall_messages_alone']} messages alone); the "
+                  f"fit's flexions off their value alone by a median {m['hidden']} deg (hidden), {m['in_front']} "
+                  "deg (in front)")
 
 
 def _print_falls(rep: dict) -> None:

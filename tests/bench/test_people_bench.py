@@ -218,3 +218,21 @@ def test_random_crossings_each_pass_the_person_and_are_the_same_for_a_seed():
                              "at_most_one_switch_each": 1},
                    "behind": {"crossings": 1, "hidden_within_1_2": 0, "in_front_within_1_2": 1,
                               "at_most_one_switch_each": 1}}
+
+
+def test_fall_messages_are_counted_per_person_and_blamed_on_the_other_only_when_alone_gave_none():
+    """``_fall_messages`` counts the detecting messages of the two-person run by whose track they went to (a
+    track scored as A's on any frame is A's), and ``_raised_by_the_other`` blames the other person's presence
+    only for a message the person's own one-person run did not give."""
+    from posed.bench.people import _fall_messages, _raised_by_the_other
+
+    def run(*messages):
+        return ([], list(messages))
+
+    watched = {"ab": run((1, "falling"), (1, "on_floor"), (2, "falling"), (7, "falling"), (2, "recovered")),
+               "a": run(), "b": run((None, "falling"))}
+    got = _fall_messages(watched, {"a": [1, 1, None], "b": [2, None, 2]})
+    assert got == {"with_both": 4, "a": 2, "b": 1, "other": 1, "a_alone": 0, "b_alone": 1}
+    assert _raised_by_the_other(got)
+    assert not _raised_by_the_other({**got, "a": 0, "other": 0})        # B's message: he raised it alone too
+    assert _raised_by_the_other({**got, "a": 0, "other": 0, "b_alone": 0})
