@@ -18,6 +18,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from posed.landmarks.sides import torso_length as sides_torso_length
+
 LIMB_WIDTH = 0.4         # limb drawn this wide: a thigh's breadth (0.3 torso lengths) plus the landmarks' error
 HEAD_RADIUS = 0.35       # disc around the face's landmarks: half a head's length (0.45 / 2) plus the error
 MIN_TORSO_PX = 4.0       # a body whose torso is shorter (or not finite) is drawn at this size
@@ -32,9 +34,9 @@ LIMBS = ((11, 13), (13, 15), (15, 17), (15, 19), (15, 21),     # left arm and ha
 
 
 def torso_length(landmarks: np.ndarray) -> float:
-    """Mid-shoulder to mid-hip distance in pixels (``MIN_TORSO_PX`` when it cannot be measured)."""
-    xy = np.asarray(landmarks, dtype=np.float64)[:, :2]
-    d = float(np.linalg.norm((xy[11] + xy[12]) / 2.0 - (xy[23] + xy[24]) / 2.0))
+    """Mid-shoulder to mid-hip distance in pixels (:func:`landmarks.sides.torso_length`; ``MIN_TORSO_PX`` when it
+    cannot be measured)."""
+    d = sides_torso_length(np.asarray(landmarks, dtype=np.float64)[:, :2])
     return d if np.isfinite(d) and d > MIN_TORSO_PX else MIN_TORSO_PX
 
 

@@ -81,6 +81,7 @@ def test_the_woman_hidden_while_he_walks_in_front_is_found_again_under_her_id(mo
     (median within 15 px of her published ones: her error alone is about 3 px, the man's body is 100+ px
     away), and his track is still on him."""
     from posed.bench import people_scenes as scenes
+    from posed.bench.mocap_landmarks import BODY12_IDX
     from posed.landmarks.config import LandmarkConfig
     from posed.landmarks.people import MultiPoseLandmarker
 
@@ -98,8 +99,7 @@ def test_the_woman_hidden_while_he_walks_in_front_is_found_again_under_her_id(mo
         truth_a = scenes.truth_on_canvas(a, k, maps[k]["a"])
         truth_b = scenes.truth12_on_canvas(b, k, maps[k]["b"])
         on_her = [p.id for p in r.people if median_px(p.result.frame.landmarks, truth_a) < 15.0]
-        on_him = [p.id for p in r.people if median_px(p.result.frame.landmarks[[11, 12, 13, 14, 15, 16, 23, 24, 25,
-                                                                             26, 27, 28]], truth_b) < 25.0]
+        on_him = [p.id for p in r.people if median_px(p.result.frame.landmarks[BODY12_IDX], truth_b) < 25.0]
         if k == 20:                                  # both in view, apart: who is who
             assert len(on_her) == 1 and len(on_him) == 1, (on_her, on_him)
             her_id, his_id = on_her[0], on_him[0]
