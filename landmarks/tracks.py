@@ -20,6 +20,18 @@ people: greedy equals the optimal assignment but for near ties). An unmatched pe
 up from 1 and are never reused); a track not seen for more than ``lost_keep_s`` (default 2 s) is forgotten, so a
 person who leaves and comes back within 2 s, near where they were lost (and as they were going), gets their id
 back, later a new one.
+
+**Hidden behind someone.** A track lost where its last box overlaps the box of someone seen in the same frame
+was most likely walked behind (or in front of) them: the person is still in the room, out of sight only while
+the other covers them. Such a track remembers who covers it and is kept for up to ``hidden_keep_s`` while that
+person is still followed. It is looked for anywhere along its way, from where it was lost to where its
+velocity would have taken it by now (they may have stopped behind the other, or walked on and out the far
+side). That velocity is the one last measured while the track's box touched nobody's: as a person goes behind
+someone, their visible landmarks shrink towards one side and the box centre's motion stops being theirs. Its
+prediction is the point of that segment nearest the candidate, with the falloff widened for the
+time gone as for any lost track, and the proportions must agree. Hidden tracks are matched last, to the people no
+other track took: their way runs right behind the person covering them, who is their own track's. A person
+lost where nobody covers them (out of the image, through a door) keeps the ``lost_keep_s`` rule.
 """
 
 from __future__ import annotations
@@ -48,6 +60,8 @@ class TrackerConfig:
     lost_after_s: float = 0.25        # a track unseen this long counts as lost: proportions are checked
     size_ratio_max: float = 2.0       # a person cannot change size by more than this between matches
     max_extrapolate_s: float = 0.5    # the velocity moves a prediction at most this far ahead
+    hidden_keep_s: float = 5.0        # a track lost behind someone still followed is kept this long (as long as
+                                      # the fall stage keeps an unseen person: falls.people.FORGET_S)
 
 
 @dataclass(frozen=True)
@@ -85,12 +99,17 @@ def box_size(box: np.ndarray) -> float:
     return float(max(np.sqrt(max(box[2] - box[0], 0.0) * max(box[3] - box[1], 0.0)), 1.0))
 
 
-def box_iou(a: np.ndarray, b: np.ndarray) -> float:
+def _intersection(a: np.ndarray, b: np.ndarray) -> float:
+    """Area (pixels²) shared by two boxes xmin, ymin, xmax, ymax."""
     ix = min(a[2], b[2]) - max(a[0], b[0])
     iy = min(a[3], b[3]) - max(a[1], b[1])
-    if not (ix > 0 and iy > 0):
+    return float(ix * iy) if ix > 0 and iy > 0 else 0.0
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> float:
+    inter = _intersection(a, b)
+    if inter == 0.0:
         return 0.0
-    inter = ix * iy
     union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
     return float(inter / union) if union > 0 else 0.0
 
@@ -138,15 +157,18 @@ def proportion_agreement(a: np.ndarray, b: np.ndarray) -> float:
 
 
 class _Track:
-    __slots__ = ("id", "first_t", "last_t", "hits", "lms", "box", "velocity", "props", "slot")
+    __slots__ = ("id", "first_t", "last_t", "hits", "lms", "box", "velocity", "free_velocity", "props", "slot",
+                 "behind")
 
     def __init__(self, tid: int, t: float, lms: np.ndarray, slot: int | None) -> None:
         self.id, self.first_t, self.last_t, self.hits = tid, t, t, 1
         self.lms = lms.copy()
         self.box = landmark_box(lms)
         self.velocity = np.zeros(2)
+        self.free_velocity = np.zeros(2)   # the velocity as last measured while the box touched nobody's
         self.props = proportions(lms)
         self.slot = slot
+        self.behind: int | None = None     # id of the person whose box covered this track's when it was lost
 
     def info(self) -> TrackInfo:
         return TrackInfo(self.id, self.first_t, self.last_t, self.hits, self.box.copy(), self.velocity.copy())
@@ -168,7 +190,8 @@ class PersonTracker:
 
     @property
     def tracks(self) -> list[TrackInfo]:
-        """The tracks kept now (seen or lost for at most ``lost_keep_s``), oldest first."""
+        """The tracks kept now (seen, lost for at most ``lost_keep_s`` or hidden behind someone still followed for
+        at most ``hidden_keep_s``), oldest first."""
         return [tr.info() for tr in self._tracks]
 
     def first_seen(self, track_id: int) -> float:
@@ -185,7 +208,11 @@ class PersonTracker:
         if not np.isfinite(box).all():
             return 0.0
         dt = max(t - track.last_t, 0.0)
-        shift = track.velocity * min(dt, cfg.max_extrapolate_s)
+        if track.behind is not None:          # hidden: anywhere from where it was lost to where it was going
+            shift = _nearest_on_way(track.free_velocity * dt,
+                                    (box[:2] + box[2:]) / 2 - (track.box[:2] + track.box[2:]) / 2)
+        else:
+            shift = track.velocity * min(dt, cfg.max_extrapolate_s)
         size_t, size_o = box_size(track.box), box_size(box)
         if not (1.0 / cfg.size_ratio_max <= size_o / size_t <= cfg.size_ratio_max):
             return 0.0
@@ -210,7 +237,7 @@ class PersonTracker:
         slots = list(slots) if slots is not None else [None] * len(people)
         if len(slots) != len(people):
             raise ValueError(f"{len(people)} people but {len(slots)} slots")
-        self._tracks = [tr for tr in self._tracks if t - tr.last_t <= cfg.lost_keep_s]
+        self._tracks = [tr for tr in self._tracks if t - tr.last_t <= cfg.lost_keep_s or self._still_hidden(tr, t)]
         lms_list = [np.asarray(p, dtype=np.float64) for p in people]
         boxes = [landmark_box(p) for p in lms_list]
         pairs = []
@@ -219,7 +246,8 @@ class PersonTracker:
                 s = self.similarity(tr, lms, box, slots[pi], t)
                 if s >= cfg.min_similarity:
                     pairs.append((s, ti, pi))
-        pairs.sort(key=lambda p: -p[0])
+        # hidden tracks last: their way runs behind the person covering them, whose own track must keep them
+        pairs.sort(key=lambda p: (self._tracks[p[1]].behind is not None, -p[0]))
         ids: list[int | None] = [None] * len(people)
         used: set[int] = set()
         for _s, ti, pi in pairs:
@@ -229,6 +257,8 @@ class PersonTracker:
             tr = self._tracks[ti]
             self._advance(tr, t, lms_list[pi], boxes[pi], slots[pi])
             ids[pi] = tr.id
+        self._note_hidden(ids, boxes)
+        self._note_free(ids, boxes)
         for pi, lms in enumerate(lms_list):
             if ids[pi] is None and np.isfinite(boxes[pi]).all():
                 tr = _Track(self._next_id, t, lms, slots[pi])
@@ -240,6 +270,36 @@ class PersonTracker:
                 self._next_id += 1
         self._last_t = t
         return [int(i) for i in ids]
+
+    def _still_hidden(self, tr: _Track, t: float) -> bool:
+        """Whether a track lost behind someone is kept: within ``hidden_keep_s`` and the person covering it
+        seen in the last frame."""
+        if tr.behind is None or t - tr.last_t > self.config.hidden_keep_s:
+            return False
+        return any(o.id == tr.behind and o.last_t == self._last_t for o in self._tracks)
+
+    def _note_hidden(self, ids: list[int | None], boxes: list[np.ndarray]) -> None:
+        """Each track seen in the last frame and not now whose last box overlaps the box of someone seen now is
+        behind them (the one covering most of its box)."""
+        seen_now = {i for i in ids if i is not None}
+        for tr in self._tracks:
+            if tr.id in seen_now or tr.last_t != self._last_t or self._last_t is None:
+                continue
+            area = max(tr.box[2] - tr.box[0], 0.0) * max(tr.box[3] - tr.box[1], 0.0)
+            cover = [(_intersection(tr.box, box), i) for i, box in zip(ids, boxes, strict=True)
+                     if i is not None and np.isfinite(box).all()]
+            best = max(cover, default=(0.0, None))
+            tr.behind = best[1] if best[0] > 0.0 and area > 0.0 else None
+
+    def _note_free(self, ids: list[int | None], boxes: list[np.ndarray]) -> None:
+        """Each track seen now whose box touches nobody else's keeps its velocity as ``free_velocity``."""
+        for tr in self._tracks:
+            if tr.id not in ids:
+                continue
+            mine = boxes[ids.index(tr.id)]
+            if not any(_intersection(mine, box) > 0.0 for i, box in zip(ids, boxes, strict=True)
+                       if i != tr.id and np.isfinite(box).all()):
+                tr.free_velocity = tr.velocity.copy()
 
     @staticmethod
     def _advance(tr: _Track, t: float, lms: np.ndarray, box: np.ndarray, slot: int | None) -> None:
@@ -253,5 +313,13 @@ class PersonTracker:
         known = np.isfinite(new_props)
         mix = np.where(np.isfinite(tr.props), 0.9 * tr.props + 0.1 * new_props, new_props)
         tr.props = np.where(known, mix, tr.props)
-        tr.lms, tr.box, tr.last_t, tr.slot = lms.copy(), box, t, slot
+        tr.lms, tr.box, tr.last_t, tr.slot, tr.behind = lms.copy(), box, t, slot, None
         tr.hits += 1
+
+
+def _nearest_on_way(way: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """The point of the segment from 0 to ``way`` (pixels) nearest ``offset``."""
+    n2 = float(way @ way)
+    if not n2 > 0.0:
+        return np.zeros(2)
+    return way * min(max(float(offset @ way) / n2, 0.0), 1.0)

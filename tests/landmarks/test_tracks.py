@@ -41,6 +41,15 @@ def _moved(lms: np.ndarray, dx: float, dy: float = 0.0) -> np.ndarray:
     return out
 
 
+def _stretched_legs(lms: np.ndarray) -> np.ndarray:
+    """Another body: ``lms`` with the legs 40 % longer below the hips."""
+    out = lms.copy()
+    hip_y = np.nanmean(out[[23, 24], 1])
+    legs = np.arange(33) >= 25
+    out[legs, 1] = hip_y + 1.4 * (out[legs, 1] - hip_y)
+    return out
+
+
 def _centre_x(lms: np.ndarray) -> float:
     box = landmark_box(lms)
     return float((box[0] + box[2]) / 2)
@@ -109,11 +118,8 @@ def test_a_different_body_in_the_lost_persons_place_is_not_taken_for_them(walker
     tracker = PersonTracker()
     for k in range(30):
         first = tracker.update(k / 30.0, [walker[k]])[0]
-    other = faller[0].copy()
     # another body (its proportions stretched: legs 40 % longer) where the first was lost 0.5 s before
-    hip_y = np.nanmean(other[[23, 24], 1])
-    legs = np.arange(33) >= 25
-    other[legs, 1] = hip_y + 1.4 * (other[legs, 1] - hip_y)
+    other = _stretched_legs(faller[0])
     other = _moved(other, _centre_x(walker[29]) - _centre_x(other))
     assert np.nanmax(np.abs(proportions(other) - proportions(walker[29]))) > 0.2
     assert tracker.update(45 / 30.0, [other])[0] != first
@@ -124,3 +130,62 @@ def test_oks_and_iou_are_one_for_the_same_person_and_fall_with_distance(walker):
     size = float(np.sqrt(np.prod(landmark_box(a)[2:] - landmark_box(a)[:2])))
     assert oks(a, a, size) == pytest.approx(1.0) and box_iou(landmark_box(a), landmark_box(a)) == pytest.approx(1.0)
     assert oks(a, _moved(a, 0.3 * size), size) < oks(a, _moved(a, 0.05 * size), size) < 1.0
+
+
+
+def _walk_past(walker, a_x: float, hidden: range, b_body=None) -> tuple[list[int], list[int | None], list]:
+    """A (the walker's frames) standing at x ``a_x``; B (the same frames) walking left to right at 40 px/s from
+    x 200, 20 px lower, at 10 fps, for 6 s; B not found on the frames of ``hidden``; ``b_body(k, lms)`` may
+    change B's landmarks after them. Returns A's and B's ids per frame and B's box per frame."""
+    tracker = PersonTracker()
+    ids_a, ids_b, boxes_b = [], [], []
+    for k in range(60):
+        a = _moved(walker[k], a_x - _centre_x(walker[k]))
+        b = _moved(walker[k], 200 + 4.0 * k - _centre_x(walker[k]), 20)
+        if b_body is not None and k >= hidden.stop:
+            b = b_body(k, b)
+        ids = tracker.update(k / 10.0, [a] if k in hidden else [a, b])
+        ids_a.append(ids[0])
+        ids_b.append(None if k in hidden else ids[1])
+        boxes_b.append(landmark_box(b))
+    return ids_a, ids_b, boxes_b
+
+
+def test_a_person_walking_behind_another_keeps_their_id_beyond_lost_keep_s(walker):
+    """B is lost where his box overlaps A's (he walks behind her) and found 3 s later past her, where his walk
+    took him: the same id, although lost_keep_s (2 s) has passed. Someone hidden behind a person is not gone."""
+    hidden = range(25, 55)
+    ids_a, ids_b, boxes_b = _walk_past(walker, 320, hidden)
+    assert box_iou(boxes_b[24], landmark_box(_moved(walker[25], 320 - _centre_x(walker[25])))) > 0
+    assert 55 / 10.0 - 24 / 10.0 > TrackerConfig().lost_keep_s
+    seen_b = [i for i in ids_b if i is not None]
+    assert len(set(ids_a)) == 1 and len(set(seen_b)) == 1 and seen_b[0] != ids_a[0], (ids_a, ids_b)
+
+
+def test_a_person_lost_where_nobody_covers_them_gets_a_new_id_after_lost_keep_s(walker):
+    """The same walk with A far to the right (nobody covers B where he is lost): after 3 s, a new id."""
+    hidden = range(25, 55)
+    ids_a, ids_b, boxes_b = _walk_past(walker, 900, hidden)
+    assert box_iou(boxes_b[24], landmark_box(_moved(walker[25], 900 - _centre_x(walker[25])))) == 0
+    assert len(set(ids_a)) == 1 and ids_b[24] != ids_b[55]
+
+
+def test_someone_else_coming_out_from_behind_is_not_taken_for_the_hidden_person(walker):
+    """Where B would come out from behind A, a body of other proportions (legs 40 % longer) appears: a new id."""
+    hidden = range(25, 55)
+    _ids_a, ids_b, _ = _walk_past(walker, 320, hidden, b_body=lambda k, lms: _stretched_legs(lms))
+    assert ids_b[24] != ids_b[55]
+
+
+def test_a_hidden_person_is_forgotten_after_lost_keep_s_once_nobody_covers_them(walker):
+    """The walk behind A, but A leaves the view 1.5 s after B was hidden: nobody covers B any more, so after
+    lost_keep_s he is forgotten and comes back with a new id."""
+    tracker = PersonTracker()
+    ids_b = []
+    for k in range(60):
+        a = _moved(walker[k], 320 - _centre_x(walker[k]))
+        b = _moved(walker[k], 200 + 4.0 * k - _centre_x(walker[k]), 20)
+        a_seen, b_seen = k < 40, not 25 <= k < 55
+        ids = tracker.update(k / 10.0, [a] * a_seen + [b] * b_seen)
+        ids_b.append(ids[-1] if b_seen else None)
+    assert ids_b[24] != ids_b[55]
