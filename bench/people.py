@@ -288,7 +288,8 @@ def evaluate(scenario: scenes.Scenario, a: scenes.Clip, b: scenes.Clip, models_d
 
 def summary(rows: list[dict]) -> dict:
     """Over the crossings of ``rows``: how many meet each scene target (the person hidden and the one in front
-    within 1.2x of alone, on the frames scored; at most one identity switch per person)."""
+    within 1.2x of alone, on the frames scored; at most one identity switch per person), and how many have no
+    identity switch at all."""
     out: dict = {}
     for kind, hidden, seen in (("front", "a", "b"), ("behind", "b", "a")):
         mine = [r for r in rows if r["scenario"].startswith("cross") and
@@ -303,7 +304,8 @@ def summary(rows: list[dict]) -> dict:
                   for who in (hidden, seen)}
         out[kind] = {"crossings": len(mine), "hidden_within_1_2": within[hidden],
                      "in_front_within_1_2": within[seen],
-                     "at_most_one_switch_each": sum(1 for r in mine if max(r["identity_switches"].values()) <= 1)}
+                     "at_most_one_switch_each": sum(1 for r in mine if max(r["identity_switches"].values()) <= 1),
+                     "without_switch": sum(1 for r in mine if max(r["identity_switches"].values()) == 0)}
         if all("fall_messages" in r for r in mine):
             gaps = {who: [r["flexion_vs_alone_deg"][who] for r in mine if r["flexion_vs_alone_deg"][who] is not None]
                     for who in (hidden, seen)}

@@ -106,7 +106,7 @@ def _print_scenes(rep: dict) -> None:
         where = "in front of" if kind == "front" else "behind"
         print(f"B {where} A, {c['crossings']} crossings: the hidden person within 1.2x on {c['hidden_within_1_2']}, "
               f"the one in front on {c['in_front_within_1_2']}; at most one "
-              f"switch each on {c['at_most_one_switch_each']}")
+              f"switch each on {c['at_most_one_switch_each']}, none on {c['without_switch']}")
         if "with_fall_messages" in c:
             m = c["flexion_vs_alone_deg_median"]
             print(f"  fall messages on {c['with_fall_messages']} crossings, raised by the other's presence on "

@@ -215,9 +215,9 @@ def test_random_crossings_each_pass_the_person_and_are_the_same_for_a_seed():
     got = summary([row("crossing_00_front_rtl", 1.3, 1.1, 0, 1), row("crossing_02_front_ltr", 1.1, None, 2, 0),
                    row("crossing_01_behind_rtl", 1.0, 1.25, 0, 0), row("apart", 1.0, 1.0, 0, 0)])
     assert got == {"front": {"crossings": 2, "hidden_within_1_2": 1, "in_front_within_1_2": 1,
-                             "at_most_one_switch_each": 1},
+                             "at_most_one_switch_each": 1, "without_switch": 0},
                    "behind": {"crossings": 1, "hidden_within_1_2": 0, "in_front_within_1_2": 1,
-                              "at_most_one_switch_each": 1}}
+                              "at_most_one_switch_each": 1, "without_switch": 1}}
 
 
 def test_fall_messages_are_counted_per_person_and_blamed_on_the_other_only_when_alone_gave_none():
