@@ -99,6 +99,11 @@ def box_size(box: np.ndarray) -> float:
     return float(max(np.sqrt(max(box[2] - box[0], 0.0) * max(box[3] - box[1], 0.0)), 1.0))
 
 
+def _centre(box: np.ndarray) -> np.ndarray:
+    """(2,) centre of a box xmin, ymin, xmax, ymax."""
+    return (box[:2] + box[2:]) / 2
+
+
 def _intersection(a: np.ndarray, b: np.ndarray) -> float:
     """Area (pixels²) shared by two boxes xmin, ymin, xmax, ymax."""
     ix = min(a[2], b[2]) - max(a[0], b[0])
@@ -209,8 +214,7 @@ class PersonTracker:
             return 0.0
         dt = max(t - track.last_t, 0.0)
         if track.behind is not None:          # hidden: anywhere from where it was lost to where it was going
-            shift = _nearest_on_way(track.free_velocity * dt,
-                                    (box[:2] + box[2:]) / 2 - (track.box[:2] + track.box[2:]) / 2)
+            shift = _nearest_on_way(track.free_velocity * dt, _centre(box) - _centre(track.box))
         else:
             shift = track.velocity * min(dt, cfg.max_extrapolate_s)
         size_t, size_o = box_size(track.box), box_size(box)
@@ -285,11 +289,10 @@ class PersonTracker:
         for tr in self._tracks:
             if tr.id in seen_now or tr.last_t != self._last_t or self._last_t is None:
                 continue
-            area = max(tr.box[2] - tr.box[0], 0.0) * max(tr.box[3] - tr.box[1], 0.0)
             cover = [(_intersection(tr.box, box), i) for i, box in zip(ids, boxes, strict=True)
                      if i is not None and np.isfinite(box).all()]
             best = max(cover, default=(0.0, None))
-            tr.behind = best[1] if best[0] > 0.0 and area > 0.0 else None
+            tr.behind = best[1] if best[0] > 0.0 else None
 
     def _note_free(self, ids: list[int | None], boxes: list[np.ndarray]) -> None:
         """Each track seen now whose box touches nobody else's keeps its velocity as ``free_velocity``."""
@@ -305,9 +308,7 @@ class PersonTracker:
     def _advance(tr: _Track, t: float, lms: np.ndarray, box: np.ndarray, slot: int | None) -> None:
         dt = t - tr.last_t
         if dt > 0:
-            centre_new = (box[:2] + box[2:]) / 2
-            centre_old = (tr.box[:2] + tr.box[2:]) / 2
-            v = (centre_new - centre_old) / dt
+            v = (_centre(box) - _centre(tr.box)) / dt
             tr.velocity = v if tr.hits == 1 else 0.5 * tr.velocity + 0.5 * v
         new_props = proportions(lms)
         known = np.isfinite(new_props)
