@@ -25,6 +25,8 @@ import numpy as np
 from posed.bench.bvh import cmu_landmark_world, read_bvh
 from posed.bench.falls_body import Body, WorldCamera
 from posed.bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
+from posed.bench.falls_world import MEANING as WORLD_MEANING
+from posed.bench.falls_world import case_world
 from posed.camera_model import Intrinsics
 from posed.daemon.stages.fit import mount_gravity
 from posed.falls.config import FallsConfig
@@ -147,11 +149,12 @@ def _imu_gravity(cam, rng: np.random.Generator, bias_rad: np.ndarray) -> np.ndar
 
 
 def run_case(case: Case, fit: Callable[..., FitResult], cfg: FallsConfig, fit_frame: str, geometry: str = "given",
-             intrinsics: bool = True) -> Outcome:
+             intrinsics: bool = True, world: list | None = None) -> Outcome:
     """One case through ``fit`` and a fresh detector. ``fit(landmarks, seq, t, image_size, intrinsics,
-    gravity)``: gravity the IMU's (geometry imu) or the measured mount's (given), else None, as the daemon's
-    fitting stage gives it. ``intrinsics`` False: the detector is given none (a recording without a camera
-    header: it assumes ``camera_hfov_deg``)."""
+    gravity, world)``: gravity the IMU's (geometry imu) or the measured mount's (given), else None, as the daemon's
+    fitting stage gives it; ``world`` the frame's world landmarks from ``world`` (one per frame:
+    :func:`bench.falls_world.case_world`), or None. ``intrinsics`` False: the detector is given none (a
+    recording without a camera header: it assumes ``camera_hfov_deg``)."""
     cam = case.camera
     image_size = (cam.width, cam.height)
     if geometry not in GEOMETRIES:
@@ -173,9 +176,10 @@ def run_case(case: Case, fit: Callable[..., FitResult], cfg: FallsConfig, fit_fr
     # the fit is given the down the daemon's fitting stage gives it (daemon.stages.fit.frame_gravity): the IMU's,
     # else the measured mount's (geometry given: cfg measured above)
     mount_down = mount_gravity(cfg) if geometry == "given" else None
-    for fr in case.frames:
+    for k, fr in enumerate(case.frames):
         imu = _imu_gravity(cam, imu_rng, imu_bias) if imu_rng is not None else None
-        result = fit(fr.landmarks, fr.seq, fr.t, image_size, cam.intrinsics, imu if imu is not None else mount_down) \
+        result = fit(fr.landmarks, fr.seq, fr.t, image_size, cam.intrinsics, imu if imu is not None else mount_down,
+                     world[k] if world is not None else None) \
             if fr.landmarks is not None else FitResult.failure(fr.seq, fr.t, "no person")
         if fr.landmarks is not None and not result.ok:
             failures += 1
@@ -222,21 +226,23 @@ def real_fitter(fit_config=None):
     fitter = Fitter(fit_config or FitConfig())
     fitter.warmup()
 
-    def fit(landmarks, seq, t, image_size, intrinsics, gravity=None):
-        return fitter.fit(landmarks, seq, t, image_size, mode="video", intrinsics=intrinsics, gravity=gravity)
+    def fit(landmarks, seq, t, image_size, intrinsics, gravity=None, world=None):
+        return fitter.fit(landmarks, seq, t, image_size, mode="video", intrinsics=intrinsics, gravity=gravity,
+                          world=world)
 
     fit.reset = fitter.reset  # type: ignore[attr-defined]
     return fit
 
 
 def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intrinsics | None = None,
-               down: str = "none"):
+               down: str = "none", world: bool = False):
     """``fit`` wrapped with a per-case cache of its results (key: the case's landmarks, the fit config, the
     intrinsics the fit is given, ``down`` (which gravity the fit is given: none, given or imu; each is the same
     for a case every time) and the fitting package's source), so that re-scoring the detector costs no
-    fit. ``intrinsics``: given to the fit instead of the case camera's (an assumed lens)."""
+    fit. ``intrinsics``: given to the fit instead of the case camera's (an assumed lens); ``world``: the fit is
+    given the case's simulated world landmarks (:mod:`bench.falls_world`, part of the key)."""
     if cache is None:
-        return lambda lm, seq, t, size, intr, gravity=None: fit(lm, seq, t, size, intrinsics or intr, gravity)
+        return lambda lm, seq, t, size, intr, gravity=None, w=None: fit(lm, seq, t, size, intrinsics or intr, gravity, w)
     import hashlib
     import json
     from dataclasses import asdict
@@ -251,6 +257,11 @@ def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intr
     h.update(f"{intrinsics or case.camera.intrinsics}{_fitting_source_hash()}".encode())
     if down != "none":   # (keys of fits without gravity as before)
         h.update(f"down={down}".encode())
+    if world:            # (and of fits without world landmarks): the stream's error model is part of it
+        import inspect
+
+        from posed.bench import falls_world, world_sim
+        h.update(f"world={inspect.getsource(world_sim)}{inspect.getsource(falls_world)}".encode())
     path = cache / f"{case.name.replace('/', '_')}.{h.hexdigest()[:20]}.fits.jsonl"
     stored = None
     if path.is_file():
@@ -259,11 +270,11 @@ def cached_fit(case: Case, fit, fit_config, cache: Path | None, intrinsics: Intr
             stored = None
     if stored is not None:
         it = iter(stored)
-        return lambda lm, seq, t, size, intr, gravity=None: next(it)
+        return lambda lm, seq, t, size, intr, gravity=None, w=None: next(it)
     made: list[FitResult] = []
 
-    def fn(lm, seq, t, size, intr, gravity=None):
-        r = fit(lm, seq, t, size, intrinsics or intr, gravity)
+    def fn(lm, seq, t, size, intr, gravity=None, w=None):
+        r = fit(lm, seq, t, size, intrinsics or intr, gravity, w)
         made.append(r)
         if len(made) == sum(fr.landmarks is not None for fr in case.frames):
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -286,12 +297,13 @@ def fit_down(geometry: str, fit_config=None) -> str:
 def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
               only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
               fit_config=None, with_intrinsics: bool = True, cache: Path | None = None,
-              geometry: str = "given", mount: str = "robot") -> dict:
+              geometry: str = "given", mount: str = "robot", world: bool = False) -> dict:
     """``with_intrinsics`` False, and always with a ``mount`` other than "robot" (the scenarios and CMU clips seen
     by ``falls_scenarios.MOUNTS["wall"]`` or ``["corner"]``, as a recording without a camera header): the fit is given what the
     daemon gives a source without intrinsics, the assumed lens of ``camera_hfov_deg`` (orthographic when
     ``fit_config.projection`` is), not the camera's true one. With a wall camera the detector gets no
-    intrinsics either (it assumes the same lens)."""
+    intrinsics either (it assumes the same lens). ``world``: the real fit is given each case's simulated world
+    landmarks (:mod:`bench.falls_world`), as the daemon's landmark stage gives them."""
     cfg = cfg or FallsConfig()
     cases: list[Case] = []
     if mount != "robot":
@@ -312,14 +324,15 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             fit.reset()  # type: ignore[union-attr]
             assumed = None if with_intrinsics else \
                 Intrinsics.assume(cfg.camera_hfov_deg, case.camera.width, case.camera.height)
-            fn = cached_fit(case, fit, fit_config, cache, assumed, fit_down(geometry, fit_config))
+            fn = cached_fit(case, fit, fit_config, cache, assumed, fit_down(geometry, fit_config), world)
         else:
             by_seq = {fr.seq: fr for fr in case.frames}
 
-            def fn(lm, seq, t, size, intr, gravity=None, by_seq=by_seq, cam=case.camera):
+            def fn(lm, seq, t, size, intr, gravity=None, w=None, by_seq=by_seq, cam=case.camera):
                 return truth_result(by_seq[seq], cam)
 
-        outcome = run_case(case, fn, cfg, fit_frame, geometry, intrinsics=mount == "robot")
+        outcome = run_case(case, fn, cfg, fit_frame, geometry, intrinsics=mount == "robot",
+                           world=case_world(case) if world and fit_kind == "real" else None)
         outcomes.append(outcome)
         if progress:
             progress(outcome)
@@ -332,5 +345,6 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
         else f"real, perspective through the assumed {cfg.camera_hfov_deg:g} deg lens (no intrinsics given)")
     report["geometry"] = {"mode": geometry, "meaning": GEOMETRIES[geometry]}
     report["mount"] = mount
+    report["world"] = WORLD_MEANING if world and fit_kind == "real" else None
     report["seconds"] = round(time.monotonic() - t0, 1)
     return report

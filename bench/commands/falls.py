@@ -36,6 +36,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "intrinsics given to the fit or the detector: both assume falls.camera_hfov_deg's "
                              "lens, as the daemon does) or a second one in a room's corner, never used while "
                              "building the detector (2.4 m, 25 deg down, 320x240, 74 deg, no intrinsics)")
+    parser.add_argument("--world", action="store_true",
+                        help="simulated scenarios and CMU clips: give the fit BlazePose world landmarks with every "
+                             "frame, as the daemon's landmark stage does (simulated from the true joints with the "
+                             "error measured on real video: bench/falls_world.py); without it the fit has the 2D "
+                             "landmarks only")
     parser.add_argument("--no-cache", action="store_true",
                         help="fit again, do not use the cached fits (~/.cache/posed/falls-fits)")
     parser.add_argument("--only", default="", metavar="TEXT", help="only scenarios whose name contains TEXT")
@@ -84,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     report = run_bench(splits, "truth" if args.truth else "real", cfg.falls, args.only, shared, progress,
                        fit_config=cfg.fitting, with_intrinsics=not args.no_intrinsics,
                        cache=None if args.no_cache else cache_dir() / "falls-fits",
-                       geometry=args.synthetic_geometry, mount=args.mount)
+                       geometry=args.synthetic_geometry, mount=args.mount, world=args.world)
     if args.markdown:
         Path(args.markdown).write_text(markdown(report))
     if real is not None:
@@ -97,8 +102,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"{split:8} falls {s['falls']:3}  recall {_pct(s['recall'])}  ADL {s['adl']:3}  false alarms "
                   f"{s['false_alarms']}  median latency {s['median_latency_s']} s (max {s['max_latency_s']})")
         print(f"all      recall {_pct(report['recall'])}  false alarms {report['false_alarms']}  median latency "
-              f"{report['median_latency_s']} s  ({report['seconds']} s, fit: {report['fit']}; camera geometry: "
-              f"{report['geometry']['mode']})")
+              f"{report['median_latency_s']} s  ({report['seconds']} s, fit: {report['fit']}"
+              f"{', with world landmarks' if report['world'] else ''}; camera geometry: {report['geometry']['mode']})")
     if real is not None and not args.json:
         _print_recordings(real)
     ok = (real is None or _recordings_ok(real)) and (report["recall"] is None or report["recall"] >= TARGETS["recall"]) and report["false_alarms"] == 0 and \

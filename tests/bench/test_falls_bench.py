@@ -79,6 +79,47 @@ def test_a_wall_camera_without_intrinsics_is_fitted_through_the_assumed_lens():
     assert r.root_cam_m is None
 
 
+def test_the_world_stream_is_each_case_s_own_body_and_reaches_the_fit():
+    """--world: every frame with landmarks gets BlazePose-like world landmarks of the case's true body (mid-hip
+    origin, camera axes, the 12 body joints only), the same stream on every run, and the fit uses them."""
+    from posed.bench.falls import real_fitter, run_case, scenario_cases
+    from posed.bench.falls_world import case_world
+    from posed.bench.mocap_landmarks import BODY12_IDX
+    from posed.falls.config import FallsConfig
+
+    case = next(c for c in scenario_cases("tune") if c.name == "tune/fall/standing-forward/fast-v100")
+    world = case_world(case)
+    assert len(world) == len(case.frames)
+    assert all((w is None) == (fr.landmarks is None) for w, fr in zip(world, case.frames, strict=True))
+    seen = [w for w in world if w is not None]
+    others = np.setdiff1d(np.arange(33), BODY12_IDX)
+    for w in seen:
+        assert w.shape == (33, 5) and np.isfinite(w[BODY12_IDX]).all() and np.isnan(w[others, :3]).all()
+        np.testing.assert_allclose(0.5 * (w[23, :3] + w[24, :3]), 0.0, atol=1e-12)      # hip-centred
+    standing = seen[0]
+    assert standing[27, 1] - standing[11, 1] > 1.0             # ankles a metre and more below the shoulders (y down)
+    for a, b in zip(world, case_world(case), strict=True):     # seeded by the case: the same stream each run
+        assert (a is None and b is None) or np.array_equal(a, b, equal_nan=True)
+
+    given = []
+    fit = real_fitter()
+
+    def spy(lm, seq, t, size, intr, gravity=None, w=None):
+        given.append(w)
+        return fit(lm, seq, t, size, intr, gravity, w)
+
+    outcome = run_case(case, spy, FallsConfig(), "auto", world=world)
+    assert outcome.detected and len(given) == len(seen) and all(w is not None for w in given)
+    fr = next(f for f in case.frames if f.landmarks is not None)
+    fit.reset()
+    r = fit(fr.landmarks, fr.seq, fr.t, (case.camera.width, case.camera.height), case.camera.intrinsics, None,
+            world[case.frames.index(fr)])
+    assert r.ok and "world" in r.extra["evidence"]
+    fit.reset()
+    assert "world" not in fit(fr.landmarks, fr.seq, fr.t, (case.camera.width, case.camera.height),
+                              case.camera.intrinsics).extra["evidence"]
+
+
 def _labelled_folder(shared_data, tmp_path, clips):
     import shutil
 
