@@ -109,9 +109,9 @@ def run_cross(shared: Path, cfg, recordings: Path, cache: Path | None, videos_di
     falls = cfg.falls
     rows: list[Row] = []
 
-    def synth(splits, geometry, mount, source, role, text, fitting=cfg.fitting):
+    def synth(splits, geometry, mount, source, role, text, fitting=cfg.fitting, world=False):
         log(f"{source} ...")
-        rep = run_bench(splits, "real", falls, "", shared, None, fitting, True, cache, geometry, mount)
+        rep = run_bench(splits, "real", falls, "", shared, None, fitting, True, cache, geometry, mount, world)
         rows.append(_synthetic_row(source, role, text, rep))
         return rep
 
@@ -127,6 +127,14 @@ def run_cross(shared: Path, cfg, recordings: Path, cache: Path | None, videos_di
           replace(cfg.fitting, projection="orthographic"))
     synth(("tune", "heldout", "cmu"), "default", "corner", "synthetic + CMU, corner camera 2.4 m 25 deg 320x240 74 deg",
           "held out (added 2026-12-05 after every rule; one CMU clip traced for the walking feet)", "default config, no intrinsics (assumed lens)")
+    # the same three cameras with the evidence the daemon's fit has: BlazePose world landmarks (bench.falls_world)
+    world = "default config, with world landmarks (the daemon's evidence)"
+    synth(("tune", "heldout", "cmu"), "default", "robot", "synthetic + CMU, robot camera, world landmarks",
+          "looked at (the floor rules, issue 33)", world, world=True)
+    synth(("tune", "heldout", "cmu"), "default", "wall", "synthetic + CMU, wall camera, world landmarks",
+          "looked at (the body check, issue 33)", world + ", no intrinsics (assumed lens)", world=True)
+    synth(("tune", "heldout", "cmu"), "default", "corner", "synthetic + CMU, corner camera, world landmarks",
+          "held out", world + ", no intrinsics (assumed lens)", world=True)
     log("urfd_dev ...")
     looked = "looked at (lost_confirm_s, lost_descent_confirm_s, the body check's 20 deg)"
     r = run_recordings(recordings, cfg, "labels", cache)

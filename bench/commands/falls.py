@@ -56,8 +56,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "projects through the assumed lens of falls.camera_hfov_deg, as the daemon's; kept "
                              "so the earlier commands in docs/benchmarks.md still run")
     parser.add_argument("--cross-source", action="store_true",
-                        help="the cross-source check: the same detector on every source (synthetic robot and wall "
-                             "cameras, CMU, --recordings or shared urfd_dev, real videos through posed landmarks), "
+                        help="the cross-source check: the same detector on every source (synthetic robot, wall and "
+                             "corner cameras, with and without world landmarks, CMU, --recordings or shared "
+                             "urfd_dev, real videos through posed landmarks), "
                              "each row saying whether values were chosen on it, with the gap to that source")
 
 
