@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from posed.bench import people_occlusion as occlusion
 from posed.bench.falls import DETECTING_STATES as DETECTING
 from posed.bench.falls_body import Body
 from posed.bench.falls_scenarios import STAND, Key, Scenario, catalogue, frames, kneel, truth_result, walk
@@ -52,6 +53,8 @@ BYSTANDERS = ("standing", "walking", "kneeling")
 BYSTANDER_HEIGHT_M = 1.80
 SIDE_M = 1.2              # the standing bystander's offset to the faller's side
 LIE_LONGER_S = 5.0        # the faller lies this much longer when a bystander kneels beside them
+KNEEL_GAP_M = 0.7         # the kneeling bystander's pelvis from the faller's, across the floor
+KNEEL_AT = ("side", "camera")
 
 
 @dataclass(frozen=True)
@@ -72,10 +75,14 @@ def _hold(keys: list[Key], until: float) -> list[Key]:
                                                         xy=keys[-1].xy)]
 
 
-def with_bystander(sc: Scenario, kind: str) -> TwoPeople:
-    """``sc`` with a second person doing ``kind`` (module doc)."""
+def with_bystander(sc: Scenario, kind: str, kneel_at: str = "side") -> TwoPeople:
+    """``sc`` with a second person doing ``kind`` (module doc); a kneeling bystander kneels at the faller's
+    ``side`` (across the room from where they stood) or on the ``camera``'s side of them, between the camera and
+    the person who fell."""
     if kind not in BYSTANDERS:
         raise ValueError(f"bystander {kind!r} is not one of: {', '.join(BYSTANDERS)}")
+    if kneel_at not in KNEEL_AT:
+        raise ValueError(f"kneel_at {kneel_at!r} is not one of: {', '.join(KNEEL_AT)}")
     faller = sc
     x0, y0 = sc.start_xy
     side = -1.0 if x0 > 0 else 1.0
@@ -92,7 +99,11 @@ def with_bystander(sc: Scenario, kind: str) -> TwoPeople:
     else:
         lying = _lying_point(faller)
         t_go = (sc.truth.t_impact + 1.0) if sc.truth.kind == "fall" and sc.truth.t_impact else 0.5
-        target = (float(lying[0] + side * 0.7), float(lying[1] + 0.2))
+        if kneel_at == "camera":
+            to_cam = np.array([sc.camera.x, sc.camera.y]) - lying[:2]
+            target = tuple(float(v) for v in lying[:2] + KNEEL_GAP_M * to_cam / max(np.linalg.norm(to_cam), 1e-9))
+        else:
+            target = (float(lying[0] + side * KNEEL_GAP_M), float(lying[1] + 0.2))
         approach, _ = walk([home, target], speed=0.8, start_pause=0.0)
         approach = [replace(k, t=k.t + t_go) for k in approach]
         toward = math.degrees(math.atan2(-(lying[0] - target[0]), lying[1] - target[1]))
@@ -114,9 +125,9 @@ def _lying_point(sc: Scenario) -> np.ndarray:
     return 0.5 * (last["left_hip"][:2] + last["right_hip"][:2])
 
 
-def cases(split: str = "heldout") -> list[TwoPeople]:
-    """Every scenario of ``split`` with a bystander, the kinds given in turn."""
-    return [with_bystander(sc, BYSTANDERS[i % len(BYSTANDERS)]) for i, sc in enumerate(catalogue(split))]
+def cases(split: str = "heldout", kneel_at: str = "side") -> list[TwoPeople]:
+    """Every scenario of ``split`` with a bystander, the kinds given in turn (``kneel_at``: with_bystander)."""
+    return [with_bystander(sc, BYSTANDERS[i % len(BYSTANDERS)], kneel_at) for i, sc in enumerate(catalogue(split))]
 
 
 def _fitter_factory(kind: str) -> Callable[[], Callable]:
@@ -143,15 +154,50 @@ def _fitter_factory(kind: str) -> Callable[[], Callable]:
     return make_real
 
 
-def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig, alone: bool = False) -> dict:
+def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occluder],
+              hidden_share: list[float]) -> list:
+    """``given`` (seq, t, faller frame, bystander frame) with each person's landmarks that the other's body
+    covers moved as the landmark stage moves them (:mod:`bench.people_occlusion`); the faller's share of
+    hidden landmarks per frame with both in view appended to ``hidden_share``."""
+    cam = case.faller.camera
+    out = []
+    for seq, t, f_frame, b_frame in given:
+        if b_frame is None or f_frame.landmarks is None or b_frame.landmarks is None:
+            out.append((seq, t, f_frame, b_frame))
+            continue
+        frames_now = {"faller": f_frame, "bystander": b_frame}
+        bodies = {"faller": case.faller.body, "bystander": case.bystander.body}
+        moved = {}
+        for who, other in (("faller", "bystander"), ("bystander", "faller")):
+            fr = frames_now[who]
+            covered = occlusion.hidden(occlusion.landmark_points(fr.joints_world, cam),
+                                       occlusion.body_points(frames_now[other].joints_world, cam),
+                                       bodies[other].height)
+            if who == "faller":
+                hidden_share.append(float(covered.mean()))
+            lm = occluders[who].apply(fr.landmarks, covered, occlusion.size_px(fr.joints_world, cam, bodies[who]),
+                                      1.0 / case.faller.fps)
+            moved[who] = replace(fr, landmarks=lm)
+        out.append((seq, t, moved["faller"], moved["bystander"]))
+    return out
+
+
+def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig, alone: bool = False,
+             occlude: bool = False) -> dict:
     """One scenario through the tracker, a fitter per track and :class:`PeopleFalls` (``alone``: the faller
-    only)."""
+    only; ``occlude``: each person's landmarks the other covers as the landmark stage gives them,
+    :mod:`bench.people_occlusion`)."""
     cam = case.faller.camera
     size, intr = (cam.width, cam.height), cam.intrinsics
     given = [(f.seq, f.t, f, None) for f in frames(case.faller)]
     if not alone:
         by = list(frames(case.bystander))
         given = [(f.seq, f.t, f, by[i] if i < len(by) else None) for i, (_, _, f, _) in enumerate(given)]
+    hidden_share: list[float] = []
+    if occlude and not alone:
+        seed = case.faller.seed
+        given = _occluded(case, given, {"faller": occlusion.Occluder(seed), "bystander": occlusion.Occluder(seed + 1)},
+                          hidden_share)
     bodies = NamedBodies()
     if not alone:         # who is who: the person who falls is the household's member (their true height)
         cfg = replace(cfg, household=(HouseholdMember("resident", case.faller.body.height),))
@@ -196,7 +242,17 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             "bystander_events": len(theirs), "event_ids": len({m.id for m in mine}),
             "ended": any(m.state == "recovered" for m in mine),
             "switches": {w: switches(v) for w, v in ids.items()}, "rematches": detectors.rematches,
+            "faller_hidden": _hidden_summary(hidden_share) if occlude and not alone else None,
             "household": None if alone else _recognition(detectors, ids, followed)}
+
+
+def _hidden_summary(shares: list[float]) -> dict:
+    """The faller's landmarks the bystander covered: frames with any hidden, frames on which that made them not
+    found, and the mean share on the frames with any."""
+    some = [x for x in shares if x > 0]
+    return {"frames_both": len(shares), "frames_some_hidden": len(some),
+            "frames_lost": sum(x >= occlusion.LOST_SHARE for x in shares),
+            "mean_share_hidden": round(float(np.mean(some)), 3) if some else 0.0}
 
 
 def _recognition(detectors: PeopleFalls, ids: dict[str, list[int]], followed: list) -> dict:
@@ -223,7 +279,17 @@ def summarise(rows: list[dict]) -> dict:
             "second_events": sum(r["event_ids"] > 1 for r in falls),
             "ended": sum(r["ended"] for r in falls),
             "identity_switches": sum(r["switches"]["faller"] + r["switches"]["bystander"] for r in rows),
-            "median_latency_s": lat[len(lat) // 2] if lat else None, **_recognised(rows)}
+            "median_latency_s": lat[len(lat) // 2] if lat else None, **_recognised(rows), **_covered(rows)}
+
+
+def _covered(rows: list[dict]) -> dict:
+    hid = [r["faller_hidden"] for r in rows if r.get("faller_hidden")]
+    if not hid:
+        return {}
+    return {"faller_frames_with_both": sum(h["frames_both"] for h in hid),
+            "faller_frames_partly_hidden": sum(h["frames_some_hidden"] for h in hid),
+            "faller_frames_lost": sum(h["frames_lost"] for h in hid),
+            "cases_faller_partly_hidden": sum(h["frames_some_hidden"] > 0 for h in hid)}
 
 
 def _recognised(rows: list[dict]) -> dict:
@@ -239,22 +305,24 @@ def _recognised(rows: list[dict]) -> dict:
 
 
 def run_bench(split: str = "heldout", fit_kind: str = "real", cfg: FallsConfig | None = None, only: str = "",
-              progress=lambda m: None) -> dict:
-    """Each scenario with its bystander and alone; the summaries per bystander kind and together."""
+              progress=lambda m: None, occlude: bool = False, kneel_at: str = "side") -> dict:
+    """Each scenario with its bystander and alone; the summaries per bystander kind and together (``occlude``,
+    ``kneel_at``: :func:`run_case`, :func:`with_bystander`)."""
     cfg = cfg or FallsConfig()
     t0 = time.monotonic()
     make_fit = _fitter_factory(fit_kind)
     rows_by, rows_alone = [], []
-    for case in cases(split):
+    for case in cases(split, kneel_at):
         if only and only not in case.faller.name:
             continue
         cfg_case = replace(cfg, camera_tilt_deg=case.faller.camera.tilt, camera_height_m=case.faller.camera.z,
                            camera_geometry="measured")
-        rows_by.append(run_case(case, make_fit, cfg_case))
+        rows_by.append(run_case(case, make_fit, cfg_case, occlude=occlude))
         rows_alone.append(run_case(case, make_fit, cfg_case, alone=True))
         r = rows_by[-1]
         progress(f"{r['name']} + {r['bystander']}: detected {r['detected']}, states {r['states']}")
     return {"split": split, "fit": fit_kind, "geometry": "given (the scene's camera height and tilt)",
+            "occlusion": occlude, "kneel_at": kneel_at,
             "with_bystander": summarise(rows_by), "alone": summarise(rows_alone),
             "per_bystander": {k: summarise([r for r in rows_by if r["bystander"] == k]) for k in BYSTANDERS},
             "scenarios": rows_by, "seconds": round(time.monotonic() - t0, 1),

@@ -4,14 +4,16 @@
   found, the woman's landmark error with a second person in view against alone (target at most 1.2x), speed;
 * ``falls``: the synthetic fall scenarios (``--split``, default heldout) with a bystander standing, walking or
   kneeling beside the person who fell, the real fit per person: recall, false alarms, bystander events, second
-  events, events ended, identity switches, against the same scenarios alone;
+  events, events ended, identity switches, against the same scenarios alone; ``--occlusion``: the landmarks
+  one person's body covers of the other's as the landmark stage gives them; ``--kneel-at camera``: the kneeling
+  bystander between the camera and the person who fell;
 * ``recordings``: the real fall recordings of shared/data/falls/urfd_dev each with a real bystander (another
   clip's person beside the camera's axis), through what ``posed falls`` runs, against alone;
 * ``stature``: who is who: a man's shoulder height measured from one real image by each of four calibrated
   cameras (what the household recognition measures), against his triangulated joints.
 
 Run: ``posed bench people [--json] [--part scenes|falls|recordings|stature] [--scenario NAME]
-[--b-camera CAM] [--crossings N [--seed S]] [--split S]``."""
+[--b-camera CAM] [--crossings N [--seed S]] [--split S] [--occlusion] [--kneel-at side|camera]``."""
 
 from __future__ import annotations
 
@@ -35,6 +37,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="scenes: N crossings drawn at random (B in front and behind, either way, at "
                              "random scales and paths) instead of the five fixed scenarios, with a summary")
     parser.add_argument("--seed", type=int, default=0, help="scenes: the seed of --crossings (default 0)")
+    parser.add_argument("--occlusion", action="store_true",
+                        help="falls: each person's landmarks that the other's body covers are moved as posed's "
+                             "landmark stage was measured to move them, and a person 40 %% covered or more is "
+                             "not found (bench/people_occlusion.py)")
+    parser.add_argument("--kneel-at", default="side", choices=("side", "camera"),
+                        help="falls: the kneeling bystander kneels at the faller's side (default) or between "
+                             "the camera and the faller")
     parser.add_argument("--split", default="heldout", choices=("tune", "heldout"),
                         help="falls: the scenario split (default: heldout, never used to tune)")
 
@@ -53,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if "falls" in parts:
         from posed.bench.people_falls import run_bench as run_falls
 
-        report["falls"] = run_falls(args.split, progress=progress)
+        report["falls"] = run_falls(args.split, progress=progress, occlude=args.occlusion, kneel_at=args.kneel_at)
     if "recordings" in parts:
         from posed.bench.people_recordings import run as run_recordings
 
@@ -116,7 +125,14 @@ def _print_scenes(rep: dict) -> None:
 
 
 def _print_falls(rep: dict) -> None:
-    print(f"\nfalls with a bystander ({rep['split']} scenarios, real fit, geometry {rep['geometry']})")
+    print(f"\nfalls with a bystander ({rep['split']} scenarios, real fit, geometry {rep['geometry']}; kneeling at "
+          f"the faller's {rep['kneel_at']}; landmarks hidden by the other person: "
+          f"{'moved as measured' if rep['occlusion'] else 'not modelled'})")
+    w = rep["with_bystander"]
+    if "faller_frames_with_both" in w:
+        print(f"the faller partly hidden by the bystander on {w['faller_frames_partly_hidden']} of "
+              f"{w['faller_frames_with_both']} frames with both in view, in {w['cases_faller_partly_hidden']} scenarios; "
+              f"not found for it on {w['faller_frames_lost']}")
     print(f"{'':18} {'falls':>5} {'recall':>6} {'adl':>4} {'false':>5} {'bystander ev':>12} {'2nd ev':>6} "
           f"{'ended':>5} {'id switches':>11} {'median lat s':>12}")
     rows = [("alone", rep["alone"]), ("with a bystander", rep["with_bystander"])]
