@@ -8,9 +8,8 @@ covered landmarks.
 segments. The radii come from the renderer's own contact spheres (``FLOOR_CONTACTS``, fractions of body
 height H): thigh 0.04 H, shank 0.03 H, upper arm 0.03 H, forearm 0.022 H, trunk 0.065 H, across the
 shoulders 0.04 H and the hips 0.055 H, head 0.06 H; the neck 0.035 H (a neck about 38 cm round on a 1.75 m
-adult). A
-landmark is hidden when the ray from the camera centre to it passes through a capsule in front of it. Both
-ends are in camera axes, metres.
+adult). A landmark is hidden when the ray from the camera centre to it passes through a capsule in front of
+it. Both ends are in camera axes, metres.
 
 **What the landmark stage says for them.** Measured, not assumed: posed's landmark stage (BlazePose full)
 was run on the composited two-person crossings of ``posed bench people --part scenes`` (real footage, one
