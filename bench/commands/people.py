@@ -125,8 +125,9 @@ def _print_scenes(rep: dict) -> None:
 
 
 def _print_falls(rep: dict) -> None:
-    print(f"\nfalls with a bystander ({rep['split']} scenarios, real fit, geometry {rep['geometry']}; kneeling at "
-          f"the faller's {rep['kneel_at']}; landmarks hidden by the other person: "
+    where = "between the camera and the faller" if rep["kneel_at"] == "camera" else "at the faller's side"
+    print(f"\nfalls with a bystander ({rep['split']} scenarios, real fit, geometry {rep['geometry']}; kneeling "
+          f"{where}; landmarks hidden by the other person: "
           f"{'moved as measured' if rep['occlusion'] else 'not modelled'})")
     w = rep["with_bystander"]
     if "faller_frames_with_both" in w:
