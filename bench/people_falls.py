@@ -160,19 +160,18 @@ def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occlu
     covers moved as the landmark stage moves them (:mod:`bench.people_occlusion`); the faller's share of
     hidden landmarks per frame with both in view appended to ``hidden_share``."""
     cam = case.faller.camera
+    bodies = {"faller": case.faller.body, "bystander": case.bystander.body}
     out = []
     for seq, t, f_frame, b_frame in given:
         if b_frame is None or f_frame.landmarks is None or b_frame.landmarks is None:
             out.append((seq, t, f_frame, b_frame))
             continue
         frames_now = {"faller": f_frame, "bystander": b_frame}
-        bodies = {"faller": case.faller.body, "bystander": case.bystander.body}
+        points = {who: occlusion.body_points(fr.joints_world, cam) for who, fr in frames_now.items()}
         moved = {}
         for who, other in (("faller", "bystander"), ("bystander", "faller")):
             fr = frames_now[who]
-            covered = occlusion.hidden(occlusion.landmark_points(fr.joints_world, cam),
-                                       occlusion.body_points(frames_now[other].joints_world, cam),
-                                       bodies[other].height)
+            covered = occlusion.hidden(occlusion.landmark_points(points[who]), points[other], bodies[other].height)
             if who == "faller":
                 hidden_share.append(float(covered.mean()))
             lm = occluders[who].apply(fr.landmarks, covered, occlusion.size_px(fr.joints_world, cam, bodies[who]),

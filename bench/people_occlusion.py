@@ -152,14 +152,14 @@ class Occluder:
         return out
 
 
-def landmark_points(joints_world: dict[str, np.ndarray], camera: WorldCamera) -> np.ndarray:
-    """A rendered body's 33 landmark points in camera axes (m), MediaPipe order."""
-    return np.array([camera.to_camera(joints_world[name]) for name in MP])
-
-
 def body_points(joints_world: dict[str, np.ndarray], camera: WorldCamera) -> dict[str, np.ndarray]:
     """A rendered body's joints in camera axes (m), by name."""
     return {name: camera.to_camera(p) for name, p in joints_world.items()}
+
+
+def landmark_points(points_cam: dict[str, np.ndarray]) -> np.ndarray:
+    """The 33 landmark points (MediaPipe order) of a body's :func:`body_points`, (33, 3)."""
+    return np.array([points_cam[name] for name in MP])
 
 
 def size_px(joints_world: dict[str, np.ndarray], camera: WorldCamera, body: Body) -> float:

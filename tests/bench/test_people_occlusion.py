@@ -56,15 +56,15 @@ def standing(x: float, y: float, height: float = 1.7) -> dict[str, np.ndarray]:
 
 
 def test_a_body_between_the_camera_and_a_person_covers_them_and_one_beside_or_behind_does_not():
-    person = oc.landmark_points(standing(0.0, 4.0), CAM)
+    person = oc.landmark_points(oc.body_points(standing(0.0, 4.0), CAM))
     in_front = oc.hidden(person, oc.body_points(standing(0.0, 2.5), CAM), 1.7)
     beside = oc.hidden(person, oc.body_points(standing(1.5, 4.0), CAM), 1.7)
     behind = oc.hidden(person, oc.body_points(standing(0.0, 5.5), CAM), 1.7)
     assert in_front.sum() >= 25          # a body of the same size 1.5 m nearer: nearly all of them
     assert not beside.any() and not behind.any()
     # and it is the person behind who is covered, not the one in front
-    assert not oc.hidden(oc.landmark_points(standing(0.0, 2.5), CAM), oc.body_points(standing(0.0, 4.0), CAM),
-                         1.7).any()
+    nearer = oc.landmark_points(oc.body_points(standing(0.0, 2.5), CAM))
+    assert not oc.hidden(nearer, oc.body_points(standing(0.0, 4.0), CAM), 1.7).any()
 
 
 def test_covered_landmarks_move_as_measured_and_the_rest_stay():
