@@ -24,6 +24,10 @@ tracker). Counted:
 * **identity switches**: changes of the track id given to each person between consecutive frames where they
   were seen;
 * the same scenarios alone (one person, the same fits path), to compare;
+* **the faller's 3D**: PA-MPJPE (mm) of the fit's 12 body joints against the renderer's, on the frames where
+  the bystander's body covers some of the faller's landmarks (:mod:`bench.people_occlusion`; moved only with
+  ``occlude``) and on the others; paired over the frames the run with the bystander and the run alone both
+  fitted (``faller_3d_same_frames_mm``);
 * **who is who** (with the bystander): the faller is the household's one member (``falls.household``, their true
   height); at the end, how each person was recognised (the member, a visitor, not known), and in how many of the
   frames with the faller in view the history followed the faller, or the bystander.
@@ -42,12 +46,14 @@ from posed.bench import people_occlusion as occlusion
 from posed.bench.falls import DETECTING_STATES as DETECTING
 from posed.bench.falls_body import Body
 from posed.bench.falls_scenarios import STAND, Key, Scenario, catalogue, frames, kneel, truth_result, walk
+from posed.bench.ood import pa_mpjpe
 from posed.bench.people_tracks import NamedBodies, switches
 from posed.daemon.stages.fit import mount_gravity
 from posed.falls.config import FallsConfig, HouseholdMember
 from posed.falls.detector import FallDetector
 from posed.falls.people import PeopleFalls
 from posed.fitting import FitResult
+from posed.fitting.result import JOINT_3D_NAMES
 
 BYSTANDERS = ("standing", "walking", "kneeling")
 BYSTANDER_HEIGHT_M = 1.80
@@ -55,6 +61,7 @@ SIDE_M = 1.2              # the standing bystander's offset to the faller's side
 LIE_LONGER_S = 5.0        # the faller lies this much longer when a bystander kneels beside them
 KNEEL_GAP_M = 0.7         # the kneeling bystander's pelvis from the faller's, across the floor
 KNEEL_AT = ("side", "camera")
+BODY12_NAMES = JOINT_3D_NAMES[1:]   # the fit's 12 body joints (the mid-hip origin left out)
 
 
 @dataclass(frozen=True)
@@ -154,6 +161,37 @@ def _fitter_factory(kind: str) -> Callable[[], Callable]:
     return make_real
 
 
+def _hidden_masks(case: TwoPeople, f_frame, b_frame) -> dict[str, np.ndarray]:
+    """Which of each person's 33 landmarks the other's body covers in this frame (:func:`bench.people_occlusion.hidden`),
+    by ``faller`` and ``bystander``."""
+    cam = case.faller.camera
+    bodies = {"faller": case.faller.body, "bystander": case.bystander.body}
+    points = {"faller": occlusion.body_points(f_frame.joints_world, cam),
+              "bystander": occlusion.body_points(b_frame.joints_world, cam)}
+    return {who: occlusion.hidden(occlusion.landmark_points(points[who]), points[other], bodies[other].height)
+            for who, other in (("faller", "bystander"), ("bystander", "faller"))}
+
+
+def faller_covered(case: TwoPeople) -> dict[int, bool]:
+    """Per frame (seq) with both people drawn: whether the bystander's body covers any of the faller's
+    landmarks, whether or not the run moves them (so runs with and without covering, and alone, are scored on
+    the same frames)."""
+    out = {}
+    for f, b in zip(frames(case.faller), frames(case.bystander), strict=False):
+        if f.landmarks is not None and b.landmarks is not None:
+            out[f.seq] = bool(_hidden_masks(case, f, b)["faller"].any())
+    return out
+
+
+def faller_error_mm(result: FitResult, f_frame, camera) -> float | None:
+    """PA-MPJPE (mm) of the fit's 12 body joints against the rendered body's (camera axes), None without a 3D fit."""
+    if not result.ok or not all(name in result.joints_3d for name in BODY12_NAMES):
+        return None
+    truth = occlusion.body_points(f_frame.joints_world, camera)
+    est = np.array([result.joints_3d[name] for name in BODY12_NAMES], float)
+    return 1000.0 * pa_mpjpe(est, np.array([truth[name] for name in BODY12_NAMES]))
+
+
 def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occluder],
               hidden_share: list[float]) -> list:
     """``given`` (seq, t, faller frame, bystander frame) with each person's landmarks that the other's body
@@ -167,14 +205,11 @@ def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occlu
             out.append((seq, t, f_frame, b_frame))
             continue
         frames_now = {"faller": f_frame, "bystander": b_frame}
-        points = {who: occlusion.body_points(fr.joints_world, cam) for who, fr in frames_now.items()}
+        covered = _hidden_masks(case, f_frame, b_frame)
+        hidden_share.append(float(covered["faller"].mean()))
         moved = {}
-        for who, other in (("faller", "bystander"), ("bystander", "faller")):
-            fr = frames_now[who]
-            covered = occlusion.hidden(occlusion.landmark_points(points[who]), points[other], bodies[other].height)
-            if who == "faller":
-                hidden_share.append(float(covered.mean()))
-            lm = occluders[who].apply(fr.landmarks, covered, occlusion.size_px(fr.joints_world, cam, bodies[who]),
+        for who, fr in frames_now.items():
+            lm = occluders[who].apply(fr.landmarks, covered[who], occlusion.size_px(fr.joints_world, cam, bodies[who]),
                                       1.0 / case.faller.fps)
             moved[who] = replace(fr, landmarks=lm)
         out.append((seq, t, moved["faller"], moved["bystander"]))
@@ -182,10 +217,14 @@ def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occlu
 
 
 def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig, alone: bool = False,
-             occlude: bool = False) -> dict:
+             occlude: bool = False, covered: dict[int, bool] | None = None) -> dict:
     """One scenario through the tracker, a fitter per track and :class:`PeopleFalls` (``alone``: the faller
     only; ``occlude``: each person's landmarks the other covers as the landmark stage gives them,
-    :mod:`bench.people_occlusion`)."""
+    :mod:`bench.people_occlusion`). ``covered`` (:func:`faller_covered`, computed when not given): the frames
+    the faller's 3D error is scored on, split by whether the bystander's body covers them; the row's
+    ``_faller_3d_by_seq`` (seq -> mm) is for :func:`run_bench`'s pairing, which removes it."""
+    if covered is None:
+        covered = faller_covered(case)
     cam = case.faller.camera
     size, intr = (cam.width, cam.height), cam.intrinsics
     given = [(f.seq, f.t, f, None) for f in frames(case.faller)]
@@ -206,6 +245,8 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
     fits: dict[int, Callable] = {}
     ids: dict[str, list[int]] = {"faller": [], "bystander": []}
     messages = []
+    errors_3d: dict[str, list[float]] = {"covered": [], "clear": []}
+    by_seq: dict[int, float] = {}
     for seq, t, f_frame, b_frame in given:
         seen = [(who, fr) for who, fr in (("faller", f_frame), ("bystander", b_frame))
                 if fr is not None and fr.landmarks is not None]
@@ -215,6 +256,11 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             ids[who].append(tid)
             fit = fits.get(tid) or fits.setdefault(tid, make_fit())
             r = fit(fr.landmarks, seq, t, size, intr, fr, cam, down)
+            if who == "faller" and seq in covered:
+                e = faller_error_mm(r, fr, cam)
+                if e is not None:
+                    errors_3d["covered" if covered[seq] else "clear"].append(e)
+                    by_seq[seq] = e
             people.append((tid, replace(r, extra={**r.extra, "person": tid}), fr.landmarks))
         if people:
             main = bodies.tracker.longest_followed([p[0] for p in people])
@@ -242,6 +288,8 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             "ended": any(m.state == "recovered" for m in mine),
             "switches": {w: switches(v) for w, v in ids.items()}, "rematches": detectors.rematches,
             "faller_hidden": _hidden_summary(hidden_share) if occlude and not alone else None,
+            "faller_3d_mm": {k: {"frames": len(v), "sum": round(float(np.sum(v)), 1)} for k, v in errors_3d.items()},
+            "_faller_3d_by_seq": by_seq,
             "household": None if alone else _recognition(detectors, ids, followed)}
 
 
@@ -278,7 +326,26 @@ def summarise(rows: list[dict]) -> dict:
             "second_events": sum(r["event_ids"] > 1 for r in falls),
             "ended": sum(r["ended"] for r in falls),
             "identity_switches": sum(r["switches"]["faller"] + r["switches"]["bystander"] for r in rows),
-            "median_latency_s": lat[len(lat) // 2] if lat else None, **_recognised(rows), **_covered(rows)}
+            "median_latency_s": lat[len(lat) // 2] if lat else None, **_recognised(rows), **_covered(rows),
+            "faller_3d_mm": _faller_3d(rows)}
+
+
+def _faller_3d(rows: list[dict]) -> dict:
+    """The faller's mean PA-MPJPE (mm) over the frames the fit answered, those with some landmark covered by the
+    bystander's body and the others (each row's ``faller_3d_mm``)."""
+    out = {}
+    for part in ("covered", "clear"):
+        n = sum(r["faller_3d_mm"][part]["frames"] for r in rows)
+        total = sum(r["faller_3d_mm"][part]["sum"] for r in rows)
+        out[part] = {"frames": n, "mean": round(total / n, 1) if n else None}
+    return out
+
+
+def _pair_3d(paired: dict[str, list[tuple[float, float]]], covered: dict[int, bool], with_by: dict[int, float],
+             alone: dict[int, float]) -> None:
+    """Append (with the bystander, alone) 3D errors of the frames both runs fitted, by covered or clear."""
+    for seq in sorted(with_by.keys() & alone.keys()):
+        paired["covered" if covered[seq] else "clear"].append((with_by[seq], alone[seq]))
 
 
 def _covered(rows: list[dict]) -> dict:
@@ -311,18 +378,25 @@ def run_bench(split: str = "heldout", fit_kind: str = "real", cfg: FallsConfig |
     t0 = time.monotonic()
     make_fit = _fitter_factory(fit_kind)
     rows_by, rows_alone = [], []
+    paired: dict[str, list[tuple[float, float]]] = {"covered": [], "clear": []}
     for case in cases(split, kneel_at):
         if only and only not in case.faller.name:
             continue
         cfg_case = replace(cfg, camera_tilt_deg=case.faller.camera.tilt, camera_height_m=case.faller.camera.z,
                            camera_geometry="measured")
-        rows_by.append(run_case(case, make_fit, cfg_case, occlude=occlude))
-        rows_alone.append(run_case(case, make_fit, cfg_case, alone=True))
+        covered = faller_covered(case)
+        rows_by.append(run_case(case, make_fit, cfg_case, occlude=occlude, covered=covered))
+        rows_alone.append(run_case(case, make_fit, cfg_case, alone=True, covered=covered))
+        _pair_3d(paired, covered, rows_by[-1].pop("_faller_3d_by_seq"), rows_alone[-1].pop("_faller_3d_by_seq"))
         r = rows_by[-1]
         progress(f"{r['name']} + {r['bystander']}: detected {r['detected']}, states {r['states']}")
     return {"split": split, "fit": fit_kind, "geometry": "given (the scene's camera height and tilt)",
             "occlusion": occlude, "kneel_at": kneel_at,
             "with_bystander": summarise(rows_by), "alone": summarise(rows_alone),
             "per_bystander": {k: summarise([r for r in rows_by if r["bystander"] == k]) for k in BYSTANDERS},
+            "faller_3d_same_frames_mm": {part: {"frames": len(v),
+                                                "with_bystander": round(float(np.mean([x[0] for x in v])), 1) if v else None,
+                                                "alone": round(float(np.mean([x[1] for x in v])), 1) if v else None}
+                                         for part, v in paired.items()},
             "scenarios": rows_by, "seconds": round(time.monotonic() - t0, 1),
             "targets": {"recall": "as alone (1.0)", "false_alarms": "as alone (0)", "second_events": 0, "ended": 0}}

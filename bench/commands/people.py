@@ -4,7 +4,9 @@
   found, the woman's landmark error with a second person in view against alone (target at most 1.2x), speed;
 * ``falls``: the synthetic fall scenarios (``--split``, default heldout) with a bystander standing, walking or
   kneeling beside the person who fell, the real fit per person: recall, false alarms, bystander events, second
-  events, events ended, identity switches, against the same scenarios alone; ``--occlusion``: the landmarks
+  events, events ended, identity switches, against the same scenarios alone, and the faller's 3D error (PA-MPJPE
+  of the 12 body joints) on the frames both runs fitted, where the bystander covers them and where not;
+  ``--occlusion``: the landmarks
   one person's body covers of the other's as the landmark stage gives them; ``--kneel-at camera``: the kneeling
   bystander between the camera and the person who fell;
 * ``recordings``: the real fall recordings of shared/data/falls/urfd_dev each with a real bystander (another
@@ -134,6 +136,10 @@ def _print_falls(rep: dict) -> None:
         print(f"the faller partly hidden by the bystander on {w['faller_frames_partly_hidden']} of "
               f"{w['faller_frames_with_both']} frames with both in view, in {w['cases_faller_partly_hidden']} scenarios; "
               f"not found for it on {w['faller_frames_lost']}")
+    for part, c in rep["faller_3d_same_frames_mm"].items():
+        what = "some landmark covered by the bystander's body" if part == "covered" else "none covered"
+        print(f"the faller's 3D error (PA-MPJPE, 12 joints) on the {c['frames']} frames with {what} that both runs "
+              f"fitted: {c['with_bystander']} mm with the bystander, {c['alone']} mm alone")
     print(f"{'':18} {'falls':>5} {'recall':>6} {'adl':>4} {'false':>5} {'bystander ev':>12} {'2nd ev':>6} "
           f"{'ended':>5} {'id switches':>11} {'median lat s':>12}")
     rows = [("alone", rep["alone"]), ("with a bystander", rep["with_bystander"])]

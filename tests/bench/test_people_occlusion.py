@@ -150,3 +150,47 @@ def test_a_carer_kneeling_in_front_of_someone_sitting_down_raises_nothing():
     row = pf.run_case(case, pf._fitter_factory("real"), cfg, occlude=True)
     assert row["faller_hidden"]["frames_some_hidden"] > 0
     assert row["states"] == [] and row["bystander_events"] == 0
+
+
+def test_the_faller_3d_error_ignores_scale_rotation_and_offset_and_sees_a_moved_joint():
+    from posed.fitting import FitResult
+
+    sc = next(s for s in catalogue("heldout") if s.name == "heldout/fall/sitting-sideways/fast-v150")
+    frame = next(iter(frames(sc)))
+    truth = oc.body_points(frame.joints_world, sc.camera)
+    c, s = np.cos(0.4), np.sin(0.4)
+    turn = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    origin = 0.5 * (truth["left_hip"] + truth["right_hip"])
+    joints = {name: tuple(1.07 * turn @ (truth[name] - origin)) for name in pf.BODY12_NAMES}
+    same = FitResult(seq=0, t=0.0, ok=True, joints_3d=joints)
+    assert pf.faller_error_mm(same, frame, sc.camera) < 1e-6
+    moved = dict(joints, left_wrist=tuple(np.array(joints["left_wrist"]) + [0.12, 0.0, 0.0]))
+    e = pf.faller_error_mm(FitResult(seq=0, t=0.0, ok=True, joints_3d=moved), frame, sc.camera)
+    # the best similarity's RMS error is at most the known one's (scale and turn undone: 0.12 / 1.07 m on one
+    # joint of 12), and the mean error at most its RMS
+    assert 2.0 < e <= 1000.0 * (0.12 / 1.07) / np.sqrt(12.0) + 1e-6
+    assert pf.faller_error_mm(FitResult.failure(0, 0.0, "no person"), frame, sc.camera) is None
+
+
+def test_covering_the_faller_raises_their_3d_error_on_the_covered_frames_only():
+    """The real fit, a carer kneeling between the camera and the person who fell: the same frames scored with
+    the bodies drawn whole and with the covered landmarks moved as measured."""
+    sc = next(s for s in catalogue("heldout") if s.name == "heldout/fall/sitting-sideways/fast-v150")
+    case = pf.with_bystander(sc, "kneeling", "camera")
+    cfg = measured(sc)
+    covered = pf.faller_covered(case)
+    n = sum(covered.values())
+    assert n > 20 and len(covered) > n
+    moved = pf.run_case(case, pf._fitter_factory("real"), cfg, occlude=True, covered=covered)
+    whole = pf.run_case(case, pf._fitter_factory("real"), cfg, covered=covered)
+    assert moved["faller_hidden"]["frames_some_hidden"] == n
+    w, m = whole["faller_3d_mm"], moved["faller_3d_mm"]
+    assert w["covered"]["frames"] == n                       # drawn whole, every covered frame is fitted
+    assert 0 < m["covered"]["frames"] <= n
+
+    def mean(part):
+        return part["sum"] / part["frames"]
+
+    assert mean(m["covered"]) > 1.5 * mean(w["covered"])     # measured 120.7 against 50.6 mm
+    assert abs(mean(m["clear"]) - mean(w["clear"])) < 0.25 * mean(w["clear"])
+    assert set(whole["_faller_3d_by_seq"]) <= set(covered)
