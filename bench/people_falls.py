@@ -52,8 +52,7 @@ from posed.daemon.stages.fit import mount_gravity
 from posed.falls.config import FallsConfig, HouseholdMember
 from posed.falls.detector import FallDetector
 from posed.falls.people import PeopleFalls
-from posed.fitting import FitResult
-from posed.fitting.result import JOINT_3D_NAMES
+from posed.fitting import JOINT_3D_NAMES, FitResult
 
 BYSTANDERS = ("standing", "walking", "kneeling")
 BYSTANDER_HEIGHT_M = 1.80
