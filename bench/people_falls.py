@@ -171,15 +171,17 @@ def _hidden_masks(case: TwoPeople, f_frame, b_frame) -> dict[str, np.ndarray]:
             for who, other in (("faller", "bystander"), ("bystander", "faller"))}
 
 
-def faller_covered(case: TwoPeople) -> dict[int, bool]:
-    """Per frame (seq) with both people drawn: whether the bystander's body covers any of the faller's
-    landmarks, whether or not the run moves them (so runs with and without covering, and alone, are scored on
-    the same frames)."""
-    out = {}
-    for f, b in zip(frames(case.faller), frames(case.bystander), strict=False):
-        if f.landmarks is not None and b.landmarks is not None:
-            out[f.seq] = bool(_hidden_masks(case, f, b)["faller"].any())
-    return out
+def hidden_masks(case: TwoPeople) -> dict[int, dict[str, np.ndarray]]:
+    """Per frame (seq) with both people drawn, :func:`_hidden_masks`: rendered and computed once per case, for
+    the runs with the bystander (moved with ``occlude``) and alone, which are then scored on the same frames."""
+    return {f.seq: _hidden_masks(case, f, b)
+            for f, b in zip(frames(case.faller), frames(case.bystander), strict=False)
+            if f.landmarks is not None and b.landmarks is not None}
+
+
+def faller_covered(hidden: dict[int, dict[str, np.ndarray]]) -> dict[int, bool]:
+    """Per frame of :func:`hidden_masks`: whether the bystander's body covers any of the faller's landmarks."""
+    return {seq: bool(masks["faller"].any()) for seq, masks in hidden.items()}
 
 
 def faller_error_mm(result: FitResult, f_frame, camera) -> float | None:
@@ -191,11 +193,12 @@ def faller_error_mm(result: FitResult, f_frame, camera) -> float | None:
     return 1000.0 * pa_mpjpe(est, np.array([truth[name] for name in BODY12_NAMES]))
 
 
-def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occluder],
-              hidden_share: list[float]) -> list:
+def _occluded(case: TwoPeople, given: list, hidden: dict[int, dict[str, np.ndarray]],
+              occluders: dict[str, occlusion.Occluder], hidden_share: list[float]) -> list:
     """``given`` (seq, t, faller frame, bystander frame) with each person's landmarks that the other's body
-    covers moved as the landmark stage moves them (:mod:`bench.people_occlusion`); the faller's share of
-    hidden landmarks per frame with both in view appended to ``hidden_share``."""
+    covers (``hidden``: :func:`hidden_masks`) moved as the landmark stage moves them
+    (:mod:`bench.people_occlusion`); the faller's share of hidden landmarks per frame with both in view appended
+    to ``hidden_share``."""
     cam = case.faller.camera
     bodies = {"faller": case.faller.body, "bystander": case.bystander.body}
     out = []
@@ -204,7 +207,7 @@ def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occlu
             out.append((seq, t, f_frame, b_frame))
             continue
         frames_now = {"faller": f_frame, "bystander": b_frame}
-        covered = _hidden_masks(case, f_frame, b_frame)
+        covered = hidden[seq]
         hidden_share.append(float(covered["faller"].mean()))
         moved = {}
         for who, fr in frames_now.items():
@@ -216,14 +219,16 @@ def _occluded(case: TwoPeople, given: list, occluders: dict[str, occlusion.Occlu
 
 
 def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig, alone: bool = False,
-             occlude: bool = False, covered: dict[int, bool] | None = None) -> dict:
+             occlude: bool = False, hidden: dict[int, dict[str, np.ndarray]] | None = None) -> dict:
     """One scenario through the tracker, a fitter per track and :class:`PeopleFalls` (``alone``: the faller
     only; ``occlude``: each person's landmarks the other covers as the landmark stage gives them,
-    :mod:`bench.people_occlusion`). ``covered`` (:func:`faller_covered`, computed when not given): the frames
-    the faller's 3D error is scored on, split by whether the bystander's body covers them; the row's
-    ``_faller_3d_by_seq`` (seq -> mm) is for :func:`run_bench`'s pairing, which removes it."""
-    if covered is None:
-        covered = faller_covered(case)
+    :mod:`bench.people_occlusion`). ``hidden`` (:func:`hidden_masks`, computed when not given): what each
+    body covers of the other, and the frames the faller's 3D error is scored on, split by whether the
+    bystander's body covers them; the row's ``_faller_3d_by_seq`` (seq -> mm) is for :func:`run_bench`'s
+    pairing, which removes it."""
+    if hidden is None:
+        hidden = hidden_masks(case)
+    covered = faller_covered(hidden)
     cam = case.faller.camera
     size, intr = (cam.width, cam.height), cam.intrinsics
     given = [(f.seq, f.t, f, None) for f in frames(case.faller)]
@@ -233,7 +238,8 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
     hidden_share: list[float] = []
     if occlude and not alone:
         seed = case.faller.seed
-        given = _occluded(case, given, {"faller": occlusion.Occluder(seed), "bystander": occlusion.Occluder(seed + 1)},
+        given = _occluded(case, given, hidden,
+                          {"faller": occlusion.Occluder(seed), "bystander": occlusion.Occluder(seed + 1)},
                           hidden_share)
     bodies = NamedBodies()
     if not alone:         # who is who: the person who falls is the household's member (their true height)
@@ -244,7 +250,6 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
     fits: dict[int, Callable] = {}
     ids: dict[str, list[int]] = {"faller": [], "bystander": []}
     messages = []
-    errors_3d: dict[str, list[float]] = {"covered": [], "clear": []}
     by_seq: dict[int, float] = {}
     for seq, t, f_frame, b_frame in given:
         seen = [(who, fr) for who, fr in (("faller", f_frame), ("bystander", b_frame))
@@ -258,7 +263,6 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             if who == "faller" and seq in covered:
                 e = faller_error_mm(r, fr, cam)
                 if e is not None:
-                    errors_3d["covered" if covered[seq] else "clear"].append(e)
                     by_seq[seq] = e
             people.append((tid, replace(r, extra={**r.extra, "person": tid}), fr.landmarks))
         if people:
@@ -287,7 +291,8 @@ def run_case(case: TwoPeople, make_fit: Callable[[], Callable], cfg: FallsConfig
             "ended": any(m.state == "recovered" for m in mine),
             "switches": {w: switches(v) for w, v in ids.items()}, "rematches": detectors.rematches,
             "faller_hidden": _hidden_summary(hidden_share) if occlude and not alone else None,
-            "faller_3d_mm": {k: {"frames": len(v), "sum": round(float(np.sum(v)), 1)} for k, v in errors_3d.items()},
+            "faller_3d_mm": {part: {"frames": len(v), "sum": round(float(np.sum(v)), 1)}
+                             for part, v in _by_cover(covered, by_seq).items()},
             "_faller_3d_by_seq": by_seq,
             "household": None if alone else _recognition(detectors, ids, followed)}
 
@@ -340,11 +345,12 @@ def _faller_3d(rows: list[dict]) -> dict:
     return out
 
 
-def _pair_3d(paired: dict[str, list[tuple[float, float]]], covered: dict[int, bool], with_by: dict[int, float],
-             alone: dict[int, float]) -> None:
-    """Append (with the bystander, alone) 3D errors of the frames both runs fitted, by covered or clear."""
-    for seq in sorted(with_by.keys() & alone.keys()):
-        paired["covered" if covered[seq] else "clear"].append((with_by[seq], alone[seq]))
+def _by_cover(covered: dict[int, bool], values: dict) -> dict[str, list]:
+    """``values`` (by frame seq) in frame order, split by whether the bystander's body covers the faller there."""
+    out: dict[str, list] = {"covered": [], "clear": []}
+    for seq in sorted(values):
+        out["covered" if covered[seq] else "clear"].append(values[seq])
+    return out
 
 
 def _covered(rows: list[dict]) -> dict:
@@ -383,10 +389,13 @@ def run_bench(split: str = "heldout", fit_kind: str = "real", cfg: FallsConfig |
             continue
         cfg_case = replace(cfg, camera_tilt_deg=case.faller.camera.tilt, camera_height_m=case.faller.camera.z,
                            camera_geometry="measured")
-        covered = faller_covered(case)
-        rows_by.append(run_case(case, make_fit, cfg_case, occlude=occlude, covered=covered))
-        rows_alone.append(run_case(case, make_fit, cfg_case, alone=True, covered=covered))
-        _pair_3d(paired, covered, rows_by[-1].pop("_faller_3d_by_seq"), rows_alone[-1].pop("_faller_3d_by_seq"))
+        hidden = hidden_masks(case)
+        rows_by.append(run_case(case, make_fit, cfg_case, occlude=occlude, hidden=hidden))
+        rows_alone.append(run_case(case, make_fit, cfg_case, alone=True, hidden=hidden))
+        with_by, alone = rows_by[-1].pop("_faller_3d_by_seq"), rows_alone[-1].pop("_faller_3d_by_seq")
+        both = {seq: (with_by[seq], alone[seq]) for seq in with_by.keys() & alone.keys()}
+        for part, v in _by_cover(faller_covered(hidden), both).items():
+            paired[part] += v
         r = rows_by[-1]
         progress(f"{r['name']} + {r['bystander']}: detected {r['detected']}, states {r['states']}")
     return {"split": split, "fit": fit_kind, "geometry": "given (the scene's camera height and tilt)",

@@ -178,11 +178,12 @@ def test_covering_the_faller_raises_their_3d_error_on_the_covered_frames_only():
     sc = next(s for s in catalogue("heldout") if s.name == "heldout/fall/sitting-sideways/fast-v150")
     case = pf.with_bystander(sc, "kneeling", "camera")
     cfg = measured(sc)
-    covered = pf.faller_covered(case)
+    hidden = pf.hidden_masks(case)
+    covered = pf.faller_covered(hidden)
     n = sum(covered.values())
     assert n > 20 and len(covered) > n
-    moved = pf.run_case(case, pf._fitter_factory("real"), cfg, occlude=True, covered=covered)
-    whole = pf.run_case(case, pf._fitter_factory("real"), cfg, covered=covered)
+    moved = pf.run_case(case, pf._fitter_factory("real"), cfg, occlude=True, hidden=hidden)
+    whole = pf.run_case(case, pf._fitter_factory("real"), cfg, hidden=hidden)
     assert moved["faller_hidden"]["frames_some_hidden"] == n
     w, m = whole["faller_3d_mm"], moved["faller_3d_mm"]
     assert w["covered"]["frames"] == n                       # drawn whole, every covered frame is fitted
