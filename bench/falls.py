@@ -24,6 +24,7 @@ import numpy as np
 
 from posed.bench.bvh import cmu_landmark_world, read_bvh
 from posed.bench.falls_body import Body, WorldCamera
+from posed.bench.falls_extractor import EXTRACTORS, as_extractor
 from posed.bench.falls_scenarios import Frame, Truth, catalogue, frames, truth_result
 from posed.bench.falls_world import MEANING as WORLD_MEANING
 from posed.bench.falls_world import case_world
@@ -297,13 +298,21 @@ def fit_down(geometry: str, fit_config=None) -> str:
 def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | None = None,
               only: str = "", shared_data: Path | None = None, progress: Callable[[Outcome], None] | None = None,
               fit_config=None, with_intrinsics: bool = True, cache: Path | None = None,
-              geometry: str = "given", mount: str = "robot", world: bool = False) -> dict:
+              geometry: str = "given", mount: str = "robot", world: bool = False,
+              extractor: str = "blazepose") -> dict:
     """``with_intrinsics`` False, and always with a ``mount`` other than "robot" (the scenarios and CMU clips seen
     by ``falls_scenarios.MOUNTS["wall"]`` or ``["corner"]``, as a recording without a camera header): the fit is given what the
     daemon gives a source without intrinsics, the assumed lens of ``camera_hfov_deg`` (orthographic when
     ``fit_config.projection`` is), not the camera's true one. With a wall camera the detector gets no
     intrinsics either (it assumes the same lens). ``world``: the real fit is given each case's simulated world
-    landmarks (:mod:`bench.falls_world`), as the daemon's landmark stage gives them."""
+    landmarks (:mod:`bench.falls_world`), as the daemon's landmark stage gives them. ``extractor``: the 2D
+    landmarks as that extractor gives them (:mod:`bench.falls_extractor`; "holistic": as the real recordings of
+    urfd_dev, which carry no world landmarks, so not with ``world``)."""
+    if extractor not in EXTRACTORS:
+        raise ValueError(f"extractor {extractor!r} is not one of: {', '.join(EXTRACTORS)}")
+    if world and extractor != "blazepose":
+        raise ValueError(f"world landmarks come from BlazePose: --world cannot go with --extractor {extractor} "
+                         "(drop one of them)")
     cfg = cfg or FallsConfig()
     cases: list[Case] = []
     if mount != "robot":
@@ -315,6 +324,7 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
             cases += scenario_cases(split, mount)
     if only:
         cases = [c for c in cases if only in c.name]
+    cases = [as_extractor(c, extractor) for c in cases]
     outcomes = []
     t0 = time.monotonic()
     fit = real_fitter(fit_config) if fit_kind == "real" else None
@@ -346,5 +356,6 @@ def run_bench(splits: Iterable[str], fit_kind: str = "real", cfg: FallsConfig | 
     report["geometry"] = {"mode": geometry, "meaning": GEOMETRIES[geometry]}
     report["mount"] = mount
     report["world"] = WORLD_MEANING if world and fit_kind == "real" else None
+    report["extractor"] = {"name": extractor, "meaning": EXTRACTORS[extractor]}
     report["seconds"] = round(time.monotonic() - t0, 1)
     return report
