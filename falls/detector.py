@@ -10,7 +10,8 @@ without recovering). Messages (``FallEvent``, all with the event's id):
   descent profile (``impact_abrupt``, ``supported_phase_before``) sets the confidence, and a braked descent
   from sitting or kneeling (lying down on purpose) raises no ``falling``;
 - ``on_floor``: lying at floor level for ``on_floor_confirm_s`` — a slow fall, a person found lying who
-  was not seen falling, or (after ``falling``) the person is still down;
+  was not seen falling, or (after ``falling``) the person is still down; the time out of sight after lying
+  was seen counts too (feature ``lost_while_lying``);
 - ``alarm``: down ``alarm_after_s`` after the impact without recovering (the timer runs while the person is
   out of view: losing sight of them never hides the alarm);
 - ``recovered``: up again (pelvis above ``recover_pelvis_rel``, trunk within ``recover_trunk_deg`` of vertical)
@@ -21,7 +22,8 @@ legs; before that, estimated from the fitted leg length). The floor is the confi
 (``camera_height_m``), refined from the feet of a person standing upright (``learn_floor``); gravity is the
 configured tilt and roll, learned ones (``camera_*_auto``, :mod:`falls.geometry`) or the IMU's. Frames that
 cannot be judged (no person, failed fit, fewer than three of the shoulders and hips in view) change nothing
-but the lost-after-descent rule and the alarm timer; gaps up to ``max_gap_s`` are bridged. See docs/falls.md for every threshold's reason.
+but the lost-after-descent rule, the on_floor timer of a person last seen lying, and the alarm timer; gaps up
+to ``max_gap_s`` are bridged. See docs/falls.md for every threshold's reason.
 """
 
 from __future__ import annotations
@@ -206,6 +208,8 @@ class FallDetector:
             out += self._step(sample)
         else:
             out += self._lost(t)
+            if not out:
+                out += self._lost_lying(t)
             if self._last_valid_t is not None and t - self._last_valid_t > self.cfg.max_gap_s:
                 self._gap()
         out += self._timers(t)
@@ -249,6 +253,38 @@ class FallDetector:
             feats.append("judged_on_descent")   # decided before lost_confirm_s: less sure
             conf = min(0.75, conf - 0.1)
         return [self._raise("falling", d.t_onset, self._impact_time(d.t_fast), t, feats, conf)]
+
+    def _lying_event(self, t: float, supporting: list[str], lost: bool = False) -> FallEvent:
+        """``on_floor`` for a person lying at floor level since ``_lying_start`` (no fall seen); ``lost``: out of
+        sight since they were last seen lying (feature ``lost_while_lying``, less sure)."""
+        assert self._lying_start is not None
+        onset = self._slow_onset(self._lying_start)
+        feats = ["lying_at_floor_level"] + supporting
+        conf = min(0.95, 0.55 + 0.1 * (len(feats) - 1))
+        if lost:
+            feats.append("lost_while_lying")
+            conf = min(conf, 0.65)
+        if self._controlled_t is not None and t - self._controlled_t <= 5.0:
+            feats.append("controlled_descent")   # lay down on purpose, it seems: less sure
+            conf = min(conf, 0.5)
+        elif self._supported_before(self._lying_start) or (onset is not None and self._supported_before(onset)):
+            feats.append("supported_phase_before")   # slowly from sitting or kneeling: less sure
+            conf = min(conf, 0.5)
+        return self._raise("on_floor", onset, self._lying_start, t, feats, conf)
+
+    def _lost_lying(self, t: float) -> list[FallEvent]:
+        """Not judged this frame, and last seen lying at floor level: the ``on_floor`` timer runs on while the
+        person is out of sight, as the alarm timer does (pose extractors lose people lying on the floor; missing
+        frames are no evidence of getting up). Only after lying was judged on two frames or more (each the
+        median of three), so that one wrong fit before a loss raises nothing; only while the gap is bridged
+        (``max_gap_s``)."""
+        cfg = self.cfg
+        if self.state != "up" or self._lying_start is None or self._last_valid_t is None:
+            return []
+        if self._last_valid_t <= self._lying_start + 1e-9 or t - self._lying_start < cfg.on_floor_confirm_s - 1e-9:
+            return []
+        s = self._last_smoothed
+        return [self._lying_event(t, self._supporting(s, 0.0) if s is not None else [], lost=True)]
 
     def _abrupt(self, t_onset: float, t_impact: float) -> bool:
         """The descent profile: did the pelvis still move at half its peak speed or more in the last
@@ -443,16 +479,7 @@ class FallDetector:
                                        min(0.5, 0.35 + 0.05 * (len(feats) - 2))))
             if not out and self.state == "up" and self._lying_start is not None \
                     and t - self._lying_start >= cfg.on_floor_confirm_s - 1e-9:
-                onset = self._slow_onset(self._lying_start)
-                feats = ["lying_at_floor_level"] + self._supporting(s, flex_rate)
-                conf = min(0.95, 0.55 + 0.1 * (len(feats) - 1))
-                if self._controlled_t is not None and t - self._controlled_t <= 5.0:
-                    feats.append("controlled_descent")   # lay down on purpose, it seems: less sure
-                    conf = min(conf, 0.5)
-                elif self._supported_before(self._lying_start) or (onset is not None and self._supported_before(onset)):
-                    feats.append("supported_phase_before")   # slowly from sitting or kneeling: less sure
-                    conf = min(conf, 0.5)
-                out.append(self._raise("on_floor", onset, self._lying_start, t, feats, conf))
+                out.append(self._lying_event(t, self._supporting(s, flex_rate)))
             return out
 
         # down or alarm
