@@ -148,7 +148,7 @@ def run_cross(shared: Path, cfg, recordings: Path, cache: Path | None, videos_di
     synth(("tune", "heldout", "cmu"), "default", "corner", "synthetic + CMU, corner camera, Holistic's landmarks",
           "held out", holistic + ", no intrinsics (assumed lens)", extractor="holistic")
     log("urfd_dev ...")
-    looked = "looked at (lost_confirm_s, lost_descent_confirm_s, the body check's 20 deg)"
+    looked = "looked at (lost_confirm_s, lost_descent_confirm_s, the body check's 20 deg, lost_while_lying's box)"
     r = run_recordings(recordings, cfg, "labels", cache)
     rows.append(_recordings_row("urfd_dev (real, MediaPipe Holistic)", looked, "labelled", r))
     r = run_recordings(recordings, cfg, "config", cache)

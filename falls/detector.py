@@ -276,15 +276,20 @@ class FallDetector:
         """Not judged this frame, and last seen lying at floor level: the ``on_floor`` timer runs on while the
         person is out of sight, as the alarm timer does (pose extractors lose people lying on the floor; missing
         frames are no evidence of getting up). Only after lying was judged on two frames or more (each the
-        median of three), so that one wrong fit before a loss raises nothing; only while the gap is bridged
-        (``max_gap_s``)."""
+        median of three), so that one wrong fit before a loss raises nothing; only with the last landmark box
+        seen wider than tall (``bbox_wide_ratio``): out of sight, the image must agree with the fit that the
+        body lies along the floor, since the fit reads someone crouched and curled over on the floor as lying
+        (urfd_dev's urfd_42 and urfd_50 end so, their boxes 0.73-0.83 as wide as tall); and only while the gap
+        is bridged (``max_gap_s``)."""
         cfg = self.cfg
-        if self.state != "up" or self._lying_start is None or self._last_valid_t is None:
+        s = self._last_smoothed
+        if self.state != "up" or self._lying_start is None or self._last_valid_t is None or s is None:
             return []
         if self._last_valid_t <= self._lying_start + 1e-9 or t - self._lying_start < cfg.on_floor_confirm_s - 1e-9:
             return []
-        s = self._last_smoothed
-        return [self._lying_event(t, self._supporting(s, 0.0) if s is not None else [], lost=True)]
+        if s.aspect <= cfg.bbox_wide_ratio:
+            return []
+        return [self._lying_event(t, self._supporting(s, 0.0), lost=True)]
 
     def _abrupt(self, t_onset: float, t_impact: float) -> bool:
         """The descent profile: did the pelvis still move at half its peak speed or more in the last

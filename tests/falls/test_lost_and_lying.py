@@ -240,6 +240,26 @@ def test_lying_seen_on_one_frame_only_then_lost_raises_nothing(name):
     assert run(sc, lose_after=lying_start + 0.5 / sc.fps) == []
 
 
+def _narrow(lm: np.ndarray) -> np.ndarray:
+    """The landmark box squeezed across the image to a fifth of its width (a body lying along the camera's
+    axis, or crouched and curled over: taller than wide in the image), the fit's body unchanged."""
+    cx = np.nanmean(lm[:, 0])
+    lm[:, 0] = cx + 0.2 * (lm[:, 0] - cx)
+    return lm
+
+
+@pytest.mark.parametrize("name", SLOW_FALLS)
+def test_lost_while_lying_needs_a_box_wider_than_tall(name):
+    """Out of sight the image must agree with the fit that the body lies along the floor: with the box
+    taller than wide, lying seen for 0.3 s and then lost raises nothing (the fit reads someone crouched and
+    curled over on the floor as lying: urfd_dev's urfd_42 and urfd_50 end so); seen lying for
+    on_floor_confirm_s, the same body is still reported."""
+    sc = TUNE[name]
+    seen = run(sc, landmark_edit=_narrow)
+    assert [e.state for e in seen][:1] == ["on_floor"] and "bbox_wide" not in seen[0].features
+    assert run(sc, lose_after=seen[0].t_impact + 0.3, landmark_edit=_narrow) == []
+
+
 def test_the_on_floor_timer_runs_out_of_sight_only_while_the_gap_is_bridged():
     """With on_floor_confirm_s longer than max_gap_s, a person lost while lying is forgotten before the timer
     runs out: nothing is raised out of sight (seen, it would be)."""
