@@ -80,6 +80,7 @@ def run(rt: StageRuntime) -> None:
     from posed.hal import (
         EndOfStream,
         SourceCorrupt,
+        SourceDisconnected,
         SourceError,
         SourceNotFound,
         SourceTimeout,
@@ -95,6 +96,7 @@ def run(rt: StageRuntime) -> None:
     reported_ready = False
     throttle = Throttle()
     news = _News(rt)
+    unplugged = False
     rt.row.set_camera("opening")
     try:
         while True:
@@ -134,6 +136,14 @@ def run(rt: StageRuntime) -> None:
             except SourceCorrupt as exc:
                 _bad_frame(rt, throttle, news, str(exc), exc.pixels, source)
                 continue
+            except SourceDisconnected as exc:
+                # the source reconnects by itself while it is read (hal/errors.py): keep reading it. Closing and
+                # opening it again would start a recording over from its first frame
+                if not unplugged:
+                    unplugged = True
+                    rt.row.set_camera("lost")
+                    news.lost(str(exc))
+                continue
             except EndOfStream:
                 rt.row.set_camera("ended")
                 news.ended(source)
@@ -147,6 +157,10 @@ def run(rt: StageRuntime) -> None:
                 _close(source)
                 source = None
                 continue
+            if unplugged:
+                unplugged = False
+                rt.row.set_camera("open")
+                news.back(source)
             news.frame(source, frame)
             if not thinner.take(frame.t):
                 rt.skip()
@@ -258,6 +272,13 @@ class _News:
     def lost(self, error: str) -> None:
         self.camera.update(state="lost", error=error)
         self.rt.log.warning("camera_lost", error=error)
+        self._send()
+
+    def back(self, source) -> None:
+        """Frames again after an unplug (the source reconnected by itself)."""
+        self.camera.pop("error", None)
+        self.camera.update(_info(source))
+        self.rt.log.info("camera_back", **{k: v for k, v in self.camera.items() if k in ("name", "kind", "state")})
         self._send()
 
 
