@@ -3,7 +3,8 @@
 A recording is JSON Lines: a header line, then one frame per line. Landmarks are 33 rows of
 ``[x, y, z, visibility, presence]`` in MediaPipe Pose order; x, y are image pixels (x right, y down), z is
 MediaPipe's relative depth on the x scale (negative nearer the camera, 0 when unknown). In memory a frame's
-landmarks are a (33, 5) float64 array; a landmark that is ``null`` in the file is a row of NaN.
+landmarks are a (33, 5) float64 array; a landmark that is ``null`` in the file is a row of NaN, and so is one
+with a NaN or infinite value (JSON has no such numbers, but some writers emit them): unknown, the frame kept.
 
 Depth (optional): a frame may carry ``depth_m``, 33 depths in metres along the camera's z axis that a depth
 camera aligned to the image measured at the landmarks' pixels (``null`` where unknown; in memory a (33,)
@@ -156,6 +157,13 @@ class RecordingHeader:
 
 def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _non_finite(entry: Any) -> bool:
+    """Five numbers, one of them NaN or infinite: a landmark its extractor did not know."""
+    return (isinstance(entry, list) and len(entry) == 5
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in entry)
+            and not all(math.isfinite(v) for v in entry))
 
 
 @dataclass(frozen=True, eq=False)
@@ -373,8 +381,8 @@ def _parse_rows(raw: Any, key: str, what: str) -> np.ndarray | None:
         raise ValueError(f"{key} must be a list of 33 entries or null, got {n}")
     arr = np.full((NUM_LANDMARKS, 5), np.nan)
     for i, lm in enumerate(raw):
-        if lm is None:
-            continue
+        if lm is None or _non_finite(lm):
+            continue   # unknown; NaN or Infinity (not JSON, but some writers emit it) is read as null is
         if not isinstance(lm, list) or len(lm) != 5 or not all(_is_number(v) for v in lm):
             label = "landmark" if key == "landmarks" else key
             raise ValueError(f"{label} {i} ({LANDMARK_NAMES[i]}) must be {what} finite numbers or null, got {lm!r}")
@@ -496,6 +504,7 @@ def _parse_header(raw: bytes, path: str) -> RecordingHeader:
         line = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise RecordingError(f"{path}:1: not UTF-8 text ({exc.reason})") from exc
+    line = line.removeprefix("\ufeff")   # a byte-order mark some editors write: not part of the JSON
     if not line.strip(JSON_WHITESPACE):
         raise RecordingError(f"{path}:1: empty file; a recording starts with a header line "
                              f'{{"format": "{FORMAT}", "version": {VERSION}, ...}}')
