@@ -30,8 +30,8 @@ LANDMARK_INDEX = {
 
 @dataclass(frozen=True)
 class Reprojection:
-    """Pixels (x right, y down) of each fitted joint; ``how``: ``perspective`` or ``orthographic (scale and
-    offset fitted to the landmarks)``."""
+    """Pixels (x right, y down) of each fitted joint; ``how``: ``perspective`` or ``laid on the landmarks
+    (scale and offset; the fit has no position)``: what the overlay's bottom line says."""
 
     pixels: dict[str, tuple[float, float]]
     how: str
@@ -75,4 +75,5 @@ def reproject(joints_3d: dict, root_cam_m, intrinsics: Intrinsics | None,
     k = float(((src_a - sc) * (dst_a - dc)).sum() / s_var)   # scale only: no rotation, the camera is level
     pixels = {n: (float(dc[0] + k * (v[0] - sc[0])), float(dc[1] + k * (v[1] - sc[1])))
               for n, v in joints_3d.items()}
-    return Reprojection(pixels, "orthographic (scale and offset fitted to the landmarks)")
+    # not "orthographic": the fit itself may be perspective through an assumed lens; only its placement is solved
+    return Reprojection(pixels, "laid on the landmarks (scale and offset; the fit has no position)")

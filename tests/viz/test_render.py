@@ -100,7 +100,7 @@ def test_orthographic_reprojection_recovers_scale_and_offset():
     for n, i in idx.items():
         lm[i] = (300 + 250 * joints[n][0], 200 + 250 * joints[n][1], 0, 1, 1)
     r = reproject(joints, None, None, lm)
-    assert r.how.startswith("orthographic")
+    assert r.how.startswith("laid on the landmarks")
     for n, i in idx.items():
         assert r.pixels[n] == pytest.approx(tuple(lm[i, :2]))
 
