@@ -28,6 +28,7 @@ from posed.daemon.config.sections import ZenohConfig
 from posed.daemon.proc.throttle import Throttle
 
 MATCH_POLL_S = 0.5          # how often the events/fall publisher's matching status is read
+LINK_POLL_S = 1.0           # how often the routers (and peers) the session reaches are counted
 LOG_FAILURE_EVERY = 12      # after the first, every 12th failed attempt to open the session is logged
 
 
@@ -75,6 +76,9 @@ class BusLink:
         self._error = ""
         self._matching = False
         self._next_match_poll = 0.0
+        self._next_link_poll = 0.0
+        self._reached = 0               # routers (client mode) or routers and peers seen at the last count
+        self._link_seen = False         # reached one at least once since start
 
     @property
     def is_open(self) -> bool:
@@ -141,6 +145,34 @@ class BusLink:
             except Exception:
                 pass
         return out
+
+    def watch_link(self, now: float) -> None:
+        """Every LINK_POLL_S, count what the session reaches: the routers in client mode, the routers and peers
+        when ``zenoh.connect`` names endpoints in peer mode (a peer listening on its own has nothing to lose).
+        Log ``zenoh_link_lost`` (a warning) when the count falls to 0 and ``zenoh_link_back`` when it rises again:
+        Zenoh drops what is put meanwhile without an error, so this is the only sign. Fall events are not lost:
+        unacknowledged ones are published again when a subscriber appears."""
+        if self.session is None or now < self._next_link_poll:
+            return
+        self._next_link_poll = now + LINK_POLL_S
+        if self.cfg.mode != "client" and not self.cfg.connect:
+            return
+        try:
+            n = len(list(self.session.info.routers_zid()))
+            if self.cfg.mode != "client":
+                n += len(list(self.session.info.peers_zid()))
+        except Exception:
+            return
+        what = "router" if self.cfg.mode == "client" else "router or peer"
+        if n == 0 and self._reached > 0:
+            self.log.warning("zenoh_link_lost", connect=list(self.cfg.connect), mode=self.cfg.mode,
+                             error=f"no {what} reachable any more: poses and status go nowhere",
+                             fix=f"check that the {what} at {', '.join(self.cfg.connect) or 'zenoh.connect'} runs "
+                                 "and is reachable; fall events are kept and published again until acknowledged")
+        elif n > 0 and self._reached == 0 and self._link_seen:
+            self.log.info("zenoh_link_back", mode=self.cfg.mode, reached=n)
+        self._link_seen = self._link_seen or n > 0
+        self._reached = n
 
     # ------------------------------------------------------------------ publishing
     def _put(self, stream: str, obj) -> bool:

@@ -118,6 +118,7 @@ class PublisherStage:
         status = self.rt.mailbox("status").take()
         if status is not None:
             self.publish_status(status)
+        self.bus.watch_link(now)
         if self.bus.event_subscriber_appeared(now):
             self.outbox.subscriber_appeared(now)
         self.outbox.tick(now, self.bus.event_subscribed)
