@@ -36,6 +36,26 @@ def unobserved(missing: list[str]) -> list[str]:
     return out
 
 
+# the joint variables (eq. (6) indices 4..18: trunk, hips, knees, shoulders, elbows) and a tolerance for "at a
+# joint limit": the refinement clamps a variable to the limit exactly (fitting.problem.LIMIT_LO/HI)
+_JOINT_VARIABLES = range(4, 19)
+_AT_LIMIT_RAD = 1e-4
+_EXTENSION_STOPS = {"theta_kn_l", "theta_kn_r", "theta_el_l", "theta_el_r"}   # 0: straight, a real pose
+
+
+def at_limit(x: np.ndarray) -> list[str]:
+    """The joint variables of solution ``x`` (kernel units) held at a joint limit of the refinement: the fit
+    wanted the angle further than the model allows, so the value is the clamp's, not a measurement. A knee or
+    an elbow at 0 (straight) is not one: full extension is a pose people hold."""
+    out = []
+    for i in _JOINT_VARIABLES:
+        name = VARIABLE_NAMES[i]
+        at_lo = abs(x[i] - P.LIMIT_LO_RAD[i]) < _AT_LIMIT_RAD and name not in _EXTENSION_STOPS
+        if at_lo or abs(x[i] - P.LIMIT_HI_RAD[i]) < _AT_LIMIT_RAD:
+            out.append(name)
+    return out
+
+
 def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.ndarray, *, loss: float,
              mp: float, fit_ms: float, mode: str, evals: int, udeas_s: float, missing: list[str], gamma: float,
              depth: DepthFit | None, measured: Measured | None = None, rotation: P.Rotation = False,
@@ -78,5 +98,11 @@ def assemble(seq: int, t: float, x: np.ndarray, frame: P.Frame, fixed_deg: np.nd
     if missing:
         extra["missing"] = missing
         extra["unobserved"] = unobserved(missing)
+    clamped = at_limit(x)
+    if clamped:   # a clamp's value, not a measurement: listed, and left out of what the frame measured
+        extra["at_limit"] = clamped
+        if measured is not None:
+            measured = Measured(measured.landmarks, tuple(a for a in measured.angles if a not in clamped),
+                                measured.joints)
     return FitResult(seq=seq, t=t, ok=True, loss=float(f"{loss:.6g}"), fit_ms=float(f"{fit_ms:.4g}"),
                      variables=variables, joint_angles_deg=angles, joints_3d=j3, extra=extra, measured=measured)

@@ -14,6 +14,8 @@ joint angle or a joint position as a fact.
   places the pelvis and trunk from the model's guess: on the real UR Fall recording urfd_04, the 32 frames
   with a shoulder missing have body pitch jumping between -180 and +85 degrees from one frame to the next
   and trunk flexion between 0 and 100.
+* An angle the refinement held at a joint limit (``at_limit`` in the result: the fit wanted it further than
+  the model allows; a straight knee or elbow at 0 excepted) is the clamp's value, not a measurement.
 * The angles the model holds fixed (``FIXED``: head, hip rotation, ankles; no landmark the fit uses observes
   them) are never measured. A failed fit measured nothing.
 
@@ -112,7 +114,7 @@ class Measured:
         ones the fit could not use) and ``unobserved`` variables."""
         missing = set(extra.get("missing") or ())
         return cls.from_landmarks((n for n in BODY_LANDMARK_NAMES if n not in missing),
-                                  extra.get("unobserved") or ())
+                                  [*(extra.get("unobserved") or ()), *(extra.get("at_limit") or ())])
 
     def angle(self, name: str) -> bool:
         return name in self.angles
