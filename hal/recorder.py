@@ -13,11 +13,21 @@ The output format follows the name given:
 =====================  ===========================================================================
 
 The sidecar (:mod:`hal.sidecar`) keeps each frame's seq and capture time; ``file:NAME.mkv`` replays them.
-Depth is kept only in ``.db3``.
+Depth is kept only in ``.db3``. The output's folder is created when it does not exist.
+
+A full disk (OpenCV's video writer says nothing when a write fails): before each frame the free space of the
+output's folder is checked against what the frame may take (``_Sink.need``: the largest frame so far, twice;
+before the first, a guess from the image size) plus ``DISK_RESERVE_BYTES`` for the container's index and what is still
+buffered. Recording stops before the first frame that would not fit (``reason`` "disk full"), so the file
+is finished and plays; at close a video is opened again and its frames counted, and should fewer have reached
+the disk than were written, ``frames`` and the sidecar are cut to those the file holds.
 """
 
 from __future__ import annotations
 
+import errno
+import os
+import sqlite3
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -34,6 +44,28 @@ from posed.hal.sidecar import SidecarWriter, sidecar_path
 from posed.hal.source import Source
 
 VIDEO_CODECS = {".mkv": "FFV1", ".avi": "MJPG", ".mp4": "mp4v"}
+# a first guess of a frame's encoded size, as a fraction of its raw BGR size (generous: a guess too small
+# lets one frame be lost; too large only stops a recording on a nearly full disk a frame early)
+FIRST_GUESS = {"FFV1": 1.0, "MJPG": 0.2, "mp4v": 0.2, "png": 0.8, "db3": 1.0}
+DISK_RESERVE_BYTES = 256 * 1024     # kept free: the index written at close, buffered output, sidecar lines
+DISK_FULL = "disk full"
+
+
+class _DiskFull(Exception):
+    """The output's disk cannot take the next frame."""
+
+
+def free_bytes(folder: str | os.PathLike) -> int | None:
+    """Bytes an unprivileged writer may still use on ``folder``'s file system (None: cannot tell)."""
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return None
+    return st.f_bavail * st.f_frsize
+
+
+def _is_disk_full(exc: BaseException) -> bool:
+    return getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT) or "disk is full" in str(exc).lower()
 
 
 @dataclass(frozen=True)
@@ -61,10 +93,25 @@ class _Sink:
     sidecar: str | None = None
     has_depth = False
     notes: tuple[str, ...] = ()
+    largest = 0          # the most bytes one frame took on disk so far (0: not measured yet)
+    guess = 0            # the first guess of a frame's size (FIRST_GUESS)
 
     def write(self, frame: Frame) -> None: ...
 
     def close(self) -> None: ...
+
+    def need(self) -> int:
+        """Bytes the next frame may take on disk: twice the largest so far, the first guess before any."""
+        return (2 * self.largest if self.largest else self.guess) + 128       # + its sidecar line
+
+    def kept(self, written: int) -> int:
+        """After close: how many of the ``written`` frames the output holds (a video is counted again)."""
+        return written
+
+
+def _guess(frame: Frame, kind: str) -> int:
+    raw = frame.width * frame.height * 3 + (0 if frame.depth is None else frame.depth.nbytes)
+    return int(raw * FIRST_GUESS[kind])
 
 
 class _VideoSink(_Sink):
@@ -72,7 +119,10 @@ class _VideoSink(_Sink):
 
     def __init__(self, path: Path, first: Frame, fps: float, source: str) -> None:
         codec = VIDEO_CODECS[path.suffix.lower()]
+        self.path = path
         self.size = (first.width, first.height)
+        self.guess = _guess(first, codec)
+        self._measured = (0, 0)          # (file size, frames) when the file last grew
         self.writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*codec), fps, self.size)
         if not self.writer.isOpened():
             raise SourceUnsupported(f"{path}: OpenCV cannot write {codec} video here; try another suffix "
@@ -93,10 +143,42 @@ class _VideoSink(_Sink):
         self.writer.write(image)
         self.side.add(self.index, frame.seq, frame.t - self.t0)
         self.index += 1
+        try:
+            size = self.path.stat().st_size
+        except OSError:
+            return
+        last_size, last_frames = self._measured
+        if size > last_size:          # the muxer writes in blocks: the growth shared by the frames since
+            self.largest = max(self.largest, (size - last_size) // max(1, self.index - last_frames))
+            self._measured = (size, self.index)
 
     def close(self) -> None:
         self.writer.release()
         self.side.close()
+
+    def kept(self, written: int) -> int:
+        """The frames the finished file holds: its frame count, or when that says fewer than were written
+        (or nothing), the frames read back one by one; the sidecar is cut to match."""
+        if written == 0:
+            return 0
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0) if cap.isOpened() else 0
+            if n < written and cap.isOpened():   # a count estimated from the duration may be a frame or two
+                cap.set(cv2.CAP_PROP_POS_FRAMES, written - 1)      # short: the last frame read settles it;
+                if n >= written - 2 and cap.grab():                # else (no count: no index) count them
+                    n = written
+                else:
+                    cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                    n = 0
+                    while n < written and cap.grab():
+                        n += 1
+        finally:
+            cap.release()
+        n = min(n, written)
+        if n < written:
+            self.side.keep(n)
+        return n
 
 
 class _ImageSink(_Sink):
@@ -106,6 +188,7 @@ class _ImageSink(_Sink):
         path.mkdir(parents=True, exist_ok=True)
         self.folder = path
         self.size = (first.width, first.height)
+        self.guess = _guess(first, "png")
         side = sidecar_path(path)
         self.sidecar = str(side)
         self.side = SidecarWriter(side, source, fps, self.size, first.intrinsics)
@@ -116,8 +199,18 @@ class _ImageSink(_Sink):
 
     def write(self, frame: Frame) -> None:
         name = self.folder / f"frame_{self.index:06d}.png"
-        if not cv2.imwrite(str(name), frame.image):
-            raise OSError(f"{name}: cannot write the image (disk full or no permission?)")
+        ok = cv2.imwrite(str(name), frame.image)
+        try:
+            size = name.stat().st_size
+        except OSError:
+            size = 0
+        if not ok or size == 0:
+            name.unlink(missing_ok=True)             # a cut image would break the replay
+            free = free_bytes(self.folder)
+            if free is not None and free < self.need():
+                raise _DiskFull(str(name))
+            raise OSError(f"{name}: cannot write the image (no permission?)")
+        self.largest = max(self.largest, size)
         self.side.add(self.index, frame.seq, frame.t - self.t0)
         self.index += 1
 
@@ -143,6 +236,7 @@ class _Db3Sink(_Sink):
                                 accel_fps=max(1, int(round(fps))))
         self.t0 = first.t
         self.size = (first.width, first.height)
+        self.guess = _guess(first, "db3")
 
     def write(self, frame: Frame) -> None:
         depth = frame.depth if self.has_depth else None
@@ -178,6 +272,7 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
     recording goes on; the file is finished in every case."""
     sink_type = check_output(output)
     path = Path(output)
+    folder = path if sink_type is _ImageSink else path.parent
     fps = float(source.info.get("fps") or source.config.fps)
     start = clock()
     end = start + seconds if seconds is not None else None
@@ -208,16 +303,45 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
                 key = type(exc).__name__
                 problems[key] = problems.get(key, 0) + 1
                 continue
-            if sink is None:
-                sink = sink_type(path, frame, fps, source.name)
-            sink.write(frame)
+            try:
+                if sink is None:
+                    if sink_type is not _ImageSink:
+                        folder.mkdir(parents=True, exist_ok=True)
+                    sink = sink_type(path, frame, fps, source.name)
+                _check_room(folder, sink.need())
+                sink.write(frame)
+            except _DiskFull:
+                reason = DISK_FULL
+                break
+            except (OSError, sqlite3.Error) as exc:
+                if not _is_disk_full(exc):
+                    raise
+                reason = DISK_FULL
+                break
             frames += 1
     except KeyboardInterrupt:
         reason = "interrupted"
     finally:
         if sink is not None:
             sink.close()
+    notes = sink.notes if sink else ()
+    if sink is not None:
+        kept = sink.kept(frames)
+        if kept < frames:                   # frames the disk did not take although the writer said nothing
+            frames, reason = kept, DISK_FULL
+        if frames == 0 and reason == DISK_FULL and isinstance(sink, _VideoSink):
+            for leftover in (path, Path(sink.side.path)):     # no frame: no unplayable stub left behind
+                leftover.unlink(missing_ok=True)
+    if reason == DISK_FULL:
+        notes = (*notes, f"disk full at {os.path.abspath(folder)} after {frames} frames: free space or record "
+                         "elsewhere")
     return RecordSummary(path=str(path), format=sink.format if sink else "", frames=frames,
                          seconds=clock() - start, reason=reason, sidecar=sink.sidecar if sink else None,
-                         has_depth=bool(sink and sink.has_depth), problems=problems,
-                         notes=sink.notes if sink else ())
+                         has_depth=bool(sink and sink.has_depth), problems=problems, notes=notes)
+
+
+def _check_room(folder: Path, need: int) -> None:
+    """_DiskFull when ``folder``'s file system has less than ``need`` + DISK_RESERVE_BYTES free."""
+    free = free_bytes(folder)
+    if free is not None and free < need + DISK_RESERVE_BYTES:
+        raise _DiskFull(str(folder))

@@ -133,6 +133,16 @@ class SidecarWriter:
     def add(self, frame: int, seq: int, t: float) -> None:
         self._write({"frame": frame, "seq": seq, "t": round(t, 6)})
 
+    def keep(self, frames: int) -> None:
+        """Cut the file to its header and the first ``frames`` frame lines (the video holds no more: a disk
+        that filled up); cutting needs no free space."""
+        self.close()
+        with self.path.open("r+b") as fh:
+            for _ in range(frames + 1):
+                if not fh.readline():
+                    return
+            fh.truncate()
+
     def close(self) -> None:
         if self._fh is not None:
             self._fh.close()

@@ -4,6 +4,12 @@ Codecs, by the output's suffix (what this OpenCV build can write and a browser p
 current browser plays it; opencv-python-headless's FFmpeg has no H.264 encoder, so ``.mp4`` is written as
 H.264 only when ``ffmpeg`` is installed — frames are piped to it — and refused otherwise, naming ``.webm``);
 ``.avi`` Motion-JPEG (plays in desktop players, not in browsers).
+
+A full disk: OpenCV's writer says nothing when a write fails, so before each frame the free space of the
+output's folder is checked against what a frame takes (twice the largest so far, a guess from the frame size
+before the first) plus ``DISK_RESERVE_BYTES``, and at close the file is opened again and its frames counted
+(ffmpeg's exit status for ``.mp4``). A video that did not make it whole is removed and :class:`DiskFullError`
+(or :class:`VideoError`) raised: no empty or cut file is left looking like a render.
 """
 
 from __future__ import annotations
@@ -23,6 +29,8 @@ import cv2
 import numpy as np
 
 SUFFIXES = (".webm", ".mp4", ".avi")
+DISK_RESERVE_BYTES = 256 * 1024     # kept free: the container's index and cues written at close, buffers
+FIRST_GUESS = 0.25                  # a first frame's encoded size as a fraction of its raw size (generous)
 
 
 # What OpenCV's FFmpeg writer prints (with C's fprintf, past Python and OpenCV's log level) for every WebM file:
@@ -61,6 +69,18 @@ class VideoError(Exception):
     """The output cannot be written (the message names the fix)."""
 
 
+class DiskFullError(VideoError):
+    """The output's disk is full (the message names the folder); the partial file was removed."""
+
+
+def _free_bytes(folder: Path) -> int | None:
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return None
+    return st.f_bavail * st.f_frsize
+
+
 class VideoOut:
     """Frames (BGR uint8, all of one size) to a video file at ``fps``; a context manager."""
 
@@ -68,6 +88,8 @@ class VideoOut:
         self.path = Path(path)
         self.size = (int(size[0]) // 2 * 2, int(size[1]) // 2 * 2)   # even sizes: every codec takes them
         self.frames = 0
+        self._largest = 0                 # the most bytes one frame took in the file so far
+        self._grown = (0, 0)              # (file size, frames) when the file last grew
         self._writer = None
         self._ffmpeg: subprocess.Popen | None = None
         suffix = self.path.suffix.lower()
@@ -93,9 +115,18 @@ class VideoOut:
                 raise VideoError(f"{self.path}: OpenCV cannot open a {suffix} writer here; try another of "
                                  f"{', '.join(SUFFIXES)}")
 
+    def _disk_full(self, what: str) -> DiskFullError:
+        folder = self.path.parent.resolve()
+        return DiskFullError(f"disk full at {folder}: {self.path} {what}; free space there or write elsewhere "
+                             "(the partial file was removed)")
+
     def write(self, frame: np.ndarray) -> None:
         if (frame.shape[1], frame.shape[0]) != self.size:
             frame = np.ascontiguousarray(frame[: self.size[1], : self.size[0]])
+        need = 2 * self._largest if self._largest else int(frame.nbytes * FIRST_GUESS)
+        free = _free_bytes(self.path.parent)
+        if free is not None and free < need + DISK_RESERVE_BYTES:
+            raise self._disk_full(f"could not be written after {self.frames} frames")
         if self._ffmpeg is not None:
             try:
                 self._ffmpeg.stdin.write(frame.tobytes())
@@ -104,22 +135,91 @@ class VideoOut:
         else:
             self._writer.write(frame)
         self.frames += 1
+        try:
+            size = self.path.stat().st_size
+        except OSError:
+            return
+        last_size, last_frames = self._grown
+        if size > last_size:             # the muxer writes in blocks: the growth shared by the frames since
+            self._largest = max(self._largest, (size - last_size) // max(1, self.frames - last_frames))
+            self._grown = (size, self.frames)
 
     def close(self) -> None:
+        """Finish the file and check that it holds every frame written; if not, remove it and raise
+        DiskFullError (the disk is nearly full) or VideoError."""
+        failed = ""
         if self._ffmpeg is not None:
-            self._ffmpeg.stdin.close()
+            try:
+                self._ffmpeg.stdin.close()
+            except BrokenPipeError:
+                pass
             if self._ffmpeg.wait() != 0:
-                raise VideoError(f"{self.path}: ffmpeg failed (exit {self._ffmpeg.returncode})")
+                failed = f"ffmpeg failed (exit {self._ffmpeg.returncode})"
             self._ffmpeg = None
         if self._writer is not None:
             self._writer.release()
             self._writer = None
+            if self.frames and not failed:
+                got = self._frames_in_file()
+                if got < self.frames:
+                    failed = f"holds {got} of the {self.frames} frames written"
+        if failed:
+            self._remove()
+            free = _free_bytes(self.path.parent)
+            if free is not None and free < DISK_RESERVE_BYTES + 2 * self._largest:
+                raise self._disk_full(f"could not be written ({failed})")
+            raise VideoError(f"{self.path}: {failed}; the file was removed")
+
+    def _frames_in_file(self) -> int:
+        """The frames the finished file holds: its frame count, counted one by one when that says fewer
+        than were written."""
+        try:
+            if self.path.stat().st_size == 0:
+                return 0
+        except OSError:
+            return 0
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            if not cap.isOpened():
+                return 0
+            n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+            if n < self.frames:       # a count estimated from the duration may be a frame or two short:
+                cap.set(cv2.CAP_PROP_POS_FRAMES, self.frames - 1)    # the last frame read settles it; else
+                if n >= self.frames - 2 and cap.grab():              # (no count: no index) count them
+                    return self.frames
+                cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                n = 0
+                while n < self.frames and cap.grab():
+                    n += 1
+            return n
+        finally:
+            cap.release()
+
+    def _remove(self) -> None:
+        with contextlib.suppress(OSError):
+            self.path.unlink()
+
+    def abort(self) -> None:
+        """Stop without finishing: the partial file is removed."""
+        if self._ffmpeg is not None:
+            with contextlib.suppress(OSError):
+                self._ffmpeg.stdin.close()
+            self._ffmpeg.kill()
+            self._ffmpeg.wait()
+            self._ffmpeg = None
+        if self._writer is not None:
+            self._writer.release()
+            self._writer = None
+        self._remove()
 
     def __enter__(self) -> VideoOut:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is not None:
+            self.abort()
+        else:
+            self.close()
 
 
 class Progress:

@@ -14,6 +14,12 @@ may drop the last uncommitted seconds, never corrupts the file — the angles ar
 A state directory that cannot take the file (read-only, full, gone) never stops the daemon: the store then
 keeps no rows (``last_error`` says why, ``dropped`` counts the rows lost, one log line a minute at most) and
 tries to open the file again every ``REOPEN_S``. Fall events do not depend on it (daemon.outbox.journal).
+A file that is not a database or is damaged (``database disk image is malformed``) is moved aside to
+``history.sqlite3.corrupt-<unix time>`` (with its ``-wal``/``-shm``) and a fresh history started, as the event
+journal does; the log line names both paths.
+
+Read-only (``posed history``, ``plot history``, ``report``): a file that is not a posed history (not SQLite,
+damaged, or without the ``angles`` table) raises :class:`HistoryFileError` (a ValueError) naming the path.
 """
 
 from __future__ import annotations
@@ -48,6 +54,10 @@ _SCHEMA = (
 )
 
 
+class HistoryFileError(ValueError):
+    """A history file a reader cannot use: not SQLite, damaged, or not a posed history (no ``angles``)."""
+
+
 REOPEN_S = 30.0          # a history file that could not be opened is tried again this often (monotonic s)
 LOG_EVERY_S = 60.0       # while the same trouble lasts, one log line a minute
 
@@ -71,17 +81,19 @@ class AngleHistory:
         self.dropped = 0
         self._next_open = 0.0
         self._next_log = 0.0
+        self._readonly = readonly
         if readonly:
             if not self.path.is_file():
                 raise FileNotFoundError(f"no joint-angle history at {self.path}: the daemon writes it while it "
                                         "runs (falls.history_enabled); check pipeline.state_dir")
-            self._db = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, check_same_thread=False)
+            self._db = _open_readonly(self.path)
             self._columns = _columns(self._db)
         else:
             self._open()
 
-    def _open(self) -> None:
-        """Open (create) the file for writing; on failure ``last_error`` is set and the store keeps no rows."""
+    def _open(self, aside_done: bool = False) -> None:
+        """Open (create) the file for writing; a corrupt file is moved aside and a fresh one started; on any
+        other failure ``last_error`` is set and the store keeps no rows."""
         self._next_open = time.monotonic() + REOPEN_S
         db = None
         try:
@@ -98,20 +110,44 @@ class AngleHistory:
         except (sqlite3.Error, OSError) as exc:
             if db is not None:
                 db.close()
-            self._trouble("history_unavailable", f"cannot open the joint-angle history {self.path}: {exc}")
+            if isinstance(exc, sqlite3.DatabaseError) and is_corrupt(exc) and not aside_done:
+                self._set_aside(exc)
+                return
+            self._trouble("history_unavailable", f"cannot open the joint-angle history {self.path}: {exc}",
+                          exc)
             return
         self._db = db
         if self.last_error:
             self._log.info("history_recovered", previous_error=self.last_error, dropped=self.dropped)
             self.last_error = ""
 
-    def _trouble(self, event: str, message: str, **kw) -> None:
+    def _set_aside(self, exc: sqlite3.DatabaseError) -> None:
+        """Move a corrupt history file (and its WAL and shared-memory files) aside, then start a fresh one."""
+        aside = self.path.with_name(f"{self.path.name}.corrupt-{int(time.time())}")
+        for suffix in ("", "-wal", "-shm"):
+            src = Path(str(self.path) + suffix)
+            if src.exists():
+                try:
+                    src.rename(Path(str(aside) + suffix))
+                except OSError as exc2:
+                    self._trouble("history_unavailable", f"the joint-angle history {self.path} is damaged "
+                                  f"({exc}) and cannot be moved aside: {exc2}", exc2)
+                    return
+        try:      # health data: the fresh file is private (0600) like the one it replaces (daemon.outbox.private)
+            os.close(os.open(self.path, os.O_WRONLY | os.O_CREAT, 0o600))
+        except OSError:
+            pass      # the open below reports what is wrong with the folder or the disk
+        self._log.warning("history_corrupt", error=str(exc), path=str(self.path), moved_to=str(aside),
+                          fix=f"the damaged history was moved to {aside} and a new one started at {self.path}; "
+                              f"the rows before are in the old file (sqlite3 {aside} .recover) or lost")
+        self._open(aside_done=True)
+
+    def _trouble(self, event: str, message: str, exc: BaseException | None = None, **kw) -> None:
         now = time.monotonic()
         if not self.last_error or now >= self._next_log:
             self._next_log = now + LOG_EVERY_S
-            self._log.error(event, error=message, dropped=self.dropped,
-                            fix="free disk space or make pipeline.state_dir writable; the joint-angle history "
-                                "misses these rows (fall events are journalled separately)", **kw)
+            self._log.error(event, error=message, dropped=self.dropped, fix=fix_for(exc) + "; the joint-angle "
+                            "history misses these rows (fall events are journalled separately)", **kw)
         self.last_error = message
 
     def add(self, result: FitResult, wall: float | None = None) -> bool:
@@ -159,8 +195,24 @@ class AngleHistory:
                 self._log.info("history_recovered", previous_error=self.last_error, dropped=self.dropped)
                 self.last_error = ""
         except sqlite3.Error as exc:
+            if isinstance(exc, sqlite3.DatabaseError) and is_corrupt(exc):   # damaged since it was opened
+                self._db.close()
+                self._db = None
+                self._set_aside(exc)
+                if self._db is not None:
+                    try:
+                        with self._db:
+                            self._db.execute("BEGIN")
+                            self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, "
+                                                 f"{', '.join(ROW_COLUMNS)}) VALUES ({marks})", self._buffer)
+                        self._buffer.clear()
+                        self._last_commit_t = self._last_kept_t
+                        return
+                    except sqlite3.Error as exc2:
+                        exc = exc2
             self.dropped += len(self._buffer)
-            self._trouble("history_write_failed", f"cannot write the joint-angle history {self.path}: {exc}")
+            self._trouble("history_write_failed", f"cannot write the joint-angle history {self.path}: {exc}",
+                          exc)
         self._buffer.clear()
         self._last_commit_t = self._last_kept_t
 
@@ -217,7 +269,12 @@ class AngleHistory:
             if until is not None:
                 sql += " AND wall <= ?"
                 args.append(until)
-            rows = self._db.execute(sql + " ORDER BY wall, t", args).fetchall()
+            try:
+                rows = self._db.execute(sql + " ORDER BY wall, t", args).fetchall()
+            except sqlite3.DatabaseError as exc:
+                if not self._readonly:
+                    raise
+                raise HistoryFileError(f"cannot read the joint-angle history {self.path}: {exc}") from None
         yield from rows
 
     def export_csv(self, out: io.TextIOBase, since: float | None = None, until: float | None = None) -> int:
@@ -258,6 +315,42 @@ def read_csv(text: str) -> list[dict]:
             rec[name] = float(row[name]) if row.get(name) not in (None, "") else None
         out.append(rec)
     return out
+
+
+def is_corrupt(exc: sqlite3.DatabaseError) -> bool:
+    """Whether SQLite's error says the file is damaged or not a database at all (not a full or read-only
+    disk)."""
+    text = str(exc).lower()
+    return "not a database" in text or "malformed" in text or "corrupt" in text
+
+
+def fix_for(exc: BaseException | None) -> str:
+    """What to do about a failure to open or write the history, by its cause."""
+    text = str(exc).lower()
+    if isinstance(exc, sqlite3.DatabaseError) and is_corrupt(exc):
+        return "the history file is damaged; move it aside (or delete it) so that a new one is started"
+    if "full" in text or getattr(exc, "errno", None) == 28:
+        return "free disk space on pipeline.state_dir's file system"
+    if "readonly" in text or "read-only" in text or "permission" in text or isinstance(exc, PermissionError):
+        return "make pipeline.state_dir writable by the daemon's user"
+    return "check pipeline.state_dir (free disk space, make it writable)"
+
+
+def _open_readonly(path: Path) -> sqlite3.Connection:
+    """The history file opened read-only, checked to be a posed history; HistoryFileError naming the path
+    when it is not (not SQLite, damaged, no ``angles`` table)."""
+    db = sqlite3.connect(f"file:{path}?mode=ro", uri=True, check_same_thread=False)
+    try:
+        found = db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'angles'").fetchone()
+    except sqlite3.DatabaseError as exc:
+        db.close()
+        raise HistoryFileError(f"not a posed history database: {path} ({exc}); give the daemon's "
+                               "history.sqlite3 (--db FILE or pipeline.state_dir)") from None
+    if found is None:
+        db.close()
+        raise HistoryFileError(f"not a posed history database: {path} (it has no joint-angle table); give the "
+                               "daemon's history.sqlite3 (--db FILE or pipeline.state_dir)")
+    return db
 
 
 def _columns(db: sqlite3.Connection) -> set[str]:

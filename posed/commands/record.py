@@ -12,6 +12,7 @@ import json
 import os
 import signal
 import sys
+from pathlib import Path
 
 from posed import hal
 from posed.commands import add_config_args, config_from_args
@@ -66,6 +67,12 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
     log.info("record.done", **summary.to_json())
     print(json.dumps(summary.to_json()))
+    if summary.reason == "disk full":      # hal.record stopped before a frame the disk could not take
+        out = Path(args.output)
+        folder = out if out.suffix == "" else out.parent
+        print(f"posed record: disk full at {os.path.abspath(folder)} after {summary.frames} frames: free space or "
+              "record elsewhere", file=sys.stderr)
+        return os.EX_CANTCREAT
     if summary.frames == 0:
         print(f"posed record: no frame was recorded from {source.name} ({summary.reason})", file=sys.stderr)
         return 1

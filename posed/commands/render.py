@@ -10,12 +10,15 @@ config's ``source.fx``.. (as the daemon), else ``--hfov`` when given (the camera
 without any a video is fitted as the daemon fits it, through the lens of ``falls.camera_hfov_deg`` assumed (no
 ``root_cam_m``: the model is drawn scaled to the landmarks).
 
-Exit status: 0 written, 1 written but some frames or lines were unreadable, 2 nothing written.
+Exit status: 0 written, 1 written but some frames or lines were unreadable, 2 nothing written, 74 the disk
+filled up while writing (the partial file is removed; the message names the folder).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
 from pathlib import Path
 
@@ -32,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="video to write: .webm (VP8, plays in browsers), .mp4 (H.264, needs ffmpeg) or .avi")
     parser.add_argument("--fit", metavar="FIT.jsonl", help="the fit of a landmark recording (posed fit output)")
     parser.add_argument("--video", metavar="VIDEO", help="the source video of a landmark recording")
-    parser.add_argument("--hfov", type=float, metavar="DEG",
+    parser.add_argument("--hfov", type=_hfov, metavar="DEG",
                         help="the camera's horizontal field of view when the input has no intrinsics (taken "
                              "as its own lens: the fit of a video places the person in metres; without it the "
                              "lens of falls.camera_hfov_deg is assumed, as the daemon does; a fit file keeps "
@@ -51,6 +54,30 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 _err = error_printer("posed render")
+
+
+def _hfov(text: str) -> float:
+    """--hfov: a horizontal field of view in degrees, above 0 and below 180."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of degrees") from None
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(f"{text} degrees is not a field of view; give one above 0 and below 180 "
+                                         "(a webcam: about 60 to 90)")
+    return value
+
+
+def _holds_fit_results(path: Path) -> bool:
+    """Whether the file's first line is a ``posed fit`` result (seq, ok, no format header) rather than the
+    header of a landmark recording."""
+    try:
+        with path.open("rb") as fh:
+            first = fh.readline(1 << 20)
+        obj = json.loads(first)
+    except (OSError, ValueError):
+        return False
+    return isinstance(obj, dict) and "format" not in obj and "seq" in obj and "ok" in obj
 
 
 def _intrinsics(header_camera, image_size, config, hfov):
@@ -152,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.commands.landmarks import InputError
     from posed.landmarks import ModelMissingError, RecordingError
     from posed.viz.render import ClipRenderer, FrameInput
-    from posed.viz.video import Progress, VideoError, VideoOut
+    from posed.viz.video import DiskFullError, Progress, VideoError, VideoOut
 
     config = config_from_args(args)
     progress_on = args.progress or sys.stderr.isatty()
@@ -163,6 +190,10 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         if is_recording:
+            if _holds_fit_results(path):
+                _err(f"{path} holds fit results; give the landmark recording it came from with --fit {path} "
+                     f"(posed render REC.landmarks.jsonl --fit {path} -o {args.output})")
+                return 2
             if not args.fit:
                 _err(f"{path} is a landmark recording: give its fit with --fit FIT.jsonl "
                      f"(posed fit {path} -o FIT.jsonl)")
@@ -215,6 +246,9 @@ def run(args: argparse.Namespace) -> int:
                     frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
                 out.write(frame)
                 bar.step()
+    except DiskFullError as exc:
+        _err(str(exc))
+        return os.EX_IOERR
     except VideoError as exc:
         _err(str(exc))
         return 2

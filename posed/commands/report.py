@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.commands._history_series import angle_series, event_marks
     from posed.commands.history import history_path
     from posed.daemon.config.paths import EVENTS_FILE
-    from posed.daemon.history.store import ROW_COLUMNS, AngleHistory
+    from posed.daemon.history.store import ROW_COLUMNS, AngleHistory, HistoryFileError
     from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError
     from posed.viz.plots import local_zone
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
             rows = list(hist.rows(start, end, ROW_COLUMNS))
         with WatchLog(db, readonly=True) as watch_log:
             watched = watch_log.minutes(start, end)
-    except FileNotFoundError as exc:
+    except (FileNotFoundError, HistoryFileError) as exc:
         _err(str(exc))
         return 2
     series = angle_series(rows, ROW_COLUMNS)     # the angles and the down each sample was fitted against
