@@ -256,9 +256,9 @@ def run(args: argparse.Namespace) -> int:
         if cap is not None:
             cap.release()
     bar.finish()
-    how = "perspective" if renderer.absolute else "orthographic"
+    how = "perspective reprojection" if renderer.absolute else "laid on the landmarks (scale and offset)"
     _err(f"{len(items)} frames -> {args.output} ({out.size[0]}x{out.size[1]}, {fps:g} fps, "
-         f"{how} reprojection)")
+         f"skeleton: {how})")
     return 1 if problems else 0
 
 
