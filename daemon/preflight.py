@@ -74,8 +74,9 @@ def check(cfg: Config) -> list[str]:
 
     Checked: the source file (an empty ``source.path`` is the embedded demo input, resolved by ``posed run``),
     the native Zenoh config (readable, and valid for Zenoh), the landmark models (present and matching their
-    manifest's sha256; not needed for a ``*.landmarks.jsonl`` source), the calibration file, every hook's
-    argv, and ``fitting.row_init <= fitting.row_max``."""
+    manifest's sha256; not needed for a ``*.landmarks.jsonl`` source), the calibration file and every hook's
+    argv (keys wrong between themselves, such as ``fitting.row_init`` above ``row_max``, are the config
+    loader's: ``daemon.config.schema.cross_problems``)."""
     problems: list[str] = []
     src = cfg.source
     if src.type == "file" and "?" in src.path and not Path(src.path).exists():
@@ -90,15 +91,34 @@ def check(cfg: Config) -> list[str]:
         problems += _model_problems(cfg)
     if cfg.fitting.calibration:
         problems += calibration_problems(cfg.fitting.calibration)
-    if cfg.fitting.row_init > cfg.fitting.row_max:
-        problems.append(f"fitting.row_init: {cfg.fitting.row_init} is more than fitting.row_max "
-                        f"({cfg.fitting.row_max}); uDEAS grows the row from row_init up to row_max: lower "
-                        "row_init or raise row_max")
     for i, hook in enumerate(cfg.hooks.on_event):
         if not hook.argv or not hook.argv[0]:
             problems.append(f"hooks.on_event[{i}].argv is empty; give a program and its arguments as a list, "
                             'e.g. argv: ["/usr/local/bin/notify", "--fall"]')
     return problems
+
+
+def partial_problems(exc) -> list[str]:
+    """The start-up checks (``check`` and the hook programs) on the config a ``ConfigError`` read as far as it
+    could (``exc.partial``), so that a config with a wrong key still has its missing model, calibration file
+    or hook program listed in the same run. A check of a key the error already names (or of one inside a
+    section it names) is left out: that key was replaced by its default, and its check would be about the
+    default."""
+    cfg = getattr(exc, "partial", None)
+    if cfg is None:
+        return []
+    named = [p.path for p in exc.problems if p.path]
+
+    def covered(problem: str) -> bool:
+        key = problem.split(":", 1)[0].split(" ", 1)[0]
+        return any(key == n or key.startswith(n + ".") or key.startswith(n + "[") or n.startswith(key + ".")
+                   for n in named)
+
+    try:
+        found = check(cfg) + hook_program_problems(cfg)
+    except Exception:       # a check that cannot run on a half-read config: the schema's problems stand
+        return []
+    return [p for p in found if not covered(p)]
 
 
 def calibration_problems(path: str) -> list[str]:

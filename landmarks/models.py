@@ -125,17 +125,23 @@ def verify_models(paths: ModelPaths, include_tflite: bool = False) -> dict:
         if not isinstance(entry, dict) or "sha256" not in entry:
             raise ModelCorruptError(f"{paths.manifest} has no sha256 for {name}; "
                                     f"{_fetch_hint(paths.models_dir)}")
+        # the size check sits outside the ``except FileNotFoundError``: ModelCorruptError is one too (a
+        # subclass of ModelMissingError), and a truncated file must be reported as damaged, not as missing
         try:
             size = path.stat().st_size
-            if "bytes" in entry and size != entry["bytes"]:
-                raise ModelCorruptError(f"model file {path} has {size} bytes, "
-                                        f"the manifest says {entry['bytes']}; "
-                                        f"{_fetch_hint(paths.models_dir)}")
-            got = sha256_file(path)
         except FileNotFoundError as exc:
             raise ModelMissingError(f"landmark model {path} is missing; "
                                     f"{_fetch_hint(paths.models_dir)}") from exc
+        if "bytes" in entry and size != entry["bytes"]:
+            what = "truncated" if isinstance(entry["bytes"], int) and size < entry["bytes"] else "damaged"
+            raise ModelCorruptError(f"model file {path} is {what}: {size} bytes, the manifest says "
+                                    f"{entry['bytes']}; {_fetch_hint(paths.models_dir)} to fetch it again")
+        try:
+            got = sha256_file(path)
+        except FileNotFoundError as exc:        # removed between the two calls
+            raise ModelMissingError(f"landmark model {path} is missing; "
+                                    f"{_fetch_hint(paths.models_dir)}") from exc
         if got != entry["sha256"]:
-            raise ModelCorruptError(f"model file {path} is damaged: sha256 {got}, the manifest expects "
-                                    f"{entry['sha256']}; {_fetch_hint(paths.models_dir)}")
+            raise ModelCorruptError(f"model file {path} is damaged (corrupt): sha256 {got}, the manifest expects "
+                                    f"{entry['sha256']}; {_fetch_hint(paths.models_dir)} to fetch it again")
     return manifest

@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import pkgutil
 import sys
 
 from posed import commands
+from posed.commands._paths import EX_IOERR, EX_PIPE, OutputError, silence_stdout, stdout_name, write_problem
 from posed.daemon.config import EX_CONFIG
 from posed.daemon.config.load import ConfigError
 from posed.daemon.version import __version__
@@ -38,18 +40,40 @@ def quiet_opencv() -> None:
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")   # AV_LOG_QUIET
 
 
+# errors of the file system a command did not catch itself: one line, not a traceback (main)
+FILE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.ENOENT, errno.EISDIR)
+
+
 def main(argv: list[str] | None = None) -> int:
     quiet_opencv()
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        status = int(args.func(args) or 0)
+        sys.stdout.flush()          # what is still buffered: a full disk must be said here, not at exit
+        return status
     except ConfigError as exc:
         print(str(exc), file=sys.stderr)
         print(f"posed: {len(exc.problems)} problem(s) in the configuration; nothing was started", file=sys.stderr)
         return EX_CONFIG
     except KeyboardInterrupt:
         return 130
+    except OutputError as exc:              # a command's output that failed and was not reported by it
+        return exc.output.failed(exc.exc)
+    except BrokenPipeError:                 # the reader of standard output went away (| head): quietly
+        silence_stdout()
+        return EX_PIPE
+    except OSError as exc:                  # the last line of defence: one line naming the file
+        if exc.errno not in FILE_ERRNOS:
+            raise
+        name = exc.filename if exc.filename is not None else stdout_name()
+        if exc.filename is None:
+            silence_stdout()
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS):
+            print(f"posed {args.command}: {write_problem(str(name), exc)}", file=sys.stderr)
+        else:
+            print(f"posed {args.command}: {name}: {exc.strerror or exc}", file=sys.stderr)
+        return EX_IOERR
 
 
 if __name__ == "__main__":

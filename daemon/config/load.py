@@ -35,11 +35,16 @@ class ConfigProblem:
 
 
 class ConfigError(Exception):
-    """Raised with every problem found; ``str()`` lists them one per line, each prefixed by the file."""
+    """Raised with every problem found; ``str()`` lists them one per line, each prefixed by the file.
 
-    def __init__(self, problems: list[ConfigProblem], origin: str = "config") -> None:
+    ``partial``: the config as far as it could be read (each wrong key at its default), or None when the file
+    could not be read at all: what the start-up checks (``daemon.preflight.partial_problems``) still look at,
+    so that one run lists every problem, not the schema's first and the rest after they are fixed."""
+
+    def __init__(self, problems: list[ConfigProblem], origin: str = "config", partial: Any = None) -> None:
         self.problems = list(problems)
         self.origin = origin
+        self.partial = partial
         super().__init__("\n".join(f"{origin}: {p}" for p in self.problems))
 
 
@@ -84,7 +89,7 @@ def build(cls: type, data: Any, path: str, problems: list[ConfigProblem]) -> Any
         if name in data:
             before = len(problems)
             value = _convert(hints[name], data[name], where, f.metadata, problems)
-            if len(problems) == before:
+            if len(problems) == before or _read_in_part(hints[name], value):
                 kwargs[name] = value
                 continue
         if f.default is _MISSING and f.default_factory is _MISSING:  # type: ignore[misc]
@@ -96,6 +101,17 @@ def build(cls: type, data: Any, path: str, problems: list[ConfigProblem]) -> Any
     except (TypeError, ValueError) as exc:  # a cross-field check in __post_init__
         problems.append(ConfigProblem(path, str(exc)))
         return cls()
+
+
+def _read_in_part(tp: Any, value: Any) -> bool:
+    """A section (or a list of them) whose wrong keys ``build`` already set to their defaults: kept as read, so
+    that the config the error carries (``ConfigError.partial``) has the section's other keys as written."""
+    if dataclasses.is_dataclass(tp):
+        return dataclasses.is_dataclass(value)
+    args = typing.get_args(tp)
+    return (typing.get_origin(tp) is tuple and len(args) == 2 and args[1] is Ellipsis
+            and dataclasses.is_dataclass(args[0]) and isinstance(value, tuple)
+            and all(dataclasses.is_dataclass(v) for v in value))
 
 
 def _placeholder(tp: Any) -> Any:

@@ -113,6 +113,25 @@ def load_config(
             section = data.get("source")
             data["source"] = {**(section if isinstance(section, dict) else {}), **keys}
     config = build(Config, data, "", problems)
+    problems += cross_problems(config)
     if problems:
-        raise ConfigError(problems, origin)
+        raise ConfigError(problems, origin, partial=config)
     return config
+
+
+def cross_problems(config: Config) -> list[ConfigProblem]:
+    """What is wrong between keys that are each valid on their own (every command that loads the config
+    rejects them, not only ``posed run``)."""
+    f = config.fitting
+    out = []
+    for init, top in (("row_init", "row_max"), ("video_row_init", "video_row_max")):
+        if getattr(f, init) > getattr(f, top):
+            out.append(ConfigProblem(f"fitting.{init}", f"{getattr(f, init)} is more than fitting.{top} "
+                                     f"({getattr(f, top)}); uDEAS grows the row from {init} up to {top}: lower "
+                                     f"{init} or raise {top}"))
+    if f.visibility_drop >= f.visibility_full:
+        out.append(ConfigProblem("fitting.visibility_drop", f"{f.visibility_drop} is not below "
+                                 f"fitting.visibility_full ({f.visibility_full}); landmark weights rise from 0 at "
+                                 "visibility_drop to 1 at visibility_full: lower visibility_drop or raise "
+                                 "visibility_full"))
+    return out

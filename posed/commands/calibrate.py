@@ -3,7 +3,8 @@
 The person stands facing the camera, arms down, for at least 10 frames (paper section 3, step 1). The output
 is the flat ``key: value`` calibration file of :mod:`fitting.body` (valid YAML, read by the fit with the
 standard library); point ``fitting.calibration`` at it. Exit status: 0 written, 1 not enough usable frames or
-implausible lengths, 2 the recording cannot be read or the file cannot be written.
+implausible lengths, 2 the recording cannot be read, the output is the recording (or the config file) or the
+file cannot be created, 74 the disk is full (the partial file is removed).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 import yaml
 
 from posed.commands import add_config_args, config_from_args, error_printer
+from posed.commands._paths import config_inputs, file_write_failed, refuse_same_file
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,6 +37,10 @@ def run(args: argparse.Namespace) -> int:
     from posed.fitting import CalibrationFailed, calibrate, read_calibration, write_calibration
     from posed.landmarks import RecordingError, RecordingProblem, iter_recording
 
+    refused = refuse_same_file("posed calibrate", args.output,
+                               [("recording", args.input), *config_inputs(args)])
+    if refused is not None:
+        return refused
     cfg = config_from_args(args).fitting
     height = args.height if args.height is not None else cfg.body_height_m
     if not 0.8 <= height <= 2.3:
@@ -61,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
         write_calibration(out, report.dims, report.frames_used, source=str(args.input))
     except OSError as exc:
-        _err(f"{out}: cannot write: {exc.strerror}")
-        return 2
+        return file_write_failed("posed calibrate", out, exc)
     # the file must read back both as YAML and with the fit's own reader
     yaml.safe_load(out.read_text(encoding="utf-8"))
     read_calibration(out)

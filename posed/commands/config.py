@@ -14,8 +14,9 @@ import json
 import sys
 from dataclasses import asdict
 
-from posed.commands import add_config_args, config_from_args
-from posed.daemon.config import EX_CONFIG, load_config
+from posed.commands import add_config_args, config_from_args, config_problems, load_labelled
+from posed.daemon.config import EX_CONFIG
+from posed.daemon.config.load import ConfigError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -46,7 +47,10 @@ def _check(args: argparse.Namespace) -> int:
 
     path = args.file if args.file else config_file(None)
     name = str(path) if path else "(the embedded default config)"
-    cfg = load_config(path, overrides=args.overrides, source=args.source)
+    try:
+        cfg = load_labelled(path, args.overrides, args.source)   # a problem is blamed on its --set, not the file
+    except ConfigError as exc:      # the start-up checks still run on what could be read: every problem at once
+        return config_problems(exc, lambda p: f"{name}: {p}")
     problems = check(cfg)
     stopping = len(problems)            # these stop `posed run`; a failing state dir only degrades it
     problems += state_dir_problems(state_dir(cfg.pipeline)) + hook_program_problems(cfg)

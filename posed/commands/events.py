@@ -1,5 +1,9 @@
 """``posed events [list] [--since T] [--until T] [--limit N] [--unacked] [--json]``: list stored fall events;
-``posed events ack ID [--state S]``: acknowledge one (a Zenoh put on ``posed/ROBOT/events/ack``)."""
+``posed events ack ID [--state S]``: acknowledge one (a Zenoh put on ``posed/ROBOT/events/ack``).
+
+Listing exit status: 0 listed (or no journal yet), 1 the journal cannot be read, 2 a bad option (a time that
+cannot be read, --since after --until, a --journal that is a folder), 74 writing the list failed (a full
+disk)."""
 
 from __future__ import annotations
 
@@ -10,9 +14,9 @@ import sys
 import time
 from pathlib import Path
 
-from posed.commands import add_config_args, config_from_args, config_path
+from posed.commands import add_config_args, config_from_args, config_path, positive_int
+from posed.commands._paths import Output, OutputError
 from posed.daemon.config.paths import EVENTS_FILE, reading_state_dir
-from posed.daemon.timeparse import parse_time
 
 STATES = ("falling", "on_floor", "alarm", "recovered")  # falls.FALL_STATES (not imported: no numpy here)
 
@@ -50,7 +54,7 @@ def _list_options(parser: argparse.ArgumentParser) -> None:
     add_config_args(parser, source=False, example="pipeline.state_dir=/var/lib/posed")
     parser.add_argument("--since", metavar="TIME", help="from this time: 2h, 7d, today, 2024-05-01T14:00, ...")
     parser.add_argument("--until", metavar="TIME", help="up to this time (same forms as --since)")
-    parser.add_argument("--limit", type=int, default=None, metavar="N",
+    parser.add_argument("--limit", type=positive_int, default=None, metavar="N",
                         help="only the newest N messages (of those --unacked and the times select)")
     parser.add_argument("--unacked", action="store_true", help="only messages not yet acknowledged")
     parser.add_argument("--journal", metavar="FILE", help="journal file (default: events.sqlite3 in the state dir)")
@@ -66,42 +70,57 @@ def journal_path(args: argparse.Namespace, cfg=None) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from posed.commands.history import time_range
     from posed.daemon.outbox.journal import EventJournal, JournalError  # not at import: it pulls in structlog
 
     try:
-        since = parse_time(args.since) if args.since else None
-        until = parse_time(args.until) if args.until else None
+        since, until = time_range(args)
     except ValueError as exc:
         print(f"posed events: {exc}", file=sys.stderr)
         return 2
     path = journal_path(args)
+    if path.is_dir():
+        print(f"posed events: {path} is a folder, not an event journal: give the journal file, e.g. --journal "
+              f"{path / EVENTS_FILE}", file=sys.stderr)
+        return 2
     if path.parent.is_dir() and not os.access(path.parent, os.R_OK | os.X_OK):
         print(f"posed events: cannot read {path.parent} (permission denied){_permission_hint(path, PermissionError())}",
               file=sys.stderr)
         return 1
     if not path.is_file():
-        if args.json:
-            print(json.dumps({"journal": str(path), "events": []}))
-        else:
-            print(f"no event journal at {path} yet (the daemon creates it with its first fall event)")
-        return 0
+        return _print_listing(args, path, None)
     try:
         with EventJournal(path, readonly=True) as journal:
             stored = journal.query(since, until, args.limit, unacked=args.unacked)
     except (JournalError, FileNotFoundError, PermissionError) as exc:
         print(f"posed events: {exc}{_permission_hint(path, exc)}", file=sys.stderr)
         return 1
-    if args.json:
-        print(json.dumps({"journal": str(path), "events": [s.to_json() for s in stored]}))
-        return 0
-    if not stored:
-        print(f"no events in {path} for that time range")
-        return 0
-    print(f"{'wall time (UTC)':<24} {'event':<12} {'state':<10} {'conf':>5} {'pub':>3} {'ack':>3}  features")
-    for s in stored:
-        e = s.event
-        print(f"{e.wall_time[:23]:<24} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
-              f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3}  {','.join(e.features)}")
+    return _print_listing(args, path, stored)
+
+
+def _print_listing(args: argparse.Namespace, path: Path, stored) -> int:
+    """The list on standard output (``stored`` None: there is no journal yet); 74 when it cannot be written."""
+    out = Output("posed events", None)
+    out.open()
+    try:
+        if args.json:
+            events = [] if stored is None else [s.to_json() for s in stored]
+            print(json.dumps({"journal": str(path), "events": events}), file=out)
+        elif stored is None:
+            print(f"no event journal at {path} yet (the daemon creates it with its first fall event)", file=out)
+        elif not stored:
+            print(f"no events in {path} for that time range", file=out)
+        else:
+            print(f"{'wall time (UTC)':<24} {'event':<12} {'state':<10} {'conf':>5} {'pub':>3} {'ack':>3}  features",
+                  file=out)
+            for s in stored:
+                e = s.event
+                print(f"{e.wall_time[:23]:<24} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
+                      f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3}  "
+                      f"{','.join(e.features)}", file=out)
+        out.close()
+    except OutputError as exc:
+        return out.failed(exc.exc)
     return 0
 
 

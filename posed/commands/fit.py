@@ -8,16 +8,21 @@ perspective model (``fitting.projection: auto``); without them the fit projects,
 the lens of ``falls.camera_hfov_deg`` assumed (the results say ``"lens": "assumed"`` and carry no
 ``root_cam_m``; ``fitting.projection: orthographic`` gives the paper's orthographic fit).
 
-Exit status: 0 every line was read, 1 some lines were skipped, 2 the recording cannot be read at all.
+An output that is the input (or a link to it) is refused before anything is written; an image or video
+given as the input is named as such (``posed landmarks`` makes a recording of it).
+
+Exit status: 0 every line was read, 1 some lines were skipped, 2 the recording cannot be read at all (or the
+output is the input, or cannot be created), 74 writing the results failed (a full disk: the partial file is
+removed).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from posed.commands import add_config_args, config_from_args, error_printer
+from posed.commands._paths import Output, OutputError, config_inputs, refuse_same_file, sniff
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -46,8 +51,19 @@ def run(args: argparse.Namespace) -> int:
         iter_recording,
     )
 
+    refused = refuse_same_file("posed fit", args.output,
+                               [("recording", args.input), *config_inputs(args)])
+    if refused is not None:
+        return refused
     config = config_from_args(args)
     cfg = config.fitting
+    refused = refuse_same_file("posed fit", args.output, [("calibration file", cfg.calibration or None)])
+    if refused is not None:
+        return refused
+    wrong = _not_a_recording(args.input)
+    if wrong:
+        _err(wrong)
+        return 2
     try:
         header, frames = iter_recording(args.input)
     except RecordingError as exc:
@@ -69,14 +85,11 @@ def run(args: argparse.Namespace) -> int:
     warm_fitter(fitter, _err)        # compile before frame 0: its fit_ms must be the fit alone
     # a recording without the camera's intrinsics: the daemon's assumed lens (daemon.stages.fit)
     intrinsics = header.camera or Intrinsics.assume(config.falls.camera_hfov_deg, *header.image_size)
-    out = sys.stdout if args.output == "-" else None
-    if out is None:
-        try:
-            Path(args.output).parent.mkdir(parents=True, exist_ok=True)
-            out = open(args.output, "w", encoding="utf-8")
-        except OSError as exc:
-            _err(f"{args.output}: cannot write: {exc.strerror}")
-            return 2
+    out = Output("posed fit", args.output)
+    try:
+        out.open(mkdir=True)
+    except OSError as exc:
+        return out.open_failed(exc)
     # left and right put back where the recording's extractor flipped them (landmarks.sides), unless the
     # recording says its landmark stage did that already
     sides = RecordingSides() if RecordingSides.needed(header, config.landmarks.keep_sides) else None
@@ -105,12 +118,24 @@ def run(args: argparse.Namespace) -> int:
             out.write(line + "\n")
             fitted += 1
             ok += result.ok
+        out.close()
+    except OutputError as exc:
+        return out.failed(exc.exc)
     finally:
-        if out is not sys.stdout:
-            out.close()
-        else:
-            out.flush()
+        out.discard()
     swapped = 0 if sides is None else sides.frames_put_back
     _err(f"{fitted} frame(s) fitted ({ok} ok, {fitted - ok} not ok), {skipped} line(s) skipped"
          + (f"; left and right put back on {swapped} (landmarks.sides)" if swapped else ""))
     return 1 if skipped else 0
+
+
+def _not_a_recording(path: str) -> str:
+    """Why ``path`` is plainly not a landmark recording (an image, a video, a database), or ""."""
+    kind, what = sniff(path)
+    if kind in ("image", "video"):
+        return (f"{path} looks like {'an' if kind == 'image' else 'a'} {kind} ({what}), not a landmark recording: "
+                f"run `posed landmarks {path} -o REC.landmarks.jsonl` first, then `posed fit REC.landmarks.jsonl`")
+    if kind == "database":
+        return (f"{path} is an SQLite file (a RealSense .db3 recording, or a posed database), not a landmark "
+                f"recording: for a RealSense recording run `posed landmarks {path} -o REC.landmarks.jsonl` first")
+    return ""

@@ -1,4 +1,8 @@
-"""``posed history [--since T] [--until T] [--csv] [-o FILE]``: export the stored joint angles."""
+"""``posed history [--since T] [--until T] [--csv] [-o FILE]``: export the stored joint angles.
+
+Exit status: 0 written, 2 a bad time or range, a missing history file, or an output that is the history file
+(or the config file) or cannot be created, 74 writing failed (a full disk: a partial output file is removed).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from posed.commands import add_config_args, config_from_args, config_path
+from posed.commands._paths import Output, OutputError, config_inputs, refuse_same_file
 from posed.daemon.config.paths import HISTORY_FILE, reading_state_dir
 from posed.daemon.timeparse import iso, parse_time
 
@@ -40,14 +45,24 @@ def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = Non
     there is no --db)."""
     from posed.daemon.history.store import AngleHistory  # not at import: it pulls in structlog
 
-    since = parse_time(args.since) if args.since else None
-    until = parse_time(args.until) if args.until else None
+    since, until = time_range(args)
     if args.db:
         path = Path(args.db)
     else:
         path = history_path(pipeline if pipeline is not None else config_from_args(args).pipeline,
                             config_path(args))
     return AngleHistory(path, readonly=True), since, until
+
+
+def time_range(args: argparse.Namespace) -> tuple[float | None, float | None]:
+    """``--since`` and ``--until`` as Unix times (None: open); ValueError for a time that cannot be read or a
+    --since after the --until."""
+    since = parse_time(args.since) if args.since else None
+    until = parse_time(args.until) if args.until else None
+    if since is not None and until is not None and since > until:
+        raise ValueError(f"--since {args.since} ({iso(since)}) is after --until {args.until} ({iso(until)}): "
+                         "give the earlier time to --since")
+    return since, until
 
 
 def history_path(pipeline: PipelineConfig, config_file: Path | None) -> Path:
@@ -73,25 +88,37 @@ def where_from(args: argparse.Namespace, pipeline: PipelineConfig | None = None)
 
 
 def run(args: argparse.Namespace) -> int:
+    cmd = "posed history"
     try:
-        print(f"posed history: reading {where_from(args)}", file=sys.stderr)
-        hist, since, until = open_history(args)
+        pipeline = None if args.db else config_from_args(args).pipeline
+        print(f"{cmd}: reading {where_from(args, pipeline)}", file=sys.stderr)
+        db = Path(args.db) if args.db else history_path(pipeline, config_path(args))
+        refused = refuse_same_file(cmd, args.output, [("history database", db), *config_inputs(args)])
+        if refused is not None:
+            return refused
+        hist, since, until = open_history(args, pipeline)
     except (ValueError, FileNotFoundError) as exc:
-        print(f"posed history: {exc}", file=sys.stderr)
+        print(f"{cmd}: {exc}", file=sys.stderr)
         return 2
+    out = Output(cmd, args.output, newline="")
     try:
-        out = open(args.output, "w", newline="", encoding="utf-8") if args.output else sys.stdout
-        try:
-            if args.csv:
-                n = hist.export_csv(out, since, until)
-                if args.output:
-                    print(f"{n} rows written to {args.output}", file=sys.stderr)
-                return 0
-            _summary(hist, since, until, out)
-        finally:
+        out.open()
+    except OSError as exc:
+        hist.close()
+        return out.open_failed(exc)
+    try:
+        if args.csv:
+            n = hist.export_csv(out, since, until)
+            out.close()
             if args.output:
-                out.close()
+                print(f"{n} rows written to {args.output}", file=sys.stderr)
+            return 0
+        _summary(hist, since, until, out)
+        out.close()
+    except OutputError as exc:
+        return out.failed(exc.exc)
     finally:
+        out.discard()
         hist.close()
     return 0
 

@@ -13,14 +13,18 @@ also carries ``people`` with each person's track id. With one person in view the
 
 Frame times: a video's or RealSense recording's own frame timestamps (seconds from its first frame); images:
 ``seq / fps``. A frame that cannot be decoded is reported on stderr and left out (its ``seq`` is skipped, so
-the gap shows); the rest is still written. Exit status: 0 all frames read, 1 some frames could not be read,
-2 nothing could be done (input or models missing).
+the gap shows); the rest is still written. So is an image larger than ``hal.MAX_DECODE_PIXELS`` (its size read
+from its header, never decoded). An output that is the input (or one of the folder's images) is refused before
+anything is written. Exit status: 0 all frames read, 1 some frames could not be read, 2 nothing could be done
+(input or models missing, the output is the input or cannot be created), 74 writing the recording failed (a
+full disk: the partial file is removed).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 from collections.abc import Iterator
@@ -31,10 +35,12 @@ import cv2
 import numpy as np
 
 from posed.camera_model import Intrinsics
-from posed.commands import add_config_args, config_from_args, error_printer
+from posed.commands import add_config_args, bounded_float, config_from_args, error_printer
+from posed.commands._paths import Output, OutputError, config_inputs, refuse_same_file
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 READ_TIMEOUT_S = 5.0        # a RealSense recording's next frame (played as fast as it decodes)
+MAX_FPS = 1000.0            # --fps: above this it is a typo, not a camera
 
 
 class InputError(Exception):
@@ -74,9 +80,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--mode", choices=("video", "image"), default=None,
                         help="video: track across frames (MediaPipe's video mode; default for videos and "
                              "folders); image: every frame on its own (detector every frame, no smoothing)")
-    parser.add_argument("--fps", type=float, default=None,
-                        help="frame rate for images and folders (t = seq / fps); default: the video's own, "
-                             "else source.fps")
+    parser.add_argument("--fps", type=bounded_float(0.0, MAX_FPS, "frames per second"), default=None,
+                        help="frame rate for images and folders (t = seq / fps; more than 0, at most "
+                             f"{MAX_FPS:g}); default: the video's own, else source.fps")
     add_config_args(parser, source=False, example="landmarks.threads=2")
     parser.set_defaults(func=run)
 
@@ -84,11 +90,50 @@ def register(sub: argparse._SubParsersAction) -> None:
 _err = error_printer("posed landmarks")
 
 
-def _read_image(path: Path) -> np.ndarray | None:
-    data = np.fromfile(str(path), dtype=np.uint8) if path.is_file() else np.zeros(0, np.uint8)
+def _image_size(path: Path) -> tuple[tuple[int, int] | None, str]:
+    """((width, height) or None, why not) from the file's header, without decoding it: hal's image replay
+    checks a frame's size against ``Source.max_pixels`` on the header before it decodes anything, so with a
+    limit of one pixel it reports the size of every image and decodes none."""
+    from posed import hal
+
+    source = hal.open_source(hal.SourceConfig(type="file", path=str(path), realtime=False))
+    source.max_pixels = 1
+    try:
+        source.open()
+        source.read(READ_TIMEOUT_S)
+    except hal.SourceCorrupt as exc:
+        if exc.pixels is None:
+            return None, str(exc)
+        m = re.search(r"(\d+)x(\d+) image", str(exc))
+        return ((int(m.group(1)), int(m.group(2))) if m else (exc.pixels, 1)), ""
+    except hal.SourceError as exc:
+        return None, str(exc)
+    finally:
+        source.close()
+    return (1, 1), ""          # a one-pixel image: within the limit
+
+
+def _read_image(path: Path) -> tuple[np.ndarray | None, str]:
+    """The image (BGR), or None and why it cannot be read. An image larger than ``hal.MAX_DECODE_PIXELS`` (its
+    size read from its header) is never decoded: a crafted header must not make the decoder allocate gigabytes."""
+    from posed import hal
+
+    if not path.is_file():
+        return None, f"{path}: cannot decode the image (corrupt or not an image)"
+    size, _why = _image_size(path)
+    if size is not None and size[0] * size[1] > hal.MAX_DECODE_PIXELS:
+        return None, (f"{path}: image too large: {size[0]} x {size[1]}, at most {hal.MAX_DECODE_PIXELS} pixels "
+                      "(7680 x 4320); scale it down; left out")
+    data = np.fromfile(str(path), dtype=np.uint8)
     if data.size == 0:
-        return None
-    return cv2.imdecode(data, cv2.IMREAD_COLOR)
+        return None, f"{path}: cannot decode the image (empty file)"
+    try:
+        image = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    except cv2.error:            # OpenCV's own size limit, for a header hal could not read
+        image = None
+    if image is None:
+        return None, f"{path}: cannot decode the image (corrupt or not an image)"
+    return image, ""
 
 
 def open_input(path: Path, fps: float | None, default_fps: float) -> FrameSource:
@@ -110,22 +155,24 @@ def open_input(path: Path, fps: float | None, default_fps: float) -> FrameSource
 
 
 def _image_files(files: list[Path], kind: str, fps: float) -> FrameSource:
-    first = None
+    first, why = None, ""
     for f in files:
-        first = _read_image(f)
+        first, why = _read_image(f)
         if first is not None:
             break
     if first is None:
-        what = files[0] if len(files) == 1 else f"{files[0].parent} ({len(files)} files)"
-        raise InputError(f"{what}: cannot decode any image (corrupt or not an image)")
+        if len(files) == 1:
+            raise InputError(why)
+        raise InputError(f"{files[0].parent} ({len(files)} files): cannot decode any image (corrupt, too large or "
+                         "not images)")
     size = (first.shape[1], first.shape[0])
 
     def frames() -> Iterator[InputFrame]:
         for seq, f in enumerate(files):
-            image = _read_image(f)
+            image, why = _read_image(f)
             t = seq / fps
             if image is None:
-                yield InputFrame(seq, t, None, f"{f}: cannot decode the image (corrupt or not an image)")
+                yield InputFrame(seq, t, None, why)
             elif (image.shape[1], image.shape[0]) != size:
                 yield InputFrame(seq, t, None, f"{f}: image is {image.shape[1]}x{image.shape[0]}, the "
                                                f"recording is {size[0]}x{size[1]}; left out")
@@ -255,8 +302,14 @@ def run(args: argparse.Namespace) -> int:
         with_depth,
     )
 
-    config = config_from_args(args)
     path = Path(args.input)
+    inputs = [("input", args.input), *config_inputs(args)]
+    if path.is_dir():
+        inputs += [("image in the input folder", str(p)) for p in path.iterdir()]
+    refused = refuse_same_file("posed landmarks", args.output, inputs)
+    if refused is not None:
+        return refused
+    config = config_from_args(args)
     try:
         source = open_input(path, args.fps, config.source.fps)
     except InputError as exc:
@@ -275,11 +328,11 @@ def run(args: argparse.Namespace) -> int:
                              else None, extra={"sides_kept": lm_config.keep_sides})
     problems = written = found = most = 0
     progress = Progress(source.total if source.kind != "image" else 0)
+    out = Output("posed landmarks", args.output)
     try:
-        out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
+        out.open()
     except OSError as exc:
-        _err(f"cannot write {args.output}: {exc.strerror or exc}")
-        return 2
+        return out.open_failed(exc)
     try:
         out.write(dumps(header.to_json()) + "\n")
         for frame in source.frames:
@@ -297,12 +350,12 @@ def run(args: argparse.Namespace) -> int:
             found += result.landmarks is not None
             most = max(most, len(result.people or ()))
             progress.frame(written + problems, found)
-    except OSError as exc:
-        _err(f"cannot write {args.output}: {exc.strerror or exc}")
-        return 2
+        out.close()
+    except OutputError as exc:
+        progress.end()
+        return out.failed(exc.exc)
     finally:
-        if out is not sys.stdout:
-            out.close()
+        out.discard()
     progress.end()
     summary = f"{written} frame(s), person found in {found}"
     if most > 1:

@@ -5,6 +5,10 @@ its local time zone (``--tz`` another), fall events from the journal beside it. 
 a ``posed fit`` output; a fit file carries only capture times (seconds from the recording's first frame), so
 x is that time unless ``--start`` gives the clock time of the first frame; fall events from a ``posed falls``
 output (``--events``), on the same capture clock.
+
+Exit status: 0 drawn, 1 nothing to draw or some lines skipped, 2 a bad option or input (a file that is not fit
+results, e.g. a landmark recording; an output that is an input), 74 writing the image failed (a full disk: the
+partial file is removed).
 """
 
 from __future__ import annotations
@@ -13,7 +17,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from posed.commands import add_config_args, config_from_args, config_path, read_jsonl
+from posed.commands import add_config_args, bounded_int, config_from_args, config_path, read_jsonl
+from posed.commands._paths import Output, OutputError, config_inputs, refuse_same_file, sniff
 from posed.commands.history import add_range_args, history_path, open_history
 from posed.daemon.config.paths import EVENTS_FILE
 from posed.viz.names import PANELS
@@ -21,6 +26,7 @@ from posed.viz.names import PANELS
 # the older panel names, still accepted
 PANEL_ALIASES = {"torso": ("trunk",), "sagittal": ("arms", "legs")}
 DEFAULT_PANELS = "legs,trunk,arms"
+MIN_WIDTH_PX, MAX_WIDTH_PX = 200, 10000     # narrower has no room for the panels; wider is a poster
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +55,8 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "(e.g. theta_hp_l+theta_kn_l)")
     p.add_argument("--tz", metavar="ZONE", help="time zone of the clock axis (IANA name, e.g. Europe/Berlin; "
                                                 "default: this machine's, the robot's)")
-    p.add_argument("--width", type=int, default=1200, help="image width in pixels")
+    p.add_argument("--width", type=bounded_int(MIN_WIDTH_PX, MAX_WIDTH_PX, "pixels"), default=1200,
+                   help=f"image width in pixels ({MIN_WIDTH_PX} to {MAX_WIDTH_PX}; default 1200)")
     p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="the image to write")
 
 
@@ -93,14 +100,21 @@ def _prepare(args, cmd: str):
         return 2
 
 
-def _write(out: Path, png: bytes, cmd: str) -> bool:
+def _write(out: Path, png: bytes, cmd: str) -> int:
+    """0 when the image is written, else the exit status after saying why (74: a full disk)."""
+    sink = Output(cmd, out, binary=True)
     try:
-        out.write_bytes(png)
-        return True
+        sink.open()
     except OSError as exc:
-        print(f"{cmd}: cannot write {out}: {exc.strerror or exc} (does the folder exist and is it writable?)",
-              file=sys.stderr)
-        return False
+        return sink.open_failed(exc, status=1)
+    try:
+        sink.write(png)
+        sink.close()
+    except OutputError as exc:
+        return sink.failed(exc.exc)
+    finally:
+        sink.discard()
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -117,6 +131,12 @@ def run(args: argparse.Namespace) -> int:
     panels, tz = prepared
     try:
         pipeline = None if args.db else config_from_args(args).pipeline
+        db = Path(args.db) if args.db else history_path(pipeline, config_path(args))
+        refused = refuse_same_file(cmd, args.output, [("history database", db),
+                                                      ("event journal", db.with_name(EVENTS_FILE)),
+                                                      *config_inputs(args)])
+        if refused is not None:
+            return refused
         hist, since, until = open_history(args, pipeline)
     except (ValueError, FileNotFoundError) as exc:
         print(f"{cmd}: {exc}", file=sys.stderr)
@@ -144,8 +164,9 @@ def run(args: argparse.Namespace) -> int:
     day = dt.datetime.fromtimestamp(series.time[0], tz).strftime("%A %d %B %Y")
     png = plot_angles(series, panels, falls, tz=tz, width_px=args.width,
                       title=f"Joint angles, {day} (robot clock, {zone_text(tz, series.time[0])})")
-    if not _write(Path(args.output), png, cmd):
-        return 1
+    status = _write(Path(args.output), png, cmd)
+    if status:
+        return status
     print(f"{args.output}: {len(rows)} frames, {len(falls)} fall event(s)", file=sys.stderr)
     return 0
 
@@ -166,7 +187,10 @@ def run_fit(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"{cmd}: --start: {exc}", file=sys.stderr)
         return 2
-    results, problems = _read_jsonl(args.input, FitResult.from_json, cmd)
+    refused = refuse_same_file(cmd, args.output, [("fit results", args.input), ("events file", args.events)])
+    if refused is not None:
+        return refused
+    results, problems = _read_jsonl(args.input, FitResult.from_json, cmd, "fit results")
     if results is None:
         return 2
     if not results:
@@ -177,7 +201,7 @@ def run_fit(args: argparse.Namespace) -> int:
     series = AngleSeries.from_fits(results, start)
     falls = []
     if args.events:
-        events, bad = _read_jsonl(args.events, FallEvent.from_json, cmd)
+        events, bad = _read_jsonl(args.events, FallEvent.from_json, cmd, "fall events")
         if events is None:
             return 2
         problems += bad
@@ -186,8 +210,9 @@ def run_fit(args: argparse.Namespace) -> int:
     ok = sum(r.ok for r in results)
     png = plot_angles(series, panels, falls, tz=tz, width_px=args.width, acks=False,
                       title=f"Joint angles of {Path(args.input).name} ({ok} of {len(results)} frames fitted)")
-    if not _write(Path(args.output), png, cmd):
-        return 1
+    status = _write(Path(args.output), png, cmd)
+    if status:
+        return status
     print(f"{args.output}: {len(results)} frames, {len(falls)} fall event(s)", file=sys.stderr)
     return 1 if problems else 0
 
@@ -206,10 +231,32 @@ def _start_time(text: str, tz) -> float:
     return (d if d.tzinfo else d.replace(tzinfo=tz)).timestamp()
 
 
-def _read_jsonl(path: str, parse, cmd: str):
-    """(parsed objects, lines skipped), or (None, 0) when the file cannot be read at all."""
+WRITTEN_BY = {"fit results": "posed fit REC.landmarks.jsonl -o FIT.jsonl",
+              "fall events": "posed falls REC.landmarks.jsonl > EVENTS.jsonl"}
+
+
+def _read_jsonl(path: str, parse, cmd: str, what: str):
+    """(parsed objects, lines skipped), or (None, 0) when the file cannot be read at all or is plainly not
+    ``what`` (a landmark recording, an image, binary data): said in one line."""
+    kind, fmt = sniff(path)
+    wrong = ""
+    if kind == "landmarks":
+        wrong = f"{path} is a landmark recording, not {what}"
+        if what == "fit results":
+            wrong += f": run `posed fit {path} -o FIT.jsonl` first and plot FIT.jsonl"
+    elif kind in ("image", "video", "database"):
+        wrong = f"{path} is {'an' if kind == 'image' else 'a'} {kind} ({fmt}), not {what} ({WRITTEN_BY[what]})"
+    elif kind == "binary":
+        wrong = f"{path} is not UTF-8 text, so not {what} ({WRITTEN_BY[what]})"
+    if wrong:
+        print(f"{cmd}: {wrong}", file=sys.stderr)
+        return None, 0
     try:
         return read_jsonl(path, parse)
+    except UnicodeDecodeError as exc:
+        print(f"{cmd}: {path} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x}), so not {what} "
+              f"({WRITTEN_BY[what]})", file=sys.stderr)
+        return None, 0
     except OSError as exc:
         print(f"{cmd}: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
         return None, 0

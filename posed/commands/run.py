@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from posed.commands import add_config_args, config_from_args
+from posed.commands import add_config_args, config_from_args, config_problems
 from posed.daemon import logs
 from posed.daemon.config import EX_CONFIG
+from posed.daemon.config.load import ConfigError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,7 +23,10 @@ def _run(args: argparse.Namespace) -> int:
     from posed.daemon.state_check import state_dir_problems
     from posed.daemon.supervisor import Supervisor
 
-    cfg = resolve_source(config_from_args(args), _demo_recording)
+    try:
+        cfg = resolve_source(config_from_args(args), _demo_recording)
+    except ConfigError as exc:      # the start-up checks still run on what could be read: every problem at once
+        return config_problems(exc, lambda p: f"posed: {p}")
     problems = check(cfg)
     if problems:
         for p in problems:
