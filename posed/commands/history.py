@@ -117,6 +117,9 @@ def run(args: argparse.Namespace) -> int:
         out.close()
     except OutputError as exc:
         return out.failed(exc.exc)
+    except ValueError as exc:       # HistoryFileError: damage found while reading the rows
+        print(f"posed history: {exc}", file=sys.stderr)
+        return 2
     finally:
         out.discard()
         hist.close()

@@ -143,6 +143,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         rows = list(hist.rows(since, until))
+    except ValueError as exc:       # HistoryFileError: damage found while reading the rows
+        print(f"{cmd}: {exc}", file=sys.stderr)
+        return 2
     finally:
         hist.close()
     if not rows:

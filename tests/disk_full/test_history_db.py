@@ -89,3 +89,20 @@ def test_reading_commands_name_a_file_that_is_not_a_posed_history(tmp_path, comm
     # before: sqlite3.DatabaseError: file is not a database / OperationalError: no such table: angles
     assert r.returncode == 2, r.stderr
     assert f"not a posed history database: {db}" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("command", [("history", "--since", "2000-01-01"),
+                                     ("plot", "history", "--since", "2000-01-01", "-o", "{tmp}/p.png")])
+def test_damage_found_only_while_reading_the_rows_is_named(tmp_path, command):
+    """A history that opens (its first page whole) but whose table pages are damaged: one line, exit 2."""
+    db = tmp_path / "dmg.sqlite3"
+    _valid_history(db, rows=4000)
+    raw = bytearray(db.read_bytes())
+    page = 4096
+    assert len(raw) > 6 * page, len(raw)
+    raw[2 * page:6 * page] = b"\xab" * (4 * page)
+    db.write_bytes(bytes(raw))
+    args = [a.format(tmp=tmp_path) for a in command]
+    r = posed(*args, "--db", str(db))
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"cannot read the joint-angle history {db}" in r.stderr and "Traceback" not in r.stderr, r.stderr
