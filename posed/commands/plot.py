@@ -43,6 +43,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     fit.add_argument("input", metavar="FIT.jsonl", help="fit results (posed fit -o FIT.jsonl)")
     fit.add_argument("--start", metavar="TIME", help="clock time of the recording's first frame (e.g. "
                                                      "2024-05-01T14:30:05); without it x is the recording time")
+    fit.add_argument("--person", type=int, metavar="ID",
+                     help="with several people in the file (results with `person`, a track id): whose angles to "
+                          "plot (default: the person with the most frames)")
     fit.add_argument("--events", metavar="EVENTS.jsonl",
                      help="fall-event messages on the recording's capture clock (posed falls output)")
     _common(fit)
@@ -199,6 +202,9 @@ def run_fit(args: argparse.Namespace) -> int:
     if not results:
         print(f"{cmd}: {args.input} holds no fit result", file=sys.stderr)
         return 2
+    results, who = _one_person(results, args.person, args.input, cmd)
+    if results is None:
+        return 2
     results.sort(key=lambda r: r.t)
     t0 = results[0].t
     series = AngleSeries.from_fits(results, start)
@@ -212,12 +218,38 @@ def run_fit(args: argparse.Namespace) -> int:
         falls = episodes(EventMark(e.id, e.state, e.t_detect + shift) for e in events)
     ok = sum(r.ok for r in results)
     png = plot_angles(series, panels, falls, tz=tz, width_px=args.width, acks=False,
-                      title=f"Joint angles of {Path(args.input).name} ({ok} of {len(results)} frames fitted)")
+                      title=f"Joint angles of {Path(args.input).name}{who} ({ok} of {len(results)} frames fitted)")
     status = _write(Path(args.output), png, cmd)
     if status:
         return status
     print(f"{args.output}: {len(results)} frames, {len(falls)} fall event(s)", file=sys.stderr)
     return 1 if problems else 0
+
+
+def _one_person(results: list, person: int | None, path: str, cmd: str):
+    """The results of one person (``posed fit`` writes a line per person per frame, each with ``person``, when
+    the recording followed several): ``person``'s, else the person with the most frames, so that no curve
+    jumps from one body to another. A file without ``person`` is one person's. (results or None, title part)."""
+    from collections import Counter
+
+    counts = Counter(r.extra.get("person") for r in results if r.extra.get("person") is not None)
+    if not counts:
+        if person is not None:
+            print(f"{cmd}: --person {person}: {path} holds one person's results (no `person` in them)",
+                  file=sys.stderr)
+            return None, ""
+        return results, ""
+    if person is None:
+        person = counts.most_common(1)[0][0]
+        if len(counts) > 1:
+            others = ", ".join(f"{i} ({n} frames)" for i, n in sorted(counts.items()) if i != person)
+            print(f"{cmd}: {path} holds {len(counts)} people; plotting person {person} ({counts[person]} frames); "
+                  f"--person ID plots another: {others}", file=sys.stderr)
+    elif person not in counts:
+        print(f"{cmd}: --person {person}: no such person in {path}; the people are "
+              + ", ".join(f"{i} ({n} frames)" for i, n in sorted(counts.items())), file=sys.stderr)
+        return None, ""
+    return [r for r in results if r.extra.get("person") == person], f", person {person}"
 
 
 def _start_time(text: str, tz) -> float:

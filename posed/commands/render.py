@@ -143,14 +143,17 @@ def _frame_count(path) -> int | None:
 
 
 def _read_fit(path: str):
-    """The fit results of a ``posed fit`` output by seq, and how many lines could not be read."""
+    """The fit results of a ``posed fit`` output by (seq, person) (person None: a frame of one person), and
+    how many lines could not be read."""
     from posed.fitting import FitResult
 
     results, problems = read_jsonl(path, FitResult.from_json)
-    return {r.seq: r for r in results}, problems
+    return {(r.seq, r.extra.get("person")): r for r in results}, problems
 
 
 def _from_recording(args, config):
+    import numpy as np
+
     from posed.landmarks import RecordingProblem, RecordingSides, iter_recording
 
     header, frames = iter_recording(args.input)   # RecordingError: caller reports
@@ -165,10 +168,12 @@ def _from_recording(args, config):
             continue
         if sides is not None:
             f = sides(f)
-        own = fits.get(f.seq)
-        mine = None if own is None else own.extra.get("person")
+        # the frame's own person: the one whose landmarks are the frame's (posed fit writes a line per person)
+        mine = next((p.id for p in (f.people or ()) if f.landmarks is not None
+                     and np.array_equal(p.landmarks, f.landmarks, equal_nan=True)), None)
+        own = fits.get((f.seq, mine)) or fits.get((f.seq, None))
         items.append((f.seq, f.t, f.landmarks, own,
-                      tuple((p.id, p.landmarks, None) for p in (f.people or ()) if p.id != mine)))
+                      tuple((p.id, p.landmarks, fits.get((f.seq, p.id))) for p in (f.people or ()) if p.id != mine)))
     intrinsics = _intrinsics(header.camera, header.image_size, config, args.hfov)
     return header.image_size, header.fps, intrinsics, items, problems
 
