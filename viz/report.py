@@ -4,9 +4,13 @@ base64: it opens offline, can be mailed, and loads nothing from anywhere).
 What it holds: whether posed was watching (the minutes it received frames, ``watched``: none means off or
 no camera), time spent standing, sitting, lying, in view without a measured posture, and with nobody in view
 (``viz.posture``, whose rules and limits are printed in the report), never counting the rest of a day not
-over; sit-to-stand transitions, walking bouts, the falls and how each ended (recovered, alarm,
-acknowledged) said against the time posed watched; the day's joint-angle ranges; the day hour by hour
-(one bar per hour, a cell per minute); the angle plot.
+over; sit-to-stand transitions, walking bouts, the falls and how each ended (got up, alarm, still on the
+floor, in progress when the report was made, or no further message) said against the time posed watched; the
+day's joint-angle ranges; the day hour by hour (one bar per hour, a cell per minute); the angle plot. Where
+posed watched nothing, nothing is counted: "not measured", never 0.
+
+A fall's states are said in the words of every other view (``viz.series.STATE_WORDS``: fall, on the floor,
+ALARM, got up), as the web page says them.
 """
 
 from __future__ import annotations
@@ -23,12 +27,40 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from posed.falls import FallsConfig
 from posed.viz import posture
 from posed.viz.names import MEASURED_ANGLES, PANELS, short_label
 from posed.viz.plots import FALL_COLOUR, plot_angles, zone_text
-from posed.viz.series import AngleSeries, Episode
+from posed.viz.series import STATE_WORDS, AngleSeries, Episode
 
 BODY_ANGLES = ("theta_bd", "phi_bd", "psi_bd")
+# a fall whose last message (fall, on the floor) is this recent when the report is made is still going on: the
+# detector raises the alarm alarm_after_s after the impact unless the person gets up (docs/falls.md), so
+# until then (and a margin for the message's way to the journal) "no further message" means "not yet"
+IN_PROGRESS_MARGIN_S = 10.0
+NOT_MEASURED = "not measured"
+
+
+def states_text(states: Sequence[str]) -> str:
+    """``fall → on the floor → got up``: a fall's states as the web page and the plots word them."""
+    return " → ".join(STATE_WORDS.get(s, s.replace("_", " ")) for s in states)
+
+
+def outcome(ep: Episode, now: float, in_progress_s: float, fmt) -> str:
+    """How the fall ended, as of ``now`` (the time the report is made): got up, the alarm, in progress (the
+    last message is less than ``in_progress_s`` old and neither got up nor the alarm: the detector is still
+    timing it), still on the floor when last heard of, or no further message (the person left the view)."""
+    states = ep.states
+    last = states[-1] if states else ""
+    if "recovered" in states:
+        return STATE_WORDS["recovered"]
+    if last == "alarm":
+        return f"{STATE_WORDS['alarm']} raised (on the floor too long)"
+    if now - ep.end < in_progress_s:
+        return f"in progress when this report was made ({fmt(now)})"
+    if last == "on_floor":
+        return f"{STATE_WORDS['on_floor']}; no recovery seen"
+    return "no further message (the person left the view)"
 
 
 def _png_tag(png: bytes, alt: str) -> str:
@@ -207,15 +239,19 @@ def angle_ranges(series: AngleSeries) -> list[tuple[str, int, float, float, floa
 
 def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: dt.tzinfo, *, robot: str,
                sources: str, max_step_s: float = 1.0, watched: Sequence[tuple] | None = None,
-               now: float | None = None, down=None) -> str:
+               now: float | None = None, down=None, in_progress_s: float | None = None) -> str:
     """The HTML text of the day's report. ``series`` on the robot's clock (unix seconds), ``falls`` the
     day's episodes (journal), ``sources`` a line naming the files it was made from, ``watched`` the minutes
     posed watched (``WatchLog.minutes`` rows; None: this history does not record them), ``now`` the time
     the report is made (unix; default now): nothing after it is counted; ``down``: the camera's down the
-    postures are measured against (camera axes; None: the camera taken as level; viz.posture)."""
+    postures are measured against (camera axes; None: the camera taken as level; viz.posture);
+    ``in_progress_s``: a fall whose last message is younger than this when the report is made is "in
+    progress" (default: the fall detector's default ``alarm_after_s`` plus ``IN_PROGRESS_MARGIN_S``)."""
     import time
 
     now = time.time() if now is None else now
+    if in_progress_s is None:
+        in_progress_s = FallsConfig().alarm_after_s + IN_PROGRESS_MARGIN_S
     start = dt.datetime.combine(day, dt.time(0), tz).timestamp()
     end = dt.datetime.combine(day + dt.timedelta(days=1), dt.time(0), tz).timestamp()
     span = (start, end)
@@ -234,7 +270,8 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
              f"<p class='meta'>Robot <b>{esc(robot)}</b>; clock: the robot's local time ({esc(zone_text(tz, start))})."
              f" Covers {esc(so_far)}. Made from {esc(sources)}.</p>"]
     parts.append(_watching_html(acct, falls))
-    parts.append("<h2>The day</h2><table><tr><th></th><th>time</th><th>share of the day so far</th></tr>")
+    share_head = "share of the day so far" if acct.future > 0 else "share of the day"
+    parts.append(f"<h2>The day</h2><table><tr><th></th><th>time</th><th>{share_head}</th></tr>")
     for what, secs in acct.rows():
         share = "" if acct.elapsed <= 0 else "0 %" if secs <= 0 else (
             "&lt;1 %" if secs < 0.005 * acct.elapsed else f"{100 * secs / acct.elapsed:.0f} %")
@@ -247,9 +284,15 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
     parts.append(_png_tag(day_grid_png(minute_states(summary, watched, span, now), falls, span, tz),
                           "the day hour by hour: posture, in view, watching, not watching"))
     walk_s = sum(b.seconds for b in summary.walking_bouts)
+    measured = sum(summary.seconds[p] for p in posture.POSTURES) > 0     # a posture was seen at all
+    if measured:
+        stands, walks = str(summary.sit_to_stand), f"{len(summary.walking_bouts)} ({_hm(walk_s)} in all)"
+    else:   # nothing watched (or nobody seen): a count of 0 would read as "did not get up or walk"
+        why = ("posed was not watching" if acct.known and acct.watching <= 0 else "no posture was measured")
+        stands = walks = f"<span class='small'>{NOT_MEASURED} ({why})</span>"
     parts.append("<h2>Activity</h2><table>"
-                 f"<tr><td>sit-to-stand transitions</td><td>{summary.sit_to_stand}</td></tr>"
-                 f"<tr><td>walking bouts</td><td>{len(summary.walking_bouts)} ({_hm(walk_s)} in all)</td></tr>"
+                 f"<tr><td>sit-to-stand transitions</td><td>{stands}</td></tr>"
+                 f"<tr><td>walking bouts</td><td>{walks}</td></tr>"
                  "</table>")
     if summary.walking_bouts:
         parts.append("<p class='small'>Walking bouts: " + ", ".join(
@@ -259,11 +302,12 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         parts.append("<table><tr><th></th><th>started</th><th>what happened</th><th>how it ended</th>"
                      "<th>acknowledged</th></tr>")
         for i, ep in enumerate(falls, 1):
-            what = " &rarr; ".join(esc(s.replace("_", " ")) for s in ep.states)
+            what = esc(states_text(ep.states))
             ack = fmt(ep.acked) if ep.acked is not None else "<b class='warn'>no</b>"
             whose = f" ({esc(ep.who)})" if ep.who else ""
-            parts.append(f"<tr><td>fall {i}{whose}</td><td>{fmt(ep.start)}</td><td>{what}</td><td>{esc(ep.outcome)}"
-                         f"</td><td>{ack}</td></tr>")
+            ended = esc(outcome(ep, now, in_progress_s, fmt))
+            parts.append(f"<tr><td>fall {i}{whose}</td><td>{fmt(ep.start)}</td><td class='states'>{what}</td>"
+                         f"<td>{ended}</td><td>{ack}</td></tr>")
         parts.append("</table>")
     parts.append(f"<p>{_falls_sentence(acct, len(falls))}</p>")
     parts.append("<h2>Joint-angle ranges</h2><p class='small'>Degrees over the day's samples in which the camera "
@@ -271,9 +315,13 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
                  "where its landmarks were not seen, are left out).</p>"
                  "<table><tr><th>angle</th><th>samples</th><th>min</th><th>5 %</th><th>median</th>"
                  "<th>95 %</th><th>max</th></tr>")
-    for name, n, *vals in angle_ranges(series):
+    ranges = angle_ranges(series)
+    for name, n, *vals in ranges:
         parts.append(f"<tr><td>{esc(name)}</td><td>{n}</td>" + "".join(f"<td>{v:.0f}</td>" for v in vals)
                      + "</tr>")
+    if not ranges:
+        parts.append("<tr><td colspan='7' class='small'>no samples: the camera saw no joint this day"
+                     + (" (posed was not watching)" if acct.known and acct.watching <= 0 else "") + "</td></tr>")
     parts.append("</table>")
     if len(series.time):
         png = plot_angles(series, [(k, PANELS[k]) for k in ("legs", "trunk")], falls, tz=tz,

@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError
     from posed.viz.plots import local_zone
-    from posed.viz.report import day_report
+    from posed.viz.report import IN_PROGRESS_MARGIN_S, day_report
     from posed.viz.series import episodes
 
     try:
@@ -114,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
     step = float(np.median(np.diff(series.time))) if len(series.time) > 1 else 1.0
     text = day_report(series, falls, day, tz, robot=config.robot_id, max_step_s=max(1.0, 3.0 * step),
                       watched=watched, down=camera_down(config, db.parent),
+                      in_progress_s=config.falls.alarm_after_s + IN_PROGRESS_MARGIN_S,
                       sources=f"{db} ({len(rows)} samples) and "
                               + (f"{journal_path}" if journal_path.is_file() else "no event journal"))
     try:

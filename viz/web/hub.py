@@ -5,9 +5,18 @@ Messages (JSON objects with ``type``): ``pose`` (at most ``pose_rate_hz`` per se
 measured — fitting.measured; an unseen one is absent — in metres, camera axes — x image right, y image down,
 z away from the camera — relative to the mid-hip, the mid-hip's camera position when known, and the main joint
 angles, null when not measured), ``status`` (with ``floor``: the fall detector's gravity and floor),
-``event`` (each fall-event message once per (id, state)), ``acked``, ``alive``. With several people in view
-one person is drawn: the household member the status says is followed, else each frame's own person. ``snapshot()`` is what a page that opens
-now needs first: the last status, the last minute of angles, the events seen, whether the robot is up.
+``event`` (each fall-event message once per (id, state)), ``acked``, ``alive``, ``bus`` and ``robot``.
+With several people in view one person is drawn: the household member the status says is followed, else each
+frame's own person. ``snapshot()`` is what a page that opens now needs first: the last status, the last minute
+of angles, the events seen, whether the robot is up.
+
+``robot`` is the one verdict the page shows on whether falls are being watched for (``robot_state``): ``up``,
+``waiting`` (just opened, nothing heard yet) or ``down`` with why — ``bus`` (this side has no Zenoh session),
+``gone`` (the daemon's liveliness token went away: it stopped or died), ``starting`` (its token is back, no
+status or pose from the new run yet: what the page holds is the old run's) or ``silent`` (no status and no pose
+for ``STALE_PERIODS`` status periods, at least ``STALE_MIN_S``: stuck, or gone without Zenoh noticing) — with
+the time it was last heard from. ``tick()`` judges it (the server calls it twice a second) and sends it to every
+page when it changed; a snapshot carries it as judged at that moment.
 """
 
 from __future__ import annotations
@@ -19,10 +28,15 @@ import time
 from collections import deque
 
 from posed.viz.names import MAIN_ANGLES, evidence_text, short_label
+from posed.viz.series import STATE_WORDS
 
 CHART_ANGLES = ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r", "theta_tr")
 WINDOW_S = 60.0
 QUEUE_LIMIT = 256
+STALE_PERIODS = 5           # no status and no pose for this many status periods: the robot is silent
+STALE_MIN_S = 5.0           # ... and at least this long
+DEFAULT_STATUS_PERIOD_S = 1.0   # pipeline.status_period_s's default, until two statuses tell the real one
+START_GRACE_S = 12.0        # a page just opened waits this long for a first word before it says "down"
 
 
 def _num(v) -> float | None:
@@ -54,7 +68,8 @@ def floor_of(status_raw: dict) -> dict | None:
 class Hub:
     """Thread-safe: the Zenoh callbacks call ``on_*``, the HTTP threads ``subscribe``/``snapshot``."""
 
-    def __init__(self, robot: str, pose_rate_hz: float = 15.0, clock=time.monotonic) -> None:
+    def __init__(self, robot: str, pose_rate_hz: float = 15.0, clock=time.monotonic, *,
+                 monotonic=time.monotonic, wall=time.time) -> None:
         self.robot = robot
         self.min_pose_gap = 1.0 / pose_rate_hz
         self._clock = clock
@@ -71,6 +86,16 @@ class Hub:
         self.poses_in = 0
         self._follow: int | None = None     # several people: the track id the status says is followed
         self._last_seq: int | None = None   # the seq of the last pose that was not another person's
+        # whether the robot is heard from: receipt times on this machine (monotonic for ages, wall to show)
+        self._mono, self._wall = monotonic, wall
+        self._opened = (monotonic(), wall())
+        self._heard: tuple[float, float] | None = None          # last status or pose
+        self._rise: float | None = None                          # monotonic time liveliness last said up
+        self._status_at: float | None = None                     # wall time of the last status received
+        self._pose_at: float | None = None                       # ... and of the last pose
+        self._status_gaps: deque = deque(maxlen=8)
+        self._status_mono: float | None = None
+        self._verdict: dict | None = None
 
     # ------------------------------------------------------------------ browsers
     def subscribe(self) -> queue.Queue:
@@ -103,14 +128,83 @@ class Hub:
             return {"type": "snapshot", "robot": self.robot, "status": self._status, "pose": self._pose,
                     "angles": [{"time_unix": t, "angles": a} for t, a in self._angles],
                     "events": list(self._events.values()), "acked": sorted(self._acked), "alive": self._alive,
-                    "bus": dict(self._bus),
+                    "bus": dict(self._bus), "robot_state": self._judge(),
+                    "state_words": dict(STATE_WORDS),
                     "labels": {n: short_label(n) for n in (*MAIN_ANGLES, *CHART_ANGLES)}}
+
+    # ------------------------------------------------------------------ is anyone watching
+    def stale_after_s(self) -> float:
+        """How long without a status or a pose the robot counts as silent: ``STALE_PERIODS`` status periods
+        (the median gap between the statuses received; the default period before two arrived), at least
+        ``STALE_MIN_S``."""
+        gaps = sorted(self._status_gaps)
+        period = gaps[len(gaps) // 2] if gaps else DEFAULT_STATUS_PERIOD_S
+        return max(STALE_MIN_S, STALE_PERIODS * period)
+
+    def _judge(self) -> dict:
+        """The verdict (call with the lock held): ``state`` up / waiting / down, ``why`` (bus, gone, starting, silent;
+        None when up), ``since_unix`` (when it was last heard from: the last status or pose; when never,
+        when this page's server opened), ``last_heard_unix``, ``status_at``/``pose_at`` (wall times of the
+        last of each received), ``stale_after_s``, ``now_unix`` (this server's clock, so a page can tell
+        ages whatever its own clock says)."""
+        now_m, now_w = self._mono(), self._wall()
+        stale = self.stale_after_s()
+        heard_m, heard_w = self._heard if self._heard else (None, None)
+        since = heard_w if heard_w is not None else self._opened[1]
+        grace = max(stale, START_GRACE_S)
+        # heard from since its token (re)appeared: what is shown is this run's, not the last one's
+        fresh = heard_m is not None and (self._rise is None or heard_m >= self._rise)
+        if self._bus.get("connected") is False:
+            state, why = "down", "bus"
+        elif self._alive is False:
+            state, why = "down", "gone"
+        elif fresh and now_m - heard_m <= stale:
+            state, why = "up", None
+        elif heard_m is None and now_m - max(self._opened[0], self._rise or -math.inf) <= grace:
+            state, why = "waiting", None
+        elif heard_m is not None and not fresh and now_m - self._rise <= grace:
+            state, why = "down", "starting"
+        else:
+            state, why = "down", "silent"
+        return {"state": state, "why": why, "since_unix": since, "last_heard_unix": heard_w,
+                "status_at": self._status_at, "pose_at": self._pose_at, "stale_after_s": stale,
+                "now_unix": now_w}
+
+    def robot_state(self) -> dict:
+        with self._lock:
+            return self._judge()
+
+    def tick(self) -> None:
+        """Judge again against the clock; send the verdict to the pages when it changed (``robot``)."""
+        with self._lock:
+            verdict = self._judge()
+            key = (verdict["state"], verdict["why"], verdict["since_unix"] if verdict["state"] == "down" else None)
+            old = self._verdict
+            if old is not None and (old["state"], old["why"], old["since_unix"] if old["state"] == "down"
+                                    else None) == key:
+                return
+            self._verdict = verdict
+        self._send({"type": "robot", **verdict})
+
+    def _heard_now(self, what: str | None = None) -> None:
+        """A sign of life (call with the lock held)."""
+        now_m, now_w = self._mono(), self._wall()
+        self._heard = (now_m, now_w)
+        if what == "status":
+            if self._status_mono is not None:
+                self._status_gaps.append(now_m - self._status_mono)
+            self._status_mono = now_m
+            self._status_at = now_w
+        elif what == "pose":
+            self._pose_at = now_w
 
     # ------------------------------------------------------------------ robot
     def on_pose(self, robot: str, result) -> None:
         """A ``fitting.FitResult`` from posed/ROBOT/pose (``extra`` holds ``time_unix`` when sent)."""
         now = self._clock()
         self.poses_in += 1
+        with self._lock:
+            self._heard_now("pose")
         if not self._is_followed(result):
             return
         if now - self._last_pose_at < self.min_pose_gap:
@@ -158,6 +252,7 @@ class Hub:
                "storage": storage_of(status.raw)}
         with self._lock:
             self._status = msg
+            self._heard_now("status")
         self._send(msg)
 
     def on_event(self, robot: str, event) -> None:
@@ -181,6 +276,8 @@ class Hub:
 
     def on_alive(self, alive: bool) -> None:
         with self._lock:
+            if alive and self._alive is not True:
+                self._rise = self._mono()    # up (or back): its first status is due within a period
             self._alive = alive
         self._send({"type": "alive", "alive": alive})
 

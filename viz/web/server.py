@@ -9,7 +9,8 @@ every handler failure is counted in ``WebServer.counters`` (the web stage logs t
 never printed as a traceback.
 
 Routes: ``GET /`` the page, ``GET /static/NAME`` its files, ``GET /stream`` the events (``text/event-stream``:
-first a ``snapshot``, then the hub's messages, a comment every ``KEEPALIVE_S`` so proxies keep it open),
+first a ``snapshot``, then the hub's messages — among them ``robot``, whether posed is running and heard from,
+judged twice a second by this server — a comment every ``KEEPALIVE_S`` so proxies keep it open),
 ``GET /api/history`` the robot's stored event messages, ``POST /api/ack`` ``{"id": ...}``.
 
 Who may talk to it: with a token configured every request must carry it (``?token=`` — the page passes its
@@ -39,6 +40,7 @@ STATIC = Path(__file__).resolve().parent / "static"
 TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
          ".css": "text/css; charset=utf-8"}
 KEEPALIVE_S = 15.0
+JUDGE_EVERY_S = 0.5             # how often the hub judges whether the robot is still heard from
 LOOPBACK_HOSTS = {"127.0.0.1", "localhost", "::1", "[::1]"}
 MAX_BODY = 4096
 MAX_CONNECTIONS = 64            # browsers open a handful each (the page, its files, the stream)
@@ -65,8 +67,18 @@ class WebServer(ThreadingHTTPServer):
         self.counters = {"busy": 0, "bad_request": 0, "timeout": 0, "failed": 0, "accept_failed": 0}
         super().__init__((host, port), _Handler)
         self._waiting = _WaitingRoom(self)
+        # the robot's verdict is judged against the clock too (a robot that went silent sends nothing)
+        threading.Thread(target=self._judge_robot, name="posed-web-robot", daemon=True).start()
+
+    def _judge_robot(self) -> None:
+        while not self.stopping.wait(JUDGE_EVERY_S):
+            try:
+                self.hub.tick()
+            except Exception:
+                self.count("failed")
 
     def server_close(self) -> None:
+        self.stopping.set()
         waiting = getattr(self, "_waiting", None)      # None: the bind failed in __init__
         if waiting is not None:
             waiting.close()

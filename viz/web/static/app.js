@@ -15,18 +15,28 @@ const SIDE_COLOUR = {l: "#ff8c00", r: "#00a0ff", c: "#3cdc3c"};
 const CHART = [ // [angle, colour, dash]
   ["theta_hp_l", "#1f5fa8", []], ["theta_hp_r", "#1f5fa8", [7, 5]],
   ["theta_kn_l", "#7b3294", []], ["theta_kn_r", "#7b3294", [7, 5]], ["theta_tr", "#333333", [2, 3]]];
-const STATE_WORDS = {falling: "fall", on_floor: "on the floor", alarm: "ALARM (on the floor too long)",
-                     recovered: "got up"};
-const ANKLE_HEIGHT = 0.08, WINDOW_S = 60;
+// the words for a fall's states: the server's (viz.series.STATE_WORDS, the same as the report and the plots)
+let STATE_WORDS = {falling: "fall", on_floor: "on the floor", alarm: "ALARM", recovered: "got up"};
+const ANKLE_HEIGHT = 0.08, WINDOW_S = 60, GAP_S = 3;
 
 const view = window.posedView = {
   connected: false, poses: 0, drawn: 0, lastPose: null, status: null, fpsText: "",
   events: {}, acked: {}, history: [], labels: {}, yaw: -35, pitch: 20, zoom: 1.0, lastGood: null, floorNote: "",
-  showAllEvents: false, showAllHistory: false};
+  showAllEvents: false, showAllHistory: false, robotState: null, streamLost: null, stale: false};
 const angleLog = []; // {time_unix, angles}
 
 // ------------------------------------------------------------------ 3D skeleton
 const sk = document.getElementById("skeleton"), g = sk.getContext("2d");
+
+function fitCanvas(cv, ctx, heightOf) {  // draw at the width the canvas is shown at (a phone too), sharp on HiDPI
+  const dpr = window.devicePixelRatio || 1, w = Math.max(240, Math.round(cv.clientWidth || 640)), h = heightOf(w);
+  if (cv.width !== Math.round(w * dpr) || cv.height !== Math.round(h * dpr)) {
+    cv.width = Math.round(w * dpr); cv.height = Math.round(h * dpr);
+  }
+  cv.style.height = h + "px";
+  ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+  return [w, h];
+}
 
 const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 const unit = (a) => { const n = Math.hypot(a[0], a[1], a[2]) || 1; return a.map((v) => v / n); };
@@ -72,7 +82,7 @@ function project(p, w, h) {
 }
 
 function drawSkeleton() {
-  const w = sk.width, h = sk.height;
+  const [w, h] = fitCanvas(sk, g, (w) => Math.round(w * 0.75));
   g.fillStyle = "#1e1e1e"; g.fillRect(0, 0, w, h);
   g.lineWidth = 1; g.strokeStyle = "#444";
   for (let a = -2; a <= 2.001; a += 0.5) {  // floor grid, 4 m x 4 m, 0.5 m squares
@@ -83,6 +93,15 @@ function drawSkeleton() {
   const note = document.getElementById("pose-note");
   const fitted = pose && pose.ok && Object.keys(pose.joints).length;
   const shown = fitted ? pose : view.lastGood;
+  if (view.stale && shown) {  // posed is not heard from: the last skeleton in grey, with its age
+    g.fillStyle = "#ff8a80"; g.font = "bold 15px sans-serif";
+    g.fillText("NOT LIVE: posed is not heard from", 16, 26);
+    g.fillStyle = "#bbb"; g.font = "14px sans-serif";
+    g.fillText(`grey: the last pose, received ${ageText(view.robotState && view.robotState.pose_at)}`, 16, 48);
+    note.textContent = "not live";
+    drawBones(worldPoints(shown), false, w, h);
+    return;
+  }
   if (!fitted) {  // say why, and keep the last fitted skeleton in grey
     g.fillStyle = "#bbb"; g.font = "15px sans-serif";
     const why = pose ? "no fit: " + (pose.reason || "no person") : "waiting for poses…";
@@ -91,23 +110,26 @@ function drawSkeleton() {
     note.textContent = "";
     if (!shown) return;
   }
-  const pts = worldPoints(shown);
+  drawBones(worldPoints(shown), fitted, w, h);
+  if (!fitted) return;
+  view.drawn += 1;
+  note.textContent = `turned ${Math.round(view.yaw)}°, tilted ${Math.round(view.pitch)}°; joints the camera did ` +
+    "not see this frame are left out";
+}
+
+function drawBones(pts, colour, w, h) {  // colour false: grey (an old fit, or posed not heard from)
   g.lineCap = "round";
   for (const [a, b, s] of BONES) {
     if (!pts[a] || !pts[b]) continue;
-    g.strokeStyle = fitted ? SIDE_COLOUR[s] : "#777"; g.lineWidth = 5; g.setLineDash(s === "r" ? [10, 7] : []);
+    g.strokeStyle = colour ? SIDE_COLOUR[s] : "#777"; g.lineWidth = 5; g.setLineDash(s === "r" ? [10, 7] : []);
     line(project(pts[a], w, h), project(pts[b], w, h));
   }
-  g.setLineDash([]); g.fillStyle = fitted ? "#eee" : "#999";
+  g.setLineDash([]); g.fillStyle = colour ? "#eee" : "#999";
   for (const [k, p] of Object.entries(pts)) {
     if (k === "mid_shoulder") continue;
     const [u, v] = project(p, w, h); g.beginPath(); g.arc(u, v, 4, 0, 2 * Math.PI); g.fill();
   }
   g.fillStyle = "#999"; g.font = "12px sans-serif"; g.fillText(view.floorNote, 16, h - 12);
-  if (!fitted) return;
-  view.drawn += 1;
-  note.textContent = `turned ${Math.round(view.yaw)}°, tilted ${Math.round(view.pitch)}°; joints the camera did ` +
-    "not see this frame are left out";
 }
 
 function line(a, b) { g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke(); }
@@ -133,7 +155,11 @@ const ch = document.getElementById("chart"), c2 = ch.getContext("2d");
 const label = (n) => view.labels[n] || "";   // plain names come with the first message; never a symbol
 
 function drawChart() {
-  const w = ch.width, h = ch.height, L = 46, R = 190, T = 10, B = 28;
+  // wide: the legend at the right; narrow (a phone): under the plot in two columns, fewer time labels
+  const narrow = (ch.clientWidth || 900) < 560, rows = Math.ceil(CHART.length / 2);
+  const legendH = narrow ? 18 * rows + 6 : 0;
+  const [w, h] = fitCanvas(ch, c2, (w) => narrow ? 190 + legendH : Math.max(200, Math.min(300, Math.round(w * 0.3))));
+  const L = narrow ? 38 : 46, R = narrow ? 10 : 190, T = 10, B = 28 + legendH;
   c2.clearRect(0, 0, w, h);
   const now = angleLog.length ? angleLog[angleLog.length - 1].time_unix : Date.now() / 1000;
   let lo = -10, hi = 120;
@@ -145,22 +171,25 @@ function drawChart() {
   for (let v = Math.ceil(lo / 30) * 30; v <= hi; v += 30) {
     c2.beginPath(); c2.moveTo(L, Y(v)); c2.lineTo(w - R, Y(v)); c2.stroke(); c2.fillText(v + "°", 8, Y(v) + 4);
   }
-  for (let s = 0; s <= WINDOW_S; s += 10) c2.fillText(s ? `-${s} s` : "now", X(now - s) - 12, h - 8);
+  for (let s = 0; s <= WINDOW_S; s += narrow ? 20 : 10) c2.fillText(s ? `-${s} s` : "now", X(now - s) - 12, h - legendH - 8);
   view.legend = CHART.map(([n]) => label(n)).filter((t) => t);   // what the legend says (for tests and users)
   CHART.forEach(([n, colour, dash], i) => {
     c2.strokeStyle = colour; c2.setLineDash(dash); c2.lineWidth = 2; c2.beginPath();
-    let pen = false;
+    let pen = false, prev = -Infinity;
     for (const s of angleLog) {
-      const v = s.angles[n];
+      const v = s.angles[n], gap = s.time_unix - prev > GAP_S;   // nothing came (posed off): a gap, not a line
+      prev = s.time_unix;
       if (v === null || v === undefined || now - s.time_unix > WINDOW_S) { pen = false; continue; }
-      if (pen) c2.lineTo(X(s.time_unix), Y(v)); else c2.moveTo(X(s.time_unix), Y(v));
+      if (pen && !gap) c2.lineTo(X(s.time_unix), Y(v)); else c2.moveTo(X(s.time_unix), Y(v));
       pen = true;
     }
     c2.stroke();
-    const ly = T + 14 + 20 * i;  // legend: plain names, same line style (none until the names arrived)
+    // legend: plain names, same line style (none until the names arrived)
+    const lx = narrow ? 8 + (i % 2) * (w - 8) / 2 : w - R + 10;
+    const ly = narrow ? h - legendH + 12 + 18 * Math.floor(i / 2) : T + 14 + 20 * i;
     if (label(n)) {
-      c2.beginPath(); c2.moveTo(w - R + 10, ly); c2.lineTo(w - R + 40, ly); c2.stroke();
-      c2.setLineDash([]); c2.fillStyle = "#222"; c2.fillText(label(n), w - R + 46, ly + 4);
+      c2.beginPath(); c2.moveTo(lx, ly); c2.lineTo(lx + 26, ly); c2.stroke();
+      c2.setLineDash([]); c2.fillStyle = "#222"; c2.fillText(label(n), lx + 32, ly + 4);
     }
   });
   c2.setLineDash([]);
@@ -222,8 +251,64 @@ function showBus(bus) {  // the page cannot reach the robot's bus: say so, never
 function showAlive(alive) {
   const el = document.getElementById("alive");
   el.textContent = alive === null ? "robot: ?" : alive ? "robot: up" : "robot: GONE";
-  el.className = "pill" + (alive ? "" : " off");
+  el.className = "pill" + (alive ? "" : alive === false ? " bad" : " off");
 }
+
+// ------------------------------------------------------------------ is posed watching: the server's verdict
+let clockSkew = 0;   // this browser's clock minus the server's (s): ages are told on the server's clock
+const serverNow = () => Date.now() / 1000 - clockSkew;
+function clockText(t) {  // HH:MM:SS in this browser's zone
+  const d = toDate(t);
+  return d ? `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}` : "–";
+}
+function ageText(t) {  // "at 22:31:24, 35 s ago"
+  if (t === null || t === undefined) return "never";
+  const a = Math.max(0, Math.round(serverNow() - t));
+  return `at ${clockText(t)}, ` + (a < 120 ? `${a} s ago` : a < 7200 ? `${Math.round(a / 60)} min ago` :
+    `${(a / 3600).toFixed(1)} h ago`);
+}
+
+function showRobot(r) {
+  if (!r) return;
+  view.robotState = r;
+  if (typeof r.now_unix === "number") clockSkew = Date.now() / 1000 - r.now_unix;
+  showLiveness();
+}
+
+function showLiveness() {  // the red bar, the "live" badge, and everything stale greyed with its age
+  const r = view.robotState || {state: "waiting"}, robot = document.getElementById("robot").textContent || "the robot";
+  let text = "";
+  if (view.streamLost !== null) {
+    text = `This page lost its connection to posed web at ${clockText(view.streamLost)} — falls are NOT shown ` +
+      "here until it is back.";
+  } else if (r.state === "down" && r.why === "gone") {
+    text = `posed on ${robot} is not running since ${clockText(r.since_unix)} — falls are NOT being detected.`;
+  } else if (r.state === "down" && r.why === "starting") {
+    text = `posed on ${robot} is starting again (not running since ${clockText(r.since_unix)}) — falls are NOT ` +
+      "being detected yet.";
+  } else if (r.state === "down" && r.why === "silent") {
+    text = r.last_heard_unix ? `posed on ${robot} has sent nothing since ${clockText(r.since_unix)} (stopped or ` +
+      "stuck) — falls are NOT being detected." : `posed on ${robot} has not been heard from since this page opened ` +
+      `at ${clockText(r.since_unix)} — falls are NOT being detected.`;
+  }   // a bus this side cannot reach: the bus banner says it, with the reason and the fix
+  const bar = document.getElementById("down");
+  bar.hidden = !text; bar.textContent = text;
+  const live = view.streamLost === null && view.connected && r.state === "up";
+  const waiting = view.streamLost === null && r.state === "waiting";
+  const conn = document.getElementById("conn");
+  conn.textContent = live ? "live" : view.streamLost !== null ? "NOT LIVE: reconnecting…" :
+    waiting ? "waiting for the robot…" : "NOT LIVE";
+  conn.className = "pill" + (live ? "" : waiting ? " off" : " bad");
+  view.live = live;
+  view.stale = !live && !waiting;
+  document.body.classList.toggle("stale", view.stale);
+  setText("st-age", view.stale ? (r.status_at ? `not live: last status ${ageText(r.status_at)}` : "not live: no status") : "");
+  setText("angles-age", view.stale ? (r.pose_at ? `not live: last pose ${ageText(r.pose_at)}` : "not live") : "");
+  const none = document.getElementById("events-none");
+  if (none) none.textContent = view.stale ? "none received since this page opened — and none can arrive while " +
+    "posed is not heard from" : "none since this page opened";
+}
+
 
 const EVENTS_SHOWN = 6, HISTORY_SHOWN = 15;   // the newest; the rest behind "show all", always counted
 
@@ -339,12 +424,16 @@ function showHistory(error) {
 function onMessage(m) {
   if (m.type === "snapshot") {
     view.labels = m.labels || {}; setText("robot", m.robot);
+    if (m.state_words) STATE_WORDS = m.state_words;
+    view.streamLost = null;
     for (const a of m.angles) angleLog.push(a);
     if (m.status) showStatus(m.status);
     for (const e of m.events) view.events[e.id + "/" + e.state] = e;
     for (const id of m.acked) view.acked[id] = true;
-    showAlive(m.alive); showBus(m.bus);
-    if (m.pose) { view.lastPose = m.pose; if (m.pose.ok) view.lastGood = m.pose; showEvidence(m.pose); drawSkeleton(); }
+    showAlive(m.alive); showBus(m.bus); showRobot(m.robot_state);
+    if (m.pose) {
+      view.lastPose = m.pose; if (m.pose.ok) view.lastGood = m.pose; showEvidence(m.pose); showAnglesNow(m.pose); drawSkeleton();
+    }
     showEvents(); drawChart();
   } else if (m.type === "pose") {
     view.poses += 1; view.lastPose = m; setText("st-poses", view.poses);
@@ -365,6 +454,8 @@ function onMessage(m) {
     showAlive(m.alive);
   } else if (m.type === "bus") {
     showBus(m); loadHistory();
+  } else if (m.type === "robot") {
+    showRobot(m); if (view.stale) requestDraw();
   }
 }
 
@@ -378,11 +469,16 @@ function requestDraw() {
 
 function connect() {
   const es = new EventSource(withToken("/stream"));
-  const conn = document.getElementById("conn");
-  es.onopen = () => { view.connected = true; conn.textContent = "live"; conn.className = "pill"; };
-  es.onerror = () => { view.connected = false; conn.textContent = "reconnecting…"; conn.className = "pill off"; };
+  es.onopen = () => { view.connected = true; showLiveness(); };
+  es.onerror = () => {  // the server is gone (or restarting): nothing here is live until the next snapshot
+    view.connected = false;
+    if (view.streamLost === null) view.streamLost = serverNow();
+    showLiveness(); requestDraw();
+  };
   es.onmessage = (ev) => onMessage(JSON.parse(ev.data));
 }
 
 drawSkeleton(); drawChart(); connect(); loadHistory();
 setInterval(loadHistory, 20000);
+setInterval(() => { showLiveness(); if (view.stale) drawSkeleton(); }, 1000);   // the ages go on
+window.addEventListener("resize", requestDraw);
