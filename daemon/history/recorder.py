@@ -25,6 +25,10 @@ class HistoryRecorder:
         self.log = log
         self.maintain_every_s = maintain_every_s
         self._next_maintain = (clock.now() if now is None else now) + maintain_every_s
+        # the watched minutes are written as often as the angle rows (falls.history_commit_every_s): a report
+        # made a few seconds after the start must not show samples of a day it says posed did not watch
+        self.watch_flush_every_s = float(getattr(getattr(store, "cfg", None), "history_commit_every_s", 5.0))
+        self._next_watch_flush = (clock.now() if now is None else now) + self.watch_flush_every_s
         self.watched: WatchLog | None = None      # the minutes posed watched, in the same file
         path = getattr(store, "path", None)
         if path is not None:
@@ -43,7 +47,11 @@ class HistoryRecorder:
                 self.watched.add(wall, person=result.ok or result.reason != "no person", fitted=result.ok)
 
     def tick(self, now: float) -> None:
-        """Downsample and expire old rows every ``maintain_every_s``; a failure is logged, never raised."""
+        """Write the watched minutes every ``watch_flush_every_s``; downsample and expire old rows every
+        ``maintain_every_s``; a failure is logged, never raised."""
+        if self.watched is not None and now >= self._next_watch_flush:
+            self._next_watch_flush = now + self.watch_flush_every_s
+            self.watched.flush()
         if now < self._next_maintain:
             return
         self._next_maintain = now + self.maintain_every_s

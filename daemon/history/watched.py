@@ -6,8 +6,8 @@ frames from the camera.
 
 It is what lets a caregiver's report (``posed report``) tell "no fall while posed was watching" from "posed
 was not watching" (the angle history alone has rows only while a person is fitted). Counts are kept in memory
-and written (added to the minute's row) on ``flush``, which the recorder calls about once a minute and at
-shutdown; a failed write is logged and the counts are dropped, never raised (like the angles, a record, not an
+and written (added to the minute's row) on ``flush``, which the recorder calls as often as it writes the angle
+rows (``falls.history_commit_every_s``) and at shutdown; a failed write is logged and the counts are dropped, never raised (like the angles, a record, not an
 alarm). Rows expire with the history (``history_retention_days``).
 """
 

@@ -71,3 +71,21 @@ def test_a_failed_write_is_logged_not_raised(tmp_path):
     w.flush()
     assert log.errors and log.errors[0][0] == "watched_write_failed" and "fix" in log.errors[0][1]
     w.close()
+
+
+def test_the_watched_minutes_are_written_as_often_as_the_angles(tmp_path):
+    """A report made seconds after the start reads the minutes posed watched, not only its angle rows (they
+    were written once a minute, the angles every falls.history_commit_every_s)."""
+    path = tmp_path / "history.sqlite3"
+    cfg = FallsConfig()
+    rec = HistoryRecorder(AngleHistory(path, cfg), Log(), now=0.0)
+    t0 = clock.now()
+    wall0 = clock.wall_from_monotonic(t0)
+    for i in range(80):                     # 8 s at 10 fps, the recorder ticked as the publisher ticks it
+        t = t0 + i / 10.0
+        rec.add(FitResult(i, t, True, joint_angles_deg={"theta_kn_l": 10.0}), t)
+        rec.tick(i / 10.0)
+    with WatchLog(path, readonly=True) as w:
+        rows = w.minutes(wall0 - 120, wall0 + 120)
+    assert sum(r[1] for r in rows) >= 50, rows        # written at 5 s, not held until the minute's flush
+    rec.close()
