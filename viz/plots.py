@@ -147,7 +147,11 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
     if s.clock:
         loc = mdates.AutoDateLocator(tz=tz, minticks=4, maxticks=10)
         bottom_ax.xaxis.set_major_locator(loc)
-        bottom_ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(loc, tz=tz))
+        # every tick a whole clock time (a bare "30" reads as minutes), the date once, ISO, at the axis' end
+        times = ["%Y", "%Y-%m", "%Y-%m-%d", "%H:%M", "%H:%M", "%H:%M:%S"]
+        bottom_ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(
+            loc, tz=tz, formats=times, zero_formats=times,
+            offset_formats=["", "%Y", "%Y-%m", "%Y-%m-%d", "%Y-%m-%d", "%Y-%m-%d"]))
         at = float(s.time[0]) if len(s.time) else 0.0
         bottom_ax.set_xlabel(f"clock time of the robot ({zone_text(tz, at)})")
     else:

@@ -111,9 +111,9 @@ class Episode:
         return "no further message (the person left the view)"
 
     def describe(self, fmt, acks: bool = True) -> str:
-        """One line: ``14:03:05 fall -> on the floor -> ALARM; acknowledged 14:05:10``; ``fmt`` formats a time;
+        """One line: ``14:03:05 fall → on the floor → ALARM; acknowledged 14:05:10``; ``fmt`` formats a time;
         ``acks`` False: the source knows nothing of acknowledgements (a ``posed falls`` output)."""
-        text = f"{fmt(self.start)} " + " -> ".join(STATE_WORDS.get(s, s) for s in self.states)
+        text = f"{fmt(self.start)} " + " → ".join(STATE_WORDS.get(s, s) for s in self.states)   # as the web page
         if acks:
             text += f"; acknowledged {fmt(self.acked)}" if self.acked is not None else "; not acknowledged"
         return text
