@@ -101,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
     mount = mount_gravity(config.falls)
     people = _People(fitter, lambda: Fitter(cfg))
     skipped = fitted = ok = 0
+    last_t: float | None = None
+    backwards: list[int] = []
     try:
         for item in frames:
             if isinstance(item, RecordingProblem):
@@ -109,6 +111,9 @@ def run(args: argparse.Namespace) -> int:
                 continue
             if sides is not None:
                 item = sides(item)
+            if last_t is not None and item.t < last_t:
+                backwards.append(item.seq)   # the fit starts over there (fitting.Fitter: image mode)
+            last_t = item.t
             gravity = frame_gravity(item, mount, config.falls.imu_gravity, config.falls.floor_from_depth)
             for person, own in people.frame(item):
                 result = people.fitter(person).fit(
@@ -129,6 +134,10 @@ def run(args: argparse.Namespace) -> int:
         return out.failed(exc.exc)
     finally:
         out.discard()
+    if backwards:
+        _err(f"{len(backwards)} frame(s) with a time `t` earlier than the frame before (first: seq {backwards[0]}): "
+             "the recording's clock went backwards there; each such frame was fitted on its own (image mode), "
+             "not from the one before")
     swapped = 0 if sides is None else sides.frames_put_back
     several = f" of {len(people.ids)} people (one line per person per frame, each with its `person`)" \
         if len(people.ids) > 1 else ""
