@@ -36,6 +36,7 @@ from pathlib import Path
 
 from posed.daemon import logs
 from posed.daemon.clock import iso
+from posed.daemon.outbox.journal_file import is_corrupt, set_aside  # the same SQLite files' rules
 from posed.falls.config import FallsConfig
 from posed.fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, FitResult
 
@@ -122,17 +123,13 @@ class AngleHistory:
             self.last_error = ""
 
     def _set_aside(self, exc: sqlite3.DatabaseError) -> None:
-        """Move a corrupt history file (and its WAL and shared-memory files) aside, then start a fresh one."""
-        aside = self.path.with_name(f"{self.path.name}.corrupt-{int(time.time())}")
-        for suffix in ("", "-wal", "-shm"):
-            src = Path(str(self.path) + suffix)
-            if src.exists():
-                try:
-                    src.rename(Path(str(aside) + suffix))
-                except OSError as exc2:
-                    self._trouble("history_unavailable", f"the joint-angle history {self.path} is damaged "
-                                  f"({exc}) and cannot be moved aside: {exc2}", exc2)
-                    return
+        """Move a corrupt history file (and its WAL and shared-memory files) aside, as the event journal's is
+        (``journal_file.set_aside``), then start a fresh one."""
+        aside = set_aside(self.path, time.time())
+        if self.path.exists():           # the rename failed (set_aside skips what it cannot move)
+            self._trouble("history_unavailable", f"the joint-angle history {self.path} is damaged ({exc}) and "
+                          f"cannot be moved aside to {aside}", exc)
+            return
         try:      # health data: the fresh file is private (0600) like the one it replaces (daemon.outbox.private)
             os.close(os.open(self.path, os.O_WRONLY | os.O_CREAT, 0o600))
         except OSError:
@@ -185,12 +182,8 @@ class AngleHistory:
             self._buffer.clear()
             self._last_commit_t = self._last_kept_t
             return
-        marks = ", ".join("?" * len(CSV_HEADER[1:]))
         try:
-            with self._db:
-                self._db.execute("BEGIN")
-                self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, {', '.join(ROW_COLUMNS)}) "
-                                     f"VALUES ({marks})", self._buffer)
+            self._insert_buffer()
             if self.last_error:
                 self._log.info("history_recovered", previous_error=self.last_error, dropped=self.dropped)
                 self.last_error = ""
@@ -201,10 +194,7 @@ class AngleHistory:
                 self._set_aside(exc)
                 if self._db is not None:
                     try:
-                        with self._db:
-                            self._db.execute("BEGIN")
-                            self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, "
-                                                 f"{', '.join(ROW_COLUMNS)}) VALUES ({marks})", self._buffer)
+                        self._insert_buffer()
                         self._buffer.clear()
                         self._last_commit_t = self._last_kept_t
                         return
@@ -215,6 +205,14 @@ class AngleHistory:
                           exc)
         self._buffer.clear()
         self._last_commit_t = self._last_kept_t
+
+    def _insert_buffer(self) -> None:
+        """The buffered rows in one transaction (sqlite3.Error when it fails)."""
+        marks = ", ".join("?" * len(CSV_HEADER[1:]))
+        with self._db:
+            self._db.execute("BEGIN")
+            self._db.executemany(f"INSERT INTO angles (wall, t, seq, level, {', '.join(ROW_COLUMNS)}) "
+                                 f"VALUES ({marks})", self._buffer)
 
     def maintain(self, now: float | None = None) -> dict:
         """Downsample old rows and delete expired ones; returns counts."""
@@ -315,13 +313,6 @@ def read_csv(text: str) -> list[dict]:
             rec[name] = float(row[name]) if row.get(name) not in (None, "") else None
         out.append(rec)
     return out
-
-
-def is_corrupt(exc: sqlite3.DatabaseError) -> bool:
-    """Whether SQLite's error says the file is damaged or not a database at all (not a full or read-only
-    disk)."""
-    text = str(exc).lower()
-    return "not a database" in text or "malformed" in text or "corrupt" in text
 
 
 def fix_for(exc: BaseException | None) -> str:
