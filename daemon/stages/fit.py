@@ -128,23 +128,68 @@ def frame_gravity(frame, mount: np.ndarray | None, use_imu: bool = True,
     return mount
 
 
+class PersonFitters:
+    """Which fitter fits whom in a stream whose frames may carry ``people`` (this stage's :class:`PeopleFit` and
+    ``posed fit``): ``main`` fits the frame's own person (whose landmarks are the frame's: the one followed
+    longest), and the stream's one person in a frame without ``people``; every other track id has a fitter of
+    its own, made by ``make``. When the frame's own person changes, the fitters follow the people. A person
+    unseen for ``FORGET_S`` of the stream's time loses theirs."""
+
+    def __init__(self, first, make) -> None:
+        self.make = make
+        self.main = first
+        self.main_id: int | None = None
+        self.others: dict[int, object] = {}
+        self.seen: dict[int, float] = {}
+
+    def own_person(self, frame, t: float) -> int | None:
+        """The track id of ``frame``'s own person (None: not among its ``people``), whose fitter is now
+        ``main``."""
+        primary = next((p.id for p in frame.people if frame.landmarks is not None
+                        and np.array_equal(p.landmarks, frame.landmarks, equal_nan=True)), None)
+        if primary is not None and self.main_id is not None and primary != self.main_id:
+            self.others[self.main_id] = self.main             # the one followed longest changed
+            self.main = self.others.pop(primary, None) or self.make()
+        if primary is not None:
+            self.main_id = primary
+            self.seen[primary] = t
+        return primary
+
+    def of(self, person: int, t: float):
+        """The fitter of ``person``, another than the frame's own person, seen at ``t``."""
+        fitter = self.others.get(person)
+        if fitter is None:
+            fitter = self.others[person] = self.make()
+        self.seen[person] = t
+        return fitter
+
+    def forget(self, t: float) -> None:
+        """Drop the fitters of the people unseen for ``FORGET_S`` at ``t``."""
+        for pid in [i for i, seen in self.seen.items() if t - seen > FORGET_S and i != self.main_id]:
+            self.others.pop(pid, None)
+            self.seen.pop(pid, None)
+
+    def reset(self) -> None:
+        """Forget every person but keep ``main`` (its state is the caller's to reset)."""
+        self.others.clear()
+        self.seen.clear()
+        self.main_id = None
+
+
 class PeopleFit:
-    """Every person of a frame fitted by a :class:`StreamFit` of their own (see the module doc)."""
+    """Every person of a frame fitted by a :class:`StreamFit` of their own (see the module doc), the fitters
+    assigned by :class:`PersonFitters`."""
 
     def __init__(self, make_fitter, assumed_hfov_deg: float, mount: np.ndarray | None = None,
                  use_imu: bool = True, use_floor: bool = True) -> None:
         """``assumed_hfov_deg``: the field of view (across the image's longer side) of the lens assumed for
         frames without intrinsics (``falls.camera_hfov_deg``); ``mount``, ``use_imu``, ``use_floor``: which way
         is down (:func:`frame_gravity`)."""
-        self.make_fitter = make_fitter
         self.assumed_hfov_deg = assumed_hfov_deg
         self.mount = mount
         self.use_imu = use_imu
         self.use_floor = use_floor
-        self.main = StreamFit(make_fitter())     # the frame's own person (the only one without ``people``)
-        self.main_id: int | None = None
-        self.others: dict[int, StreamFit] = {}
-        self.seen: dict[int, float] = {}
+        self.fitters = PersonFitters(StreamFit(make_fitter()), lambda: StreamFit(make_fitter()))
 
     def fit(self, frame, t_capture: float, image_size, intrinsics):
         """(the frame's own person's result, the other people's results)."""
@@ -153,39 +198,24 @@ class PeopleFit:
         gravity = frame_gravity(frame, self.mount, self.use_imu, self.use_floor)
         people = frame.people
         if not people:
-            return self.main.fit(frame, t_capture, image_size, intrinsics, gravity), ()
-        primary = next((p.id for p in people if frame.landmarks is not None
-                        and np.array_equal(p.landmarks, frame.landmarks, equal_nan=True)), None)
-        if primary is not None and self.main_id is not None and primary != self.main_id:
-            self.others[self.main_id] = self.main             # the one followed longest changed
-            self.main = self.others.pop(primary, None) or StreamFit(self.make_fitter())
-        if primary is not None:
-            self.main_id = primary
-            self.seen[primary] = t_capture
-        result = self.main.fit(frame, t_capture, image_size, intrinsics, gravity)
+            return self.fitters.main.fit(frame, t_capture, image_size, intrinsics, gravity), ()
+        primary = self.fitters.own_person(frame, t_capture)
+        result = self.fitters.main.fit(frame, t_capture, image_size, intrinsics, gravity)
         if primary is not None:
             result = replace(result, extra={**result.extra, "person": primary})
         out = []
         for p in people:
             if p.id == primary:
                 continue
-            stream = self.others.get(p.id)
-            if stream is None:
-                stream = self.others[p.id] = StreamFit(self.make_fitter())
-            self.seen[p.id] = t_capture
             own = replace(frame, landmarks=p.landmarks, world=p.world, depth_m=p.depth_m, people=None)
-            r = stream.fit(own, t_capture, image_size, intrinsics, gravity)
+            r = self.fitters.of(p.id, t_capture).fit(own, t_capture, image_size, intrinsics, gravity)
             out.append(replace(r, extra={**r.extra, "person": p.id}))
-        for pid in [i for i, t in self.seen.items() if t_capture - t > FORGET_S and i != self.main_id]:
-            self.others.pop(pid, None)
-            self.seen.pop(pid, None)
+        self.fitters.forget(t_capture)
         return result, tuple(out)
 
     def reset(self) -> None:
-        self.main.fitter.reset()
-        self.others.clear()
-        self.seen.clear()
-        self.main_id = None
+        self.fitters.main.fitter.reset()
+        self.fitters.reset()
 
 
 def people_fit(make_fitter, config) -> PeopleFit:

@@ -96,10 +96,11 @@ def run(args: argparse.Namespace) -> int:
     sides = RecordingSides() if RecordingSides.needed(header, config.landmarks.keep_sides) else None
     # which way is down: a line's own gravity or depth floor, else the configured mount's when trusted
     # (daemon.stages.fit)
-    from posed.daemon.stages.fit import frame_gravity, mount_gravity
+    from posed.daemon.stages.fit import PersonFitters, frame_gravity, mount_gravity
 
     mount = mount_gravity(config.falls)
-    people = _People(fitter, lambda: Fitter(cfg))
+    people = PersonFitters(fitter, lambda: Fitter(cfg))     # each person followed by a fitter of their own
+    ids: set[int] = set()
     skipped = fitted = ok = 0
     last_t: float | None = None
     backwards: list[int] = []
@@ -115,8 +116,8 @@ def run(args: argparse.Namespace) -> int:
                 backwards.append(item.seq)   # the fit starts over there (fitting.Fitter: image mode)
             last_t = item.t
             gravity = frame_gravity(item, mount, config.falls.imu_gravity, config.falls.floor_from_depth)
-            for person, own in people.frame(item):
-                result = people.fitter(person).fit(
+            for person, own, person_fitter in _persons(item, people, ids):
+                result = person_fitter.fit(
                     own.landmarks, item.seq, item.t, header.image_size, mode=args.mode, intrinsics=intrinsics,
                     depth_m=own.depth_m, world=own.world, gravity=gravity)
                 if person is not None:
@@ -139,61 +140,26 @@ def run(args: argparse.Namespace) -> int:
              "the recording's clock went backwards there; each such frame was fitted on its own (image mode), "
              "not from the one before")
     swapped = 0 if sides is None else sides.frames_put_back
-    several = f" of {len(people.ids)} people (one line per person per frame, each with its `person`)" \
-        if len(people.ids) > 1 else ""
+    several = f" of {len(ids)} people (one line per person per frame, each with its `person`)" \
+        if len(ids) > 1 else ""
     _err(f"{fitted} {'fit(s)' if several else 'frame(s) fitted'}{several} ({ok} ok, {fitted - ok} not ok), "
          f"{skipped} line(s) skipped" + (f"; left and right put back on {swapped} (landmarks.sides)" if swapped else ""))
     return 1 if skipped else 0
 
 
-class _People:
-    """Who is fitted on each frame, each person by a fitter of their own (video mode follows a person, not a
-    place in the file), as the daemon's fitting stage does (daemon.stages.fit.PeopleFit).
-
-    A frame without ``people`` is its one person, fitted by the first fitter exactly as before (no ``person``
-    in the result). A frame with ``people`` gives one result per person, the frame's own person (the one
-    followed longest, whose landmarks are the frame's) first, each with ``person`` (the track id); each track
-    id keeps its fitter, and the first fitter follows the frame's own person when that changes. A person unseen
-    for ``FORGET_S`` of recording time loses their fitter."""
-
-    def __init__(self, first, make_fitter) -> None:
-        self.make_fitter = make_fitter
-        self.main = first
-        self.main_id: int | None = None
-        self.others: dict[int, object] = {}
-        self.seen: dict[int, float] = {}
-        self.ids: set[int] = set()
-
-    def frame(self, item) -> list:
-        """(track id or None, what to fit: an object with landmarks, world and depth_m) for each person."""
-        import numpy as np
-
-        from posed.daemon.stages.fit import FORGET_S
-
-        if not item.people:
-            return [(None, item)]
-        primary = next((p.id for p in item.people if item.landmarks is not None
-                        and np.array_equal(p.landmarks, item.landmarks, equal_nan=True)), None)
-        if primary is not None and self.main_id is not None and primary != self.main_id:
-            self.others[self.main_id] = self.main            # the one followed longest changed: fitters follow
-            self.main = self.others.pop(primary, None) or self.make_fitter()
-        if primary is not None:
-            self.main_id = primary
-        order = sorted(item.people, key=lambda p: p.id != primary)
-        for p in order:
-            self.seen[p.id] = item.t
-            self.ids.add(p.id)
-        for pid in [i for i, t in self.seen.items() if item.t - t > FORGET_S and i != self.main_id]:
-            self.others.pop(pid, None)
-            self.seen.pop(pid, None)
-        return [(p.id, p) for p in order]
-
-    def fitter(self, person: int | None):
-        if person is None or person == self.main_id:
-            return self.main
-        if person not in self.others:
-            self.others[person] = self.make_fitter()
-        return self.others[person]
+def _persons(item, people, ids: set[int]) -> list:
+    """(track id or None, what to fit: landmarks, world, depth_m, the fitter) for each person of ``item``: a
+    frame without ``people`` is its one person, fitted by the first fitter exactly as before (no ``person`` in
+    the result); a frame with ``people`` gives each person, the frame's own first (daemon.stages.fit's
+    ``PersonFitters``, as the daemon's fitting stage assigns them)."""
+    if not item.people:
+        return [(None, item, people.main)]
+    primary = people.own_person(item, item.t)
+    out = [(p.id, p, people.main if p.id == primary else people.of(p.id, item.t))
+           for p in sorted(item.people, key=lambda p: p.id != primary)]
+    people.forget(item.t)
+    ids.update(p.id for p in item.people)
+    return out
 
 
 def _not_a_recording(path: str) -> str:
