@@ -308,6 +308,14 @@ class LandmarkFrame:
             world.setflags(write=False)
             object.__setattr__(self, "world", world)
 
+    def own_person(self) -> int | None:
+        """The track id of the frame's own person: the one of ``people`` whose landmarks are the frame's (the
+        one followed longest); None without ``people`` or when none is."""
+        if self.landmarks is None:
+            return None
+        return next((p.id for p in self.people or () if np.array_equal(p.landmarks, self.landmarks,
+                                                                        equal_nan=True)), None)
+
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LandmarkFrame):
             return NotImplemented

@@ -145,8 +145,7 @@ class PersonFitters:
     def own_person(self, frame, t: float) -> int | None:
         """The track id of ``frame``'s own person (None: not among its ``people``), whose fitter is now
         ``main``."""
-        primary = next((p.id for p in frame.people if frame.landmarks is not None
-                        and np.array_equal(p.landmarks, frame.landmarks, equal_nan=True)), None)
+        primary = frame.own_person()
         if primary is not None and self.main_id is not None and primary != self.main_id:
             self.others[self.main_id] = self.main             # the one followed longest changed
             self.main = self.others.pop(primary, None) or self.make()

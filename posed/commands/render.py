@@ -152,8 +152,6 @@ def _read_fit(path: str):
 
 
 def _from_recording(args, config):
-    import numpy as np
-
     from posed.landmarks import RecordingProblem, RecordingSides, iter_recording
 
     header, frames = iter_recording(args.input)   # RecordingError: caller reports
@@ -169,8 +167,7 @@ def _from_recording(args, config):
         if sides is not None:
             f = sides(f)
         # the frame's own person: the one whose landmarks are the frame's (posed fit writes a line per person)
-        mine = next((p.id for p in (f.people or ()) if f.landmarks is not None
-                     and np.array_equal(p.landmarks, f.landmarks, equal_nan=True)), None)
+        mine = f.own_person()
         own = fits.get((f.seq, mine)) or fits.get((f.seq, None))
         items.append((f.seq, f.t, f.landmarks, own,
                       tuple((p.id, p.landmarks, fits.get((f.seq, p.id))) for p in (f.people or ()) if p.id != mine)))

@@ -35,6 +35,8 @@ def _recordings(tmp_path: Path, shared_data: Path):
         people = tuple(PersonLandmarks(i, f.landmarks, f.world, None) for i, f in ((4, a), (9, b))
                        if f.landmarks is not None)
         both.append(replace(a, people=people or None))
+        assert both[-1].own_person() == (4 if a.landmarks is not None else None)   # the frame's own person
+    assert fa[0].own_person() is None                                               # no people: nobody's
     paths = {}
     for name, frames in (("a", fa), ("b", fb), ("both", both)):
         paths[name] = tmp_path / f"{name}.landmarks.jsonl"
