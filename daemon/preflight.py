@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from posed.daemon.config import Config
+from posed.daemon.config.load import key_covers
 from posed.hal import file_problem, is_landmark_recording
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -111,8 +112,7 @@ def partial_problems(exc) -> list[str]:
 
     def covered(problem: str) -> bool:
         key = problem.split(":", 1)[0].split(" ", 1)[0]
-        return any(key == n or key.startswith(n + ".") or key.startswith(n + "[") or n.startswith(key + ".")
-                   for n in named)
+        return any(key_covers(key, n) for n in named)
 
     try:
         found = check(cfg) + hook_program_problems(cfg)

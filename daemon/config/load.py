@@ -51,6 +51,13 @@ class ConfigError(Exception):
 _MISSING = dataclasses.MISSING
 
 
+def key_covers(key: str, name: str) -> bool:
+    """Whether the dotted key path ``key`` is ``name``, lies inside it (``fitting.row_init`` in ``fitting``,
+    ``hooks.on_event[1].argv`` in ``hooks.on_event``) or is a section holding it (``fitting`` for
+    ``fitting.row_init``): a problem at ``key`` then concerns the setting ``name``."""
+    return key == name or key.startswith((name + ".", name + "[")) or name.startswith(key + ".")
+
+
 def _type_name(tp: Any) -> str:
     if tp is type(None):
         return "null"

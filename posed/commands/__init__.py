@@ -10,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from posed.daemon.config import EX_CONFIG, Config, load_config
-from posed.daemon.config.load import ConfigError
+from posed.daemon.config.load import ConfigError, key_covers
 from posed.daemon.config.paths import config_file
 
 CONFIG_HELP = ("config file (default: $POSED_CONFIG, else /etc/posed/config.yaml when it exists, else the "
@@ -89,8 +89,7 @@ def _override_for(key: str, overrides) -> str | None:
     """``--set K=V`` when the problem at ``key`` was made by that override (the last one that touches it)."""
     for assignment in reversed(list(overrides)):
         name = ".".join(p for p in assignment.partition("=")[0].strip().split(".") if p)
-        if name and (key == name or key.startswith(name + ".") or key.startswith(name + "[")
-                     or name.startswith(key + ".")):
+        if name and key_covers(key, name):
             return f"--set {assignment}"
     return None
 
