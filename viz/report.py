@@ -31,7 +31,7 @@ from posed.falls import FallsConfig
 from posed.viz import posture
 from posed.viz.names import MEASURED_ANGLES, PANELS, short_label
 from posed.viz.plots import FALL_COLOUR, plot_angles, zone_text
-from posed.viz.series import STATE_WORDS, AngleSeries, Episode
+from posed.viz.series import AngleSeries, Episode, states_text
 
 BODY_ANGLES = ("theta_bd", "phi_bd", "psi_bd")
 # a fall whose last message (fall, on the floor) is this recent when the report is made is still going on: the
@@ -39,28 +39,6 @@ BODY_ANGLES = ("theta_bd", "phi_bd", "psi_bd")
 # until then (and a margin for the message's way to the journal) "no further message" means "not yet"
 IN_PROGRESS_MARGIN_S = 10.0
 NOT_MEASURED = "not measured"
-
-
-def states_text(states: Sequence[str]) -> str:
-    """``fall → on the floor → got up``: a fall's states as the web page and the plots word them."""
-    return " → ".join(STATE_WORDS.get(s, s.replace("_", " ")) for s in states)
-
-
-def outcome(ep: Episode, now: float, in_progress_s: float, fmt) -> str:
-    """How the fall ended, as of ``now`` (the time the report is made): got up, the alarm, in progress (the
-    last message is less than ``in_progress_s`` old and neither got up nor the alarm: the detector is still
-    timing it), still on the floor when last heard of, or no further message (the person left the view)."""
-    states = ep.states
-    last = states[-1] if states else ""
-    if "recovered" in states:
-        return STATE_WORDS["recovered"]
-    if last == "alarm":
-        return f"{STATE_WORDS['alarm']} raised (on the floor too long)"
-    if now - ep.end < in_progress_s:
-        return f"in progress when this report was made ({fmt(now)})"
-    if last == "on_floor":
-        return f"{STATE_WORDS['on_floor']}; no recovery seen"
-    return "no further message (the person left the view)"
 
 
 def _png_tag(png: bytes, alt: str) -> str:
@@ -305,7 +283,7 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
             what = esc(states_text(ep.states))
             ack = fmt(ep.acked) if ep.acked is not None else "<b class='warn'>no</b>"
             whose = f" ({esc(ep.who)})" if ep.who else ""
-            ended = esc(outcome(ep, now, in_progress_s, fmt))
+            ended = esc(ep.outcome(now, in_progress_s, fmt))
             parts.append(f"<tr><td>fall {i}{whose}</td><td>{fmt(ep.start)}</td><td class='states'>{what}</td>"
                          f"<td>{ended}</td><td>{ack}</td></tr>")
         parts.append("</table>")

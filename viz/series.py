@@ -18,6 +18,11 @@ from posed.viz.names import FIXED_ANGLES
 STATE_WORDS = {"falling": "fall", "on_floor": "on the floor", "alarm": "ALARM", "recovered": "got up"}
 
 
+def states_text(states: Sequence[str]) -> str:
+    """``fall → on the floor → got up``: a fall's states as the web page words them."""
+    return " → ".join(STATE_WORDS.get(s, s.replace("_", " ")) for s in states)
+
+
 @dataclass(frozen=True)
 class AngleSeries:
     """``time`` (N,) seconds, increasing: unix time when ``clock``, else from the first frame; ``angles``:
@@ -99,21 +104,26 @@ class Episode:
     notes: tuple[str, ...] = field(default=())
     who: str | None = None        # whose fall, when the messages say
 
-    @property
-    def outcome(self) -> str:
+    def outcome(self, now: float, in_progress_s: float, fmt) -> str:
+        """How the fall ended, as of ``now`` (when the view is made): got up, the alarm, in progress (the last
+        message is less than ``in_progress_s`` old and neither got up nor the alarm: the detector is still
+        timing it), still on the floor when last heard of, or no further message (the person left the view);
+        ``fmt`` formats a time."""
         last = self.states[-1] if self.states else ""
         if "recovered" in self.states:
-            return "got up (recovered)"
+            return STATE_WORDS["recovered"]
         if last == "alarm":
-            return "alarm raised (on the floor too long)"
+            return f"{STATE_WORDS['alarm']} raised (on the floor too long)"
+        if now - self.end < in_progress_s:
+            return f"in progress when this report was made ({fmt(now)})"
         if last == "on_floor":
-            return "on the floor; no recovery seen"
+            return f"{STATE_WORDS['on_floor']}; no recovery seen"
         return "no further message (the person left the view)"
 
     def describe(self, fmt, acks: bool = True) -> str:
         """One line: ``14:03:05 fall → on the floor → ALARM; acknowledged 14:05:10``; ``fmt`` formats a time;
         ``acks`` False: the source knows nothing of acknowledgements (a ``posed falls`` output)."""
-        text = f"{fmt(self.start)} " + " → ".join(STATE_WORDS.get(s, s) for s in self.states)   # as the web page
+        text = f"{fmt(self.start)} {states_text(self.states)}"
         if acks:
             text += f"; acknowledged {fmt(self.acked)}" if self.acked is not None else "; not acknowledged"
         return text
