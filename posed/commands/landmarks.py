@@ -49,6 +49,9 @@ class InputError(Exception):
 
 @dataclass(frozen=True)
 class InputFrame:
+    """One input frame; ``t`` seconds from the first frame, kept to the microsecond (as the HAL's sidecar
+    does): ``seq / fps`` in binary floating point writes 0.6000000000000001 for 0.6."""
+
     seq: int
     t: float
     image: np.ndarray | None  # None: this frame could not be read
@@ -56,6 +59,9 @@ class InputFrame:
     depth: np.ndarray | None = None   # H x W uint16 aligned to the image, 0 = none
     depth_scale: float = 0.0          # metres per depth unit
     gravity: tuple[float, float, float] | None = None   # down, colour camera axes (hal.Frame.gravity)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "t", round(self.t, 6))
 
 
 @dataclass

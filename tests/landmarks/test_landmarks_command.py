@@ -51,6 +51,9 @@ def test_video_uses_its_frame_timestamps(shared_data, tmp_path):
     assert [f.seq for f in frames] == list(range(65))
     assert [f.t for f in frames[:3]] == pytest.approx([0.0, 0.2, 0.4])
     assert all(f.landmarks is not None for f in frames)
+    # written to the microsecond: 0.6, not seq / fps's 0.6000000000000001
+    times = [json.loads(line)["t"] for line in out.read_text().splitlines()[1:]]
+    assert times[3] == 0.6 and times[7] == 1.4 and all(t == round(t, 6) for t in times)
 
 
 def test_folder_with_a_corrupt_image_reports_it_and_goes_on(shared_data, tmp_path, capsys):
