@@ -86,8 +86,10 @@ class SourceConfig:
 
     def __post_init__(self) -> None:
         if self.reconnect_max_s < self.reconnect_initial_s:
-            raise ValueError(f"reconnect_max_s ({self.reconnect_max_s}) must be >= reconnect_initial_s "
-                             f"({self.reconnect_initial_s})")
+            raise ValueError(f"reconnect_max_s: {self.reconnect_max_s} is below reconnect_initial_s "
+                             f"({self.reconnect_initial_s}); the wait between reopening tries doubles from "
+                             "reconnect_initial_s up to reconnect_max_s: raise reconnect_max_s or lower "
+                             "reconnect_initial_s")
 
     @property
     def has_faults(self) -> bool:

@@ -106,8 +106,46 @@ def build(cls: type, data: Any, path: str, problems: list[ConfigProblem]) -> Any
     try:
         return cls(**kwargs)
     except (TypeError, ValueError) as exc:  # a cross-field check in __post_init__
-        problems.append(ConfigProblem(path, str(exc)))
-        return cls()
+        problems.extend(_cross_field_problems(str(exc), path, fields))
+        return _as_read(cls, kwargs)
+
+
+def _cross_field_problems(text: str, path: str, fields: dict) -> list[ConfigProblem]:
+    """A section's ``__post_init__`` message, ``"key: what is wrong; key: ..."``, as problems at each key's
+    path (``zenoh.connect``, not ``zenoh``), so that the start-up checks of the section's other keys still run
+    (``preflight.partial_problems`` leaves out only what a problem names); a part naming no field of the
+    section stays at the section's path."""
+    keys: list[str] = []        # "" for text before any key
+    texts: list[str] = []
+    for part in text.split("; "):
+        key, sep, what = part.partition(": ")
+        if sep and key in fields:
+            keys.append(key)
+            texts.append(what)
+        elif texts:                 # a "; " inside one key's message
+            texts[-1] += "; " + part
+        else:
+            keys.append("")
+            texts.append(part)
+    return [ConfigProblem(f"{path}.{k}" if path and k else (k or path), t) for k, t in zip(keys, texts, strict=True)]
+
+
+def _as_read(cls: type, kwargs: dict) -> Any:
+    """An instance of ``cls`` holding ``kwargs`` (the rest at their defaults) whose cross-field check failed:
+    only for the config a ``ConfigError`` carries (``partial``), so that the section's other keys are checked as
+    written; never run."""
+    obj = object.__new__(cls)
+    for f in dataclasses.fields(cls):
+        if f.name in kwargs:
+            value = kwargs[f.name]
+        elif f.default is not _MISSING:
+            value = f.default
+        elif f.default_factory is not _MISSING:  # type: ignore[misc]
+            value = f.default_factory()  # type: ignore[misc]
+        else:
+            value = None
+        object.__setattr__(obj, f.name, value)
+    return obj
 
 
 def _read_in_part(tp: Any, value: Any) -> bool:

@@ -66,3 +66,33 @@ def test_keys_wrong_between_themselves_stop_every_command(tmp_path, shared_data)
         assert r.returncode == 78, (sets, r.stdout + r.stderr)
         assert sets[0].split("=")[0] in r.stderr and sets[1].split("=")[0] in r.stderr, r.stderr
         assert not (tmp_path / "f.jsonl").exists() or (tmp_path / "f.jsonl").stat().st_size == 0
+
+
+def test_a_sections_own_cross_check_names_its_key_and_keeps_the_rest_checked(tmp_path):
+    """A section whose ``__post_init__`` rejects keys together (client mode without a router, a reconnect
+    ceiling below its start, a member named twice, a short token) is blamed on those keys, one problem each,
+    and its other keys are still checked as written: the section used to be replaced by its defaults, so
+    ``zenoh.config_file`` naming a missing file went unreported until the first problem was fixed."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(f"""source:
+  reconnect_initial_s: 5
+  reconnect_max_s: 1
+zenoh:
+  mode: client
+  config_file: {tmp_path / 'nope.json5'}
+web:
+  token: short
+falls:
+  household:
+    - {{name: anna, height_m: 1.6}}
+    - {{name: anna, height_m: 1.7}}
+""")
+    r = posed("config", "check", str(cfg))
+    assert r.returncode == 78, r.stdout + r.stderr
+    lines = [line.split(": ", 1)[1] for line in r.stderr.splitlines() if line.startswith(f"{cfg}: ")]
+    keys = [line.split(":", 1)[0] for line in lines]
+    assert keys == ["source.reconnect_max_s", "zenoh.connect", "falls.household", "web.token",
+                    "zenoh.config_file"], r.stderr
+    assert "or use mode: peer" in lines[1] and "named twice: anna" in lines[2]      # one problem, whole
+    assert "nope.json5 does not exist" in lines[4]
+    assert "5 problem(s)" in r.stderr
