@@ -224,7 +224,7 @@ class Supervisor:
             if slot.restart_at is not None:
                 if now >= slot.restart_at:
                     self._spawn(slot, now)
-                    self.log.info("stage_restarted", stage=name, pid=slot.process.pid, restarts=slot.restarts,
+                    self.log.info("stage_restarted", stage=name, stage_pid=slot.process.pid, restarts=slot.restarts,
                                   reason=slot.last_reason)
                 continue
             proc = slot.process
@@ -486,7 +486,7 @@ class Supervisor:
                 if proc is not None and proc.is_alive():
                     proc.join(max(0.0, deadline - clock.now()))
                 if proc is not None and proc.is_alive():
-                    self.log.warning("stage_killed_at_shutdown", stage=slot.spec.name, pid=proc.pid)
+                    self.log.warning("stage_killed_at_shutdown", stage=slot.spec.name, stage_pid=proc.pid)
                     _kill(proc)
         if self.ring is not None:
             self.ring.close()

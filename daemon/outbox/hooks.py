@@ -161,7 +161,7 @@ class _Worker:
             proc = self._proc
         if proc is None:
             return
-        self.log.warning("hook_ended_at_shutdown", pid=proc.pid, grace_s=TERM_GRACE_S)
+        self.log.warning("hook_ended_at_shutdown", hook_pid=proc.pid, grace_s=TERM_GRACE_S)
         _signal_group(proc, signal.SIGTERM)
         try:
             proc.wait(TERM_GRACE_S)

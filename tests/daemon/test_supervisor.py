@@ -83,6 +83,10 @@ def test_kill_each_stage_restarts_it_and_publishing_resumes(harness):
     # (RestartPolicy), whatever the time the new process then needed to come up
     dead = _logged(out, "stage_dead")
     assert sorted(d["stage"] for d in dead) == sorted(STAGES) and all(d["restart_in_s"] == 0 for d in dead)
+    # each restart line is the supervisor's (its own pid, as all its lines) and names the new process apart
+    restarted = _logged(out, "stage_restarted")
+    assert sorted(r["stage"] for r in restarted) == sorted(STAGES)
+    assert all(r["pid"] == h.proc.pid and r["stage_pid"] != h.proc.pid for r in restarted), restarted
 
 
 def test_sigstop_is_detected_as_stuck_and_restarted(harness):
