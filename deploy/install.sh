@@ -5,8 +5,9 @@
 # Idempotent: re-running updates the code and the unit, keeps /etc/posed/config.yaml, the models, the
 # events and the history. What it does (deploy/README.md explains each step):
 #   Debian packages -> user 'posed' (groups video, plugdev) -> a root-owned copy of the code in /opt/posed/src,
-#   built into a wheel installed in the venv /opt/posed/venv -> /etc/posed/config.yaml (only if absent) checked
-#   -> models fetched into /var/lib/posed/models -> `posed warmup` fills the numba cache /var/cache/posed/numba
+#   built into a wheel installed in the venv /opt/posed/venv -> /etc/posed/config.yaml (only if absent)
+#   -> models fetched into /var/lib/posed/models -> the config checked as the service's user, with its folders
+#   -> `posed warmup` fills the numba cache /var/cache/posed/numba
 #   -> udev rules for RealSense -> unit verified, enabled, started.
 set -euo pipefail
 
@@ -92,13 +93,20 @@ if [ ! -f "$ETC/config.yaml" ]; then
     mv "$ETC/config.yaml.new" "$ETC/config.yaml"
     step "  wrote the default config; set source (camera) and robot_id there"
 fi
-"$PREFIX/venv/bin/posed" config check "$ETC/config.yaml"
 
 step "models in $STATE/models, numba cache in $CACHE/numba"
 install -d -m 0750 -o posed -g posed "$STATE" "$STATE/models"
 install -d -m 0750 -o posed -g posed "$CACHE" "$CACHE/numba"
 runuser -u posed -- env -i PATH=/usr/bin:/bin HOME="$STATE" POSED_MODELS_DIR="$STATE/models" "${proxies[@]}" \
     "$PREFIX/venv/bin/posed" models fetch --models-dir "$STATE/models" "${FROM[@]}"
+
+step "configuration checked as the service will read it"
+# as the service's user, with the folders and variables the unit gives it (deploy/posed.service): the models
+# folder, the state and cache directories are the service's, not root's, and the user must be able to read
+# the file; a bad config stops the install here with every problem listed
+runuser -u posed -- env -i PATH=/usr/bin:/bin HOME="$STATE" POSED_MODELS_DIR="$STATE/models" \
+    STATE_DIRECTORY="$STATE:$STATE/models" CACHE_DIRECTORY="$CACHE:$CACHE/numba" NUMBA_CACHE_DIR="$CACHE/numba" \
+    CONFIGURATION_DIRECTORY="$ETC" "$PREFIX/venv/bin/posed" config check "$ETC/config.yaml"
 # the kernels compiled once, as the service's user, into the cache the unit names (NUMBA_CACHE_DIR): the first
 # start then loads them (deploy/README.md, docs/benchmarks.md "cold start")
 runuser -u posed -- env -i PATH=/usr/bin:/bin HOME="$STATE" NUMBA_CACHE_DIR="$CACHE/numba" \
