@@ -5,8 +5,8 @@ The message contract (formats, versions, JSON Schemas) is :mod:`client.contract`
 types of :mod:`fitting` and :mod:`falls` only — never the daemon.
 """
 
-__all__ = ["Alive", "HistoryEntry", "Landmarks", "PosedClient", "PosedClientError", "State", "Status",
-           "session_config"]
+__all__ = ["Alive", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError", "State",
+           "Status", "session_config"]
 _API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 
 

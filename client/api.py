@@ -137,7 +137,9 @@ class PosedClient:
         return self._subscribe(_selector(robot, "events/fall"), lambda o, r: t.decode_event(o), callback, on_error)
 
     def on_landmarks(self, robot: str, callback: Callable[[str, t.Landmarks], None], on_error=None):
-        """``callback(robot, Landmarks)`` per frame (the daemon publishes them when zenoh.publish_landmarks)."""
+        """``callback(robot, Landmarks)`` per frame (the daemon publishes them when zenoh.publish_landmarks): the
+        landmarks, ``world``, ``people`` (each with its track ``id``), ``depth_m``, ``gravity``, ``floor`` and
+        ``raw``, the whole message."""
         return self._subscribe(_selector(robot, "landmarks"), t.Landmarks.from_json, callback, on_error)
 
     def on_alive(self, callback: Callable[[Alive], None], robot: str = "*"):
