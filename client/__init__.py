@@ -1,8 +1,9 @@
 """posed's client: read a posed daemon (or a fleet of them behind a Zenoh router) from any Python program.
 
 The message contract (formats, versions, JSON Schemas) is :mod:`client.contract`; the Zenoh client is
-:class:`client.PosedClient` (docs/client.md). Imports zenoh, numpy, :mod:`camera_model` and the public result
-types of :mod:`fitting` and :mod:`falls` only — never the daemon.
+:class:`client.PosedClient` (docs/client.md). Imports zenoh, numpy, :mod:`camera_model`, the public result
+types of :mod:`fitting` and :mod:`falls` and the landmark frame of :mod:`landmarks` (its parser reads the
+landmarks topic as it reads a recording) only — never the daemon.
 """
 
 __all__ = ["Alive", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError", "State",

@@ -17,7 +17,6 @@ Capture-clock times (``t``, ``t_detect``...) are seconds on the robot's monotoni
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +24,7 @@ import numpy as np
 
 from posed.falls import FallEvent
 from posed.fitting import FitResult
+from posed.landmarks.recording import LandmarkFrame, PersonLandmarks
 
 N_LANDMARKS = 33
 DELIVERY_FIELDS = ("published_at", "acked_at")
@@ -92,80 +92,6 @@ class Status:
                    unacknowledged_events=(obj.get("events") or {}).get("unacknowledged"), raw=obj)
 
 
-def _rows(raw: Any, key: str) -> np.ndarray | None:
-    """A frame's (or person's) ``landmarks`` or ``world``: 33 entries ``[x, y, z, visibility, presence]`` or null,
-    as (33, 5) float64 with NaN rows; None when absent or null."""
-    if raw is None:
-        return None
-    if not isinstance(raw, list) or len(raw) != N_LANDMARKS:
-        n = len(raw) if isinstance(raw, list) else type(raw).__name__
-        raise ValueError(f"{key}: {n} entries, expected {N_LANDMARKS}")
-    try:
-        return np.array([r if r is not None else [math.nan] * 5 for r in raw], dtype=np.float64).reshape(
-            N_LANDMARKS, 5)
-    except (TypeError, ValueError):
-        raise ValueError(f"{key}: each entry must be [x, y, z, visibility, presence] or null") from None
-
-
-def _depths(raw: Any, key: str) -> np.ndarray | None:
-    """``depth_m``: 33 metres or null each, as (33,) float64 with NaN; None when absent or null."""
-    if raw is None:
-        return None
-    try:
-        return np.array([math.nan if d is None else d for d in raw], dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{key}: 33 depths in metres or null") from None
-
-
-def _gravity(raw: Any) -> tuple[float, float, float] | None:
-    """Three finite numbers, not all zero; None for anything else (kept in ``raw``, never used: docs/formats.md)."""
-    if not isinstance(raw, (list, tuple)) or len(raw) != 3 or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in raw):
-        return None
-    g = (float(raw[0]), float(raw[1]), float(raw[2]))
-    return g if any(g) else None
-
-
-def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
-    return a is None and b is None or (a is not None and b is not None and np.array_equal(a, b, equal_nan=True))
-
-
-@dataclass(frozen=True, eq=False)
-class PersonLandmarks:
-    """One person of a frame's ``people`` (several people in view): ``id`` the track id, stable while the person
-    stays in view; ``landmarks`` (33, 5) float64 [x px, y px, z, visibility, presence], NaN rows unknown;
-    ``world`` (33, 5) [x m, y m, z m, visibility, presence] BlazePose's world landmarks (hip-centred) or None;
-    ``depth_m`` (33,) metres or None; ``raw`` the person's object as received. Equal when the values are."""
-
-    id: int
-    landmarks: np.ndarray = field(repr=False)
-    world: np.ndarray | None = field(repr=False, default=None)
-    depth_m: np.ndarray | None = field(repr=False, default=None)
-    raw: dict = field(repr=False, default_factory=dict)
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, PersonLandmarks):
-            return NotImplemented
-        return self.id == other.id and all(_same(getattr(self, k), getattr(other, k))
-                                           for k in ("landmarks", "world", "depth_m"))
-
-    __hash__ = None  # type: ignore[assignment]
-
-    @classmethod
-    def from_json(cls, obj: Any, index: int = 0) -> PersonLandmarks:
-        key = f"people[{index}]"
-        if not isinstance(obj, dict):
-            raise ValueError(f"{key}: a person is an object {{id, landmarks, world, depth_m}}")
-        pid = obj.get("id")
-        if not isinstance(pid, int) or isinstance(pid, bool) or pid < 0:
-            raise ValueError(f"{key}: id must be a non-negative integer (a track id), got {pid!r}")
-        landmarks = _rows(obj.get("landmarks"), f"{key}.landmarks")
-        if landmarks is None:
-            raise ValueError(f"{key}: no landmarks")
-        return cls(id=pid, landmarks=landmarks, world=_rows(obj.get("world"), f"{key}.world"),
-                   depth_m=_depths(obj.get("depth_m"), f"{key}.depth_m"), raw=obj)
-
-
 @dataclass(frozen=True)
 class Landmarks:
     """One frame's landmarks (posed/ROBOT/landmarks, docs/formats.md ``posed.landmarks_frame``).
@@ -196,18 +122,14 @@ class Landmarks:
 
     @classmethod
     def from_json(cls, obj: dict, robot: str = "") -> Landmarks:
-        people = obj.get("people")
-        if people is not None and not isinstance(people, list):
-            raise ValueError(f"people: a list of persons, got {type(people).__name__}")
+        """Read by the recordings' own parser (``landmarks.LandmarkFrame.from_json``: the same rules for a
+        frame on the wire and in a file); a field it does not know stays in ``raw``."""
+        frame = LandmarkFrame.from_json(obj)
         floor = obj.get("floor")
-        return cls(robot=str(obj.get("robot") or robot), seq=int(obj["seq"]), t=float(obj["t"]),
+        return cls(robot=str(obj.get("robot") or robot), seq=frame.seq, t=frame.t,
                    time_unix=obj.get("time_unix"), image_size=tuple(obj.get("image_size") or (0, 0)),
-                   points=_rows(obj.get("landmarks"), "landmarks"),
-                   depth_m=_depths(obj.get("depth_m"), "depth_m"),
-                   world=_rows(obj.get("world"), "world"),
-                   people=tuple(PersonLandmarks.from_json(p, i) for i, p in enumerate(people or ())),
-                   gravity=_gravity(obj.get("gravity")),
-                   floor=floor if isinstance(floor, dict) else None, raw=obj)
+                   points=frame.landmarks, depth_m=frame.depth_m, world=frame.world, people=frame.people or (),
+                   gravity=frame.gravity, floor=floor if isinstance(floor, dict) else None, raw=obj)
 
 
 @dataclass(frozen=True)

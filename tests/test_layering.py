@@ -3,6 +3,7 @@
     posed/ (the command line: posed.cli, posed.commands) -> anything below it; bench only lazily (in a function)
     daemon (the service) -> hal, landmarks, fitting, falls, client, viz; never the command line, never bench
     falls -> fitting (its public result types)      bench (offline) -> anything
+    client (a subscriber's library) -> fitting, falls, landmarks: the messages' own value types and parsers
     nothing -> daemon but the command line and bench   every package -> camera_model (numpy only)
 
 Each package imports only what its layer allows; checked on the source, so a lazy import inside a function
@@ -23,7 +24,8 @@ ALLOWED = {
     "landmarks": {"numpy", "cv2", "onnxruntime", "landmarks", "camera_model"},
     "falls": {"numpy", "falls", "fitting", "camera_model"},
     "viz": {"numpy", "cv2", "matplotlib", "viz", "fitting", "falls", "camera_model", "client"},
-    "client": {"numpy", "zenoh", "jsonschema", "referencing", "client", "fitting", "falls", "camera_model"},
+    "client": {"numpy", "zenoh", "jsonschema", "referencing", "client", "fitting", "falls", "landmarks",
+               "camera_model"},
 }
 RUNTIME = ("daemon", "hal", "landmarks", "fitting", "falls", "camera_model", "viz", "client")
 # The model converter and its fetcher run only at `posed models fetch`; never in the daemon.
