@@ -11,8 +11,9 @@ class LandmarkConfig:
 
     models_dir: str = field(
         default="",
-        metadata={"doc": "folder of the converted models; empty = $XDG_CACHE_HOME/posed/models "
-                         "(the service uses its state dir)"},
+        metadata={"doc": "folder of the converted models; empty = $POSED_MODELS_DIR if set, else "
+                         "$XDG_CACHE_HOME/posed/models (~/.cache/posed/models when XDG_CACHE_HOME is unset or relative); "
+                         "the service sets POSED_MODELS_DIR=/var/lib/posed/models"},
     )
     threads: int = field(default=1, metadata={"doc": "onnxruntime intra-op threads", "range": (1, 64)})
     min_detection_confidence: float = field(
