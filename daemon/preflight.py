@@ -88,8 +88,13 @@ def check(cfg: Config) -> list[str]:
     elif src.type == "file" and src.path and (problem := file_problem(src.path)):
         problems.append(f"source.path: {problem}")
     problems += _zenoh_problems(cfg)
-    if not (src.type == "file" and src.path and is_landmark_recording(src.path)):
+    recording = src.type == "file" and bool(src.path) and is_landmark_recording(src.path)
+    if not recording:
         problems += _model_problems(cfg)
+    elif src.has_faults:
+        problems.append("source: the test faults (drop, stall_at, disconnect_at, corrupt_at: source.fault_*) act "
+                        "on camera frames, and a .landmarks.jsonl replay has none, so they would do nothing; "
+                        "replay the video the recording came from, or remove them")
     if cfg.fitting.calibration:
         problems += calibration_problems(cfg.fitting.calibration)
     for i, hook in enumerate(cfg.hooks.on_event):
