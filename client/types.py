@@ -27,7 +27,7 @@ from posed.fitting import FitResult
 from posed.landmarks.recording import LandmarkFrame, PersonLandmarks
 
 N_LANDMARKS = 33
-DELIVERY_FIELDS = ("published_at", "acked_at")
+DELIVERY_FIELDS = ("published_at", "acked_at", "acked_by", "hooks_done_at", "hooks_outcome")   # history replies
 
 
 def loads(payload: bytes | str) -> dict:
@@ -134,11 +134,17 @@ class Landmarks:
 
 @dataclass(frozen=True)
 class HistoryEntry:
-    """One stored fall-event message from a robot's journal and its delivery state (unix seconds)."""
+    """One stored fall-event message from a robot's journal and its delivery state (unix seconds):
+    ``acked_by`` who acknowledged it (the ack's ``by``; None when not said or not acknowledged),
+    ``hooks_done_at`` and ``hooks_outcome`` when and how the robot's hooks were done with it (None: not yet,
+    or a robot whose posed does not say)."""
 
     event: FallEvent
     published_at: float | None
     acked_at: float | None
+    acked_by: str | None = None
+    hooks_done_at: float | None = None
+    hooks_outcome: str | None = None
 
     @property
     def robot(self) -> str:
@@ -146,7 +152,8 @@ class HistoryEntry:
 
     @classmethod
     def from_json(cls, obj: dict) -> HistoryEntry:
-        return cls(decode_event(obj), obj.get("published_at"), obj.get("acked_at"))
+        return cls(decode_event(obj), obj.get("published_at"), obj.get("acked_at"), obj.get("acked_by"),
+                   obj.get("hooks_done_at"), obj.get("hooks_outcome"))
 
 
 @dataclass(frozen=True)

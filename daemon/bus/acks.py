@@ -1,11 +1,12 @@
 """Acknowledgements put on ``posed/ROBOT/events/ack`` (interfaces.md section 4, docs/falls.md).
 
 A payload is the event id as text, or JSON ``{"id": "<event id>"}`` (every message of the event so far) or
-``{"id": ..., "state": "alarm"}`` (only that state's message). Anyone on the bus can put anything there, so
-:func:`parse_ack_message` takes raw bytes and accepts only a bounded, printable id: UTF-8, at most
-``MAX_PAYLOAD_BYTES`` bytes, an id of at most ``MAX_ID_CHARS`` characters without whitespace or control
-characters inside, and a state that is one of :data:`falls.FALL_STATES`. Everything else raises
-:class:`BadAck` saying what is wrong (bounded, one line).
+``{"id": ..., "state": "alarm"}`` (only that state's message), either with ``"by"``: who acknowledged (free
+text, kept in the journal). Anyone on the bus can put anything there, so :func:`parse_ack_message` takes raw
+bytes and accepts only a bounded, printable id: UTF-8, at most ``MAX_PAYLOAD_BYTES`` bytes, an id of at most
+``MAX_ID_CHARS`` characters without whitespace or control characters inside, a state that is one of
+:data:`falls.FALL_STATES`, and a ``by`` that is text of at most ``MAX_BY_CHARS`` printable characters (null
+or blank: not said). Everything else raises :class:`BadAck` saying what is wrong (bounded, one line).
 """
 
 from __future__ import annotations
@@ -18,19 +19,38 @@ from posed.falls import FALL_STATES
 
 MAX_PAYLOAD_BYTES = 4096
 MAX_ID_CHARS = 128          # event ids are 32 hex digits (uuid4().hex)
-EXPECTED = 'an event id, or JSON {"id": "<event id>"} or {"id": ..., "state": "<state>"}'
+MAX_BY_CHARS = 128          # a name, or user@host
+EXPECTED = ('an event id, or JSON {"id": "<event id>"} or {"id": ..., "state": "<state>"}, optionally with '
+            '"by": "<who>"')
 
 
 class BadAck(ValueError):
     """An acknowledgement that cannot be used; the message says why (bounded, one line)."""
 
 
+class AckId(str):
+    """An acknowledged event id that carries who acknowledged it (``by``, None when not said).
+
+    The bus link calls its ``on_ack(event_id, state)`` with ``Ack.id``; this lets ``by`` travel with the id to
+    :meth:`daemon.outbox.delivery.EventOutbox.acknowledge` without changing that call. It is the id itself in
+    every other respect (``str(ack_id)`` is the plain id)."""
+
+    by: str | None
+
+    def __new__(cls, value: str, by: str | None = None) -> AckId:
+        obj = super().__new__(cls, value)
+        obj.by = by
+        return obj
+
+
 @dataclass(frozen=True)
 class Ack:
-    """One acknowledgement: ``state`` None acknowledges every message of event ``id`` so far."""
+    """One acknowledgement: ``state`` None acknowledges every message of event ``id`` so far; ``by`` who
+    acknowledged (None: not said). ``id`` is an :class:`AckId` carrying ``by``."""
 
     id: str
     state: str | None = None
+    by: str | None = None
 
 
 def parse_ack_message(payload: bytes | str) -> Ack:
@@ -43,7 +63,7 @@ def parse_ack_message(payload: bytes | str) -> Ack:
         raw = payload.decode("utf-8").strip()
     except UnicodeDecodeError as exc:
         raise BadAck(f"payload is not UTF-8 text (byte {exc.start})") from None
-    state = None
+    state = by = None
     if raw.startswith("{"):
         try:
             obj = json.loads(raw)
@@ -55,6 +75,7 @@ def parse_ack_message(payload: bytes | str) -> Ack:
         state = obj.get("state")
         if state is not None and state not in FALL_STATES:
             raise BadAck(f"state {shown(str(state))!r} is not one of: {', '.join(FALL_STATES)}")
+        by = _by(obj.get("by"))
     else:
         event_id = raw
     event_id = event_id.strip()
@@ -64,4 +85,19 @@ def parse_ack_message(payload: bytes | str) -> Ack:
         raise BadAck(f"event id of {len(event_id)} characters is too long (at most {MAX_ID_CHARS})")
     if not event_id.isprintable() or any(c.isspace() for c in event_id):
         raise BadAck("event id holds whitespace or control characters")
-    return Ack(event_id, state)
+    return Ack(AckId(event_id, by), state, by)
+
+
+def _by(value) -> str | None:
+    """The ``by`` of an acknowledgement: None when absent, null or blank; raises :class:`BadAck` when it is not
+    bounded printable text."""
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise BadAck(f'"by" must be text (who acknowledged), not {type(value).__name__}')
+    value = value.strip()
+    if len(value) > MAX_BY_CHARS:
+        raise BadAck(f'"by" of {len(value)} characters is too long (at most {MAX_BY_CHARS})')
+    if not value.isprintable():
+        raise BadAck('"by" holds control characters')
+    return value or None

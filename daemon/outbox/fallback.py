@@ -26,6 +26,8 @@ from posed.daemon.outbox.journal_rows import StoredEvent
 from posed.falls.event import FallEvent
 
 FILE_MODE = 0o600
+# StoredEvent's fields besides the message (a file written by an older posed lacks the newer ones: None)
+DELIVERY_FIELDS = ("published_at", "acked_at", "acked_by", "hooks_done_at", "hooks_outcome")
 
 
 def fallback_dir(environ: dict | None = None) -> Path:
@@ -97,9 +99,8 @@ class FallbackStore:
             try:
                 obj = json.loads(line)
                 wall = float(obj.pop("wall"))
-                published_at = obj.pop("published_at", None)
-                acked_at = obj.pop("acked_at", None)
-                out.append(StoredEvent(FallEvent.from_json(obj), wall, published_at, acked_at))
+                delivery = {k: obj.pop(k, None) for k in DELIVERY_FIELDS}
+                out.append(StoredEvent(FallEvent.from_json(obj), wall, **delivery))
             except (ValueError, KeyError, TypeError):
                 continue
         return out

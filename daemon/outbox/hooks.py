@@ -5,8 +5,17 @@ neither the pipeline nor the other hooks. A hook is an argv list run without a s
 literal: ``;``, ``$(...)``, quotes and globs mean nothing), in its own session (its own process group) so
 that a timeout kills it and every child it started. The event's JSON is on its stdin, and ``POSED_EVENT_*``
 environment variables carry the main fields. A non-zero exit, a timeout or a missing program is retried
-``retries`` times with a delay. The event itself is already in the journal before a hook sees it, so a
-failing hook never loses it.
+``retries`` times with a delay. The event itself is already in the journal before a hook sees it.
+
+Delivery is at least once. The runner tells its ``listener`` (:class:`daemon.outbox.delivery.EventOutbox`,
+which writes it to the journal) before each run starts and when a hook is done with a message: ``ok``,
+``gave_up`` (failed after its retries), or ``pending`` (not done: cut off or not started because the daemon
+stopped, or dropped from a full queue). A message that is not done by every hook — also when the publisher is
+killed -9 in the middle of a run — is handed to the hooks again at the next start (``submit(..., attempts=...,
+redelivered=True)``), so a hook may see a message more than once: ``POSED_EVENT_ID`` and
+``POSED_EVENT_STATE`` identify it, ``POSED_HOOK_ATTEMPT`` counts the runs of this hook for this message
+across restarts (1: the first run ever) and ``POSED_HOOK_REDELIVERED`` is 1 when the journal handed it again
+at a start.
 
 Bounds, whatever a hook does:
 
@@ -15,8 +24,8 @@ Bounds, whatever a hook does:
 * the queue: at most ``queue_limit`` events wait for each hook; when it is full the oldest waiting one is
   dropped (``dropped``, logged with a rate limit) and ``submit`` never blocks;
 * shutdown (:meth:`HookRunner.close`, on SIGTERM of the daemon with or without systemd): no new run or retry
-  starts, running hooks get the close timeout, then their process groups get SIGTERM and, after
-  ``TERM_GRACE_S``, SIGKILL;
+  starts (what waits stays pending for the next start), running hooks get the close timeout, then their
+  process groups get SIGTERM and, after ``TERM_GRACE_S``, SIGKILL (a run cut off so is not done either);
 * a publisher that dies without closing (kill -9): every hook carries ``POSED_HOOK_OWNER`` (supervisor and
   publisher pids) in its environment, and the supervisor ends what the dead publisher left
   (:mod:`daemon.proc.orphans`) before it starts a new one.
@@ -24,6 +33,7 @@ Bounds, whatever a hook does:
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import selectors
@@ -32,7 +42,9 @@ import subprocess
 import threading
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 from posed.daemon import logs
 from posed.daemon.config.sections import HookConfig, HooksConfig
@@ -44,6 +56,35 @@ KEEP_OUTCOMES = 200   # HookRunner.outcomes keeps this many of the latest runs
 TERM_GRACE_S = 1.0    # at shutdown: SIGTERM to a hook's process group, SIGKILL this much later
 READ_CHUNK = 65536
 EXIT_GRACE_S = 1.0    # after the hook exited, how long its children may keep its output pipes open
+
+
+def hook_key(argv: Sequence[str], earlier: Sequence[str] = ()) -> str:
+    """What the journal knows a hook by (``hook_runs.hook``): a hash of its argv, so a hook keeps its key when
+    the others change and a hook given other arguments is a new one; ``#2``, ``#3`` ... for a second or third
+    hook with the same argv (``earlier``: the keys of the hooks before it)."""
+    key = hashlib.sha256(json.dumps(list(argv)).encode()).hexdigest()[:16]
+    n = sum(1 for k in earlier if k.split("#")[0] == key)
+    return key if n == 0 else f"{key}#{n + 1}"
+
+
+class HookListener(Protocol):
+    """Told about each hook's progress with each message (called on the hook's worker thread)."""
+
+    def hook_starting(self, event: FallEvent, hook: int, attempt: int) -> None:
+        """Run ``attempt`` of hook ``hook`` (its index in ``hooks.on_event``) is about to start."""
+
+    def hook_ended(self, event: FallEvent, hook: int, outcome: str) -> None:
+        """Hook ``hook`` is through with the message for now: ``ok``, ``gave_up`` or ``pending`` (not done)."""
+
+
+@dataclass(frozen=True)
+class _Job:
+    """One message for one hook: ``first_attempt`` numbers its first run (runs started before a restart count),
+    ``redelivered``: handed again from the journal at a start."""
+
+    event: FallEvent
+    first_attempt: int = 1
+    redelivered: bool = False
 
 
 def event_environment(event: FallEvent) -> dict[str, str]:
@@ -85,12 +126,14 @@ class HookOutcome:
 class _Worker:
     """One hook's queue, thread and the process it is running."""
 
-    def __init__(self, index: int, hook: HookConfig, cfg: HooksConfig, outcomes, throttle: Throttle) -> None:
+    def __init__(self, index: int, hook: HookConfig, cfg: HooksConfig, outcomes, throttle: Throttle,
+                 notify) -> None:
         self.index = index
         self.hook = hook
         self.cfg = cfg
         self.dropped = 0
-        self._events: deque[FallEvent] = deque()
+        self._notify = notify                  # (what, event, index, value): the runner's listener, if any
+        self._events: deque[_Job] = deque()
         self._cond = threading.Condition()
         self._busy = False
         self._proc: subprocess.Popen | None = None
@@ -103,21 +146,25 @@ class _Worker:
         self.thread.start()
 
     # ---------------------------------------------------------------- the queue
-    def put(self, event: FallEvent) -> None:
+    def put(self, job: _Job) -> None:
+        old = None
         with self._cond:
             if self._stopping.is_set():
                 return
             if len(self._events) >= self.cfg.queue_limit:
-                old = self._events.popleft()
+                old = self._events.popleft().event
                 self.dropped += 1
                 suppressed = self._throttle.allow(f"queue_full.{self.index}")
                 if suppressed is not None:
                     self.log.warning("hook_queue_full", dropped_event=old.id, dropped_state=old.state,
                                      dropped=self.dropped, queue_limit=self.cfg.queue_limit, suppressed=suppressed,
                                      note="the hook is slower than the events; the oldest waiting event was "
-                                          "dropped (it stays in the journal)")
-            self._events.append(event)
+                                          "dropped (it stays in the journal, pending: handed to the hook again "
+                                          "at the next start)")
+            self._events.append(job)
             self._cond.notify()
+        if old is not None:
+            self._notify("ended", old, self.index, "pending")
 
     def pending(self) -> int:
         with self._cond:
@@ -134,26 +181,26 @@ class _Worker:
                     self._cond.wait()
                 if self._stopping.is_set():
                     return
-                event = self._events.popleft()
+                job = self._events.popleft()
                 self._busy = True
             try:
-                self._deliver(event)
+                self._deliver(job)
             except Exception as exc:  # a bug here must not kill the worker
-                self.log.error("hook_worker_error", error=repr(exc), event_id=event.id)
+                self.log.error("hook_worker_error", error=repr(exc), event_id=job.event.id)
             finally:
                 with self._cond:
                     self._busy = False
                     self._cond.notify_all()
 
     # ---------------------------------------------------------------- shutdown
-    def stop(self) -> int:
-        """No new run or retry from now on; returns how many queued events were abandoned."""
+    def stop(self) -> list[FallEvent]:
+        """No new run or retry from now on; returns the queued messages that will not run (pending)."""
         with self._cond:
             self._stopping.set()
-            abandoned = len(self._events)
+            left = [job.event for job in self._events]
             self._events.clear()
             self._cond.notify_all()
-        return abandoned
+        return left
 
     def end_process(self) -> None:
         """SIGTERM to the running hook's process group, SIGKILL after TERM_GRACE_S."""
@@ -161,7 +208,9 @@ class _Worker:
             proc = self._proc
         if proc is None:
             return
-        self.log.warning("hook_ended_at_shutdown", hook_pid=proc.pid, grace_s=TERM_GRACE_S)
+        self.log.warning("hook_ended_at_shutdown", hook_pid=proc.pid, grace_s=TERM_GRACE_S,
+                         note="the run was cut off: its message stays pending in the journal and is handed to "
+                              "the hook again at the next start")
         _signal_group(proc, signal.SIGTERM)
         try:
             proc.wait(TERM_GRACE_S)
@@ -170,23 +219,40 @@ class _Worker:
         _signal_group(proc, signal.SIGKILL)     # the leader may have left children in its group
 
     # ---------------------------------------------------------------- one event
-    def _deliver(self, event: FallEvent) -> None:
+    def _deliver(self, job: _Job) -> None:
+        event = job.event
         attempts = 1 + self.hook.retries
-        for attempt in range(1, attempts + 1):
+        last = job.first_attempt + attempts - 1
+        for n in range(1, attempts + 1):
+            attempt = job.first_attempt + n - 1
             if self._stopping.is_set():
-                if attempt > 1:
-                    self.log.warning("hook_abandoned_at_shutdown", event_id=event.id, state=event.state)
+                if n > 1:
+                    self.log.warning("hook_retry_pending_at_shutdown", event_id=event.id, state=event.state,
+                                     attempts_made=attempt - 1,
+                                     note="no retry starts once shutdown began: the message stays pending in "
+                                          "the journal and is handed to the hook again at the next start")
+                self._notify("ended", event, self.index, "pending")
                 return
-            outcome = self._run_once(event, attempt)
+            self._notify("starting", event, self.index, attempt)
+            outcome = self._run_once(event, attempt, job.redelivered)
             self._outcomes(outcome)
-            fields = dict(event_id=event.id, state=event.state, attempt=attempt, of=attempts,
+            fields = dict(event_id=event.id, state=event.state, attempt=attempt, of=last,
                           returncode=outcome.returncode, seconds=round(outcome.seconds, 3))
+            if job.redelivered:
+                fields["redelivered"] = True
             if outcome.stdout:
                 fields["stdout"] = outcome.stdout
             if outcome.stderr:
                 fields["stderr"] = outcome.stderr
             if outcome.ok:
                 self.log.info("hook_done", **fields)
+                self._notify("ended", event, self.index, "ok")
+                return
+            if self._stopping.is_set():          # cut off (or failed) while the daemon stops: not done
+                self.log.warning("hook_cut_off_at_shutdown", error=outcome.error or f"exit status {outcome.returncode}",
+                                 note="the message stays pending in the journal and is handed to the hook again "
+                                      "at the next start", **fields)
+                self._notify("ended", event, self.index, "pending")
                 return
             if outcome.timed_out:
                 self.log.warning("hook_timeout", timeout_s=self.hook.timeout_s,
@@ -196,16 +262,19 @@ class _Worker:
                 self.log.warning("hook_failed", error=outcome.error, **fields)
             else:
                 self.log.warning("hook_failed", error=f"exit status {outcome.returncode}", **fields)
-            if attempt < attempts:
-                self._stopping.wait(self.cfg.retry_delay_s * attempt)
+            if n < attempts:
+                self._stopping.wait(self.cfg.retry_delay_s * n)
         self.log.error("hook_gave_up", event_id=event.id, state=event.state, attempts=attempts,
-                       note="the event is kept in the journal")
+                       note="the event stays in the journal (republished until acknowledged); this hook will not "
+                            "run for it again")
+        self._notify("ended", event, self.index, "gave_up")
 
-    def _run_once(self, event: FallEvent, attempt: int) -> HookOutcome:
+    def _run_once(self, event: FallEvent, attempt: int, redelivered: bool = False) -> HookOutcome:
         limit = self.cfg.output_limit
         env = dict(os.environ)
         env.update(event_environment(event))
         env["POSED_HOOK_ATTEMPT"] = str(attempt)
+        env["POSED_HOOK_REDELIVERED"] = "1" if redelivered else "0"
         # lets the supervisor end this hook and its children if this process dies without closing (kill -9)
         env[orphans.OWNER_ENV] = orphans.owner_tag(os.getppid(), os.getpid())
         payload = json.dumps(event.to_json()).encode()
@@ -309,27 +378,53 @@ def _signal_group(proc: subprocess.Popen, sig: int) -> None:
 
 
 class HookRunner:
-    """Runs ``cfg.on_event`` hooks for each submitted event; ``submit`` returns at once."""
+    """Runs ``cfg.on_event`` hooks for each submitted event; ``submit`` returns at once.
+
+    ``keys``: each hook's key (:func:`hook_key`), in ``cfg.on_event`` order. ``listener``
+    (:class:`HookListener`, set by whoever keeps track, e.g. the outbox) hears of every run and outcome."""
 
     def __init__(self, cfg: HooksConfig) -> None:
         self.cfg = cfg
         self._lock = threading.Lock()
         self.outcomes: list[HookOutcome] = []  # the last KEEP_OUTCOMES runs, newest last
+        self.listener: HookListener | None = None
+        keys: list[str] = []
+        for h in cfg.on_event:
+            keys.append(hook_key(h.argv, keys))
+        self.keys: tuple[str, ...] = tuple(keys)
+        self._log = logs.get("hooks")
         throttle = Throttle()
-        self._workers = [_Worker(i, h, cfg, self._record, throttle) for i, h in enumerate(cfg.on_event)]
+        self._workers = [_Worker(i, h, cfg, self._record, throttle, self._notify) for i, h in enumerate(cfg.on_event)]
         self._closed = False
+
+    def _notify(self, what: str, event: FallEvent, index: int, value) -> None:
+        listener = self.listener
+        if listener is None:
+            return
+        try:
+            if what == "starting":
+                listener.hook_starting(event, index, value)
+            else:
+                listener.hook_ended(event, index, value)
+        except Exception as exc:   # the journal's trouble is logged there; a bug here must not stop the hook
+            self._log.error("hook_listener_error", error=repr(exc), event_id=event.id, state=event.state, hook=index)
 
     def _record(self, outcome: HookOutcome) -> None:
         with self._lock:
             self.outcomes.append(outcome)
             del self.outcomes[: max(0, len(self.outcomes) - KEEP_OUTCOMES)]
 
-    def submit(self, event: FallEvent) -> None:
-        """Queue the event for every hook; never blocks, never raises (a full queue drops its oldest)."""
+    def submit(self, event: FallEvent, attempts: dict[int, int] | None = None, redelivered: bool = False) -> None:
+        """Queue the event for every hook, or for the hooks in ``attempts`` (hook index -> the number of its
+        first run: runs already started before a restart count); never blocks, never raises (a full queue drops
+        its oldest). ``redelivered``: handed again from the journal at a start."""
         if self._closed:
             return
         for worker in self._workers:
-            worker.put(event)
+            if attempts is None:
+                worker.put(_Job(event, 1, redelivered))
+            elif worker.index in attempts:
+                worker.put(_Job(event, max(1, attempts[worker.index]), redelivered))
 
     @property
     def dropped(self) -> int:
@@ -358,14 +453,19 @@ class HookRunner:
         return self.pending() == 0
 
     def close(self, timeout: float = 5.0) -> None:
-        """Stop: no new run or retry starts (queued events are abandoned: they are in the journal); running
-        hooks get ``timeout`` seconds, then SIGTERM to their process groups and SIGKILL TERM_GRACE_S later."""
+        """Stop: no new run or retry starts (queued messages stay pending in the journal, for the next start);
+        running hooks get ``timeout`` seconds, then SIGTERM to their process groups and SIGKILL TERM_GRACE_S
+        later (a run cut off so is not done either)."""
         self._closed = True
         for worker in self._workers:
-            abandoned = worker.stop()
-            if abandoned:
-                worker.log.warning("hooks_abandoned_at_shutdown", queued=abandoned,
-                                   note="the events are kept in the journal")
+            left = worker.stop()
+            if left:
+                worker.log.warning("hooks_pending_at_shutdown", queued=len(left),
+                                   messages=[f"{e.id}:{e.state}" for e in left[:20]],
+                                   note="not run now: they stay pending in the journal and are handed to the "
+                                        "hook again at the next start")
+                for event in left:
+                    self._notify("ended", event, worker.index, "pending")
         deadline = time.monotonic() + timeout
         for worker in self._workers:
             worker.thread.join(max(0.0, deadline - time.monotonic()))

@@ -5,7 +5,11 @@ write-ahead log, so a message whose ``append`` returned survives a kill -9 or a 
 state of one event (``falling``, ``on_floor``, ``alarm``, ``recovered``); updates keep the event's ``id``.
 
 Life of a message: ``append`` (stored, unpublished) -> ``mark_published`` -> ``acknowledge`` (a receiver
-confirmed it). ``unacknowledged()`` is what the publisher republishes after a restart or a reconnect.
+confirmed it, and said who: ``acked_by``). ``unacknowledged()`` is what the publisher republishes after a restart
+or a reconnect. Apart from that, its hooks: ``hook_started`` before each run of each hook (how many runs each
+hook started, across restarts), ``hook_finished`` when a hook succeeded or gave up, ``mark_hooks_done`` when
+every hook is done with it; ``hooks_pending()`` is what the publisher hands to the hooks again at its start
+(:mod:`daemon.outbox.delivery`).
 
 When the disk is full, the file is not writable or the database is corrupt, the journal says so in one clear
 log line (then at most one a minute while it lasts), keeps the messages in memory (they are still returned by
@@ -70,7 +74,10 @@ class EventJournal:
         self._db: sqlite3.Connection | None = None
         # (event_id, state) -> StoredEvent not yet on disk, plus delivery updates not yet on disk
         self._pending: dict[tuple[str, str], StoredEvent] = {}
-        self._pending_marks: list[tuple[str, str | None, str, float]] = []
+        self._pending_marks: list[tuple[str, str | None, str, float, dict]] = []
+        # hook_runs writes not yet on disk: (journal_rows function, its arguments after the connection); only in
+        # memory (a lost one costs at most a hook run again at the next start)
+        self._pending_hook_rows: list[tuple[Callable, tuple]] = []
         self.last_error: str = ""
         self._log = logs.get("journal", path=str(self.path))
         self._fallback = None if readonly else fallback
@@ -106,7 +113,7 @@ class EventJournal:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             db = self._connect(self.path)
             try:
-                jfile.prepare(db)
+                migrated = jfile.prepare(db, self._clock)
                 db.execute("SELECT count(*) FROM messages").fetchone()
             except sqlite3.DatabaseError:
                 db.close()
@@ -121,9 +128,18 @@ class EventJournal:
             self._fail("cannot create the event journal's folder", exc)
             return
         self._db = db
+        if migrated:
+            self._log_migrated(migrated)
         if self.last_error:
             self._log.info("journal_recovered", previous_error=self.last_error)
             self.last_error = ""
+
+    def _log_migrated(self, migrated: dict) -> None:
+        self._log.info("journal_migrated", added_columns=migrated["added"], hooks_untracked=migrated["untracked"],
+                       hooks_pending=migrated["pending"],
+                       note=f"a journal of an older posed: messages journalled more than "
+                            f"{rows.REDELIVER_MAX_AGE_S:g} s ago count as done by their hooks (untracked); the "
+                            "newer ones are handed to the hooks again")
 
     def _set_aside_corrupt(self, exc: Exception) -> None:
         salvaged = jfile.salvage(self.path)
@@ -136,7 +152,7 @@ class EventJournal:
         self._db = None
         try:
             db = self._connect(self.path)
-            jfile.prepare(db)
+            jfile.prepare(db, self._clock)
             self._db = db
             self.last_error = ""
         except (sqlite3.DatabaseError, OSError) as exc2:
@@ -164,7 +180,7 @@ class EventJournal:
         if self._fallback is None:
             return
         items = sorted(self._pending.values(), key=lambda s: (s.wall, s.event.t_detect))
-        signature = tuple((i.key, i.published_at, i.acked_at) for i in items)
+        signature = tuple((i.key, i.published_at, i.acked_at, i.acked_by, i.hooks_done_at) for i in items)
         if signature == self._fallback_saved:
             return
         if items:
@@ -202,7 +218,8 @@ class EventJournal:
     def healthy(self) -> bool:
         """True when the file is open and nothing waits in memory."""
         with self._lock:
-            return self._db is not None and not self._pending and not self._pending_marks
+            return (self._db is not None and not self._pending and not self._pending_marks
+                    and not self._pending_hook_rows)
 
     @property
     def pending_in_memory(self) -> int:
@@ -218,7 +235,8 @@ class EventJournal:
             if self._db is not None:
                 self._flush()
             self._sync_fallback()
-            return self._db is not None and not self._pending and not self._pending_marks
+            return (self._db is not None and not self._pending and not self._pending_marks
+                    and not self._pending_hook_rows)
 
     def _flush(self) -> None:
         if self._db is None:
@@ -227,18 +245,26 @@ class EventJournal:
             with jfile.Transaction(self._db):
                 for item in self._pending.values():
                     rows.insert(self._db, item)
-                for event_id, state, column, when in self._pending_marks:
-                    rows.mark(self._db, event_id, state, column, when)
+                for event_id, state, column, when, extra in self._pending_marks:
+                    rows.mark(self._db, event_id, state, column, when, extra)
+                for write, args in self._pending_hook_rows:
+                    write(self._db, *args)
         except (sqlite3.DatabaseError, OSError) as exc:
             self._fail("cannot write to the event journal", exc)
             return
         self._pending.clear()
         self._pending_marks.clear()
+        self._pending_hook_rows.clear()
 
     # ---------------------------------------------------------------- the API
 
-    def append(self, event: FallEvent) -> FallEvent:
-        """Store one message durably (fsync'd) and return it with ``wall_time`` filled in.
+    def wall_now(self) -> float:
+        """Now on the journal's clock (unix seconds): what ``wall`` and the delivery times are measured on."""
+        return self._clock()
+
+    def append(self, event: FallEvent, hooks_outcome: str | None = None) -> FallEvent:
+        """Store one message durably (fsync'd) and return it with ``wall_time`` filled in. ``hooks_outcome``:
+        the message is stored with its hooks already done (``no_hooks``: none is configured).
 
         Never raises on storage trouble: the message is then kept in memory, logged, and written later.
         """
@@ -247,7 +273,7 @@ class EventJournal:
             now = self._clock()
             if not event.wall_time:
                 event = replace(event, wall_time=iso(now))
-            item = StoredEvent(event, now, None, None)
+            item = StoredEvent(event, now, None, None, None, None if hooks_outcome is None else now, hooks_outcome)
             self._pending[item.key] = item
             if self._db is None:
                 self._open()
@@ -259,8 +285,9 @@ class EventJournal:
         """Record that the message(s) of ``event_id`` (all states so far, or one) went out."""
         self._record(event_id, state, "published_at")
 
-    def acknowledge(self, event_id: str, state: str | None = None) -> int:
+    def acknowledge(self, event_id: str, state: str | None = None, by: str | None = None) -> int:
         """A receiver confirmed the event: its messages so far (or one state) are no longer republished.
+        ``by``: who acknowledged (free text, kept as ``acked_by``; a message keeps its first acknowledgement's).
 
         Returns how many messages were acknowledged (0 for an unknown id).
         """
@@ -275,29 +302,84 @@ class EventJournal:
                     self._fail("cannot read the event journal", exc)
                     known = max(known, 1)        # unreadable: record the acknowledgement for later
             if known:                            # nothing to mark: no write (a flood of unknown ids is cheap)
-                self._record(event_id, state, "acked_at")
+                self._record(event_id, state, "acked_at", {"acked_by": by})
             return known
 
-    def _record(self, event_id: str, state: str | None, column: str) -> None:
+    def mark_hooks_done(self, event_id: str, state: str, outcome: str) -> None:
+        """Every hook is done with the message (``outcome``: one of ``journal_rows.HOOK_OUTCOMES``): it is not
+        handed to the hooks again."""
+        assert outcome in rows.HOOK_OUTCOMES, outcome
+        self._record(event_id, state, "hooks_done_at", {"hooks_outcome": outcome})
+
+    def _record(self, event_id: str, state: str | None, column: str, extra: dict | None = None) -> None:
         self._check_writable()
+        extra = extra or {}
         with self._lock:
             now = self._clock()
             for key, item in list(self._pending.items()):
                 if key[0] == event_id and (state is None or key[1] == state) and getattr(item, column) is None:
-                    self._pending[key] = replace(item, **{column: now})
+                    self._pending[key] = replace(item, **{column: now}, **extra)
             if self._db is None:
                 self._open()
             if self._db is None:
-                self._pending_marks.append((event_id, state, column, now))
+                self._pending_marks.append((event_id, state, column, now, extra))
                 self._sync_fallback()
                 return
             try:
                 with jfile.Transaction(self._db):
-                    rows.mark(self._db, event_id, state, column, now)
+                    rows.mark(self._db, event_id, state, column, now, extra)
             except (sqlite3.DatabaseError, OSError) as exc:
-                self._pending_marks.append((event_id, state, column, now))
+                self._pending_marks.append((event_id, state, column, now, extra))
                 self._fail("cannot write to the event journal", exc)
             self._sync_fallback()
+
+    def hook_started(self, event_id: str, state: str, hook: str, attempt: int) -> None:
+        """Run ``attempt`` (1, 2, ... across restarts) of the hook whose key is ``hook`` is about to start."""
+        self._write_hook_row(rows.hook_started, (event_id, state, hook, attempt))
+
+    def hook_finished(self, event_id: str, state: str, hook: str, outcome: str) -> None:
+        """The hook whose key is ``hook`` is done with the message: ``ok`` or ``gave_up``."""
+        self._write_hook_row(rows.hook_finished, (event_id, state, hook, outcome, self._clock()))
+
+    def _write_hook_row(self, write: Callable, args: tuple) -> None:
+        self._check_writable()
+        with self._lock:
+            if self._db is None:
+                self._open()
+            if self._db is not None and not self._pending_hook_rows:
+                try:
+                    with jfile.Transaction(self._db):
+                        write(self._db, *args)
+                    return
+                except (sqlite3.DatabaseError, OSError) as exc:
+                    self._fail("cannot write to the event journal", exc)
+            self._pending_hook_rows.append((write, args))     # in order, after those already waiting
+            if self._db is not None:
+                self._flush()
+
+    def hooks_pending(self) -> list[tuple[StoredEvent, dict[str, rows.HookRun]]]:
+        """Messages whose hooks are not done, oldest first, each with what each hook did with it so far (hook
+        key -> :class:`journal_rows.HookRun`; a hook missing there never started on it)."""
+        pending = self._select(Selection(hooks_pending=True), None)
+        keys = {s.key for s in pending}
+        runs: dict[tuple[str, str], dict[str, rows.HookRun]] = {}
+        with self._lock:
+            if self._db is not None and keys:
+                try:
+                    runs = rows.hook_runs(self._db, keys)
+                except sqlite3.DatabaseError as exc:
+                    self._fail("cannot read the event journal", exc)
+            for write, args in self._pending_hook_rows:           # what waits in memory, in order
+                key, hook = (args[0], args[1]), args[2]
+                if key not in keys:
+                    continue
+                run = runs.setdefault(key, {}).get(hook, rows.HookRun())
+                if write is rows.hook_started:
+                    run = replace(run, attempts=max(run.attempts, args[3]))
+                else:
+                    run = replace(run, outcome=args[3])
+                runs[key][hook] = run
+        return [(s, runs.get(s.key, {})) for s in pending]
 
     def unacknowledged(self) -> list[FallEvent]:
         """Messages not yet acknowledged, oldest first (on disk and waiting in memory)."""

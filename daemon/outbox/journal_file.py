@@ -4,6 +4,8 @@ recognising a corrupt file and setting it aside, and saying what went wrong and 
 from __future__ import annotations
 
 import sqlite3
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 from posed.daemon.outbox import journal_rows as rows
@@ -23,11 +25,16 @@ def default_connect(path: Path) -> sqlite3.Connection:
     return sqlite3.connect(path, timeout=5.0, isolation_level=None, check_same_thread=False)
 
 
-def prepare(db: sqlite3.Connection) -> None:
-    """The daemon's settings (WAL, fsync on every commit) and the tables, on a freshly opened file."""
+def prepare(db: sqlite3.Connection, clock: Callable[[], float] = time.time) -> dict | None:
+    """The daemon's settings (WAL, fsync on every commit) and the tables, on a freshly opened file; a journal
+    written by an older posed gets the columns it lacks (:func:`journal_rows.migrate`, ``clock``: unix seconds).
+    Returns what the migration did (None: nothing)."""
     db.execute("PRAGMA journal_mode=WAL")
     db.execute("PRAGMA synchronous=FULL")
-    db.executescript(rows.SCHEMA)
+    db.executescript(rows.MESSAGES)
+    migrated = rows.migrate(db, clock)
+    db.executescript(rows.INDEXES_AND_HOOK_RUNS)
+    return migrated
 
 
 def readonly_uri(path: Path) -> str:
@@ -84,7 +91,7 @@ def salvage(path: Path) -> list[rows.StoredEvent]:
     try:
         db = sqlite3.connect(readonly_uri(path), uri=True, timeout=1.0)
         try:
-            found = db.execute(f"SELECT {rows.COLUMNS} FROM messages WHERE acked_at IS NULL").fetchall()
+            found = db.execute(f"SELECT {rows.select_list(db)} FROM messages WHERE acked_at IS NULL").fetchall()
         finally:
             db.close()
     except sqlite3.DatabaseError:

@@ -1,5 +1,6 @@
 """``posed events [list] [--since T] [--until T] [--limit N] [--unacked] [--json]``: list stored fall events;
-``posed events ack ID [--state S]``: acknowledge one (a Zenoh put on ``posed/ROBOT/events/ack``).
+``posed events ack ID [--state S] [--by NAME]``: acknowledge one (a Zenoh put on ``posed/ROBOT/events/ack``;
+``by``, who acknowledged, defaults to USER@HOST).
 
 Listing exit status: 0 listed (or no journal yet), 1 the journal cannot be read, 2 a bad option (a time that
 cannot be read, --since after --until, a --journal that is a folder), 74 writing the list failed (a full
@@ -19,6 +20,19 @@ from posed.commands._paths import Output, OutputError
 from posed.daemon.config.paths import EVENTS_FILE, reading_state_dir
 
 STATES = ("falling", "on_floor", "alarm", "recovered")  # falls.FALL_STATES (not imported: no numpy here)
+MAX_BY_CHARS = 128                                      # daemon.bus.acks.MAX_BY_CHARS
+
+
+def default_by() -> str:
+    """Who acknowledges when ``--by`` is not given: USER@HOST (the login name, else $USER, else the uid)."""
+    import getpass
+    import socket
+
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):
+        user = os.environ.get("USER") or f"uid{os.getuid()}"
+    return f"{user}@{socket.gethostname() or 'localhost'}"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,13 +46,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     listing.set_defaults(func=run)
     ack = actions.add_parser(
         "ack", help="acknowledge a fall event: the daemon stops republishing it",
-        description="Puts {\"id\": ID, \"state\": S} on posed/ROBOT/events/ack of the running daemon (its "
-                    "endpoint and robot id from the config). An id prefix, as `posed events` prints it, is "
-                    "completed from the journal when the journal is readable.")
+        description="Puts {\"id\": ID, \"state\": S, \"by\": NAME} on posed/ROBOT/events/ack of the running "
+                    "daemon (its endpoint and robot id from the config). An id prefix, as `posed events` prints "
+                    "it, is completed from the journal when the journal is readable.")
     add_config_args(ack, source=False, example="robot_id=kitchen")
     ack.add_argument("id", metavar="ID", help="the event id (or a unique prefix of it)")
     ack.add_argument("--state", choices=STATES,
                      help="acknowledge only this message of the event (default: every message so far)")
+    ack.add_argument("--by", metavar="NAME", default=None,
+                     help="who acknowledges, kept in the journal and shown by `posed events` (free text, at most "
+                          f"{MAX_BY_CHARS} characters; default: your user name and this host, USER@HOST; "
+                          "--by '' sends none)")
     ack.add_argument("--connect", metavar="ENDPOINT",
                      help="the daemon's Zenoh endpoint (default: from the config's zenoh.listen, e.g. "
                           "tcp/127.0.0.1:7447)")
@@ -111,17 +129,22 @@ def _print_listing(args: argparse.Namespace, path: Path, stored) -> int:
         elif not stored:
             print(f"no events in {path} for that time range", file=out)
         else:
-            print(f"{'wall time (UTC)':<24} {'event':<12} {'state':<10} {'conf':>5} {'pub':>3} {'ack':>3}  features",
-                  file=out)
+            print(f"{'wall time (UTC)':<24} {'event':<12} {'state':<10} {'conf':>5} {'pub':>3} {'ack':>3} "
+                  f"{'acked by':<16} {'hooks':<9}  features", file=out)
             for s in stored:
                 e = s.event
+                by = (s.acked_by or "-") if s.acked_at else ""
                 print(f"{e.wall_time[:23]:<24} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
-                      f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3}  "
-                      f"{','.join(e.features)}", file=out)
+                      f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3} "
+                      f"{_cut(by, 16):<16} {s.hooks_outcome or 'pending':<9}  {','.join(e.features)}", file=out)
         out.close()
     except OutputError as exc:
         return out.failed(exc.exc)
     return 0
+
+
+def _cut(text: str, width: int) -> str:
+    return text if len(text) <= width else text[: width - 1] + "…"
 
 
 def _permission_hint(path: Path, exc: BaseException) -> str:
@@ -153,6 +176,10 @@ def run_ack(args: argparse.Namespace) -> int:
     if not event_id:
         print("posed events ack: the event id is empty; `posed events` lists them", file=sys.stderr)
         return 2
+    by = default_by() if args.by is None else args.by.strip()
+    if len(by) > MAX_BY_CHARS or not by.isprintable():
+        print(f"posed events ack: --by must be at most {MAX_BY_CHARS} printable characters", file=sys.stderr)
+        return 2
     path = journal_path(args, cfg)
     stored = _read_journal(path)
     if stored is not None:
@@ -182,10 +209,10 @@ def run_ack(args: argparse.Namespace) -> int:
 
         # the client puts the ack (posed.ack JSON) and, reading the robot's event history over Zenoh, puts it
         # again until the daemon shows it acknowledged (a put racing the route to the daemon can be lost)
-        confirmed = PosedClient(session).ack(robot, event_id, args.state, by="posed events ack",
-                                             confirm_s=args.wait)
+        confirmed = PosedClient(session).ack(robot, event_id, args.state, by=by or None, confirm_s=args.wait)
         what = f"event {event_id}" + (f" ({args.state})" if args.state else "")
-        print(f"posed events ack: sent {what} to {key} via {', '.join(endpoints)}", flush=True)
+        print(f"posed events ack: sent {what}" + (f" by {by!r}" if by else "") +
+              f" to {key} via {', '.join(endpoints)}", flush=True)
         if stored is None:
             if confirmed:
                 print(f"posed events ack: robot {robot} acknowledged {what} (its event history says so)")
@@ -201,7 +228,8 @@ def run_ack(args: argparse.Namespace) -> int:
             mine = [s for s in (_read_journal(path) or []) if s.event.id == event_id
                     and (args.state is None or s.event.state == args.state)]
             if mine and all(s.acked_at for s in mine):
-                print(f"posed events ack: the daemon acknowledged {what} in {path}")
+                kept = ", ".join(dict.fromkeys(s.acked_by or "(not said)" for s in mine))
+                print(f"posed events ack: the daemon acknowledged {what} in {path} (acknowledged by: {kept})")
                 return 0
             time.sleep(0.2)
     print(f"posed events ack: {path} does not show {what} acknowledged after {args.wait:g} s (is the daemon "

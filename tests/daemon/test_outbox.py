@@ -31,12 +31,16 @@ class Bus:
 
 
 class Hooks:
+    """Records what it is handed (no hook configured: ``keys`` is empty, as HookRunner's with none)."""
+
+    keys: tuple[str, ...] = ()
+
     def __init__(self, bus: Bus) -> None:
         self.bus = bus
         self.got: list[tuple[str, str, int]] = []
         self.closed = False
 
-    def submit(self, e: FallEvent) -> None:
+    def submit(self, e: FallEvent, attempts=None, redelivered=False) -> None:
         self.got.append((e.id, e.state, len(self.bus.sent)))
 
     def close(self, timeout: float) -> None:
@@ -90,7 +94,7 @@ def test_republished_until_acknowledged(tmp_path):
     box.tick(65.0, subscribed=False)                                  # nobody listens: not sent
     assert len(bus.sent) == 4
     assert box.acknowledge("e1") == 1
-    assert ("info", "fall_event_acknowledged", {"id": "e1", "state": None, "messages": 1}) in log.lines
+    assert ("info", "fall_event_acknowledged", {"id": "e1", "state": None, "by": None, "messages": 1}) in log.lines
     box.tick(95.0, subscribed=True)
     assert [i for i, _, _ in bus.sent[4:]] == ["e2"]
     reasons = [f["reason"] for lv, e, f in log.lines if e == "fall_events_republished"]
