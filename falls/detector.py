@@ -13,7 +13,7 @@ without recovering). Messages (``FallEvent``, all with the event's id):
   was not seen falling, or (after ``falling``) the person is still down; the time out of sight after lying
   was seen counts too (feature ``lost_while_lying``);
 - ``alarm``: down ``alarm_after_s`` after the impact without recovering (the timer runs while the person is
-  out of view: losing sight of them never hides the alarm);
+  out of view: losing sight of them never hides the alarm; and without frames: :meth:`FallDetector.tick`);
 - ``recovered``: up again (pelvis above ``recover_pelvis_rel``, trunk within ``recover_trunk_deg`` of vertical)
   for ``recover_s``, seen in valid frames (missing frames are no evidence of recovery).
 
@@ -95,6 +95,10 @@ class _Event:
     confidence: float
     geometry: dict = field(default_factory=dict)   # CameraGeometry.used() when the event was raised
     sent: set[str] = field(default_factory=set)
+    # an event raised before a restart and continued here (FallDetector.continue_event): the alarm is due at this
+    # capture time (its t_impact is on the clock of the run that raised it), and its messages carry ``extra``
+    due_t: float | None = None
+    extra: dict = field(default_factory=dict)
 
 
 class FallDetector:
@@ -214,6 +218,47 @@ class FallDetector:
                 self._gap()
         out += self._timers(t)
         return out
+
+    def tick(self, t: float) -> list[FallEvent]:
+        """No frame for a while (the camera blind or unplugged, a recording ended, the pipeline stalled): the
+        alarm timer runs on to capture time ``t`` without one; nothing else changes (no frame is no evidence of
+        anything, as for a frame without a person). The next frame is judged as usual, whatever its capture
+        time: the tick moves no clock of the detector's, so a frame older than ``t`` is no step backwards and an
+        alarm raised here is not raised again. A ``t`` before the last frame's changes nothing."""
+        if self._last_t is not None and t < self._last_t:
+            return []
+        return self._timers(t)
+
+    @property
+    def event_id(self) -> str | None:
+        """The id of the event under way (``down`` or ``alarm``), None when up."""
+        return self._event.id if self._event is not None and self.state != "up" else None
+
+    @property
+    def judged_up(self) -> bool | None:
+        """Whether the last frame's body, as the state machine judged it (the median of the last frames), meets
+        the recovery rule: pelvis above ``recover_pelvis_rel`` and trunk within ``recover_trunk_deg``. None
+        when the last frame was not judged."""
+        s, raw = self._last_smoothed, self.last_sample
+        if s is None or raw is None or s.t != raw.t:
+            return None
+        return s.h_rel > self.cfg.recover_pelvis_rel and s.incl < self.cfg.recover_trunk_deg
+
+    def continue_event(self, event_id: str, t_onset: float | None, t_impact: float | None, due_t: float,
+                       features: tuple[str, ...], confidence: float, geometry: dict, sent: set[str],
+                       extra: dict) -> None:
+        """The event under way is one raised before a restart (the daemon's journal has it): from now on it
+        carries that event's id, times, features, confidence and geometry, with ``extra`` in every message;
+        its alarm is due at capture time ``due_t``, and ``sent`` are the states already sent (with ``alarm``
+        among them the state is ``alarm``). Recovery is judged as for any event. Raises ValueError when no
+        event is under way."""
+        if self._event is None or self.state == "up":
+            raise ValueError("no event under way to continue")
+        self._event = _Event(id=event_id, t_onset=t_onset,
+                             t_impact=t_impact if t_impact is not None else self._event.t_impact,
+                             features=tuple(features), confidence=round(float(confidence), 3),
+                             geometry=dict(geometry), sent=set(sent), due_t=float(due_t), extra=dict(extra))
+        self.state = "alarm" if "alarm" in sent else "down"
 
     def _lost(self, t: float) -> list[FallEvent]:
         """Not judged this frame. A fast descent that reached floor level (or came low, or was still on course
@@ -508,7 +553,8 @@ class FallDetector:
         ev = self._event
         if ev is None or self.state != "down":
             return []
-        if t - ev.t_impact >= self.cfg.alarm_after_s - 1e-9:
+        due = t - ev.t_impact >= self.cfg.alarm_after_s - 1e-9 if ev.due_t is None else t >= ev.due_t - 1e-9
+        if due:
             self.state = "alarm"
             return [self._message("alarm", t, ev.features + ("not_recovered",), max(ev.confidence, 0.9))]
         return []
@@ -573,6 +619,7 @@ class FallDetector:
         if s is not None:
             extra = {"pelvis_height_rel": round(s.h_rel, 3), "trunk_inclination_deg": round(s.incl, 1)}
         extra["geometry"] = dict(ev.geometry)
+        extra.update(ev.extra)
         return FallEvent(id=ev.id, robot=self.robot_id, state=state, t_onset=ev.t_onset, t_impact=ev.t_impact,
                          t_detect=t, confidence=round(float(confidence), 3), features=feats,
                          pose=self._last_result.to_json() if self._last_result is not None else None,

@@ -26,6 +26,8 @@ whose fall it is.
   distance (box sides) and ``sure`` (1 at the same spot, 0 at the limit). The person of a stream without ids,
   when the first frame with ids comes, is its frame's own person if they were in view the frame before (the
   landmark stage keeps the person followed longest as the frame's own), else matched like anyone else.
+* **No frames.** :meth:`PeopleFalls.tick` runs every person's alarm timer on without a frame (the publisher
+  calls it when no frame came for a while: the camera blind, a recording ended, the pipeline stalled).
 * **Forgetting.** A person unseen for ``FORGET_S`` with no event under way is forgotten; one whose event is
   under way (``down`` or ``alarm``) is kept until re-matched or seen recovering; at most ``MAX_KEPT`` people are
   kept (the longest unseen without an event go first, then with one).
@@ -145,6 +147,22 @@ class PeopleFalls:
         self._prev_t = t
         self.in_frame = in_frame
         return out
+
+    def tick(self, t: float) -> list[FallEvent]:
+        """No frame for a while: every person's alarm timer runs on to capture time ``t``
+        (:meth:`FallDetector.tick`), each message tagged with its person. Nothing else changes: who is in view,
+        the last frame's time (a frame older than ``t`` coming later is no restart of the stream)."""
+        out: list[FallEvent] = []
+        for key, person in list(self.people.items()):
+            out += self._tag(key, person, person.detector.tick(t))
+        return out
+
+    def detector_of(self, event_id: str) -> tuple[int | None, FallDetector] | None:
+        """The person (key) and detector whose event under way has ``event_id``; None when nobody's has."""
+        for key, person in self.people.items():
+            if person.detector.event_id == event_id:
+                return key, person.detector
+        return None
 
     # ------------------------------------------------------------------ the household
 

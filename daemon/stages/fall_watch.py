@@ -6,7 +6,9 @@ person's detector is the one whose geometry is in the status and kept across res
 the depth floor go to every person's.
 
 Every FitMsg is fed (also frames without a person: the alarm timer runs on the capture timestamps, the one
-clock), with its 2D landmarks, image size and camera intrinsics. A detector that raises must not stop the
+clock), with its 2D landmarks, image size and camera intrinsics. When no frame comes for a while (the camera
+blind or unplugged, a recording ended, the pipeline stalled) the publisher calls :meth:`FallWatch.tick`: the
+alarm timers run on without frames (docs/falls.md, "The alarm without frames"). A detector that raises must not stop the
 poses: the frame then yields no event, the stage's error counter goes up and the failure is logged (the
 first three, then every hundredth).
 
@@ -39,6 +41,7 @@ import os
 import re
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -229,6 +232,22 @@ class FallWatch:
             self.save()
         return events
 
+    def tick(self, t: float, without_frames_s: float) -> list[FallEvent]:
+        """No frame for ``without_frames_s`` seconds: every person's alarm timer runs on to capture time ``t``
+        (:meth:`falls.people.PeopleFalls.tick`); an alarm raised so carries ``without_frames_s``. A detector
+        that raises costs this tick's messages only, counted and logged as for a frame."""
+        if self.people is None:
+            return []
+        try:
+            events = self.people.tick(t)
+        except Exception as exc:  # a detector bug must not stop the stage
+            self.failures += 1
+            self._on_error()
+            if self.failures <= LOG_FIRST_FAILURES or self.failures % LOG_FAILURE_EVERY == 0:
+                self.log.error("fall_detector_failed", error=repr(exc), tick=round(t, 3), failures=self.failures)
+            return []
+        return [replace(e, extra={**e.extra, "without_frames_s": round(float(without_frames_s), 3)})
+                for e in events]
 
     def _depth_floor(self, msg: FitMsg) -> None:
         """Hand the frame's depth floor (or the last one, aged) to the detector; forget it when too old."""

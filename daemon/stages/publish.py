@@ -13,6 +13,13 @@ Per fit result (``fits`` mailbox), in this order:
 4. the joint angles to the history (:class:`daemon.history.recorder.HistoryRecorder`) and to ROS 2: the frame's
    own person's, or with ``falls.household`` the member's recognised in view (``FallWatch.followed``).
 
+Fall alarms kept (docs/falls.md, "The alarm across a restart" and "The alarm without frames"): at the start, the
+falls the journal holds open (no ``alarm``, no ``recovered``) are taken back with their ids and alarm times
+(:class:`daemon.stages.restored_falls.RestoredFalls`); between frames their alarms are raised when due, and
+when no frame has been processed for the blind threshold (:func:`daemon.proc.blind.blind_after_s`, the
+supervisor's: 3 s at any usual frame rate) the detectors' alarm timers run on without frames
+(:meth:`FallWatch.tick`).
+
 Between frames: ``posed/ROBOT/status`` (the supervisor's status every ``pipeline.status_period_s``, plus the
 Zenoh session and the event backlog); unacknowledged events published again when a new subscriber to
 events/fall appears and every ``zenoh.event_republish_s``; history maintenance. The bus also holds the
@@ -55,8 +62,10 @@ from posed.daemon.outbox.hooks import HookRunner
 from posed.daemon.outbox.journal import EventJournal
 from posed.daemon.outbox.private import private_file, private_folder
 from posed.daemon.proc import orphans
+from posed.daemon.proc.blind import blind_after_s
 from posed.daemon.stages.base import StageRuntime
 from posed.daemon.stages.fall_watch import FallWatch, geometry_file
+from posed.daemon.stages.restored_falls import RestoredFalls
 
 
 class PublisherStage:
@@ -76,6 +85,12 @@ class PublisherStage:
                                fallback=FallbackStore(fallback_path(paths.state_dir(cfg.pipeline))))
         self.outbox = EventOutbox(journal, HookRunner(cfg.hooks), self._send_event, rt.log,
                                   cfg.zenoh.event_republish_s)
+        # falls left open by the run before (killed between on_floor and alarm): their alarms are kept
+        self.restored = RestoredFalls.load(journal, cfg.falls, rt.log)
+        # no frame for this long (the supervisor's blind threshold): the alarm timers run on without frames
+        self.tick_after_s = blind_after_s(cfg.pipeline.target_fps)
+        self._frame_at = clock.now()          # when the last frame was handled (monotonic; at first: the start)
+        self._frame_t: float | None = None    # ... and its capture time
         self.ros2 = Ros2Bridge(cfg.ros2, rt.log) if cfg.ros2.enabled else None    # docs/ros2.md
         # what a hook leaves behind (setsid) comes back here; no hooks configured: nothing to adopt or scan for
         self.subreaper = bool(cfg.hooks.on_event) and orphans.become_subreaper()
@@ -106,7 +121,9 @@ class PublisherStage:
             self.bus.put_pose(poses[id(other)])
         if self.bus.wants_landmarks:
             self.bus.put_landmarks(landmarks_message(msg, self.rt.config.robot_id))
-        for event in self.falls.update(msg):
+        events = self.falls.update(msg)
+        self._frame_at, self._frame_t = clock.now(), float(msg.result.t)
+        for event in self.restored.frame(msg, self.falls, events, self._frame_at):
             self.outbox.post(stamp_event(event))    # unix times before the journal
         followed = self.falls.followed(msg)       # the household member's, when one is known: else the frame's
         if self.ros2 is not None:                 # ROS 2's one JointState stream follows that person too
@@ -119,6 +136,7 @@ class PublisherStage:
         if status is not None:
             self.publish_status(status)
         self.bus.watch_link(now)
+        self.falls_between_frames(now)
         if self.bus.event_subscriber_appeared(now):
             self.outbox.subscriber_appeared(now)
         self.outbox.tick(now, self.bus.event_subscribed)
@@ -129,6 +147,21 @@ class PublisherStage:
         storage = self.storage()
         self.rt.row.set("unstored", storage["unstored_events"])
         self.rt.row.set("storage_fault", 0.0 if storage["state"] == "ok" else 1.0)
+
+    def falls_between_frames(self, now: float) -> None:
+        """The alarms due without a frame: a restored fall's when due; and when no frame has been handled for
+        ``tick_after_s``, the detectors' timers run on to the capture clock's now (the monotonic clock, or for an
+        unpaced replay, whose capture clock runs ahead of it, the last frame's capture time plus the time since).
+        A frame that comes later, with an older capture time, raises nothing twice (FallDetector.tick)."""
+        events = self.restored.due(now, self.falls)
+        quiet = now - self._frame_at
+        if quiet >= self.tick_after_s:
+            t = now if self._frame_t is None else max(now, self._frame_t + quiet)
+            ticked = self.falls.tick(t, quiet)
+            self.restored.observe(ticked)
+            events += ticked
+        for event in events:
+            self.outbox.post(stamp_event(event))
 
     def storage(self) -> dict:
         """The state directory as the status shows it: ``ok``, or ``degraded`` with the reason and the fix."""
@@ -155,6 +188,8 @@ class PublisherStage:
         status["events"] = self.outbox.status()
         status["events"]["acks"]["rejected"] = self.bus.acks_rejected
         status["falls"] = self.falls.status()
+        if self.restored.open:
+            status["falls"]["restored_open"] = self.restored.status()
         status["storage"] = self.storage()
         if self.ros2 is not None:
             status["ros2"] = self.ros2.status()

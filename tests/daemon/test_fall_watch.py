@@ -97,3 +97,58 @@ def test_with_a_household_the_history_follows_the_member_not_the_frames_own_pers
     watch.update(replace(alone, result=replace(rv, seq=99, t=9.9)))
     got = watch.followed(alone)
     assert not got.ok and got.reason == "no person"
+
+
+class TickingDetector(Detector):
+    """A detector whose timer raises an alarm at a tick."""
+
+    robot_id = "r1"
+    state = "down"
+    event_id = None
+
+    def tick(self, t):
+        from posed.falls import FallEvent
+
+        self.calls.append(("tick", t))
+        if self.fail:
+            raise ZeroDivisionError("bug")
+        return [FallEvent("ev", "r1", "alarm", 1.0, 2.0, t, 0.9)]
+
+
+def test_a_tick_runs_the_timers_without_a_frame_and_says_so():
+    det = TickingDetector()
+    watch = FallWatch(det, RecordingLog())
+    (alarm,) = watch.tick(15.0, 3.25)
+    assert det.calls == [("tick", 15.0)]
+    assert alarm.state == "alarm" and alarm.t_detect == 15.0 and alarm.extra == {"without_frames_s": 3.25}
+    errors, log = [], RecordingLog()
+    failing = FallWatch(TickingDetector(fail=True), log, on_error=lambda: errors.append(1))
+    assert failing.tick(15.0, 3.0) == [] and failing.failures == 1 and errors == [1]
+    assert FallWatch.from_config(FallsConfig(enabled=False), "r1", RecordingLog()).tick(1.0, 9.0) == []
+
+
+def test_the_publisher_ticks_the_timers_only_after_the_blind_threshold_on_the_capture_clock():
+    """PublisherStage.falls_between_frames: no tick while frames come (within the supervisor's blind threshold,
+    3 s); then the timers run to the monotonic now, or for an unpaced replay (capture clock ahead of it) to the
+    last frame's capture time plus the time since; every message goes to the outbox."""
+    from posed.daemon.proc.blind import blind_after_s
+    from posed.daemon.stages.publish import PublisherStage
+    from posed.daemon.stages.restored_falls import RestoredFalls
+
+    posted = []
+    det = TickingDetector()
+    stage = PublisherStage.__new__(PublisherStage)
+    stage.falls = FallWatch(det, RecordingLog())
+    stage.restored = RestoredFalls([], FallsConfig(), RecordingLog())
+    stage.outbox = SimpleNamespace(post=posted.append)
+    stage.tick_after_s = blind_after_s(10.0)
+    assert stage.tick_after_s == 3.0
+    stage._frame_at, stage._frame_t = 100.0, 99.9          # live: captured 0.1 s before it was handled
+    stage.falls_between_frames(102.9)
+    assert det.calls == [] and posted == []
+    stage.falls_between_frames(103.0)
+    assert det.calls == [("tick", 103.0)] and posted[0].extra["without_frames_s"] == 3.0
+    assert posted[0].extra["time_unix"] is not None           # stamped before the journal
+    stage._frame_at, stage._frame_t = 100.0, 500.0          # unpaced replay: the capture clock runs ahead
+    stage.falls_between_frames(104.0)
+    assert det.calls[-1] == ("tick", 504.0)
