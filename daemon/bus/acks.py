@@ -28,25 +28,10 @@ class BadAck(ValueError):
     """An acknowledgement that cannot be used; the message says why (bounded, one line)."""
 
 
-class AckId(str):
-    """An acknowledged event id that carries who acknowledged it (``by``, None when not said).
-
-    The bus link calls its ``on_ack(event_id, state)`` with ``Ack.id``; this lets ``by`` travel with the id to
-    :meth:`daemon.outbox.delivery.EventOutbox.acknowledge` without changing that call. It is the id itself in
-    every other respect (``str(ack_id)`` is the plain id)."""
-
-    by: str | None
-
-    def __new__(cls, value: str, by: str | None = None) -> AckId:
-        obj = super().__new__(cls, value)
-        obj.by = by
-        return obj
-
-
 @dataclass(frozen=True)
 class Ack:
     """One acknowledgement: ``state`` None acknowledges every message of event ``id`` so far; ``by`` who
-    acknowledged (None: not said). ``id`` is an :class:`AckId` carrying ``by``."""
+    acknowledged (None: not said)."""
 
     id: str
     state: str | None = None
@@ -85,7 +70,7 @@ def parse_ack_message(payload: bytes | str) -> Ack:
         raise BadAck(f"event id of {len(event_id)} characters is too long (at most {MAX_ID_CHARS})")
     if not event_id.isprintable() or any(c.isspace() for c in event_id):
         raise BadAck("event id holds whitespace or control characters")
-    return Ack(AckId(event_id, by), state, by)
+    return Ack(event_id, state, by)
 
 
 def _by(value) -> str | None:

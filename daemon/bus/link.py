@@ -54,11 +54,11 @@ class BusLink:
     """The session and its entities; the stage's loop calls ``try_open`` and the ``put_*`` methods, Zenoh's
     threads call the query and ack handlers.
 
-    ``history(since, until, limit)`` answers ``events/history`` queries; ``on_ack(event_id, state)`` is called
+    ``history(since, until, limit)`` answers ``events/history`` queries; ``on_ack(event_id, state, by)`` is called
     for each acknowledgement (on a Zenoh thread; ``state`` None: the whole event)."""
 
     def __init__(self, cfg: ZenohConfig, robot: str, stack: contextlib.ExitStack, log, *,
-                 history: queries.HistoryLookup, on_ack: Callable[[str, str | None], None]) -> None:
+                 history: queries.HistoryLookup, on_ack: Callable[[str, str | None, str | None], None]) -> None:
         self.cfg = cfg
         self.topics = Topics(robot)
         self.latest = queries.LatestState()
@@ -238,4 +238,4 @@ class BusLink:
                 self.log.warning("bad_ack", error=str(exc), expected=acks.EXPECTED, rejected=self.acks_rejected,
                                  suppressed=suppressed)
             return
-        self._on_ack(ack.id, ack.state)
+        self._on_ack(ack.id, ack.state, ack.by)

@@ -221,13 +221,7 @@ class EventOutbox:
     def acknowledge(self, event_id: str, state: str | None = None, by: str | None = None) -> int:
         """A receiver acknowledged ``event_id``: all its messages so far, or only the one of ``state``; ``by``:
         who (free text, kept in the journal as ``acked_by``). Returns how many (called on a Zenoh thread: the
-        journal is thread-safe). ``event_id`` is bounded (:mod:`daemon.bus.acks`) and shortened in the log line.
-
-        The bus link hands on only the id and the state; the id it parsed (:class:`daemon.bus.acks.AckId`)
-        carries ``by`` along, taken when ``by`` is not given."""
-        if by is None:
-            by = getattr(event_id, "by", None)
-        event_id = str(event_id)
+        journal is thread-safe). ``event_id`` is bounded (:mod:`daemon.bus.acks`) and shortened in the log line."""
         n = self.journal.acknowledge(event_id, state, by)
         if n:
             self.acks["accepted"] += 1

@@ -221,8 +221,8 @@ class PublisherStage:
     def _stored_events(self, since: float | None, until: float | None, limit: int):
         return self.outbox.journal.query(since, until, limit)
 
-    def _acknowledge(self, event_id: str, state: str | None) -> None:
-        self.outbox.acknowledge(event_id, state)
+    def _acknowledge(self, event_id: str, state: str | None, by: str | None) -> None:
+        self.outbox.acknowledge(event_id, state, by)
 
 
 def _is_resource_tracker(pid: int) -> bool:

@@ -121,7 +121,7 @@ def test_link_declares_each_stream_with_its_qos_and_releases_them(fake_zenoh):
     acks, log = [], RecordingLog()
     with contextlib.ExitStack() as stack:
         link = BusLink(ZenohConfig(), "r1", stack, log, history=lambda *a: [],
-                       on_ack=lambda i, st: acks.append(i))
+                       on_ack=lambda i, st, by: acks.append(i))
         assert link.put_pose({"seq": 0}) is False and not link.wants_landmarks     # no session yet: dropped
         assert link.try_open(0.0) is True and link.try_open(1.0) is False
         s = sessions[0]
