@@ -97,11 +97,18 @@ def check(cfg: Config) -> list[str]:
                         "replay the video the recording came from, or remove them")
     if cfg.fitting.calibration:
         problems += calibration_problems(cfg.fitting.calibration)
-    for i, hook in enumerate(cfg.hooks.on_event):
+    for key, i, hook in _hooks(cfg):
         if not hook.argv or not hook.argv[0]:
-            problems.append(f"hooks.on_event[{i}].argv is empty; give a program and its arguments as a list, "
+            problems.append(f"hooks.{key}[{i}].argv is empty; give a program and its arguments as a list, "
                             'e.g. argv: ["/usr/local/bin/notify", "--fall"]')
     return problems
+
+
+def _hooks(cfg: Config):
+    """(list key, index, hook) of every configured hook: fall events' and posed not watching's."""
+    for key in ("on_event", "on_watch_lost"):
+        for i, hook in enumerate(getattr(cfg.hooks, key)):
+            yield key, i, hook
 
 
 def partial_problems(exc) -> list[str]:
@@ -181,17 +188,18 @@ def hook_program_problems(cfg: Config) -> list[str]:
     import shutil
 
     problems = []
-    for i, hook in enumerate(cfg.hooks.on_event):
+    for key, i, hook in _hooks(cfg):
         if not hook.argv or not hook.argv[0]:
             continue                                  # check() reports an empty argv
         prog = hook.argv[0]
         found = Path(prog) if os.sep in prog else shutil.which(prog)
+        when = "at the first fall" if key == "on_event" else "when posed stops watching"
         if found is None or not Path(found).is_file():
-            problems.append(f"hooks.on_event[{i}].argv[0]: {prog!r} does not exist"
+            problems.append(f"hooks.{key}[{i}].argv[0]: {prog!r} does not exist"
                             + ("" if os.sep in prog else " on PATH") + "; give the absolute path of an installed "
-                            "program (the hook would fail at the first fall)")
+                            f"program (the hook would fail {when})")
         elif not os.access(found, os.X_OK):
-            problems.append(f"hooks.on_event[{i}].argv[0]: {found} is not executable; chmod +x it or give the "
+            problems.append(f"hooks.{key}[{i}].argv[0]: {found} is not executable; chmod +x it or give the "
                             "program that runs it (e.g. argv: [/usr/bin/python3, script.py])")
     return problems
 

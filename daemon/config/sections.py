@@ -137,9 +137,17 @@ class HookConfig:
 
 @dataclass(frozen=True)
 class HooksConfig:
-    """Commands run on fall events."""
+    """Commands run on fall events, and when posed stops watching and watches again."""
 
     on_event: tuple[HookConfig, ...] = field(default=(), metadata={"doc": "hooks run for every fall event"})
+    on_watch_lost: tuple[HookConfig, ...] = field(default=(), metadata={
+        "doc": "hooks run once when posed has not been watching for watch_lost_after_s (camera lost, blind or "
+               "ended, a stage failing: no fall could be alarmed), and once when it watches again "
+               "(POSED_WATCH=lost / back; docs/daemon.md)"})
+    watch_lost_after_s: float = field(default=60.0, metadata={
+        "doc": "how long posed must not have been watching before on_watch_lost runs; above the routine "
+               "recoveries (a stage restart about 2 s, a camera reconnect up to source.reconnect_max_s), so "
+               "those call nobody", "unit": "s", "range": (1.0, 86400.0)})
     retry_delay_s: float = field(
         default=2.0, metadata={"doc": "wait before the n-th retry: n times this", "unit": "s",
                                "range": (0.0, 600.0)}

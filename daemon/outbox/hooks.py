@@ -211,12 +211,12 @@ class _Worker:
         self.log.warning("hook_ended_at_shutdown", hook_pid=proc.pid, grace_s=TERM_GRACE_S,
                          note="the run was cut off: its message stays pending in the journal and is handed to "
                               "the hook again at the next start")
-        _signal_group(proc, signal.SIGTERM)
+        signal_group(proc, signal.SIGTERM)
         try:
             proc.wait(TERM_GRACE_S)
         except subprocess.TimeoutExpired:
             pass
-        _signal_group(proc, signal.SIGKILL)     # the leader may have left children in its group
+        signal_group(proc, signal.SIGKILL)     # the leader may have left children in its group
 
     # ---------------------------------------------------------------- one event
     def _deliver(self, job: _Job) -> None:
@@ -300,9 +300,9 @@ class _Worker:
                                f"hooks.on_event[{self.index}].argv[0] (an absolute path to an executable)")
             self._proc = proc
         try:
-            out, err, timed_out = _exchange(proc, payload, limit, self.hook.timeout_s)
+            out, err, timed_out = exchange(proc, payload, limit, self.hook.timeout_s)
             if timed_out:
-                _signal_group(proc, signal.SIGKILL)
+                signal_group(proc, signal.SIGKILL)
             rc = proc.wait()
         finally:
             with self._proc_lock:
@@ -312,7 +312,7 @@ class _Worker:
         return outcome(rc == 0, rc, False, "", out, err)
 
 
-def _exchange(proc: subprocess.Popen, payload: bytes, limit: int, timeout_s: float) -> tuple[bytes, bytes, bool]:
+def exchange(proc: subprocess.Popen, payload: bytes, limit: int, timeout_s: float) -> tuple[bytes, bytes, bool]:
     """Write ``payload`` to the hook's stdin and read its stdout and stderr until they close, keeping the
     first ``limit`` bytes of each and discarding the rest. Returns (stdout, stderr, timed out)."""
     deadline = time.monotonic() + timeout_s
@@ -366,7 +366,7 @@ def _close_pipes(proc: subprocess.Popen) -> None:
             pass
 
 
-def _signal_group(proc: subprocess.Popen, sig: int) -> None:
+def signal_group(proc: subprocess.Popen, sig: int) -> None:
     """``sig`` to the hook's process group (its pid: it leads its own session), or to the hook alone."""
     try:
         os.killpg(proc.pid, sig)

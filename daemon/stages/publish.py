@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -61,6 +62,7 @@ from posed.daemon.outbox.fallback import FallbackStore, fallback_path
 from posed.daemon.outbox.hooks import HookRunner
 from posed.daemon.outbox.journal import EventJournal
 from posed.daemon.outbox.private import private_file, private_folder
+from posed.daemon.outbox.watch_hooks import WatchHooks, WatchLoss
 from posed.daemon.proc import orphans
 from posed.daemon.proc.blind import blind_after_s
 from posed.daemon.stages.base import StageRuntime
@@ -92,8 +94,11 @@ class PublisherStage:
         self._frame_at = clock.now()          # when the last frame was handled (monotonic; at first: the start)
         self._frame_t: float | None = None    # ... and its capture time
         self.ros2 = Ros2Bridge(cfg.ros2, rt.log) if cfg.ros2.enabled else None    # docs/ros2.md
+        # posed not watching (camera lost, blind, ended; a stage failing) said to the hooks that want it
+        self.watch = WatchLoss(cfg.robot_id, cfg.hooks.watch_lost_after_s)
+        self.watch_hooks = WatchHooks(cfg.hooks, rt.log) if cfg.hooks.on_watch_lost else None
         # what a hook leaves behind (setsid) comes back here; no hooks configured: nothing to adopt or scan for
-        self.subreaper = bool(cfg.hooks.on_event) and orphans.become_subreaper()
+        self.subreaper = bool(cfg.hooks.on_event or cfg.hooks.on_watch_lost) and orphans.become_subreaper()
         self._next_reap = 0.0
         self._stack = stack
         self.history = HistoryRecorder(
@@ -194,11 +199,30 @@ class PublisherStage:
         if self.ros2 is not None:
             status["ros2"] = self.ros2.status()
         self.bus.put_status(status_message(status, self.rt.config.robot_id, clock.now()))
+        self.watching(status)
+
+    def watching(self, status: dict) -> None:
+        """posed not watching for ``hooks.watch_lost_after_s``, or watching again after that: logged and handed
+        to ``hooks.on_watch_lost`` (:mod:`daemon.outbox.watch_hooks`)."""
+        notice = self.watch.update(status, clock.now(), time.time())
+        if notice is None:
+            return
+        fields = notice.to_json()
+        said = dict(reason=fields["reason"], not_watching_s=fields["not_watching_s"],
+                    hooks=len(self.rt.config.hooks.on_watch_lost))
+        if notice.watching:
+            self.rt.log.info("watch_back", **said)
+        else:
+            self.rt.log.error("watch_lost", **said, note="no fall can be alarmed while posed does not watch")
+        if self.watch_hooks is not None:
+            self.watch_hooks.submit(notice)
 
     def close(self) -> None:
         """Close everything but the session (the ``with`` around the stage closes it)."""
         self.bus.forget()
         self.outbox.close(hook_timeout_s=0.5)     # then TERM, KILL: within pipeline.shutdown_timeout_s
+        if self.watch_hooks is not None:
+            self.watch_hooks.close(timeout=0.5)
         self.rt.row.set("unstored", self.outbox.journal.pending_in_memory)   # the supervisor says it at stop
         if self.subreaper:                          # what the hooks left behind (setsid, env -i): adopted here
             left = [p for p in orphans.descendants(os.getpid()) if not _is_resource_tracker(p)]

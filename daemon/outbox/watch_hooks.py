@@ -1,0 +1,207 @@
+"""Hooks run when posed stops watching, and when it watches again (``hooks.on_watch_lost``).
+
+A fall monitor that cannot see cannot raise an alarm, and the carer who relies on the alarm hook would hear
+nothing either way. The status says why posed is not watching (:data:`NOT_WATCHING`: ``blind``, no frame
+gets through; ``waiting_for_camera``, unplugged or a wrong device; ``degraded``, a stage failing;
+``escalated``, too many restarts; or the camera ``lost`` or ``ended``). Once that has lasted
+``hooks.watch_lost_after_s`` (:class:`WatchLoss`), each hook runs once with ``POSED_WATCH=lost``; when posed
+watches again (``running`` with the camera open), once more with ``POSED_WATCH=back``. ``starting`` and
+``stopping`` change nothing: a start is judged once it is done, a stop is someone's decision.
+
+A hook runs as a fall hook does (:mod:`daemon.outbox.hooks`): an argv list without a shell, in its own
+session, ``timeout_s`` then killed with its children, ``retries`` with ``retry_delay_s`` times n between
+them, the first ``output_limit`` bytes of its output logged. Its stdin is the notice's JSON
+(:meth:`WatchNotice.to_json`); ``POSED_WATCH`` (``lost`` / ``back``), ``POSED_WATCH_REASON``,
+``POSED_WATCH_SINCE_UNIX``, ``POSED_ROBOT`` and ``POSED_HOOK_ATTEMPT`` carry the main fields. Notices are not
+journalled: they are about the present, and a daemon started again judges it afresh (still not watching:
+``lost`` again after ``watch_lost_after_s``). What this cannot tell: a daemon that is gone altogether (no
+process left to run a hook); Zenoh's liveliness token ``posed/ROBOT/alive`` and systemd say that
+(docs/daemon.md).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import signal
+import subprocess
+import threading
+from dataclasses import dataclass
+
+from posed.daemon.config.sections import HookConfig, HooksConfig
+from posed.daemon.outbox.hooks import exchange, signal_group
+from posed.daemon.proc import orphans
+
+NOT_WATCHING = ("blind", "waiting_for_camera", "degraded", "escalated")
+CAMERA_GONE = ("lost", "ended")
+UNDECIDED = ("starting", "stopping")
+
+
+@dataclass(frozen=True)
+class WatchNotice:
+    """posed stopped watching (``watching`` False) or watches again (True); times in unix seconds."""
+
+    watching: bool
+    robot: str
+    reason: str          # the status's state and what it said (the blind reason, the camera's error)
+    since_unix: float    # when posed stopped watching
+    time_unix: float     # when this notice was made
+
+    def to_json(self) -> dict:
+        return {"format": "posed.watch", "version": 1, "robot": self.robot,
+                "watch": "back" if self.watching else "lost", "reason": self.reason,
+                "since_unix": round(self.since_unix, 3), "time_unix": round(self.time_unix, 3),
+                "not_watching_s": round(self.time_unix - self.since_unix, 1)}
+
+    def environment(self) -> dict[str, str]:
+        return {"POSED_WATCH": "back" if self.watching else "lost", "POSED_WATCH_REASON": self.reason,
+                "POSED_WATCH_SINCE_UNIX": repr(round(self.since_unix, 3)), "POSED_ROBOT": self.robot}
+
+
+def why_not_watching(status: dict) -> str | None:
+    """Why the status says posed is not watching (its state and reason), None when it watches; ``UNDECIDED``
+    states give ``""`` (keep the current judgement)."""
+    state = status.get("state")
+    camera = status.get("camera") or {}
+    if state in UNDECIDED:
+        return ""
+    if state in NOT_WATCHING:
+        blind = status.get("blind") or {}
+        detail = blind.get("reason") or camera.get("error") or ""
+        return f"{state}: {detail}" if detail else str(state)
+    if camera.get("state") in CAMERA_GONE:
+        detail = camera.get("error") or ""
+        return f"camera {camera['state']}: {detail}" if detail else f"camera {camera['state']}"
+    return None
+
+
+class WatchLoss:
+    """Says when posed has not been watching for ``after_s`` seconds (once), and when it watches again after
+    that (once). ``update`` takes each status object with the monotonic and unix times it was read at."""
+
+    def __init__(self, robot: str, after_s: float) -> None:
+        self.robot = robot
+        self.after_s = after_s
+        self._since: tuple[float, float] | None = None      # (monotonic, unix) when watching stopped
+        self._reason = ""
+        self._told = False
+
+    @property
+    def lost(self) -> bool:
+        """A ``lost`` notice was given and no ``back`` since."""
+        return self._told
+
+    def update(self, status: dict, now: float, now_unix: float) -> WatchNotice | None:
+        why = why_not_watching(status)
+        if why == "":
+            return None
+        if why is None:
+            notice = None
+            if self._told and self._since is not None:
+                notice = WatchNotice(True, self.robot, self._reason, self._since[1], now_unix)
+            self._since, self._told, self._reason = None, False, ""
+            return notice
+        if self._since is None:
+            self._since = (now, now_unix)
+        self._reason = why
+        if not self._told and now - self._since[0] >= self.after_s:
+            self._told = True
+            return WatchNotice(False, self.robot, why, self._since[1], now_unix)
+        return None
+
+
+class WatchHooks:
+    """Runs ``cfg.on_watch_lost`` for each notice, in order, on one thread of its own (``submit`` returns at
+    once; a notice that finds the queue full is dropped and logged: the next one says the current state)."""
+
+    QUEUE = 8
+
+    def __init__(self, cfg: HooksConfig, log) -> None:
+        self.cfg = cfg
+        self.log = log
+        self._queue: queue.Queue[WatchNotice | None] = queue.Queue(self.QUEUE)
+        self._stopping = threading.Event()
+        self._proc: subprocess.Popen | None = None
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._loop, name="watch-hooks", daemon=True)
+        self._thread.start()
+
+    def submit(self, notice: WatchNotice) -> None:
+        try:
+            self._queue.put_nowait(notice)
+        except queue.Full:
+            self.log.warning("watch_hook_dropped", watch=notice.to_json()["watch"],
+                             note="the watch hooks are still busy with earlier notices")
+
+    def close(self, timeout: float = 1.0) -> None:
+        """What is queued and running gets ``timeout`` s; then no run starts any more and a running hook's process
+        group is killed."""
+        try:
+            self._queue.put(None, timeout=timeout)
+        except queue.Full:
+            pass
+        self._thread.join(timeout)
+        self._stopping.set()
+        with self._lock:
+            proc = self._proc
+        if proc is not None:
+            signal_group(proc, signal.SIGKILL)
+        self._thread.join(1.0)
+
+    def _loop(self) -> None:
+        while not self._stopping.is_set():
+            notice = self._queue.get()
+            if notice is None:
+                return
+            for index, hook in enumerate(self.cfg.on_watch_lost):
+                self._deliver(index, hook, notice)
+
+    def _deliver(self, index: int, hook: HookConfig, notice: WatchNotice) -> None:
+        attempts = 1 + hook.retries
+        watch = notice.to_json()["watch"]
+        for n in range(1, attempts + 1):
+            if self._stopping.is_set():
+                return
+            rc, timed_out, error, out, err = self._run_once(index, hook, notice, n)
+            fields = dict(hook=index, watch=watch, attempt=n, of=attempts, returncode=rc)
+            if out:
+                fields["stdout"] = out
+            if err:
+                fields["stderr"] = err
+            if rc == 0 and not timed_out and not error:
+                self.log.info("watch_hook_done", **fields)
+                return
+            self.log.warning("watch_hook_failed", error=error or ("timeout" if timed_out else f"exit status {rc}"),
+                             **fields)
+            if n < attempts:
+                self._stopping.wait(self.cfg.retry_delay_s * n)
+        self.log.error("watch_hook_gave_up", hook=index, watch=watch, attempts=attempts)
+
+    def _run_once(self, index: int, hook: HookConfig, notice: WatchNotice, attempt: int):
+        limit = self.cfg.output_limit
+        if not hook.argv:
+            return None, False, f"hooks.on_watch_lost[{index}].argv is empty", "", ""
+        env = dict(os.environ)
+        env.update(notice.environment())
+        env["POSED_HOOK_ATTEMPT"] = str(attempt)
+        env[orphans.OWNER_ENV] = orphans.owner_tag(os.getppid(), os.getpid())
+        with self._lock:
+            if self._stopping.is_set():
+                return None, False, "not started: the daemon is stopping", "", ""
+            try:
+                proc = subprocess.Popen(list(hook.argv), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, env=env, start_new_session=True, close_fds=True)
+            except OSError as exc:
+                return None, False, (f"cannot start {hook.argv[0]!r}: {exc.strerror or exc}; fix "
+                                     f"hooks.on_watch_lost[{index}].argv[0] (an absolute path to an executable)"), "", ""
+            self._proc = proc
+        try:
+            out, err, timed_out = exchange(proc, json.dumps(notice.to_json()).encode(), limit, hook.timeout_s)
+            if timed_out:
+                signal_group(proc, signal.SIGKILL)
+            rc = proc.wait()
+        finally:
+            with self._lock:
+                self._proc = None
+        return (rc, timed_out, "", out[:limit].decode("utf-8", "replace"), err[:limit].decode("utf-8", "replace"))
