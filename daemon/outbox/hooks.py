@@ -292,24 +292,41 @@ class _Worker:
             if self._stopping.is_set():
                 return outcome(False, None, False, "not started: the daemon is stopping")
             try:
-                proc = subprocess.Popen(list(self.hook.argv), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                        stderr=subprocess.PIPE, env=env, start_new_session=True, close_fds=True)
+                proc = start_program(self.hook.argv, env)
             except OSError as exc:
-                return outcome(False, None, False,
-                               f"cannot start {self.hook.argv[0]!r}: {exc.strerror or exc}; fix "
-                               f"hooks.on_event[{self.index}].argv[0] (an absolute path to an executable)")
+                return outcome(False, None, False, cannot_start(self.hook.argv, exc, f"hooks.on_event[{self.index}]"))
             self._proc = proc
         try:
-            out, err, timed_out = exchange(proc, payload, limit, self.hook.timeout_s)
-            if timed_out:
-                signal_group(proc, signal.SIGKILL)
-            rc = proc.wait()
+            rc, timed_out, out, err = finish_program(proc, payload, limit, self.hook.timeout_s)
         finally:
             with self._proc_lock:
                 self._proc = None
         if timed_out:
             return outcome(False, rc, True, "timeout", out, err)
         return outcome(rc == 0, rc, False, "", out, err)
+
+
+def start_program(argv: Sequence[str], env: dict[str, str]) -> subprocess.Popen:
+    """A hook's program started without a shell, in a session of its own (a timeout kills it and its children),
+    its stdin, stdout and stderr piped; raises OSError when it cannot start."""
+    return subprocess.Popen(list(argv), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env=env, start_new_session=True, close_fds=True)
+
+
+def cannot_start(argv: Sequence[str], exc: OSError, where: str) -> str:
+    """Why a hook's program did not start, and the key to fix (``where``: ``hooks.on_event[0]``)."""
+    return (f"cannot start {argv[0]!r}: {exc.strerror or exc}; fix {where}.argv[0] (an absolute path to an "
+            "executable)")
+
+
+def finish_program(proc: subprocess.Popen, payload: bytes, limit: int,
+                   timeout_s: float) -> tuple[int, bool, bytes, bytes]:
+    """``payload`` to a started hook, its output read (:func:`exchange`), its process group killed after
+    ``timeout_s``; (return code, timed out, stdout, stderr)."""
+    out, err, timed_out = exchange(proc, payload, limit, timeout_s)
+    if timed_out:
+        signal_group(proc, signal.SIGKILL)
+    return proc.wait(), timed_out, out, err
 
 
 def exchange(proc: subprocess.Popen, payload: bytes, limit: int, timeout_s: float) -> tuple[bytes, bytes, bool]:

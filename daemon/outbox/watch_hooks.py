@@ -30,7 +30,7 @@ import threading
 from dataclasses import dataclass
 
 from posed.daemon.config.sections import HookConfig, HooksConfig
-from posed.daemon.outbox.hooks import exchange, signal_group
+from posed.daemon.outbox.hooks import cannot_start, finish_program, signal_group, start_program
 from posed.daemon.proc import orphans
 
 NOT_WATCHING = ("blind", "waiting_for_camera", "degraded", "escalated")
@@ -190,17 +190,13 @@ class WatchHooks:
             if self._stopping.is_set():
                 return None, False, "not started: the daemon is stopping", "", ""
             try:
-                proc = subprocess.Popen(list(hook.argv), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                        stderr=subprocess.PIPE, env=env, start_new_session=True, close_fds=True)
+                proc = start_program(hook.argv, env)
             except OSError as exc:
-                return None, False, (f"cannot start {hook.argv[0]!r}: {exc.strerror or exc}; fix "
-                                     f"hooks.on_watch_lost[{index}].argv[0] (an absolute path to an executable)"), "", ""
+                return None, False, cannot_start(hook.argv, exc, f"hooks.on_watch_lost[{index}]"), "", ""
             self._proc = proc
         try:
-            out, err, timed_out = exchange(proc, json.dumps(notice.to_json()).encode(), limit, hook.timeout_s)
-            if timed_out:
-                signal_group(proc, signal.SIGKILL)
-            rc = proc.wait()
+            rc, timed_out, out, err = finish_program(proc, json.dumps(notice.to_json()).encode(), limit,
+                                                     hook.timeout_s)
         finally:
             with self._lock:
                 self._proc = None
