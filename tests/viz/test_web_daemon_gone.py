@@ -53,6 +53,15 @@ class _Stream:
         except (OSError, ValueError):
             pass
 
+    def drain(self) -> None:
+        """Forget what came so far: a verdict sent before now (a 'down, starting' while the daemon came up, when
+        its first status arrived before its liveliness token) is not an answer to what happens next."""
+        while True:
+            try:
+                self.messages.get_nowait()
+            except queue.Empty:
+                return
+
     def wait(self, test, timeout: float, what: str) -> dict:
         deadline = time.monotonic() + timeout
         while True:
@@ -114,6 +123,7 @@ def test_killing_the_daemon_turns_the_page_red_and_its_return_clears_it(tmp_path
         assert browser.js(BAR) is False and not browser.js("document.body.classList.contains('stale')")
         browser.screenshot(ARTIFACTS / "web_daemon_alive.png")
 
+        stream.drain()
         daemon.terminate()                      # as systemd stops it, or as it dies
         t_kill = time.time()
         daemon.wait(60)
