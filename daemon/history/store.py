@@ -37,6 +37,7 @@ from pathlib import Path
 from posed.daemon import logs
 from posed.daemon.clock import iso
 from posed.daemon.outbox.journal_file import is_corrupt, set_aside  # the same SQLite files' rules
+from posed.daemon.outbox.journal_rows import table_columns
 from posed.falls.config import FallsConfig
 from posed.fitting import BODY_ANGLE_NAMES, JOINT_ANGLE_NAMES, FitResult
 
@@ -88,7 +89,7 @@ class AngleHistory:
                 raise FileNotFoundError(f"no joint-angle history at {self.path}: the daemon writes it while it "
                                         "runs (falls.history_enabled); check pipeline.state_dir")
             self._db = _open_readonly(self.path)
-            self._columns = _columns(self._db)
+            self._columns = table_columns(self._db, "angles")
         else:
             self._open()
 
@@ -103,11 +104,11 @@ class AngleHistory:
             db.execute("PRAGMA journal_mode=WAL")
             db.execute("PRAGMA synchronous=NORMAL")
             db.executescript(_SCHEMA)
-            have = _columns(db)
+            have = table_columns(db, "angles")
             for name in DOWN_COLUMNS:          # a history written before them: the columns added, old rows NULL
                 if name not in have:
                     db.execute(f"ALTER TABLE angles ADD COLUMN {name} REAL")
-            self._columns = _columns(db)
+            self._columns = table_columns(db, "angles")
         except (sqlite3.Error, OSError) as exc:
             if db is not None:
                 db.close()
@@ -342,10 +343,6 @@ def _open_readonly(path: Path) -> sqlite3.Connection:
         raise HistoryFileError(f"not a posed history database: {path} (it has no joint-angle table); give the "
                                "daemon's history.sqlite3 (--db FILE or pipeline.state_dir)")
     return db
-
-
-def _columns(db: sqlite3.Connection) -> set[str]:
-    return {r[1] for r in db.execute("PRAGMA table_info(angles)")}
 
 
 def _down(v) -> tuple:

@@ -57,7 +57,6 @@ COLUMN_NAMES = ("body", "wall", "published_at", "acked_at", "acked_by", "hooks_d
 COLUMNS = ", ".join(COLUMN_NAMES)                     # what from_row reads
 # a mark sets its column (a time) and these companions, once, on the messages that do not have it yet
 MARKS = {"published_at": (), "acked_at": ("acked_by",), "hooks_done_at": ("hooks_outcome",)}
-DELIVERY_COLUMNS = tuple(MARKS)
 
 # how a message's hooks were done with it (hooks_outcome)
 HOOK_OUTCOMES = {
@@ -117,10 +116,15 @@ def from_row(row: tuple) -> StoredEvent:
                        hooks_done_at, hooks_outcome)
 
 
+def table_columns(db: sqlite3.Connection, table: str) -> set[str]:
+    """The column names ``table`` has in this file (a file of an older posed may lack some)."""
+    return {r[1] for r in db.execute(f"PRAGMA table_info({table})")}
+
+
 def select_list(db: sqlite3.Connection) -> str:
     """:data:`COLUMNS` as this file has them: a column an old journal lacks (read-only readers do not migrate
     it) reads as NULL."""
-    have = {r[1] for r in db.execute("PRAGMA table_info(messages)")}
+    have = table_columns(db, "messages")
     return ", ".join(c if c in have else f"NULL AS {c}" for c in COLUMN_NAMES)
 
 
@@ -128,12 +132,12 @@ def migrate(db: sqlite3.Connection, clock: Callable[[], float]) -> dict | None:
     """Add the columns a journal written by an older posed lacks (in one transaction). Its rows' hooks are
     marked done (``untracked``) when journalled more than :data:`REDELIVER_MAX_AGE_S` before now (``clock``:
     unix seconds); the newer ones stay pending. Returns what was done (None: nothing to do)."""
-    have = {r[1] for r in db.execute("PRAGMA table_info(messages)")}
+    have = table_columns(db, "messages")
     if all(c in have for c, _ in ADDED_COLUMNS):
         return None
     db.execute("BEGIN IMMEDIATE")
     try:
-        have = {r[1] for r in db.execute("PRAGMA table_info(messages)")}    # another process may have done it
+        have = table_columns(db, "messages")    # another process may have done it
         added = [c for c, _ in ADDED_COLUMNS if c not in have]
         for column, kind in ADDED_COLUMNS:
             if column in added:
