@@ -220,11 +220,7 @@ class FallWatch:
             events = self.people.update(_people(msg), float(msg.result.t), msg.result.seq, msg.image_size,
                                         msg.intrinsics)
         except Exception as exc:  # a detector bug must not stop the poses
-            self.failures += 1
-            self._on_error()
-            if self.failures <= LOG_FIRST_FAILURES or self.failures % LOG_FAILURE_EVERY == 0:
-                self.log.error("fall_detector_failed", error=repr(exc), seq=msg.result.seq,
-                               failures=self.failures)
+            self._failed(exc, seq=msg.result.seq)
             return []
         t = float(msg.result.t)
         if self.state_file is not None and (self._save_t is None or t < self._save_t or t - self._save_t >= SAVE_EVERY_S):
@@ -241,13 +237,18 @@ class FallWatch:
         try:
             events = self.people.tick(t)
         except Exception as exc:  # a detector bug must not stop the stage
-            self.failures += 1
-            self._on_error()
-            if self.failures <= LOG_FIRST_FAILURES or self.failures % LOG_FAILURE_EVERY == 0:
-                self.log.error("fall_detector_failed", error=repr(exc), tick=round(t, 3), failures=self.failures)
+            self._failed(exc, tick=round(t, 3))
             return []
         return [replace(e, extra={**e.extra, "without_frames_s": round(float(without_frames_s), 3)})
                 for e in events]
+
+    def _failed(self, exc: Exception, **where) -> None:
+        """A detector raised (on a frame: ``seq``, or a tick): counted, the stage's error counter up, logged
+        (the first LOG_FIRST_FAILURES, then every LOG_FAILURE_EVERY-th)."""
+        self.failures += 1
+        self._on_error()
+        if self.failures <= LOG_FIRST_FAILURES or self.failures % LOG_FAILURE_EVERY == 0:
+            self.log.error("fall_detector_failed", error=repr(exc), **where, failures=self.failures)
 
     def _depth_floor(self, msg: FitMsg) -> None:
         """Hand the frame's depth floor (or the last one, aged) to the detector; forget it when too old."""
