@@ -38,13 +38,15 @@ class SourceUnsupported(SourceError):
 
 class SourceCorrupt(SourceError):
     """Data that cannot be decoded (a broken video, image or recording) or a frame larger than the reader
-    takes (``pixels``: its width x height); reading may go on after it."""
+    takes (``pixels``: its width x height); reading may go on after it. ``fix``, when the source knows it,
+    says what cures it (a covered lens is not cured by re-encoding a video)."""
 
     retry = True
 
-    def __init__(self, message: str, source: str = "", pixels: int | None = None) -> None:
+    def __init__(self, message: str, source: str = "", pixels: int | None = None, fix: str = "") -> None:
         super().__init__(message, source)
         self.pixels = pixels
+        self.fix = fix
 
 
 class SourceTimeout(SourceError):

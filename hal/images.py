@@ -5,6 +5,8 @@ does not decode raises SourceCorrupt naming the file; the next read goes on with
 image larger than ``Source.max_pixels``, and so does an image whose size cannot be read from its header
 (:func:`hal.image_header.header_size`: PNG, JPEG, BMP, WebP, PNM, TIFF): only an image whose size was read and
 found within the limit is ever decoded, so a crafted header cannot make the decoder allocate gigabytes.
+An image is turned upright by its EXIF orientation (phones store landscape pixels with a "turn by 90" tag);
+grey, 16-bit and RGBA images come as 8-bit BGR.
 """
 
 from __future__ import annotations
@@ -89,7 +91,10 @@ class ImageFolderSource(ReplaySource):
                                 "image of unknown size is never decoded; skipping it — replace or delete the "
                                 "file", self.name)
         self._check_size(path, *size)
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        # IMREAD_COLOR turns the image upright by its EXIF orientation (a phone's photo: landscape pixels tagged
+        # "turn by 90"), as `posed landmarks` reads one; IMREAD_UNCHANGED ignored the tag and replayed it
+        # sideways (a standing person lying). ANYDEPTH keeps a 16-bit image's precision for as_bgr.
+        image = cv2.imread(str(path), cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
         if image is None or image.size == 0:
             self.count("corrupt")
             raise SourceCorrupt(f"{path}: cannot decode this image (corrupt or not an image); skipping it — "

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from posed.camera_model import Intrinsics
+from posed.hal.blank import BLANK_FIX, blank_message, is_blank
 from posed.hal.clock import DeviceClock, wall_to_monotonic
 from posed.hal.config import SourceConfig
 from posed.hal.errors import (
@@ -102,7 +103,7 @@ class RealSenseSource(Source):
         self.fps = 0.0
         self.colour_format = ""
         self.counters.update(timeouts=0, reopens=0, reopen_failures=0, hardware_resets=0, disconnects=0,
-                             duplicates=0, passes=0)
+                             duplicates=0, passes=0, corrupt=0, blank=0)
         self._gravity: GravityEstimate | None = None   # this start's accelerometer filter, when there is one
         self._imu_sensor: Any = None                   # live: the motion sensor opened beside the pipeline
         self.imu = "off" if not config.imu else "none"  # off | none (no accelerometer) | streaming | error: ...
@@ -391,7 +392,19 @@ class RealSenseSource(Source):
                     self._end_of_file()
                 continue
             arrival = self._clock()
-            frame = self._to_frame(frames, arrival)
+            try:
+                frame = self._to_frame(frames, arrival)
+            except (RuntimeError, ValueError) as exc:
+                # librealsense failed on this one frameset (its data, the alignment) or it held an image that is
+                # not a frame: skip it, say so, and go on with the next (it escaped read() before: not a
+                # SourceError, it ended the daemon's capture stage, which the supervisor restarted until it gave
+                # up)
+                self.count("corrupt")
+                fix = "record the file again (posed record -o NAME.db3)" if self.playback else \
+                    "check that the camera is on a USB 3 port and cable (rs-enumerate-devices shows the link)"
+                raise SourceCorrupt(f"{self.name}: a frame could not be read ({type(exc).__name__}: "
+                                    f"{str(exc).strip()[:200]}); skipping it — if this repeats, {fix}",
+                                    self.name, fix=fix) from exc
             if frame is not None:
                 return frame
 
@@ -437,6 +450,10 @@ class RealSenseSource(Source):
             self._first_number = number
         t = self._timestamp(colour, arrival)
         seq = self._timeline.add_frame(number if self.playback is not None else number - self._first_number)
+        if is_blank(image):       # a covered lens: nobody can be seen; said (hal.blank), its seq a gap
+            self.count("blank")
+            raise SourceCorrupt(f"{self.name}: {blank_message(image)}; skipping it — {BLANK_FIX}", self.name,
+                                fix=BLANK_FIX)
         # playback: the samples recorded up to this frame (the same gravity on every replay); live: every
         # sample so far (the motion sensor may stamp in another clock domain than colour)
         gravity = None if self._gravity is None else self._gravity.at(

@@ -222,9 +222,12 @@ class ReplaySource(Source):
             except MediaEnd:
                 if not line.end_of_pass(self.config.loop, self._frame_period):
                     self.state = "ended"
-                    what = "has no readable frames" if self.counters["passes"] == 0 and line.pass_frames == 0 \
-                        else "ended"
-                    raise EndOfStream(f"{self.name}: the recording {what} after {self.counters['frames']} "
+                    if self.counters["passes"] == 0 and line.pass_frames == 0:
+                        # looping would not help: nothing in it could be read (each bad frame was said)
+                        raise EndOfStream(f"{self.name}: the recording has no readable frames ({self.counters['corrupt']} "
+                                          "could not be used, each named in its own error); replace or re-record it",
+                                          self.name) from None
+                    raise EndOfStream(f"{self.name}: the recording ended after {self.counters['frames']} "
                                       "frames (set source.loop=true or ?loop=true to replay it again)",
                                       self.name) from None
                 self.count("passes")

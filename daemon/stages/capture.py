@@ -49,6 +49,7 @@ from posed.daemon.proc.throttle import Throttle
 from posed.daemon.stages.base import StageRuntime, sleep_until
 
 REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
+UNEXPECTED_FILE_FAILURES = 50      # reads in a row of a recording that failed unexpectedly: it is unreadable
 
 
 class _Thinner:
@@ -97,6 +98,7 @@ def run(rt: StageRuntime) -> None:
     throttle = Throttle()
     news = _News(rt)
     unplugged = False
+    unexpected = 0                  # reads in a row that failed with something other than a SourceError
     rt.row.set_camera("opening")
     try:
         while True:
@@ -134,7 +136,7 @@ def run(rt: StageRuntime) -> None:
                 news.problem(str(exc), _timeout_fix(src_cfg))
                 continue
             except SourceCorrupt as exc:
-                _bad_frame(rt, throttle, news, str(exc), exc.pixels, source)
+                _bad_frame(rt, throttle, news, str(exc), exc.pixels, source, getattr(exc, "fix", ""))
                 continue
             except SourceDisconnected as exc:
                 # the source reconnects by itself while it is read (hal/errors.py): keep reading it. Closing and
@@ -157,6 +159,26 @@ def run(rt: StageRuntime) -> None:
                 _close(source)
                 source = None
                 continue
+            except Exception as exc:  # a source's own bug or a driver's surprise: never the end of the stage
+                # (the supervisor would restart it until it gave up, exit 70, and a camera would stay unwatched)
+                unexpected += 1
+                error = f"{getattr(source, 'name', 'the source')}: reading a frame failed ({type(exc).__name__}: " \
+                        f"{exc})"
+                if unexpected <= 3 or unexpected % 100 == 0:
+                    rt.log.error("capture_failed", error=error, failures=unexpected)
+                if src_cfg.type == "file" and unexpected >= UNEXPECTED_FILE_FAILURES:
+                    rt.fatal(f"{error}, {unexpected} times in a row", fix="check the file with posed config check "
+                             "--source file:PATH, re-encode or re-record it")
+                if src_cfg.type == "file":       # a recording goes on after the frame (opened again, it would
+                    _bad_frame(rt, throttle, news, error, None, source)    # start over from its first frame)
+                    continue
+                rt.row.set_camera("lost")        # a camera is closed and opened again, with backoff
+                news.lost(error)
+                _close(source)
+                source = None
+                sleep_until(clock.now() + REOPEN_BACKOFF_S[min(unexpected - 1, len(REOPEN_BACKOFF_S) - 1)], rt)
+                continue
+            unexpected = 0
             if unplugged:
                 unplugged = False
                 rt.row.set_camera("open")
@@ -295,11 +317,12 @@ def _timeout_fix(src_cfg) -> str:
 
 
 def _bad_frame(rt: StageRuntime, throttle: Throttle, news: _News, error: str, pixels: int | None,
-               source=None) -> None:
+               source=None, fix: str = "") -> None:
     """Skip and count a frame that cannot be used; log it (at most a few lines a minute) with the fix that
-    fits what was wrong, and tell the supervisor."""
+    fits what was wrong (the source's own when it gave one: a covered lens, a camera's cable), and tell the
+    supervisor."""
     rt.bad_frame()
-    fix = _corrupt_fix(pixels, source)
+    fix = fix or _corrupt_fix(pixels, source)
     news.problem(error, fix)
     suppressed = throttle.allow("bad_frame")
     if suppressed is not None:
