@@ -6,8 +6,8 @@ types of :mod:`fitting` and :mod:`falls` and the landmark frame of :mod:`landmar
 landmarks topic as it reads a recording) only — never the daemon.
 """
 
-__all__ = ["Alive", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError", "State",
-           "Status", "session_config"]
+__all__ = ["Alive", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError", "Restored",
+           "RestoredFall", "State", "Status", "restored", "session_config", "without_frames_s"]
 _API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 
 

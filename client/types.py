@@ -2,8 +2,9 @@
 
 * pose -> :class:`fitting.FitResult` (``extra`` keeps the message's other fields: ``time_unix``, ``robot``,
   ``image_size``, ``timing_ms``, ``root_cam_m``, ``format``, ``version`` ...);
-* fall event -> :class:`falls.FallEvent` (``extra`` keeps ``time_unix``, ``t_onset_unix``, ``t_impact_unix``);
-* status -> :class:`Status` (``raw`` keeps the whole object);
+* fall event -> :class:`falls.FallEvent` (``extra`` keeps ``time_unix``, ``t_onset_unix``, ``t_impact_unix``,
+  ``restored``, ``without_frames_s``: read them typed with :func:`restored` and :func:`without_frames_s`);
+* status -> :class:`Status` (``raw`` keeps the whole object; ``restored_open`` typed, ``not_watching``);
 * landmarks -> :class:`Landmarks`: ``points``, ``depth_m``, ``world``, ``people`` (each a
   :class:`PersonLandmarks`), ``gravity``, ``floor``, and ``raw``, the whole object as received;
 * a stored event -> :class:`HistoryEntry`; a state reply -> :class:`State` (``raw`` keeps the whole object).
@@ -66,6 +67,49 @@ def decode_event(obj: dict) -> FallEvent:
         raise ValueError(f"not a fall event: missing or bad {exc}") from None
 
 
+def _number(v) -> float | None:
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+
+@dataclass(frozen=True)
+class Restored:
+    """A fall event's ``restored``: the daemon (or its publisher) stopped while the fall was open and took it
+    back from its journal at ``at_unix``; ``last_state`` its last message before; its alarm due at ``due_unix``
+    (docs/falls.md, "The alarm across a restart")."""
+
+    at_unix: float
+    last_state: str
+    due_unix: float | None
+
+
+def restored(event: FallEvent) -> Restored | None:
+    """The message's ``restored`` typed, None when it has none (or a malformed one)."""
+    r = event.extra.get("restored")
+    if not isinstance(r, dict) or _number(r.get("at_unix")) is None:
+        return None
+    return Restored(_number(r.get("at_unix")), str(r.get("last_state") or ""), _number(r.get("due_unix")))
+
+
+def without_frames_s(event: FallEvent) -> float | None:
+    """An alarm raised while no camera frame came: seconds since the last frame (None: raised on a frame)."""
+    return _number(event.extra.get("without_frames_s"))
+
+
+@dataclass(frozen=True)
+class RestoredFall:
+    """One of the status's ``falls.restored_open``: a fall taken back after a restart and still open."""
+
+    id: str
+    due_unix: float | None
+    alarm: bool
+    continued: bool
+
+
+# the daemon's rule for "posed is not watching" (daemon.outbox.watch_hooks.why_not_watching, hooks.on_watch_lost)
+NOT_WATCHING_STATES = ("blind", "waiting_for_camera", "degraded", "escalated")
+CAMERA_GONE = ("lost", "ended")
+
+
 @dataclass(frozen=True)
 class Status:
     """A robot's health (posed/ROBOT/status): the fields most readers need, and the whole object in ``raw``."""
@@ -80,6 +124,18 @@ class Status:
     camera: str
     unacknowledged_events: int | None
     raw: dict = field(repr=False, default_factory=dict)
+    restored_open: tuple[RestoredFall, ...] = ()
+
+    @property
+    def not_watching(self) -> str | None:
+        """Why posed cannot see a fall now (the state — blind, waiting_for_camera, degraded, escalated — or
+        the camera lost or ended), None while it watches; the daemon's ``hooks.on_watch_lost`` rule, judged on
+        this one status (``starting`` and ``stopping`` count as watching here)."""
+        if self.state in NOT_WATCHING_STATES:
+            return self.state
+        if self.camera in CAMERA_GONE:
+            return f"camera {self.camera}"
+        return None
 
     @classmethod
     def from_json(cls, obj: dict, robot: str = "") -> Status:
@@ -89,7 +145,16 @@ class Status:
                    fps=obj.get("fps"), latency_p95_ms=(obj.get("latency_ms") or {}).get("p95"),
                    drops=int(obj.get("drops") or 0), restarts=int(obj.get("restarts") or 0),
                    camera=str((obj.get("camera") or {}).get("state", "")),
-                   unacknowledged_events=(obj.get("events") or {}).get("unacknowledged"), raw=obj)
+                   unacknowledged_events=(obj.get("events") or {}).get("unacknowledged"), raw=obj,
+                   restored_open=_restored_open(obj))
+
+
+def _restored_open(obj: dict) -> tuple[RestoredFall, ...]:
+    falls = obj.get("falls")
+    items = falls.get("restored_open") if isinstance(falls, dict) else None
+    return tuple(RestoredFall(str(i["id"]), _number(i.get("due_unix")), i.get("alarm") is True,
+                              i.get("continued") is True)
+                 for i in (items if isinstance(items, list) else ()) if isinstance(i, dict) and "id" in i)
 
 
 @dataclass(frozen=True)

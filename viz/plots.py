@@ -107,7 +107,14 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
     s = series.with_gaps()
     fmt = time_formatter(series, tz)
     n = len(panels)
-    notes = len(falls)
+    # one note per fall under the plot, wrapped to the figure's width (a restored or frameless alarm's note
+    # is long): 9-point text is about 0.6 em a character
+    import textwrap
+
+    chars = max(40, int(width_px * 0.88 / (9 * dpi / 72 * 0.6)))
+    lines = [line for i, ep in enumerate(falls, 1)
+             for line in textwrap.wrap(f"fall {i}: {ep.describe(fmt, acks)}", chars, subsequent_indent="    ")]
+    notes = len(lines)
     height_in = 2.5 * n + 1.2 + 0.22 * notes
     fig = Figure(figsize=(width_px / dpi, height_in), dpi=dpi)
     FigureCanvasAgg(fig)
@@ -162,9 +169,8 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
         bottom_ax.set_xlabel("time in the recording (minutes:seconds from its first frame; a fit file has no "
                              "clock time)")
     fig.suptitle(title, x=0.07, ha="left", fontsize=12)
-    for i, ep in enumerate(falls, 1):
-        fig.text(0.07, (0.12 + 0.22 * (notes - i)) / height_in, f"fall {i}: {ep.describe(fmt, acks)}",
-                 fontsize=9, color=FALL_COLOUR)
+    for i, line in enumerate(lines, 1):
+        fig.text(0.07, (0.12 + 0.22 * (notes - i)) / height_in, line, fontsize=9, color=FALL_COLOUR)
     return fig
 
 

@@ -281,9 +281,18 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
                      "<th>acknowledged</th></tr>")
         for i, ep in enumerate(falls, 1):
             what = esc(states_text(ep.states))
-            ack = fmt(ep.acked) if ep.acked is not None else "<b class='warn'>no</b>"
+            by = f" by {esc(', '.join(ep.acked_by))}" if ep.acked_by else ""
+            if ep.acked is not None:
+                ack = fmt(ep.acked) + by
+            elif ep.unacked and len(ep.unacked) < len(ep.states):
+                ack = (f"<b class='warn'>{esc(states_text(ep.unacked))}: no</b><br><span class='small'>"
+                       f"{esc(states_text([s for s in ep.states if s not in ep.unacked]))}: yes{by}</span>")
+            else:
+                ack = "<b class='warn'>no</b>"
             whose = f" ({esc(ep.who)})" if ep.who else ""
             ended = esc(ep.outcome(now, in_progress_s, fmt))
+            if ep.caveats(fmt):
+                ended += "".join(f"<br><span class='small'>{esc(c)}</span>" for c in ep.caveats(fmt))
             parts.append(f"<tr><td>fall {i}{whose}</td><td>{fmt(ep.start)}</td><td class='states'>{what}</td>"
                          f"<td>{ended}</td><td>{ack}</td></tr>")
         parts.append("</table>")

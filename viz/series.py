@@ -88,13 +88,19 @@ class EventMark:
     time: float
     acked: float | None = None
     who: str | None = None        # whose fall (a household member's name, "a visitor", "person N"), if known
+    by: str | None = None         # who acknowledged it (the ack's ``by``), when said
+    restored_at: float | None = None        # unix time posed took the open fall back after a restart
+    without_frames_s: float | None = None   # an alarm raised with no camera frame for this long
 
 
 @dataclass(frozen=True)
 class Episode:
     """One fall event's messages together: when it started and last changed, its states in order, how it
     ended (``recovered``, ``alarm``, ``on the floor`` or ``falling`` — the last state) and whether someone
-    acknowledged it."""
+    acknowledged it: ``acked`` is when its last message was acknowledged, only once every message is (a later
+    state, e.g. the alarm, needs its own acknowledgement); ``unacked`` the states still not acknowledged,
+    ``acked_by`` who acknowledged. ``restored_at``: posed restarted while the fall was open and took it back
+    from its journal then; ``without_frames_s``: the alarm was raised with no camera frame for that long."""
 
     id: str
     start: float
@@ -103,6 +109,32 @@ class Episode:
     acked: float | None = None
     notes: tuple[str, ...] = field(default=())
     who: str | None = None        # whose fall, when the messages say
+    unacked: tuple[str, ...] = ()
+    acked_by: tuple[str, ...] = ()
+    restored_at: float | None = None
+    without_frames_s: float | None = None
+
+    def ack_text(self, fmt) -> str:
+        """``acknowledged 14:05:10 by anna``; ``ALARM not acknowledged (fall acknowledged 14:03:30 by anna)``
+        when only some messages are; ``not acknowledged``."""
+        by = f" by {', '.join(self.acked_by)}" if self.acked_by else ""
+        if self.acked is not None:
+            return f"acknowledged {fmt(self.acked)}{by}"
+        if self.unacked and len(self.unacked) < len(self.states):
+            done = [s for s in self.states if s not in self.unacked]
+            return f"{states_text(self.unacked)} not acknowledged ({states_text(done)} acknowledged{by})"
+        return "not acknowledged"
+
+    def caveats(self, fmt) -> list[str]:
+        """What a reader must know beside the states: a fall taken back after a restart, an alarm raised
+        while no camera frame came (nobody was seen: the person may have got up unseen, or still lie there)."""
+        out = []
+        if self.restored_at is not None:
+            out.append(f"posed restarted during this fall and took it back at {fmt(self.restored_at)}")
+        if self.without_frames_s is not None:
+            out.append(f"{STATE_WORDS['alarm']} raised with no camera frame for {self.without_frames_s:.0f} s "
+                       "(the camera had stopped: the person was not seen)")
+        return out
 
     def outcome(self, now: float, in_progress_s: float, fmt) -> str:
         """How the fall ended, as of ``now`` (when the view is made): got up, the alarm, in progress (the last
@@ -125,7 +157,9 @@ class Episode:
         ``acks`` False: the source knows nothing of acknowledgements (a ``posed falls`` output)."""
         text = f"{fmt(self.start)} {states_text(self.states)}"
         if acks:
-            text += f"; acknowledged {fmt(self.acked)}" if self.acked is not None else "; not acknowledged"
+            text += f"; {self.ack_text(fmt)}"
+        for note in self.caveats(fmt):
+            text += f"; {note}"
         return text
 
 
@@ -141,9 +175,13 @@ def episodes(marks: Iterable[EventMark]) -> list[Episode]:
             if m.state not in states:
                 states.append(m.state)
         acked = [m.acked for m in ms if m.acked is not None]
+        unacked = tuple(dict.fromkeys(m.state for m in ms if m.acked is None))
         who = next((m.who for m in reversed(ms) if m.who), None)      # the latest word on it
-        out.append(Episode(eid, ms[0].time, ms[-1].time, tuple(states), min(acked) if acked else None,
-                           who=who))
+        by = tuple(dict.fromkeys(m.by for m in ms if m.by and m.acked is not None))
+        restored = next((m.restored_at for m in ms if m.restored_at is not None), None)
+        blind = next((m.without_frames_s for m in ms if m.without_frames_s is not None), None)
+        out.append(Episode(eid, ms[0].time, ms[-1].time, tuple(states), max(acked) if not unacked else None,
+                           who=who, unacked=unacked, acked_by=by, restored_at=restored, without_frames_s=blind))
     return sorted(out, key=lambda e: e.start)
 
 

@@ -6,6 +6,7 @@ import json
 import threading
 import time
 
+from posed.client.types import Status
 from posed.daemon.proc.stats import percentile_summary
 
 
@@ -82,6 +83,7 @@ class Summary:
                f"confidence {e.get('confidence', 0):.2f}  features {','.join(e.get('features') or [])}"
                + (f"  person {e['person']}" if e.get("person") is not None else "")
                + (f" ({e['member']})" if e.get("member") else "")
+               + (f"  [{n}]" if (n := event_notes(e)) else "")
                for e in events]
         parts = [f"{elapsed_s:5.1f}s"]
         if not poses:
@@ -116,6 +118,13 @@ class Summary:
                 "file:") else "camera"
             parts.append(f"[{status.get('state')}, {what} {cam}, drops {status.get('drops')}, "
                          f"restarts {status.get('restarts')}, {status.get('memory_mb')} MB]")
+            decoded = Status.from_json(status) if "state" in status else None
+            blind = decoded.not_watching if decoded else None
+            if blind:       # posed runs but sees nothing: no fall can be detected (hooks.on_watch_lost's rule)
+                parts.append(f"NOT WATCHING ({blind}): a fall would not be detected")
+            for r in decoded.restored_open if decoded else ():
+                parts.append(f"fall {r.id[:8]} taken back after a restart: "
+                             + ("alarm sent" if r.alarm else f"alarm due {_clock(r.due_unix)}"))
         out.append("  ".join(parts))
         return out
 
@@ -128,6 +137,20 @@ class Summary:
             return {"poses": self.poses_total, "poses_ok": self.poses_ok,
                     "fps": round((len(self._received) - 1) / span, 2) if span > 0 else 0.0,
                     "latency_ms": lat, "knee_deg": knee, "hip_deg": hip, "events": len(self.events)}
+
+
+def event_notes(e: dict) -> str:
+    """A fall-event message's caveats in words (``posed events``' notes: restored, raised without frames)."""
+    from posed.commands.events import notes
+
+    return notes(e)
+
+
+def _clock(t: float | None) -> str:
+    """HH:MM:SS in this machine's zone."""
+    import datetime as dt
+
+    return "?" if t is None else dt.datetime.fromtimestamp(t).astimezone().strftime("%H:%M:%S %Z")
 
 
 # What a stage still in its "starting" state is doing (daemon/stages: warm-up before READY).

@@ -113,10 +113,40 @@ def run(args: argparse.Namespace) -> int:
     except (JournalError, FileNotFoundError, PermissionError) as exc:
         print(f"posed events: {exc}{_permission_hint(path, exc)}", file=sys.stderr)
         return 1
-    return _print_listing(args, path, stored)
+    return _print_listing(args, path, stored, hooks_kept=_keeps_hooks(path))
 
 
-def _print_listing(args: argparse.Namespace, path: Path, stored) -> int:
+def _keeps_hooks(path: Path) -> bool:
+    """Whether the journal records when the hooks were done with each message (an older posed's journal, not
+    yet opened by a newer daemon, does not: its messages' hooks are not known, never "pending")."""
+    import sqlite3
+
+    from posed.daemon.outbox.journal_rows import table_columns
+
+    try:
+        db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            return "hooks_outcome" in table_columns(db, "messages")
+        finally:
+            db.close()
+    except sqlite3.Error:
+        return True
+
+
+def notes(extra: dict) -> str:
+    """What a reader must know beside the state: the fall was taken back after a restart (``restored``), the
+    alarm was raised with no camera frame (``without_frames_s``)."""
+    out = []
+    restored = extra.get("restored")
+    if isinstance(restored, dict):
+        out.append(f"taken back after a restart (was {restored.get('last_state') or '?'})")
+    blind = extra.get("without_frames_s")
+    if isinstance(blind, (int, float)) and not isinstance(blind, bool):
+        out.append(f"raised with no camera frame for {blind:.0f} s")
+    return "; ".join(out)
+
+
+def _print_listing(args: argparse.Namespace, path: Path, stored, hooks_kept: bool = True) -> int:
     """The list on standard output (``stored`` None: there is no journal yet); 74 when it cannot be written."""
     out = Output("posed events", None)
     out.open()
@@ -136,7 +166,8 @@ def _print_listing(args: argparse.Namespace, path: Path, stored) -> int:
                 by = (s.acked_by or "-") if s.acked_at else ""
                 print(f"{e.wall_time[:23]:<24} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
                       f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3} "
-                      f"{_cut(by, 16):<16} {s.hooks_outcome or 'pending':<9}  {','.join(e.features)}", file=out)
+                      f"{_cut(by, 16):<16} {s.hooks_outcome or ('pending' if hooks_kept else 'not kept'):<9}  "
+                      f"{','.join(e.features)}" + (f"  [{n}]" if (n := notes(e.extra)) else ""), file=out)
         out.close()
     except OutputError as exc:
         return out.failed(exc.exc)

@@ -161,7 +161,10 @@ def run(args: argparse.Namespace) -> int:
         if path.is_file():
             try:
                 with EventJournal(path, readonly=True) as journal:
-                    falls = episodes(event_marks(journal.query(series.time[0], series.time[-1])))
+                    # every message of each event seen in the span: an alarm raised after the camera stopped
+                    # (without frames) comes after the last stored sample, and is part of that fall
+                    ids = dict.fromkeys(m.event.id for m in journal.query(series.time[0], series.time[-1]))
+                    falls = episodes(event_marks([m for i in ids for m in journal.get(i)]))
             except (JournalError, FileNotFoundError) as exc:
                 print(f"{cmd}: {exc}; --no-events draws the angles without the event marks", file=sys.stderr)
                 return 1

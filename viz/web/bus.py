@@ -4,7 +4,7 @@ put on ``posed/ROBOT/events/ack`` that every receiver uses). The one module that
 
 from __future__ import annotations
 
-from posed.viz.web.hub import Hub
+from posed.viz.web.hub import Hub, _num, restored_of
 
 HISTORY_SINCE = "7d"
 HISTORY_LIMIT = 200
@@ -21,9 +21,10 @@ class RobotLink:
         client.on_event(robot, hub.on_event)
         client.on_alive(lambda a: hub.on_alive(a.alive), robot=robot)
 
-    def ack(self, event_id: str) -> bool:
-        """Acknowledge every message of the event so far; True once the robot's journal shows it."""
-        ok = self.client.ack(self.robot, event_id, by="posed web", confirm_s=ACK_CONFIRM_S)
+    def ack(self, event_id: str, by: str | None = None) -> bool:
+        """Acknowledge every message of the event so far, as ``by`` (the name the page's user gave; "posed
+        web" when none); True once the robot's journal shows it."""
+        ok = self.client.ack(self.robot, event_id, by=by or "posed web", confirm_s=ACK_CONFIRM_S)
         self.hub.on_acked(event_id, ok)
         return ok
 
@@ -33,5 +34,6 @@ class RobotLink:
         for e in self.client.history(self.robot, since=HISTORY_SINCE, limit=HISTORY_LIMIT):
             ev = e.event
             out.append({"id": ev.id, "state": ev.state, "wall_time": ev.wall_time, "confidence": ev.confidence,
-                        "published_at": e.published_at, "acked_at": e.acked_at})
+                        "published_at": e.published_at, "acked_at": e.acked_at, "acked_by": e.acked_by,
+                        "restored": restored_of(ev.extra), "without_frames_s": _num(ev.extra.get("without_frames_s"))})
         return out

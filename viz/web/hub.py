@@ -4,8 +4,11 @@ page (one queue per page; a page that does not keep up loses its oldest messages
 Messages (JSON objects with ``type``): ``pose`` (at most ``pose_rate_hz`` per second: the joints the frame
 measured — fitting.measured; an unseen one is absent — in metres, camera axes — x image right, y image down,
 z away from the camera — relative to the mid-hip, the mid-hip's camera position when known, and the main joint
-angles, null when not measured), ``status`` (with ``floor``: the fall detector's gravity and floor),
-``event`` (each fall-event message once per (id, state)), ``acked``, ``alive``, ``bus`` and ``robot``.
+angles, null when not measured), ``status`` (with ``floor``: the fall detector's gravity and floor;
+``watching``/``not_watching``: whether posed can see at all, the rule of ``hooks.on_watch_lost``, with why and
+since when; ``restored_open``: falls taken back after a restart whose alarm is still due),
+``event`` (each fall-event message once per (id, state), with ``restored`` — taken back from the journal
+after a restart — and ``without_frames_s`` — an alarm raised with no camera frame for that long), ``acked``, ``alive``, ``bus`` and ``robot``.
 With several people in view one person is drawn: the household member the status says is followed, else each
 frame's own person. ``snapshot()`` is what a page that opens now needs first: the last status, the last minute
 of angles, the events seen, whether the robot is up.
@@ -96,6 +99,8 @@ class Hub:
         self._status_gaps: deque = deque(maxlen=8)
         self._status_mono: float | None = None
         self._verdict: dict | None = None
+        self._not_watching: tuple[str, float, bool] | None = None   # why, since (wall, seen here), whether
+        self._saw_watching = False                                   # ... it was seen watching before
 
     # ------------------------------------------------------------------ browsers
     def subscribe(self) -> queue.Queue:
@@ -249,8 +254,22 @@ class Hub:
                "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
                "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
-               "storage": storage_of(status.raw)}
+               "storage": storage_of(status.raw), "restored_open": restored_open_of(status.raw)}
+        why = not_watching(status.raw)
         with self._lock:
+            if why == "":       # starting or stopping: the judgement so far stands
+                why = self._not_watching[0] if self._not_watching else None
+            if why is None:
+                self._not_watching = None
+                self._saw_watching = True
+            elif self._not_watching is None:     # since now, or since before the first status heard here
+                self._not_watching = (why, self._wall(), self._saw_watching)
+            else:
+                self._not_watching = (why, *self._not_watching[1:])
+            nw = self._not_watching
+            msg["watching"] = nw is None
+            msg["not_watching"] = None if nw is None else {"reason": nw[0], "since_unix": nw[1],
+                                                            "since_known": nw[2]}
             self._status = msg
             self._heard_now("status")
         self._send(msg)
@@ -260,7 +279,8 @@ class Hub:
         key = (event.id, event.state)
         msg = {"type": "event", "id": event.id, "state": event.state, "t_detect": event.t_detect,
                "wall_time": event.wall_time, "confidence": _num(event.confidence),
-               "features": list(event.features)}
+               "features": list(event.features), "restored": restored_of(event.extra),
+               "without_frames_s": _num(event.extra.get("without_frames_s"))}
         with self._lock:
             if key in self._events:
                 return
@@ -290,6 +310,57 @@ class Hub:
                 return
             self._bus = bus
         self._send({"type": "bus", **bus})
+
+
+# why posed is not watching, from its status: the rule of the daemon's hooks.on_watch_lost
+# (daemon.outbox.watch_hooks.why_not_watching; tests/viz/test_web_watching.py holds the two together)
+NOT_WATCHING_STATES = ("blind", "waiting_for_camera", "degraded", "escalated")
+CAMERA_GONE = ("lost", "ended")
+UNDECIDED_STATES = ("starting", "stopping")
+NOT_WATCHING_WORDS = {"blind": "no frame gets through", "waiting_for_camera": "waiting for the camera",
+                      "degraded": "a stage is failing", "escalated": "too many restarts",
+                      "lost": "the camera is lost", "ended": "the camera stopped (the recording ended)"}
+
+
+def not_watching(raw) -> str | None:
+    """Why the status says posed is not watching, in words (None: it watches; ``""``: starting or stopping,
+    not decided)."""
+    if not isinstance(raw, dict):
+        return None
+    state = raw.get("state")
+    camera = raw.get("camera") if isinstance(raw.get("camera"), dict) else {}
+    if state in UNDECIDED_STATES:
+        return ""
+    if state in NOT_WATCHING_STATES:
+        blind = raw.get("blind") if isinstance(raw.get("blind"), dict) else {}
+        detail = blind.get("reason") or camera.get("error") or ""
+        return NOT_WATCHING_WORDS[state] + (f" ({detail})" if detail else "")
+    if camera.get("state") in CAMERA_GONE:
+        detail = camera.get("error") or ""
+        return NOT_WATCHING_WORDS[camera["state"]] + (f" ({detail})" if detail else "")
+    return None
+
+
+def restored_open_of(raw) -> list[dict]:
+    """The falls the daemon took back from its journal after a restart and that are still open (the status's
+    ``falls.restored_open``): id, when the alarm is due (unix s), whether it was sent."""
+    falls = (raw or {}).get("falls") if isinstance(raw, dict) else None
+    items = falls.get("restored_open") if isinstance(falls, dict) else None
+    out = []
+    for item in items if isinstance(items, list) else ():
+        if isinstance(item, dict) and isinstance(item.get("id"), str):
+            out.append({"id": item["id"], "due_unix": _num(item.get("due_unix")), "alarm": item.get("alarm") is True})
+    return out
+
+
+def restored_of(extra: dict) -> dict | None:
+    """A message's ``restored`` (taken back after a restart) as the page shows it, None when absent."""
+    r = extra.get("restored")
+    if not isinstance(r, dict):
+        return None
+    last = r.get("last_state")
+    return {"at_unix": _num(r.get("at_unix")), "due_unix": _num(r.get("due_unix")),
+            "last_state": STATE_WORDS.get(last, last) if isinstance(last, str) else None}
 
 
 def storage_of(raw) -> dict | None:

@@ -11,7 +11,8 @@ never printed as a traceback.
 Routes: ``GET /`` the page, ``GET /static/NAME`` its files, ``GET /stream`` the events (``text/event-stream``:
 first a ``snapshot``, then the hub's messages — among them ``robot``, whether posed is running and heard from,
 judged twice a second by this server — a comment every ``KEEPALIVE_S`` so proxies keep it open),
-``GET /api/history`` the robot's stored event messages, ``POST /api/ack`` ``{"id": ...}``.
+``GET /api/history`` the robot's stored event messages, ``POST /api/ack`` ``{"id": ..., "by": NAME}`` (``by``
+optional: who acknowledges, kept in the robot's journal; "posed web" without it).
 
 Who may talk to it: with a token configured every request must carry it (``?token=`` — the page passes its
 own on — or ``Authorization: Bearer``), compared in constant time. Without a token the server must be on a
@@ -43,6 +44,7 @@ KEEPALIVE_S = 15.0
 JUDGE_EVERY_S = 0.5             # how often the hub judges whether the robot is still heard from
 LOOPBACK_HOSTS = {"127.0.0.1", "localhost", "::1", "[::1]"}
 MAX_BODY = 4096
+MAX_BY_CHARS = 128                  # who acknowledged: daemon.bus.acks.MAX_BY_CHARS
 MAX_CONNECTIONS = 64            # browsers open a handful each (the page, its files, the stream)
 REQUEST_TIMEOUT_S = 10.0        # to send a request, or between two on a kept-alive connection
 _BUSY_BODY = b'{"error": "too many connections to this page; try again in a moment"}\n'
@@ -318,12 +320,20 @@ class _Handler(BaseHTTPRequestHandler):
                       else HTTPStatus.REQUEST_ENTITY_TOO_LARGE)
             return
         try:
-            event_id = str(json.loads(self.rfile.read(length))["id"])
-        except (ValueError, KeyError, TypeError, RecursionError):
+            body = json.loads(self.rfile.read(length))
+            event_id = str(body["id"])
+            by = body.get("by")
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
             self._bad("body must be {\"id\": EVENT_ID}")
             return
+        if by is not None and (not isinstance(by, str) or len(by.strip()) > MAX_BY_CHARS
+                               or not by.strip().isprintable()):
+            self._bad(f"by must be text of at most {MAX_BY_CHARS} printable characters")
+            return
+        by = by.strip() if by else None
         try:
-            ok = self.server.link.ack(event_id)
+            # who acknowledged (the name the page's user gave), kept in the robot's journal
+            ok = self.server.link.ack(event_id, by) if by else self.server.link.ack(event_id)
         except Exception as exc:
             self._send_json({"error": f"cannot acknowledge: {exc}"}, HTTPStatus.BAD_GATEWAY)
             return

@@ -104,7 +104,9 @@ function drawSkeleton() {
   }
   if (!fitted) {  // say why, and keep the last fitted skeleton in grey
     g.fillStyle = "#bbb"; g.font = "15px sans-serif";
-    const why = pose ? "no fit: " + (pose.reason || "no person") : "waiting for poses…";
+    const nw = view.status && view.status.not_watching;
+    const why = nw ? "posed is not watching: " + nw.reason : pose ? "no fit: " + (pose.reason || "no person") :
+      "waiting for poses…";
     g.fillText(why.length > 70 ? why.slice(0, 69) + "…" : why, 16, 26);
     if (shown && pose) g.fillText(`grey: the last fit, ${Math.max(0, pose.time_unix - shown.time_unix).toFixed(1)} s ago`, 16, 48);
     note.textContent = "";
@@ -233,6 +235,15 @@ function showStatus(s) {
   setText("st-state", s.state); setText("st-fps", view.fpsText);
   setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
   setText("st-camera", s.camera || "–"); setText("st-drops", s.drops); setText("st-restarts", s.restarts);
+  const nw = s.not_watching;
+  setText("st-watching", nw ? `NO: ${nw.reason}` : s.state === "starting" ? "not yet (starting)" : "yes");
+  document.getElementById("st-watching").className = nw ? "warn" : "";
+  const restored = s.restored_open || [];
+  document.getElementById("st-restored-row").hidden = !restored.length;
+  setText("st-restored", restored.map((r) => `${r.id.slice(0, 8)}: ` +
+    (r.alarm ? "alarm sent" : `alarm due ${clockText(r.due_unix)}`)).join("; "));
+  showLiveness();
+  if (view.events && Object.keys(view.events).length) showEvents();
   const storage = document.getElementById("storage");   // the state directory fails: fall events not on disk
   storage.hidden = !s.storage;
   if (s.storage) storage.textContent = "The robot cannot store fall events on its disk: " +
@@ -294,11 +305,18 @@ function showLiveness() {  // the red bar, the "live" badge, and everything stal
   const bar = document.getElementById("down");
   bar.hidden = !text; bar.textContent = text;
   const live = view.streamLost === null && view.connected && r.state === "up";
+  // posed runs and is heard from, but sees nothing (camera ended, lost, blind; a stage failing): said as loudly
+  const nw = live && view.status && view.status.not_watching;
+  const wbar = document.getElementById("watching");
+  wbar.hidden = !nw;
+  wbar.textContent = nw ? `posed on ${robot} is running but NOT WATCHING ` + (nw.since_known ?
+    `since ${clockText(nw.since_unix)}` : `(already when this view started, ${clockText(nw.since_unix)})`) +
+    `: ${nw.reason} — a fall would NOT be detected.` : "";
   const waiting = view.streamLost === null && r.state === "waiting";
   const conn = document.getElementById("conn");
-  conn.textContent = live ? "live" : view.streamLost !== null ? "NOT LIVE: reconnecting…" :
+  conn.textContent = nw ? "live, NOT WATCHING" : live ? "live" : view.streamLost !== null ? "NOT LIVE: reconnecting…" :
     waiting ? "waiting for the robot…" : "NOT LIVE";
-  conn.className = "pill" + (live ? "" : waiting ? " off" : " bad");
+  conn.className = "pill" + (live && !nw ? "" : waiting ? " off" : " bad");
   view.live = live;
   view.stale = !live && !waiting;
   document.body.classList.toggle("stale", view.stale);
@@ -322,6 +340,22 @@ function fallsById() {  // [{id, msgs (in order), first, last (unix s)}], the ne
   }).sort((a, b) => b.first - a.first);
 }
 
+const esc = (t) => String(t).replace(/[&<>"']/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;"})[c]);
+
+function caveats(msgs, id) {  // a fall taken back after a restart, an alarm raised with no camera frame
+  const out = [];
+  const r = msgs.map((m) => m.restored).find((x) => x);
+  if (r) out.push(`posed restarted during this fall and took it back at ${clockText(r.at_unix)}` +
+    (r.last_state ? ` (last seen: ${r.last_state})` : ""));
+  const open = ((view.status && view.status.restored_open) || []).find((o) => o.id === id && !o.alarm);
+  if (open && !msgs.some((m) => m.state === "alarm" || m.state === "recovered"))
+    out.push(`ALARM due at ${clockText(open.due_unix)} unless the person is seen up`);
+  const blind = msgs.find((m) => typeof m.without_frames_s === "number");
+  if (blind) out.push(`${STATE_WORDS.alarm || "ALARM"} raised with no camera frame for ` +
+    `${Math.round(blind.without_frames_s)} s: the camera had stopped, the person was not seen`);
+  return out;
+}
+
 function showEvents() {
   const falls = fallsById(), ul = document.getElementById("events");
   view.shownEvents = falls.map((f) => f.id);
@@ -332,10 +366,12 @@ function showEvents() {
   for (const f of shown) {
     const li = document.createElement("li");
     li.innerHTML = `<span class="fall">${f.msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → ")}</span>
-      <span class="note">${localTime(f.msgs[0].wall_time)} · ${f.id.slice(0, 8)}</span> `;
+      <span class="note">${localTime(f.msgs[0].wall_time)} · ${f.id.slice(0, 8)}</span> ` +
+      caveats(f.msgs, f.id).map((c) => `<div class="caveat">${esc(c)}</div>`).join("");
     li.dataset.eventId = f.id;
     if (view.acked[f.id]) {
-      li.insertAdjacentHTML("beforeend", '<span class="ok">acknowledged ✓</span>');
+      const by = ackedBy(f.id);
+      li.insertAdjacentHTML("beforeend", `<span class="ok">acknowledged ✓${by ? " by " + esc(by) : ""}</span>`);
     } else {
       const b = document.createElement("button");
       b.className = "ack"; b.textContent = "Acknowledge"; b.dataset.eventId = f.id;
@@ -360,11 +396,21 @@ function showEvents() {
   alarm.textContent = open ? `${open} fall event(s) not acknowledged` : "";
 }
 
+const byInput = document.getElementById("ack-by");
+try { byInput.value = localStorage.getItem("posed.ackBy") || ""; } catch (err) { /* storage off: ask again */ }
+
+function ackedBy(id) {  // who acknowledged the event's messages, as the robot's journal says
+  const names = view.history.filter((m) => m.id === id && m.acked_at && m.acked_by).map((m) => m.acked_by);
+  return [...new Set(names)].join(", ");
+}
+
 async function acknowledge(id, button) {
   button.disabled = true; button.textContent = "acknowledging…";
+  const by = byInput.value.trim();
+  try { localStorage.setItem("posed.ackBy", by); } catch (err) { /* storage off */ }
   try {
     const r = await fetch(withToken("/api/ack"), {method: "POST", headers: {"Content-Type": "application/json",
-      "X-Posed": "ack"}, body: JSON.stringify({id})});
+      "X-Posed": "ack"}, body: JSON.stringify(by ? {id, by} : {id})});
     const body = await r.json();
     if (r.ok && body.confirmed) { view.acked[id] = true; showEvents(); loadHistory(); return; }
     button.textContent = "not confirmed — retry"; button.disabled = false;
@@ -378,9 +424,11 @@ function historyRows(events) {  // the robot's stored messages, one row per even
   for (const e of events) (by[e.id] = by[e.id] || []).push(e);
   return Object.entries(by).map(([id, msgs]) => {
     const first = toDate(msgs[0].wall_time), acked = msgs.map((m) => m.acked_at);
-    return {id, time: msgs[0].wall_time, at: first ? first.getTime() : 0,
-            states: msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → "),
+    const words = (ms) => ms.map((m) => STATE_WORDS[m.state] || m.state).join(" → ");
+    return {id, time: msgs[0].wall_time, at: first ? first.getTime() : 0, states: words(msgs),
             acked: acked.every((a) => a) ? Math.max(...acked) : null,
+            by: [...new Set(msgs.filter((m) => m.acked_at && m.acked_by).map((m) => m.acked_by))].join(", "),
+            notOpen: words(msgs.filter((m) => !m.acked_at)), caveats: caveats(msgs, id),
             open: acked.filter((a) => !a).length, count: msgs.length};
   }).sort((a, b) => b.at - a.at);
 }
@@ -407,8 +455,11 @@ function showHistory(error) {
   view.historyRows = rows.map((x) => x.id);
   const shown = view.showAllHistory ? rows : rows.slice(0, HISTORY_SHOWN);
   t.innerHTML = `<tr><th>started (${zoneText()})</th><th>event</th><th>what happened</th><th>acknowledged</th></tr>` +
-    shown.map((e) => `<tr><td>${localTime(e.time)}</td><td>${e.id.slice(0, 8)}</td><td>${e.states}</td>
-      <td>${e.acked ? localTime(e.acked) : e.open < e.count ? `partly (${e.open} message(s) not)` : "no"}</td></tr>`).join("");
+    shown.map((e) => `<tr><td>${localTime(e.time)}</td><td>${e.id.slice(0, 8)}</td><td>${e.states}` +
+      e.caveats.map((c) => `<div class="caveat">${esc(c)}</div>`).join("") + `</td>
+      <td>${e.acked ? localTime(e.acked) + (e.by ? " by " + esc(e.by) : "") : e.open < e.count ?
+        `<span class="warn">${e.notOpen} not acknowledged</span>` + (e.by ? ` (the rest by ${esc(e.by)})` : "") :
+        "no"}</td></tr>`).join("");
   if (rows.length > HISTORY_SHOWN) {
     const open = rows.slice(shown.length).filter((e) => !e.acked).length;
     more.textContent = view.showAllHistory ? "" : `${rows.length - shown.length} earlier event(s)` +
