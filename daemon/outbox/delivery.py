@@ -27,7 +27,13 @@ What is too old for that is skipped, logged and marked done:
   :data:`~daemon.outbox.journal_rows.REDELIVER_MAX_AGE_S` (one hour) before the start: that covers any restart
   of the daemon (a crash, an upgrade, a reboot: seconds to minutes) with a wide margin and the time in which a
   fall is still an unfolding situation someone can act on; beyond it such a message only tells of the past
-  (``stale``; the fall's ``alarm``, if it came, is handed again anyway).
+  (``stale``; the fall's ``alarm``, if it came, is handed again anyway);
+* at most :data:`REDELIVER_MAX_MESSAGES` messages at one start, the newest: an older backlog is marked
+  ``stale`` and named in one error line (``hook_redelivery_backlog``), so a hook cut off for a week does not
+  phone a carer thousands of times, nor hold up the start with a write per message.
+
+A message handed again waits behind none of the new ones: each hook runs the detector's new messages before the
+redelivered ones (:meth:`HookRunner.submit`), so a fall now is not phoned in after the backlog of the last run.
 """
 
 from __future__ import annotations
@@ -45,6 +51,11 @@ from posed.falls.event import FallEvent
 
 REDELIVERED_AT_ANY_AGE = ("alarm",)    # states handed to the hooks again at a start whatever their age
 LOG_EACH_SKIPPED = 20                   # skipped messages logged one by one at a start; the rest are counted
+REDELIVER_MAX_MESSAGES = 20
+# At most this many messages are handed to the hooks again at one start: the newest. A backlog beyond it (a hook
+# cut off or dropped from a full queue day after day, a journal whose marks could not be written for a week) is
+# a fault to look at, not thousands of phone calls to a carer; the older ones are marked done (``stale``),
+# named in one error line, and stay in the journal, republished on the bus until acknowledged.
 
 
 @dataclass
@@ -95,28 +106,29 @@ class EventOutbox:
 
     def redeliver(self) -> dict:
         """Hand the messages whose hooks are not done to the hooks not done with them, oldest first (see the
-        module docstring for what is skipped). Returns the counts (``redelivered``, ``stale``, ``no_hooks``,
+        module docstring for what is skipped; at most :data:`REDELIVER_MAX_MESSAGES`, the newest). Returns the
+        counts (``redelivered``, ``stale``, ``backlog``: stale for being beyond that bound, ``no_hooks``,
         ``finished``: every hook had finished but the message was not marked so)."""
-        counts = {"redelivered": 0, "stale": 0, "no_hooks": 0, "finished": 0}
+        counts = {"redelivered": 0, "stale": 0, "backlog": 0, "no_hooks": 0, "finished": 0}
         pending = self.journal.hooks_pending()
         if not pending:
             return counts
         keys = self.hooks.keys
         now = self.journal.wall_now()
-        handed, skipped = [], 0
+        done: dict[str, list[tuple[str, str]]] = {}       # outcome -> messages marked so, in one write each
+        wanted = []
         for stored, runs in pending:
             e, age = stored.event, now - stored.wall
             skip = self._skip(e, age, keys)
             if skip is not None:
                 outcome, why = skip
                 counts[outcome] += 1
-                skipped += 1
-                if skipped <= LOG_EACH_SKIPPED:
+                if counts["stale"] + counts["no_hooks"] <= LOG_EACH_SKIPPED:
                     self.log.warning("hook_redelivery_skipped", id=e.id, state=e.state, age_s=round(age, 1),
                                      wall_time=e.wall_time, outcome=outcome, reason=why,
                                      note="its hooks were not done with it when the publisher last stopped; it is "
                                           "marked done and will not be handed to them")
-                self.journal.mark_hooks_done(e.id, e.state, outcome)
+                done.setdefault(outcome, []).append(stored.key)
                 continue
             attempts, outcome = {}, "ok"
             for i, key in enumerate(keys):
@@ -127,22 +139,48 @@ class EventOutbox:
                 attempts[i] = (run.attempts if run is not None else 0) + 1
             if not attempts:                    # every hook finished; the stop came before the message's mark
                 counts["finished"] += 1
-                self.journal.mark_hooks_done(e.id, e.state, outcome)
+                done.setdefault(outcome, []).append(stored.key)
                 continue
+            wanted.append((stored, attempts, outcome, age))
+        skipped = counts["stale"] + counts["no_hooks"]
+        if skipped > LOG_EACH_SKIPPED:
+            self.log.warning("hook_redelivery_skipped_more", count=skipped - LOG_EACH_SKIPPED,
+                             stale=counts["stale"], no_hooks=counts["no_hooks"])
+        backlog, wanted = wanted[:-REDELIVER_MAX_MESSAGES], wanted[-REDELIVER_MAX_MESSAGES:]
+        if backlog:
+            counts["backlog"] = len(backlog)
+            done.setdefault("stale", []).extend(stored.key for stored, *_ in backlog)
+            self._log_backlog(backlog)
+        for outcome, messages in done.items():
+            self.journal.mark_hooks_done_many(messages, outcome)
+        handed = []
+        for stored, attempts, outcome, age in wanted:
+            e = stored.event
             self._follow(e, set(attempts), outcome)
             self.hooks.submit(e, attempts=attempts, redelivered=True)
             counts["redelivered"] += 1
             handed.append({"id": e.id, "state": e.state, "age_s": round(age, 1), "hooks": sorted(attempts),
                            "attempt": max(attempts.values())})
-        if skipped > LOG_EACH_SKIPPED:
-            self.log.warning("hook_redelivery_skipped_more", count=skipped - LOG_EACH_SKIPPED,
-                             stale=counts["stale"], no_hooks=counts["no_hooks"])
         if handed:
             self.log.warning("hooks_redelivered", count=len(handed), messages=handed[:LOG_EACH_SKIPPED],
                              note="the hooks were not done with these messages when the publisher last stopped "
                                   "(killed, crashed or stopped with runs cut off or waiting); they run again, "
                                   "oldest first (POSED_HOOK_REDELIVERED=1)")
         return counts
+
+    def _log_backlog(self, backlog: list) -> None:
+        alarms = [stored for stored, *_ in backlog if stored.event.state == "alarm"]
+        oldest, newest = backlog[0][0], backlog[-1][0]
+        self.log.error("hook_redelivery_backlog", count=len(backlog), alarms=len(alarms),
+                       oldest=oldest.event.wall_time, newest=newest.event.wall_time,
+                       ids=[f"{s.event.id}:{s.event.state}" for s, *_ in backlog[-LOG_EACH_SKIPPED:]],
+                       redelivered_max=REDELIVER_MAX_MESSAGES,
+                       note=f"more messages than {REDELIVER_MAX_MESSAGES} wait for the hooks: only the newest are "
+                            "handed to them again; these older ones are marked done (stale) and stay in the "
+                            "journal, republished on the bus until acknowledged",
+                       fix="find why the hooks were cut off or dropped for so long (hook_queue_full, "
+                           "hook_ended_at_shutdown, journal_unavailable in the log); look at these events with "
+                           "posed events --since 30d and acknowledge them")
 
     @staticmethod
     def _skip(e: FallEvent, age: float, keys) -> tuple[str, str] | None:

@@ -152,7 +152,7 @@ class _Worker:
             if self._stopping.is_set():
                 return
             if len(self._events) >= self.cfg.queue_limit:
-                old = self._events.popleft().event
+                old = self._drop_oldest().event
                 self.dropped += 1
                 suppressed = self._throttle.allow(f"queue_full.{self.index}")
                 if suppressed is not None:
@@ -161,10 +161,30 @@ class _Worker:
                                      note="the hook is slower than the events; the oldest waiting event was "
                                           "dropped (it stays in the journal, pending: handed to the hook again "
                                           "at the next start)")
-            self._events.append(job)
+            self._enqueue(job)
             self._cond.notify()
         if old is not None:
             self._notify("ended", old, self.index, "pending")
+
+    def _enqueue(self, job: _Job) -> None:
+        """A new message goes before the messages handed again from the journal (a fall now is not phoned in
+        after the backlog of the run before); otherwise in order."""
+        if job.redelivered:
+            self._events.append(job)
+            return
+        first_old = next((i for i, queued in enumerate(self._events) if queued.redelivered), None)
+        if first_old is None:
+            self._events.append(job)
+        else:
+            self._events.insert(first_old, job)
+
+    def _drop_oldest(self) -> _Job:
+        """The queue is full: the oldest message handed again from the journal leaves it, else the oldest."""
+        old = next((queued for queued in self._events if queued.redelivered), None)
+        if old is None:
+            return self._events.popleft()
+        self._events.remove(old)
+        return old
 
     def pending(self) -> int:
         with self._cond:
@@ -434,7 +454,8 @@ class HookRunner:
     def submit(self, event: FallEvent, attempts: dict[int, int] | None = None, redelivered: bool = False) -> None:
         """Queue the event for every hook, or for the hooks in ``attempts`` (hook index -> the number of its
         first run: runs already started before a restart count); never blocks, never raises (a full queue drops
-        its oldest). ``redelivered``: handed again from the journal at a start."""
+        its oldest, a redelivered one first). ``redelivered``: handed again from the journal at a start; a new
+        message runs before those."""
         if self._closed:
             return
         for worker in self._workers:

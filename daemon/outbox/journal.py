@@ -85,6 +85,8 @@ class EventJournal:
         self._next_log = 0.0
         self.suppressed_logs = 0
         self.restored = 0
+        self.unreadable_rows: dict[int, str] = {}    # rowid -> what is wrong with it (said once per row)
+        self._snapshot_of: tuple | None = None        # (file stamps, messages) read from a copy (_snapshot)
         if readonly:
             self._db = jfile.open_readonly(self.path)
             return
@@ -130,6 +132,11 @@ class EventJournal:
         self._db = db
         if migrated:
             self._log_migrated(migrated)
+
+    def _written(self) -> None:
+        """A write went through: the trouble, if any, is over (said once). Not on opening alone: a file that
+        opens but cannot be written (locked by another process) would be 'recovered' and 'unavailable' again
+        at every call, two log lines a second."""
         if self.last_error:
             self._log.info("journal_recovered", previous_error=self.last_error)
             self.last_error = ""
@@ -230,10 +237,15 @@ class EventJournal:
         """Try again to open the file and write what waits in memory; True when everything is on disk."""
         self._check_writable()
         with self._lock:
+            was_open = self._db is not None
             if self._db is None:
                 self._open()
             if self._db is not None:
                 self._flush()
+            if was_open and self._db is None:     # a connection opened while the file was read-only stays so
+                self._open()
+                if self._db is not None:
+                    self._flush()
             self._sync_fallback()
             return (self._db is not None and not self._pending and not self._pending_marks
                     and not self._pending_hook_rows)
@@ -255,6 +267,7 @@ class EventJournal:
         self._pending.clear()
         self._pending_marks.clear()
         self._pending_hook_rows.clear()
+        self._written()
 
     # ---------------------------------------------------------------- the API
 
@@ -301,6 +314,9 @@ class EventJournal:
                 except sqlite3.DatabaseError as exc:
                     self._fail("cannot read the event journal", exc)
                     known = max(known, 1)        # unreadable: record the acknowledgement for later
+            else:                                # the file cannot be opened: what it holds, from a copy
+                known += sum(1 for item in self._snapshot(Selection(event_id=event_id, unacked=True))
+                             if item.key not in self._pending and (state is None or item.event.state == state))
             if known:                            # nothing to mark: no write (a flood of unknown ids is cheap)
                 self._record(event_id, state, "acked_at", {"acked_by": by})
             return known
@@ -310,6 +326,36 @@ class EventJournal:
         handed to the hooks again."""
         assert outcome in rows.HOOK_OUTCOMES, outcome
         self._record(event_id, state, "hooks_done_at", {"hooks_outcome": outcome})
+
+    def mark_hooks_done_many(self, messages: list[tuple[str, str]], outcome: str) -> None:
+        """:meth:`mark_hooks_done` for each (event id, state) of ``messages``, in one write (one fsync)."""
+        assert outcome in rows.HOOK_OUTCOMES, outcome
+        if not messages:
+            return
+        self._check_writable()
+        extra = {"hooks_outcome": outcome}
+        with self._lock:
+            now = self._clock()
+            wanted = set(messages)
+            for key, item in list(self._pending.items()):
+                if key in wanted and item.hooks_done_at is None:
+                    self._pending[key] = replace(item, hooks_done_at=now, **extra)
+            if self._db is None:
+                self._open()
+            marks = [(event_id, state, "hooks_done_at", now, extra) for event_id, state in messages]
+            if self._db is None:
+                self._pending_marks.extend(marks)
+                self._sync_fallback()
+                return
+            try:
+                with jfile.Transaction(self._db):
+                    for mark in marks:
+                        rows.mark(self._db, *mark)
+                self._written()
+            except (sqlite3.DatabaseError, OSError) as exc:
+                self._pending_marks.extend(marks)
+                self._fail("cannot write to the event journal", exc)
+            self._sync_fallback()
 
     def _record(self, event_id: str, state: str | None, column: str, extra: dict | None = None) -> None:
         self._check_writable()
@@ -328,6 +374,7 @@ class EventJournal:
             try:
                 with jfile.Transaction(self._db):
                     rows.mark(self._db, event_id, state, column, now, extra)
+                self._written()
             except (sqlite3.DatabaseError, OSError) as exc:
                 self._pending_marks.append((event_id, state, column, now, extra))
                 self._fail("cannot write to the event journal", exc)
@@ -350,6 +397,7 @@ class EventJournal:
                 try:
                     with jfile.Transaction(self._db):
                         write(self._db, *args)
+                    self._written()
                     return
                 except (sqlite3.DatabaseError, OSError) as exc:
                     self._fail("cannot write to the event journal", exc)
@@ -405,16 +453,23 @@ class EventJournal:
             if self._db is None:
                 if self._readonly:
                     raise JournalError(f"the event journal {self.path} is closed")
+                # opened to read only: what waits in memory is merged below and written by the next write or
+                # retry(); a write that fails here (a full disk, a lock held by another process) would close the
+                # file again and hide every message on it (not republished, not restored)
                 self._open()
-                self._flush()
             if self._db is not None:
                 try:
-                    for item in rows.select(self._db, selection):
+                    for item in rows.select(self._db, selection, self._unreadable):
                         found[item.key] = item
                 except sqlite3.DatabaseError as exc:
                     if self._readonly:
                         raise JournalError(jfile.read_error(self.path, exc)) from exc
                     self._fail("cannot read the event journal", exc)
+            elif not self._readonly:
+                for item in self._snapshot(selection):
+                    found[item.key] = item
+            if self._pending_marks:              # an acknowledgement not yet on the file is one all the same
+                found = {key: marked for key, item in found.items() if selection.matches(marked := self._marked(item))}
             for key, item in self._pending.items():
                 if selection.matches(item):
                     found[key] = item
@@ -422,6 +477,49 @@ class EventJournal:
         if limit is not None and limit >= 0:
             out = out[-limit:] if limit else []
         return out
+
+    def _snapshot(self, selection: Selection) -> list[StoredEvent]:
+        """The file cannot be opened (a read-only or full state directory): what it holds, read from a copy, so
+        the messages on it are still republished and the falls on it restored. Copied again only when the file
+        changed."""
+        try:
+            stamp = tuple((f.stat().st_mtime_ns, f.stat().st_size) if f.exists() else None
+                          for f in (self.path, Path(f"{self.path}-wal")))
+        except OSError:
+            return []
+        if stamp[0] is None:
+            return []
+        if self._snapshot_of is None or self._snapshot_of[0] != stamp:
+            try:
+                found = jfile.snapshot_rows(self.path, "1", ())
+            except (OSError, sqlite3.Error) as exc:
+                self._snapshot_of = (stamp, [])
+                self._log.error("journal_unreadable", error=f"{type(exc).__name__}: {exc}",
+                                note="the messages on the journal's file are neither republished nor restored "
+                                     "until it can be read", fix=jfile.write_hint(exc))
+                return []
+            self._snapshot_of = (stamp, list(rows.readable(found, self._unreadable)))
+        return [item for item in self._snapshot_of[1] if selection.matches(item)]
+
+    def _marked(self, item: StoredEvent) -> StoredEvent:
+        """``item`` as read from the file, with the delivery marks that wait in memory to be written on it."""
+        for event_id, state, column, when, extra in self._pending_marks:
+            if item.event.id == event_id and state in (None, item.event.state) and getattr(item, column) is None:
+                item = replace(item, **{column: when}, **extra)
+        return item
+
+    def _unreadable(self, rowid: int, exc: Exception) -> None:
+        """A row that is not a message: skipped by every read, said once (the file is kept as it is)."""
+        if rowid in self.unreadable_rows or self._readonly:
+            self.unreadable_rows.setdefault(rowid, str(exc))
+            return
+        self.unreadable_rows[rowid] = str(exc)
+        self._log.error("journal_row_unreadable", rowid=rowid, error=f"{type(exc).__name__}: {exc}",
+                        unreadable_rows=len(self.unreadable_rows),
+                        note="this row of the event journal is not a fall-event message; it is skipped (not "
+                             "republished, not handed to the hooks, not restored) and the other rows are used",
+                        fix=f"look at it: sqlite3 {self.path} 'SELECT * FROM messages WHERE rowid = {rowid}'; "
+                            "delete it when it is garbage (stop posed first)")
 
     def close(self) -> None:
         with self._lock:

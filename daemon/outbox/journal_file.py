@@ -16,13 +16,21 @@ class JournalError(RuntimeError):
     journal that cannot read its file)."""
 
 
+BUSY_TIMEOUT_S = 0.5
+# How long the daemon's journal waits for a lock another process holds (an sqlite3 shell with a transaction open,
+# a backup tool). The publisher's threads share one connection (no wait among them), and readers (posed events)
+# never block a WAL writer, so a lock is someone else's; waiting 5 s on each write (as before) stopped the
+# publisher's heartbeat for the watchdog's 5 s: it was killed as stuck, again and again, and the daemon escalated.
+# Past this the message waits in memory and the fallback file, as on a full disk.
+
+
 def default_connect(path: Path) -> sqlite3.Connection:
-    """The daemon's connection: autocommit (transactions are explicit), 5 s busy timeout, any thread; the
-    file is created (or kept) private, mode 0600 (:mod:`daemon.outbox.private`)."""
+    """The daemon's connection: autocommit (transactions are explicit), :data:`BUSY_TIMEOUT_S` busy timeout,
+    any thread; the file is created (or kept) private, mode 0600 (:mod:`daemon.outbox.private`)."""
     from posed.daemon.outbox.private import private_file
 
     private_file(path)
-    return sqlite3.connect(path, timeout=5.0, isolation_level=None, check_same_thread=False)
+    return sqlite3.connect(path, timeout=BUSY_TIMEOUT_S, isolation_level=None, check_same_thread=False)
 
 
 def prepare(db: sqlite3.Connection, clock: Callable[[], float] = time.time) -> dict | None:
@@ -99,9 +107,32 @@ def salvage(path: Path) -> list[rows.StoredEvent]:
     for row in found:
         try:
             out.append(rows.from_row(row))
-        except (ValueError, KeyError, TypeError):
+        except rows.UNREADABLE:
             continue
     return out
+
+
+def snapshot_rows(path: Path, where: str, args: tuple) -> list[tuple]:
+    """The rows ``where`` selects (``rowid`` first, then :data:`journal_rows.COLUMNS`) from a journal the daemon
+    cannot open (a read-only or full state directory): read from a copy of the file and its write-ahead log in a
+    temporary folder, since SQLite cannot open a WAL journal where it cannot create its ``-shm`` file, and the
+    messages a kill -9 left in the ``-wal`` (the fall just before it) are only there. Raises OSError or
+    sqlite3.Error when even that fails."""
+    import shutil
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="posed-journal-") as folder:
+        copy = Path(folder) / path.name
+        shutil.copyfile(path, copy)
+        wal = Path(f"{path}-wal")
+        if wal.exists():
+            shutil.copyfile(wal, Path(f"{copy}-wal"))
+        db = sqlite3.connect(copy, timeout=1.0)
+        try:
+            return db.execute(f"SELECT rowid, {rows.select_list(db)} FROM messages WHERE {where} "
+                              "ORDER BY wall, t_detect", args).fetchall()
+        finally:
+            db.close()
 
 
 def set_aside(path: Path, unix_time: float) -> Path:
@@ -142,4 +173,7 @@ def write_hint(exc: BaseException) -> str:
         return "free disk space on the state dir's filesystem; events are kept in memory and written when it works"
     if "readonly" in text or "permission" in text or isinstance(exc, PermissionError):
         return "make the state dir writable by the daemon's user (pipeline.state_dir)"
+    if "locked" in text or "busy" in text:
+        return ("another process holds the journal locked (an sqlite3 shell with a transaction open, a backup "
+                "tool: fuser -v the file); end it; events are kept in memory and written when it is released")
     return "check the state dir (pipeline.state_dir); events are kept in memory and written when it works"

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 
 from posed.falls.event import FallEvent
@@ -109,10 +109,21 @@ class HookRun:
     outcome: str | None = None
 
 
+UNREADABLE = (ValueError, KeyError, TypeError, AttributeError)   # what from_row raises on a damaged row
+
+
 def from_row(row: tuple) -> StoredEvent:
-    """A ``SELECT {COLUMNS}`` row; raises ValueError/KeyError/TypeError on a body that is not an event."""
+    """A ``SELECT {COLUMNS}`` row; raises one of :data:`UNREADABLE` on a row that is not a message (a body that
+    is not an event, a time that is not a number)."""
     body, wall, published_at, acked_at, acked_by, hooks_done_at, hooks_outcome = row
-    return StoredEvent(FallEvent.from_json(json.loads(body)), wall, published_at, acked_at, acked_by,
+    obj = json.loads(body)
+    if not isinstance(obj, dict):
+        raise ValueError(f"the body is a JSON {type(obj).__name__}, not an event object")
+    for name, value in (("wall", wall), ("published_at", published_at), ("acked_at", acked_at),
+                        ("hooks_done_at", hooks_done_at)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ValueError(f"{name} is {value!r}, not unix seconds")
+    return StoredEvent(FallEvent.from_json(obj), float(wall), published_at, acked_at, acked_by,
                        hooks_done_at, hooks_outcome)
 
 
@@ -195,11 +206,27 @@ class Selection:
                 and (not self.hooks_pending or item.hooks_done_at is None))
 
 
-def select(db: sqlite3.Connection, selection: Selection) -> Iterator[StoredEvent]:
-    """The stored messages ``selection`` wants, oldest first, as SQLite reads them."""
+def select(db: sqlite3.Connection, selection: Selection,
+           unreadable: Callable[[int, Exception], None] | None = None) -> Iterator[StoredEvent]:
+    """The stored messages ``selection`` wants, oldest first, as SQLite reads them. A row that is not a message
+    (damaged by hand, by a disk, by a bug) is skipped and handed to ``unreadable`` (its rowid, the error), so one
+    bad row never hides the others (nor stops the publisher at its start)."""
     where, args = selection.where()
-    for row in db.execute(f"SELECT {select_list(db)} FROM messages WHERE {where} ORDER BY wall, t_detect", args):
-        yield from_row(row)
+    yield from readable(db.execute(f"SELECT rowid, {select_list(db)} FROM messages WHERE {where} "
+                                   "ORDER BY wall, t_detect", args), unreadable)
+
+
+def readable(found: Iterable[tuple], unreadable: Callable[[int, Exception], None] | None = None
+             ) -> Iterator[StoredEvent]:
+    """The messages of ``SELECT rowid, {COLUMNS}`` rows; the rows that are not messages go to ``unreadable``."""
+    for rowid, *row in found:
+        try:
+            item = from_row(tuple(row))
+        except UNREADABLE as exc:
+            if unreadable is not None:
+                unreadable(rowid, exc)
+            continue
+        yield item
 
 
 def count_unacked(db: sqlite3.Connection, event_id: str, state: str | None) -> int:

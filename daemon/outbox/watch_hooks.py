@@ -14,9 +14,10 @@ them, the first ``output_limit`` bytes of its output logged. Its stdin is the no
 (:meth:`WatchNotice.to_json`); ``POSED_WATCH`` (``lost`` / ``back``), ``POSED_WATCH_REASON``,
 ``POSED_WATCH_SINCE_UNIX``, ``POSED_ROBOT`` and ``POSED_HOOK_ATTEMPT`` carry the main fields. Notices are not
 journalled: they are about the present, and a daemon started again judges it afresh (still not watching:
-``lost`` again after ``watch_lost_after_s``). What this cannot tell: a daemon that is gone altogether (no
-process left to run a hook); Zenoh's liveliness token ``posed/ROBOT/alive`` and systemd say that
-(docs/daemon.md).
+``lost`` again after ``watch_lost_after_s``). A flapping camera is one loss (:class:`WatchLoss`): ``back``
+comes once posed has watched for ``watch_lost_after_s`` without a break. What this cannot tell: a daemon that
+is gone altogether (no process left to run a hook); Zenoh's liveliness token ``posed/ROBOT/alive`` and systemd
+say that (docs/daemon.md).
 """
 
 from __future__ import annotations
@@ -78,12 +79,21 @@ def why_not_watching(status: dict) -> str | None:
 
 class WatchLoss:
     """Says when posed has not been watching for ``after_s`` seconds (once), and when it watches again after
-    that (once). ``update`` takes each status object with the monotonic and unix times it was read at."""
+    that (once). ``update`` takes each status object with the monotonic and unix times it was read at.
+
+    A camera that flaps (lost, back, lost ...) is one loss, not many: the time not watching adds up over short
+    returns, and a loss ends only once posed has watched for ``after_s`` without a break. So a camera lost 50 s
+    of every 100 s is said (before: never, each loss shorter than the delay), and one lost 70 s of every 80 s
+    is said once, ``back`` once it is steady (before: a ``lost`` and a ``back`` every 80 s, the carer called
+    90 times an hour); routine hiccups of a few seconds, far apart, still call nobody."""
 
     def __init__(self, robot: str, after_s: float) -> None:
         self.robot = robot
         self.after_s = after_s
-        self._since: tuple[float, float] | None = None      # (monotonic, unix) when watching stopped
+        self._since: tuple[float, float] | None = None      # (monotonic, unix) when this loss began
+        self._not_watching_s = 0.0                          # time not watching in this loss, short returns left out
+        self._last: tuple[float, bool] | None = None        # (monotonic, watching) of the last judgement
+        self._watching_since: float | None = None           # monotonic; None while not watching
         self._reason = ""
         self._told = False
 
@@ -94,21 +104,33 @@ class WatchLoss:
 
     def update(self, status: dict, now: float, now_unix: float) -> WatchNotice | None:
         why = why_not_watching(status)
-        if why == "":
+        if self._last is not None and not self._last[1]:
+            self._not_watching_s += max(0.0, now - self._last[0])
+        if why == "":                                   # undecided: the current judgement goes on
+            if self._last is not None:
+                self._last = (now, self._last[1])
             return None
-        if why is None:
-            notice = None
-            if self._told and self._since is not None:
-                notice = WatchNotice(True, self.robot, self._reason, self._since[1], now_unix)
-            self._since, self._told, self._reason = None, False, ""
-            return notice
+        watching = why is None
+        self._last = (now, watching)
+        if watching:
+            return self._watching(now, now_unix)
+        self._watching_since = None
         if self._since is None:
-            self._since = (now, now_unix)
+            self._since, self._not_watching_s = (now, now_unix), 0.0
         self._reason = why
-        if not self._told and now - self._since[0] >= self.after_s:
+        if not self._told and self._not_watching_s >= self.after_s - 1e-9:
             self._told = True
             return WatchNotice(False, self.robot, why, self._since[1], now_unix)
         return None
+
+    def _watching(self, now: float, now_unix: float) -> WatchNotice | None:
+        if self._watching_since is None:
+            self._watching_since = now
+        if self._since is None or now - self._watching_since < self.after_s - 1e-9:
+            return None
+        notice = WatchNotice(True, self.robot, self._reason, self._since[1], now_unix) if self._told else None
+        self._since, self._told, self._reason, self._not_watching_s = None, False, "", 0.0
+        return notice
 
 
 class WatchHooks:

@@ -8,7 +8,9 @@ keeps every message and has no retention of its own): an event none of whose mes
 ``recovered`` is **open**. An open fall whose impact is at most :data:`RESTORE_HORIZON_S` old is re-armed with
 its own id: its alarm is due at ``t_impact_unix + falls.alarm_after_s`` in unix time, put on this boot's
 monotonic clock when it is read (``due - now_unix + now``), so a reboot (the monotonic clock starting again)
-changes nothing. Older open falls are not re-armed and are logged (``open_falls_not_restored``) at every start.
+changes nothing. Older open falls that a receiver acknowledged are not re-armed and are logged
+(``open_falls_not_restored``) at every start; older ones nobody acknowledged, and any fall when the clock was
+stepped back since it was journalled, are alarmed at once (``_open_fall``: rather early than never).
 
 - **The alarm.** Raised when due (:meth:`RestoredFalls.due`, called between frames, frames or none); one
   already past due at once, on the stage's first tick after its warm-up. Its content is the detector's alarm
@@ -37,6 +39,7 @@ changes nothing. Older open falls are not re-armed and are logged (``open_falls_
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -45,11 +48,13 @@ from posed.daemon.stages.fall_watch import _people
 from posed.falls import FallEvent, FallsConfig
 
 RESTORE_HORIZON_S = 24 * 3600.0
-# A day. Within it an open fall is re-armed whatever the downtime; beyond it (the daemon, or the robot, down
-# for more than a day after a fall, or a fall left open by a posed without this restore), the person has been
-# found or has been seen again by the fresh detector (a person still lying in view is found lying and raises
-# an event of its own), and an alarm now would ask for help for an event of another day: the fall stays in the
-# journal as it was (republished until acknowledged, in the daily report) and is named in the log at every start.
+# A day. Within it an open fall is re-armed whatever the downtime. Beyond it (the daemon, or the robot, down
+# for more than a day after a fall, a fall left open by a posed without this restore, or a unix clock stepped
+# forward since) an acknowledged fall is known to someone: it stays in the journal as it was and is named in the
+# log at every start. One nobody acknowledged is alarmed at once, once: the age may be the clock's error.
+CLOCK_SLACK_S = 2.0
+# How far the clock now may be earlier than a time the fall was journalled at before it counts as stepped back:
+# NTP slews small errors (at most 0.5 ms/s) and steps only large ones.
 STAMPED = ("format", "version", "time_unix")      # made anew for each message (payloads.stamp_event)
 PERSON_KEYS = ("person", "root_cam_m", "person_match", "member", "household")
 STATE_ORDER = {"falling": 0, "on_floor": 1, "alarm": 2, "recovered": 3}
@@ -75,6 +80,7 @@ class OpenFall:
     carried: dict                  # what every later message carries: t_onset_unix, t_impact_unix, restored
     handed: bool = False           # a detector continues it (a person found lying: module doc)
     closed: bool = False
+    clock: str | None = None       # "behind", "beyond_horizon": alarm due at once (_open_fall)
 
     @property
     def open(self) -> bool:
@@ -117,35 +123,26 @@ class RestoredFalls:
             states = {s.event.state for s in items}
             if "alarm" in states or "recovered" in states:
                 continue
-            items.sort(key=lambda s: (STATE_ORDER.get(s.event.state, 9), s.wall))
-            first, last = items[0], items[-1]
-            impact_unix = _impact_unix(first)
-            if now_unix - impact_unix > horizon_s:
-                old.append((impact_unix, event_id))
+            try:
+                fall = _open_fall(event_id, items, cfg, now, now_unix, horizon_s)
+            except Exception as exc:   # a damaged message must not cost the other falls (nor the stage)
+                log.error("open_fall_unreadable", id=event_id, error=repr(exc),
+                          note="a fall left open by the run before whose messages cannot be read: its alarm is "
+                               "not kept; the other falls are",
+                          fix="look at it: posed events --json --since 2d; acknowledge it when it is known")
                 continue
-            due_unix = impact_unix + cfg.alarm_after_s
-            extra = {k: v for k, v in last.event.extra.items() if k not in STAMPED}
-            carried = {k: extra[k] for k in ("t_onset_unix", "t_impact_unix") if k in extra}
-            carried.setdefault("t_impact_unix", round(impact_unix, 4))
-            carried["restored"] = {"at_unix": round(now_unix, 3), "last_state": last.event.state,
-                                   "due_unix": round(due_unix, 3)}
-            falls.append(OpenFall(
-                id=event_id, robot=first.event.robot, t_onset=first.event.t_onset, t_impact=first.event.t_impact,
-                t_impact_unix=impact_unix, due_unix=due_unix, due=due_unix - now_unix + now,
-                features=tuple(first.event.features), confidence=float(first.event.confidence),
-                geometry=dict(extra.get("geometry") or {}), sent=states, pose=last.event.pose, last_extra=extra,
-                carried=carried))
-            log.warning("open_fall_restored", id=event_id, last_state=last.event.state,
-                        impact=iso(impact_unix), alarm_due=iso(due_unix),
-                        alarm_in_s=round(max(due_unix - now_unix, 0.0), 3),
-                        note="a fall was open when the daemon or its publisher stopped: its alarm is raised when "
-                             "due unless the person is clearly seen up")
+            if fall is None:
+                old.append((_impact_unix(items[0]), event_id))
+                continue
+            falls.append(fall)
+            _log_restored(log, fall, now_unix)
         if old:
             old.sort()
             log.warning("open_falls_not_restored", count=len(old), ids=[i for _, i in old[-10:]],
                         oldest=iso(old[0][0]), newest=iso(old[-1][0]), horizon_h=round(horizon_s / 3600.0, 1),
-                        note="falls never alarmed nor recovered, their impact longer ago than the horizon: no "
-                             "alarm is raised for them now; they stay in the journal as they are",
+                        note="falls never alarmed nor recovered, acknowledged by a receiver, their impact longer "
+                             "ago than the horizon: no alarm is raised for them now; they stay in the journal as "
+                             "they are",
                         fix="look at them (posed events --since 30d) and acknowledge them (posed events ack ID)")
         falls.sort(key=lambda f: f.due)
         return cls(falls, cfg, log)
@@ -311,15 +308,89 @@ class RestoredFalls:
                           pose=result.to_json() if result is not None else None, extra=extra)]
 
 
+def _open_fall(event_id: str, items: list, cfg: FallsConfig, now: float, now_unix: float,
+               horizon_s: float) -> OpenFall | None:
+    """One open fall re-armed (module doc), or None: older than the horizon and acknowledged by a receiver.
+
+    The unix clock may have been stepped since the fall was journalled (NTP at the boot of a machine without an
+    RTC battery, a clock set by hand). Never later than it would be without the step, and rather early than never:
+
+    - the clock now earlier than a time the fall was journalled at (it was stepped back): how long ago the fall
+      was is unknown, so its alarm is due at once (``restored.clock``: ``behind``);
+    - its impact longer ago than the horizon: a daemon down for that long, or a clock stepped forward (or a fall
+      journalled by a clock that was behind). Nobody has acknowledged it: its alarm is due at once
+      (``restored.clock``: ``beyond_horizon``), once; acknowledged, someone knows of it: not re-armed."""
+    states = {s.event.state for s in items}
+    items.sort(key=lambda s: (STATE_ORDER.get(s.event.state, 9), s.wall))
+    first, last = items[0], items[-1]
+    impact_unix = _impact_unix(first)
+    due_unix = impact_unix + cfg.alarm_after_s
+    journalled_at = max([impact_unix] + [s.wall for s in items])
+    clock = None
+    if now_unix < journalled_at - CLOCK_SLACK_S:
+        clock = "behind"
+    elif now_unix - impact_unix > horizon_s:
+        if any(s.acked_at is not None for s in items):
+            return None
+        clock = "beyond_horizon"
+    if clock is not None:
+        due_unix = now_unix
+    extra = {k: v for k, v in last.event.extra.items() if k not in STAMPED}
+    carried = {k: extra[k] for k in ("t_onset_unix", "t_impact_unix") if _is_number(extra.get(k))}
+    carried.setdefault("t_impact_unix", round(impact_unix, 4))
+    carried["restored"] = {"at_unix": round(now_unix, 3), "last_state": last.event.state,
+                           "due_unix": round(due_unix, 3)}
+    if clock is not None:
+        carried["restored"]["clock"] = clock
+    geometry = extra.get("geometry")
+    return OpenFall(
+        id=event_id, robot=first.event.robot, t_onset=_number(first.event.t_onset),
+        t_impact=_number(first.event.t_impact), t_impact_unix=impact_unix, due_unix=due_unix,
+        due=due_unix - now_unix + now, features=tuple(str(f) for f in first.event.features),
+        confidence=float(first.event.confidence), geometry=dict(geometry) if isinstance(geometry, dict) else {},
+        sent=states, pose=last.event.pose if isinstance(last.event.pose, dict) else None, last_extra=extra,
+        carried=carried, clock=clock)
+
+
+def _log_restored(log, fall: OpenFall, now_unix: float) -> None:
+    fields = dict(id=fall.id, last_state=fall.carried["restored"]["last_state"], impact=iso(fall.t_impact_unix),
+                  alarm_due=iso(fall.due_unix), alarm_in_s=round(max(fall.due_unix - now_unix, 0.0), 3))
+    if fall.clock is None:
+        log.warning("open_fall_restored", **fields,
+                    note="a fall was open when the daemon or its publisher stopped: its alarm is raised when due "
+                         "unless the person is clearly seen up")
+        return
+    age_s = round(now_unix - fall.t_impact_unix, 1)
+    why = (f"the clock now ({iso(now_unix)}) is earlier than when the fall was journalled: it was stepped back "
+           "(NTP at boot, a clock set by hand), so how long ago the fall was is unknown"
+           if fall.clock == "behind" else
+           f"its impact is {age_s:g} s ago by this clock, beyond the {RESTORE_HORIZON_S / 3600:g} h horizon, and "
+           "nobody acknowledged it: the daemon was down that long, or the clock was stepped forward since")
+    log.error("open_fall_restored", **fields, clock=fall.clock, age_s=age_s, reason=why,
+              note="its alarm is raised at once, rather than late or never",
+              fix="check the system clock (timedatectl; an RTC battery, NTP before posed starts); acknowledge the "
+                  "event once the person is found")
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _number(value) -> float | None:
+    """A time read from a stored message: a finite number, else None (a damaged field)."""
+    return float(value) if _is_number(value) else None
+
+
 def _impact_unix(stored) -> float:
     """When the fall's impact was, unix seconds: as stamped (``t_impact_unix``); for a message journalled
-    without it, its journal time less the time from impact to detection."""
+    without it (or with a damaged one), its journal time less the time from impact to detection."""
     e = stored.event
     value = e.extra.get("t_impact_unix")
-    if isinstance(value, (int, float)):
+    if _is_number(value):
         return float(value)
-    if e.t_impact is not None:
-        return float(stored.wall) - max(0.0, float(e.t_detect) - float(e.t_impact))
+    t_impact, t_detect = _number(e.t_impact), _number(e.t_detect)
+    if t_impact is not None and t_detect is not None:
+        return float(stored.wall) - max(0.0, t_detect - t_impact)
     return float(stored.wall)
 
 

@@ -172,7 +172,7 @@ def test_old_messages_are_skipped_and_logged_but_an_alarm_is_handed_again_at_any
     box, log = start(path, hooks_config(tmp_path, "rec"))
     assert box.hooks.wait_idle(20)
     box.close()
-    assert box.redelivery == {"redelivered": 5, "stale": 3, "no_hooks": 0, "finished": 0}
+    assert box.redelivery == {"redelivered": 5, "stale": 3, "backlog": 0, "no_hooks": 0, "finished": 0}
     assert [(i, s) for i, s, _, _ in starts(rec)] == [
         ("old", "alarm"), ("new", "falling"), ("new", "on_floor"), ("new", "alarm"), ("new", "recovered")]
     skipped = [f for _, e, f in log.lines if e == "hook_redelivery_skipped"]

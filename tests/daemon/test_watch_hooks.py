@@ -39,12 +39,47 @@ def test_lost_after_the_delay_once_and_back_once():
     assert isinstance(lost, WatchNotice) and not lost.watching and lost.since_unix == 1010.0
     assert lost.reason == "blind: no frame for 4 s" and lost.to_json()["not_watching_s"] == 60.0
     assert w.update(blind, 80.0, 1080.0) is None and w.lost                # said once
-    back = w.update(_status("running"), 90.0, 1090.0)
+    assert w.update(_status("running"), 90.0, 1090.0) is None and w.lost   # back once steady for the delay
+    back = w.update(_status("running"), 150.0, 1150.0)
     assert back is not None and back.watching and back.since_unix == 1010.0 and not w.lost
-    assert w.update(_status("running"), 100.0, 1100.0) is None
+    assert w.update(_status("running"), 160.0, 1160.0) is None
     # a short loss that ends before the delay says nothing, either way
-    assert w.update(_status("waiting_for_camera"), 110.0, 1110.0) is None
-    assert w.update(_status("running"), 120.0, 1120.0) is None
+    assert w.update(_status("waiting_for_camera"), 170.0, 1170.0) is None
+    assert w.update(_status("running"), 180.0, 1180.0) is None
+    assert w.update(_status("running"), 250.0, 1250.0) is None
+
+
+def _flap(w: WatchLoss, lost_s: float, back_s: float, seconds: float) -> list[WatchNotice]:
+    """Status objects once a second from a camera lost ``lost_s`` then back ``back_s``, over and over."""
+    out, t = [], 0
+    while t < seconds:
+        gone = t % (lost_s + back_s) < lost_s
+        status = _status("waiting_for_camera", camera="lost") if gone else _status("running")
+        if (notice := w.update(status, float(t), 1000.0 + t)) is not None:
+            out.append(notice)
+        t += 1
+    return out
+
+
+def test_a_camera_lost_half_the_time_is_said_once():
+    """Lost 50 s of every 100 s: before, never said (each loss shorter than the 60 s delay)."""
+    notices = _flap(WatchLoss("r1", after_s=60.0), 50, 50, 3600)
+    assert [n.watching for n in notices] == [False]
+    assert notices[0].time_unix == 1110.0 and notices[0].since_unix == 1000.0     # 60 s not watching in all
+
+
+def test_a_flapping_camera_is_one_loss_not_a_storm_of_hooks():
+    """Lost 70 s, back 10 s, for an hour, then steady: before, a lost and a back every 80 s (90 notices)."""
+    w = WatchLoss("r1", after_s=60.0)
+    notices = _flap(w, 70, 10, 3600)
+    assert [n.watching for n in notices] == [False]
+    steady = [w.update(_status("running"), 3600.0 + t, 4600.0 + t) for t in range(0, 61)]
+    assert [n.watching for n in steady if n is not None] == [True]
+
+
+def test_hiccups_far_apart_call_nobody():
+    """A 5 s stage restart every 2 minutes: never 60 s not watching within a loss."""
+    assert _flap(WatchLoss("r1", after_s=60.0), 5, 115, 3600) == []
 
 
 def test_why_names_the_state_and_the_camera():
@@ -89,7 +124,9 @@ def test_the_daemon_says_an_unplugged_camera_and_its_return(tmp_path, shared_dat
     source = f"{shared_data / SQUAT}?disconnect_at=10&disconnect_s=5"
     replay_to_end(tmp_path, source, "watchbot", ("status",), "pipeline.target_fps=30",
                   f'hooks.on_watch_lost=[{{argv: [{", ".join(hook.argv)}], timeout_s: 10}}]',
-                  "hooks.watch_lost_after_s=1.5", timeout_s=90.0)
+                  "hooks.watch_lost_after_s=1.5", "source.realtime=true", timeout_s=90.0)
+    # paced (5 fps): the 11 s of video after the return are watched steadily for longer than the delay, so
+    # "back" comes before the recording ends (an ended recording is not watching)
     lines = _lines(rec)
     assert [x[0] for x in lines[:2]] == ["lost", "back"], lines
     lost, back = json.loads(lines[0][5]), json.loads(lines[1][5])
