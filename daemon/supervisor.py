@@ -17,7 +17,8 @@ ring), spawns the stage processes (spawn context), and then loops every 0.1 s:
   line per ``logging.stats_period_s`` names them), degraded (a stage dead or stuck), escalated or stopping;
 * a recording replayed with ``pipeline.stop_at_end`` none of whose frames was processed ends the daemon with
   exit status 65 (EX_DATAERR) and that reason, never 0;
-* a stage reporting a fatal problem (a missing model or input file) stops the daemon with exit status 78.
+* a stage reporting a fatal problem (a missing model or input file) stops the daemon with exit status 78; so
+  does a /dev/shm without room for the shared memory, at start, before any stage runs (``shm.reserve``).
 
 SIGTERM/SIGINT stop the stages in pipeline order (capture first: it closes the camera), kill what has not
 left by ``pipeline.shutdown_timeout_s``, unlink the shared memory and return. A broken log pipe (``posed run |
@@ -29,6 +30,7 @@ the supervisor dies (``PR_SET_PDEATHSIG``).
 from __future__ import annotations
 
 import contextlib
+import errno
 import multiprocessing
 import os
 import signal
@@ -146,22 +148,51 @@ class Supervisor:
         if stale:
             self.log.warning("removed_stale_shared_memory", segments=stale,
                              note="left by a posed supervisor that was killed")
-        doorbells = {name: self._ctx.Semaphore(0) for name in DOORBELLS}
+        names = tuple(s.name for s in self.plan)
+        try:
+            self._create_shared_memory(names)
+        except shm.SharedMemoryFull as exc:       # /dev/shm full: said now, not a SIGBUS of a stage later
+            self._shm_full(exc)
+            return
+        self.log.info("daemon_start", robot=self.config.robot_id, stages=list(names),
+                      source=to_uri(self.config.source), watchdog_s=self.notifier.watchdog_interval_s)
+        now = clock.now()
+        for slot in self._slots.values():
+            self._spawn(slot, now)
+
+    def _create_shared_memory(self, names: tuple[str, ...]) -> None:
+        """The doorbells, the control segment and the frame ring, every page reserved (shm.create);
+        :class:`shm.SharedMemoryFull` when /dev/shm has not room for them."""
+        try:
+            doorbells = {name: self._ctx.Semaphore(0) for name in DOORBELLS}
+        except OSError as exc:                    # sem_open writes a page into /dev/shm
+            if exc.errno == errno.ENOSPC:
+                raise shm.full_error("a doorbell semaphore", os.sysconf("SC_PAGE_SIZE")) from exc
+            raise
         self._doorbells = doorbells
         sem_names = [n for n in (getattr(d._semlock, "name", None) for d in doorbells.values()) if n]
-        self._sem_record = shm.record_semaphores(sem_names)    # removed at the next start if we are killed
-        names = tuple(s.name for s in self.plan)
+        try:
+            self._sem_record = shm.record_semaphores(sem_names)    # removed at the next start if we are killed
+        except OSError as exc:
+            if exc.errno == errno.ENOSPC:
+                raise shm.full_error("the list of doorbell semaphores", os.sysconf("SC_PAGE_SIZE")) from exc
+            raise
         self.control = Control.create(names, doorbells)
         if any(s.uses_ring for s in self.plan):
             src = self.config.source
             capacity = self.config.pipeline.frame_max_pixels   # larger frames are scaled down at capture
             depth = src.type == "realsense" or is_realsense_recording(src.path)
             self.ring = FrameRing.create(self.config.pipeline.ring_slots, capacity, depth)
-        self.log.info("daemon_start", robot=self.config.robot_id, stages=list(names),
-                      source=to_uri(self.config.source), watchdog_s=self.notifier.watchdog_interval_s)
-        now = clock.now()
-        for slot in self._slots.values():
-            self._spawn(slot, now)
+
+    def _shm_full(self, exc: shm.SharedMemoryFull) -> None:
+        """Stop before any stage starts, as a start-up problem: exit status 78, the problem and its fix."""
+        self.log.error("shared_memory_full", error=exc.message, needed_bytes=exc.needed, free_bytes=exc.free,
+                       fix=exc.fix)
+        with contextlib.suppress(OSError):
+            print(f"posed: {exc.message}\n  fix: {exc.fix}\nposed: 1 problem(s); nothing was started",
+                  flush=True, file=sys.stderr)
+        self._exit_code = EX_CONFIG
+        self.request_stop("/dev/shm is full")
 
     def _spawn(self, slot: _Slot, now: float) -> None:
         spec = slot.spec

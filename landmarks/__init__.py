@@ -15,7 +15,9 @@ Other packages import these names from ``landmarks`` itself, never from its modu
 * landmarks per frame and the ``*.landmarks.jsonl`` recording format: ``LandmarkFrame``, ``LANDMARK_NAMES``
   (the 33 in MediaPipe order), ``RecordingHeader``, ``iter_recording``, ``read_recording``,
   ``write_recording``, ``RecordingWriter``, ``RecordingError`` (an unreadable header), ``RecordingProblem``
-  (a bad frame line) and ``dumps`` (one compact JSON line); ``DepthSource`` (the header's ``depth``: where
+  (a bad frame line) and ``dumps`` (one compact JSON line); ``iter_recording``'s stream is a ``FrameStream``
+  whose ``invalid`` (``InvalidValues``) counts the visibility and presence values outside [0, 1] it read as
+  unknown, reported at its end with an ``InvalidLandmarkValues`` warning; ``DepthSource`` (the header's ``depth``: where
   the frames' ``depth_m`` came from).
 * depth at the landmarks (pure NumPy): ``sample_depth(depth, depth_scale, landmarks)`` (metres along the
   camera's z axis at each landmark's pixel of an aligned depth image, NaN where unknown), its default
@@ -48,6 +50,9 @@ if TYPE_CHECKING:
     from posed.landmarks.recording import (
         LANDMARK_NAMES,
         DepthSource,
+        FrameStream,
+        InvalidLandmarkValues,
+        InvalidValues,
         LandmarkFrame,
         PersonLandmarks,
         RecordingError,
@@ -90,6 +95,9 @@ __all__ = [
     "RecordingHeader",
     "RecordingProblem",
     "RecordingWriter",
+    "FrameStream",
+    "InvalidLandmarkValues",
+    "InvalidValues",
     "Roi",
     "SessionSettings",
     "default_models_dir",
@@ -142,6 +150,9 @@ _ORIGIN = {
     "RecordingError": ("posed.landmarks.recording", "RecordingError"),
     "RecordingHeader": ("posed.landmarks.recording", "RecordingHeader"),
     "RecordingProblem": ("posed.landmarks.recording", "RecordingProblem"),
+    "FrameStream": ("posed.landmarks.recording", "FrameStream"),
+    "InvalidLandmarkValues": ("posed.landmarks.recording", "InvalidLandmarkValues"),
+    "InvalidValues": ("posed.landmarks.recording", "InvalidValues"),
     "RecordingWriter": ("posed.landmarks.recording", "RecordingWriter"),
     "dumps": ("posed.landmarks.recording", "dumps"),
     "iter_recording": ("posed.landmarks.recording", "iter_recording"),

@@ -5,6 +5,11 @@ A recording is JSON Lines: a header line, then one frame per line. Landmarks are
 MediaPipe's relative depth on the x scale (negative nearer the camera, 0 when unknown). In memory a frame's
 landmarks are a (33, 5) float64 array; a landmark that is ``null`` in the file is a row of NaN, and so is one
 with a NaN or infinite value (JSON has no such numbers, but some writers emit them): unknown, the frame kept.
+So is one whose visibility or presence is outside [0, 1] (interfaces.md: "visibility, presence: 0..1"; a
+probability of 1.7 or -0.2 says its extractor is broken, and its x and y cannot be trusted either). Those are
+not silent: the stream counts them (:class:`InvalidValues`, ``stream.invalid``) and, when it ends, reports how
+many values on how many lines and the first of them with an :class:`InvalidLandmarkValues` warning (shown on
+stderr by default: the commands and the daemon's capture stage say it).
 
 Depth (optional): a frame may carry ``depth_m``, 33 depths in metres along the camera's z axis that a depth
 camera aligned to the image measured at the landmarks' pixels (``null`` where unknown; in memory a (33,)
@@ -29,6 +34,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import warnings
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -166,6 +172,50 @@ def _non_finite(entry: Any) -> bool:
             and not all(math.isfinite(v) for v in entry))
 
 
+PROBABILITIES = ((3, "visibility"), (4, "presence"))
+
+
+def _out_of_range(entry: list) -> list[tuple[str, float]]:
+    """Of five finite numbers ``[x, y, z, visibility, presence]``: the probabilities outside [0, 1]."""
+    return [(name, entry[i]) for i, name in PROBABILITIES if not 0.0 <= entry[i] <= 1.0]
+
+
+class InvalidLandmarkValues(UserWarning):
+    """A recording held landmarks whose visibility or presence is outside [0, 1] (read as unknown)."""
+
+
+@dataclass
+class InvalidValues:
+    """The visibility and presence values outside [0, 1] a recording's stream met (each made its landmark
+    unknown): how many values, on how many landmarks and frame lines, and the first of them."""
+
+    path: str = ""
+    values: int = 0
+    landmarks: int = 0
+    lines: int = 0
+    first: str = ""        # e.g. "line 5: landmark 25 (left_knee) visibility 1.7"
+
+    def add(self, line: int, found: list[tuple[str, str, float]]) -> None:
+        """The out-of-range values of one frame line: (landmark, field, value) each."""
+        if not found:
+            return
+        if not self.lines:
+            where, name, value = found[0]
+            self.first = f"line {line}: {where} {name} {value!r}"
+        self.lines += 1
+        self.values += len(found)
+        self.landmarks += len({where for where, _, _ in found})
+
+    def __bool__(self) -> bool:
+        return self.values > 0
+
+    def __str__(self) -> str:
+        return (f"{self.path}: {self.values} visibility or presence value(s) outside [0, 1] on {self.lines} "
+                f"line(s) (first: {self.first}); each such landmark ({self.landmarks} in all) was read as "
+                "unknown, as null is, and its frame kept (the spec says 0..1: the recording's extractor wrote "
+                "something that is not a probability)")
+
+
 @dataclass(frozen=True, eq=False)
 class PersonLandmarks:
     """One person of a frame's ``people``: ``id`` the track id (stable while the person stays in view,
@@ -207,8 +257,9 @@ class PersonLandmarks:
         return out
 
     @classmethod
-    def from_json(cls, obj: Any, index: int = 0) -> PersonLandmarks:
-        """Parse one entry of ``people``; raises ValueError naming ``people[index]`` and what is wrong."""
+    def from_json(cls, obj: Any, index: int = 0, invalid: list | None = None) -> PersonLandmarks:
+        """Parse one entry of ``people``; raises ValueError naming ``people[index]`` and what is wrong.
+        Visibility or presence outside [0, 1] make their landmark unknown, each listed in ``invalid``."""
         where = f"people[{index}]"
         if not isinstance(obj, dict):
             raise ValueError(f'{where} must be an object {{"id": N, "landmarks": [...]}}, got {obj!r:.60}')
@@ -216,20 +267,24 @@ class PersonLandmarks:
         if not isinstance(pid, int) or isinstance(pid, bool) or pid < 0:
             raise ValueError(f"{where}.id must be a non-negative integer (a track id), got {pid!r}")
         try:
-            lms = _parse_rows(obj.get("landmarks"), "landmarks", "[x, y, z, visibility, presence]")
+            found: list = []
+            lms = _parse_rows(obj.get("landmarks"), "landmarks", "[x, y, z, visibility, presence]", found)
             if lms is None:
                 raise ValueError("landmarks are missing (33 entries)")
-            world = _parse_rows(obj.get("world"), "world", "[x, y, z, visibility, presence] (metres)")
+            world = _parse_rows(obj.get("world"), "world", "[x, y, z, visibility, presence] (metres)", found)
             depth = _parse_depth_m(obj.get("depth_m"))
-            return cls(pid, lms, world, depth)
+            person = cls(pid, lms, world, depth)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
+        if invalid is not None:
+            invalid += [(f"{where} {w}", name, v) for w, name, v in found]
+        return person
 
 
-def _parse_people(raw: Any) -> tuple[PersonLandmarks, ...]:
+def _parse_people(raw: Any, invalid: list | None = None) -> tuple[PersonLandmarks, ...]:
     if not isinstance(raw, list):
         raise ValueError(f"people must be a list of persons, got {type(raw).__name__}")
-    people = tuple(PersonLandmarks.from_json(p, i) for i, p in enumerate(raw))
+    people = tuple(PersonLandmarks.from_json(p, i, invalid) for i, p in enumerate(raw))
     ids = [p.id for p in people]
     if len(set(ids)) != len(ids):
         raise ValueError(f"people: every person needs their own id, got ids {ids}")
@@ -349,8 +404,10 @@ class LandmarkFrame:
         return out
 
     @classmethod
-    def from_json(cls, obj: Any) -> LandmarkFrame:
-        """Parse a frame object; raises ValueError naming what is wrong."""
+    def from_json(cls, obj: Any, invalid: list | None = None) -> LandmarkFrame:
+        """Parse a frame object; raises ValueError naming what is wrong. A landmark (or world landmark, or a
+        person's) whose visibility or presence is outside [0, 1] is unknown (a NaN row, as null is), and
+        (landmark, field, value) for each such value is appended to ``invalid`` when given."""
         if not isinstance(obj, dict):
             raise ValueError("a frame line must be a JSON object")
         seq = obj.get("seq")
@@ -362,16 +419,20 @@ class LandmarkFrame:
         if "landmarks" not in obj:
             raise ValueError("the key 'landmarks' is missing (use null for no person)")
         raw = obj["landmarks"]
-        arr = _parse_rows(raw, "landmarks", "[x, y, z, visibility, presence]")
+        found: list = []
+        arr = _parse_rows(raw, "landmarks", "[x, y, z, visibility, presence]", found)
         depth = _parse_depth_m(obj.get("depth_m"))
         gravity = _parse_gravity(obj.get("gravity"))
-        world = _parse_rows(obj.get("world"), "world", "[x, y, z, visibility, presence] (metres)")
-        people = _parse_people(obj["people"]) if obj.get("people") is not None else None
+        world = _parse_rows(obj.get("world"), "world", "[x, y, z, visibility, presence] (metres)", found)
+        people = _parse_people(obj["people"], found) if obj.get("people") is not None else None
         known = ("seq", "t", "landmarks") + (("depth_m",) if depth is not None else ()) + (
             ("gravity",) if gravity is not None else ()) + (("world",) if "world" in obj else ()) + (
             ("people",) if people is not None else ())
         extra = {k: v for k, v in obj.items() if k not in known}
-        return cls(seq, float(t), arr, extra, depth, gravity, world, people)
+        frame = cls(seq, float(t), arr, extra, depth, gravity, world, people)
+        if invalid is not None:
+            invalid += found
+        return frame
 
 
 def _rows_json(rows: np.ndarray) -> list:
@@ -379,9 +440,10 @@ def _rows_json(rows: np.ndarray) -> list:
     return [None if np.isnan(row).any() else [float(v) for v in row] for row in rows]
 
 
-def _parse_rows(raw: Any, key: str, what: str) -> np.ndarray | None:
+def _parse_rows(raw: Any, key: str, what: str, invalid: list | None = None) -> np.ndarray | None:
     """A frame's ``landmarks`` or ``world``: 33 entries of five finite numbers or null, as (33, 5) float64 with
-    NaN rows; None when absent/null. Raises ValueError naming the key and the entry."""
+    NaN rows; None when absent/null. Raises ValueError naming the key and the entry. An entry whose visibility
+    or presence is outside [0, 1] is unknown (a NaN row) and listed in ``invalid`` as (landmark, field, value)."""
     if raw is None:
         return None
     if not isinstance(raw, list) or len(raw) != NUM_LANDMARKS:
@@ -394,6 +456,12 @@ def _parse_rows(raw: Any, key: str, what: str) -> np.ndarray | None:
         if not isinstance(lm, list) or len(lm) != 5 or not all(_is_number(v) for v in lm):
             label = "landmark" if key == "landmarks" else key
             raise ValueError(f"{label} {i} ({LANDMARK_NAMES[i]}) must be {what} finite numbers or null, got {lm!r}")
+        bad = _out_of_range(lm)
+        if bad:        # not a probability: the landmark is unknown, as with NaN; counted, not silent
+            if invalid is not None:
+                label = "landmark" if key == "landmarks" else key
+                invalid += [(f"{label} {i} ({LANDMARK_NAMES[i]})", name, v) for name, v in bad]
+            continue
         arr[i] = lm
     return arr
 
@@ -436,8 +504,39 @@ class RecordingProblem:
         return f"{self.path}:{self.line}: {self.message}"
 
 
-def iter_recording(path: str | os.PathLike) -> tuple[RecordingHeader, Iterator[LandmarkFrame | RecordingProblem]]:
-    """Open a recording: its header and a lazy stream of frames, with problems in place of bad lines."""
+class FrameStream:
+    """A recording's frames (and problems in place of bad lines), read lazily; ``invalid`` counts the
+    visibility and presence values outside [0, 1] met so far (:class:`InvalidValues`). When the stream ends
+    (or is closed) with any, an :class:`InvalidLandmarkValues` warning says how many and where the first is."""
+
+    def __init__(self, fh: BinaryIO, path: str) -> None:
+        self.invalid = InvalidValues(path)
+        self._gen = _frames(fh, path, self.invalid)
+        self._reported = False
+
+    def __iter__(self) -> FrameStream:
+        return self
+
+    def __next__(self) -> LandmarkFrame | RecordingProblem:
+        try:
+            return next(self._gen)
+        except StopIteration:
+            self._report()
+            raise
+
+    def close(self) -> None:
+        self._gen.close()
+        self._report()
+
+    def _report(self) -> None:
+        if self.invalid and not self._reported:
+            self._reported = True
+            warnings.warn(InvalidLandmarkValues(str(self.invalid)), stacklevel=3)
+
+
+def iter_recording(path: str | os.PathLike) -> tuple[RecordingHeader, FrameStream]:
+    """Open a recording: its header and a lazy stream of frames, with problems in place of bad lines (and
+    landmarks with visibility or presence outside [0, 1] read as unknown, counted in ``stream.invalid``)."""
     fh = _open(path)
     try:
         first = fh.readline(MAX_LINE_BYTES + 1)
@@ -448,7 +547,7 @@ def iter_recording(path: str | os.PathLike) -> tuple[RecordingHeader, Iterator[L
     except BaseException:
         fh.close()
         raise
-    return header, _frames(fh, str(path))
+    return header, FrameStream(fh, str(path))
 
 
 def read_recording(path: str | os.PathLike) -> tuple[RecordingHeader, list[LandmarkFrame], list[RecordingProblem]]:
@@ -548,7 +647,7 @@ def _bounded_lines(fh: BinaryIO) -> Iterator[bytes]:
             return
 
 
-def _frames(fh: BinaryIO, path: str) -> Iterator[LandmarkFrame | RecordingProblem]:
+def _frames(fh: BinaryIO, path: str, invalid: InvalidValues) -> Iterator[LandmarkFrame | RecordingProblem]:
     with fh:
         for lineno, raw in enumerate(_bounded_lines(fh), start=2):
             if _too_long(raw):
@@ -562,11 +661,15 @@ def _frames(fh: BinaryIO, path: str) -> Iterator[LandmarkFrame | RecordingProble
                 continue
             if not line.strip(JSON_WHITESPACE):
                 continue  # a blank line (only JSON's whitespace: a control character is a problem line)
+            found: list = []
             try:
-                yield LandmarkFrame.from_json(json.loads(line))
+                frame = LandmarkFrame.from_json(json.loads(line), found)
             except json.JSONDecodeError as exc:
                 yield RecordingProblem(path, lineno, f"not valid JSON: {exc.msg} at column {exc.colno}")
             except ValueError as exc:
                 yield RecordingProblem(path, lineno, str(exc))
             except RecursionError:
                 yield RecordingProblem(path, lineno, "JSON nested too deeply to be a frame")
+            else:
+                invalid.add(lineno, found)
+                yield frame

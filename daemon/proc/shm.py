@@ -12,10 +12,17 @@ multiprocessing's (``/dev/shm/sem.mp-<random>``, unlinked by the resource tracke
 whole group also kills): the supervisor lists their names in ``posed-<pid>-semaphores``
 (:func:`record_semaphores`), and :func:`remove_stale` unlinks the listed ones of a supervisor that is gone,
 and no other ``sem.*`` file.
+
+A segment's pages are reserved when it is created (:func:`reserve`: ``posix_fallocate`` on its fd). Without
+that, a full /dev/shm (a container's 64 MB default, another program's files) is found only when a page is
+first written: the writing process (the supervisor, or the capture stage in a restart loop) dies of SIGBUS
+with no message. Reserved, a full /dev/shm is :class:`SharedMemoryFull` at creation, which says how much was
+needed and free and the fix, and the supervisor stops with exit status 78.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 from multiprocessing import resource_tracker, shared_memory
@@ -31,9 +38,83 @@ def segment_name(what: str, pid: int | None = None) -> str:
     return f"{PREFIX}{os.getpid() if pid is None else pid}-{what}"
 
 
+class SharedMemoryFull(OSError):
+    """/dev/shm has not room for a segment (or a doorbell semaphore); ``fix`` says what to do."""
+
+    def __init__(self, message: str, fix: str, needed: int, free: int | None) -> None:
+        super().__init__(errno.ENOSPC, message)
+        self.message, self.fix, self.needed, self.free = message, fix, needed, free
+
+    def __str__(self) -> str:
+        return self.message
+
+
+FULL_FIX = ("free space in /dev/shm (see `df -h /dev/shm`; posed's own segments left by a killed daemon are "
+            "removed at start), or make /dev/shm larger: in a container start it with a larger --shm-size "
+            "(Docker's default is 64 MB; Kubernetes: a memory-backed emptyDir mounted on /dev/shm), on a host "
+            "`mount -o remount,size=1G /dev/shm` (lasting: a size= option for /dev/shm in /etc/fstab); or make "
+            "the frame ring smaller (pipeline.ring_slots, pipeline.frame_max_pixels)")
+
+
+def free_bytes(shm_dir: Path = _SHM_DIR) -> int | None:
+    """Bytes an unprivileged process may still use in ``shm_dir`` (None when it cannot be asked)."""
+    try:
+        st = os.statvfs(shm_dir)
+    except OSError:
+        return None
+    return st.f_bavail * st.f_frsize
+
+
+def full_error(what: str, needed: int, shm_dir: Path = _SHM_DIR, out_of_memory: bool = False) -> SharedMemoryFull:
+    """The error for a ``what`` (e.g. "the ring segment posed-12-ring") of ``needed`` bytes that did not fit
+    (``out_of_memory``: the kernel said ENOMEM, i.e. the memory limit of the cgroup rather than the tmpfs's size)."""
+    free = free_bytes(shm_dir)
+    free_text = "unknown" if free is None else _mb(free)
+    message = (f"{shm_dir} has no room for {what}: it needs {_mb(needed)} ({needed} bytes) of shared memory and "
+               f"{shm_dir} has {free_text} free")
+    fix = FULL_FIX
+    if out_of_memory:
+        message += " (the kernel refused the memory: the memory limit of this service or container is reached)"
+        fix = "raise the memory limit (systemd MemoryMax=, docker --memory) or " + FULL_FIX
+    return SharedMemoryFull(message, fix, needed, free)
+
+
+def _mb(n: int) -> str:
+    return f"{n / 1e6:.1f} MB" if n >= 1_000_000 else f"{n / 1e3:.0f} kB"
+
+
+def reserve(fd: int, size: int, what: str, shm_dir: Path = _SHM_DIR) -> None:
+    """Allocate every page of the ``size`` bytes of the file ``fd`` (a segment in ``shm_dir``, a tmpfs) now, so
+    that writing into it later can never fail for want of space (a tmpfs page allocated at the first write
+    that finds the file system full raises SIGBUS); :class:`SharedMemoryFull` when there is not room."""
+    if size <= 0:
+        return
+    try:
+        os.posix_fallocate(fd, 0, size)
+    except OSError as exc:
+        if exc.errno in (errno.ENOSPC, errno.ENOMEM, errno.EDQUOT):
+            raise full_error(what, size, shm_dir, out_of_memory=exc.errno == errno.ENOMEM) from exc
+        raise
+
+
 def create(what: str, size: int) -> shared_memory.SharedMemory:
-    """Create (and zero) a segment owned by this process; unlink it with :func:`destroy`."""
-    return shared_memory.SharedMemory(name=segment_name(what), create=True, size=max(1, size))
+    """Create (and zero) a segment owned by this process with all its pages reserved (:func:`reserve`);
+    unlink it with :func:`destroy`. :class:`SharedMemoryFull` (and nothing left behind) when /dev/shm has not
+    room for it."""
+    name = segment_name(what)
+    size = max(1, size)
+    try:
+        segment = shared_memory.SharedMemory(name=name, create=True, size=size)
+    except OSError as exc:
+        if exc.errno == errno.ENOSPC:
+            raise full_error(f"the {what} segment {name}", size) from exc
+        raise
+    try:
+        reserve(segment._fd, size, f"the {what} segment {name}")
+    except BaseException:
+        destroy(segment)
+        raise
+    return segment
 
 
 def attach(name: str) -> shared_memory.SharedMemory:

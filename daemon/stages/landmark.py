@@ -14,6 +14,11 @@ working size, and its landmarks go on in the source's own pixels: x, y and z (pi
 detector, the landmarks topic and a recording are the same as with the frame at full size, and ``posed
 render`` draws them on the original video. The depth at the landmarks is sampled before, on the scaled depth.
 
+A change of frame size mid-stream (a camera replugged at another resolution, a webcam switching mode) resets
+the landmarker as a source that starts again does: its region of interest is in the old frame's pixels (the
+landmark model would look at the wrong place: no person for a frame, or landmarks off the person), so the
+first frame of the new size runs the detector (logged as ``frame_size_changed``).
+
 Gravity: the camera accelerometer's down direction (``FrameRef.gravity``, hal.imu) goes on the frame too,
 ``LandmarkMsg.frame.gravity``, person or not: the fall detector's camera geometry follows it.
 
@@ -58,6 +63,7 @@ def run(rt: StageRuntime) -> None:
     floor = DepthFloor() if falls_cfg.enabled and falls_cfg.floor_from_depth else None
     floor_failures = 0
     last_seq: int | None = None
+    last_size: tuple | None = None
     while True:
         rt.beat()
         rt.check_stop()
@@ -73,7 +79,12 @@ def run(rt: StageRuntime) -> None:
             image, depth, depth_scale = got
             if last_seq is not None and ref.seq <= last_seq:
                 landmarker.reset()        # the source started again: forget the tracked person
-            last_seq = ref.seq
+            size = frame_size(ref)
+            if last_size is not None and size != last_size:
+                landmarker.reset()        # another frame size (a camera replugged): the ROI is in the old pixels
+                rt.log.info("frame_size_changed", seq=ref.seq, size=size, previous=last_size,
+                            note="tracking started again: the detector runs on this frame")
+            last_seq, last_size = ref.seq, size
             try:
                 frame = with_depth(landmarker.process(image, ref.t_capture, ref.seq), depth, depth_scale)
                 if ref.scale != 1:
@@ -103,6 +114,14 @@ def run(rt: StageRuntime) -> None:
                                 (("landmarks_in", t_in), ("landmarks_out", t_out)), ref.t_origin),
                     lossless=ref.t_origin is not None)
         rt.done(t_out - t_in, origin(ref), t_out)
+
+
+def frame_size(ref) -> tuple[int, int, int, tuple[int, int]]:
+    """What the tracked region of interest depends on: the frame's size in the ring, the factor it was scaled
+    down by and the source's own size. When any of these changes mid-stream (a camera replugged or switched to
+    another resolution) the landmarker's ROI, in the old frame's pixels, points at the wrong place: the next
+    frame would find nobody, or landmarks where the person is not."""
+    return (int(ref.width), int(ref.height), int(ref.scale), tuple(ref.full_size))
 
 
 def to_source_pixels(frame, k: int):

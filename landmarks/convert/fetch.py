@@ -12,6 +12,7 @@ import errno
 import hashlib
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -90,6 +91,7 @@ class FetchResult:
     changed: bool  # False: everything was already in place
     manifest: dict
     seconds: dict[str, float] = field(default_factory=dict)  # time per step
+    removed_temporaries: tuple[str, ...] = ()  # names of files an interrupted fetch had left (removed now)
 
 
 def _sha256(data: bytes) -> str:
@@ -198,8 +200,77 @@ def _write_error(path: Path, exc: OSError) -> FetchError:
     return FetchError(f"cannot write {path}: {exc}", EX_IOERR)
 
 
+# The temporary name of each file the fetch writes: ``.<file>.tmp<pid of the writer>`` (:func:`_write_atomic`).
+OWN_FILES = (DETECTOR_TFLITE, LANDMARK_TFLITE, DETECTOR_ONNX, LANDMARK_ONNX, MANIFEST)
+_TEMPORARY = re.compile(r"\.(" + "|".join(re.escape(n) for n in OWN_FILES) + r")\.tmp([0-9]+)")
+# A temporary is written and renamed within seconds; one this old is stale whatever its writer's pid now is.
+STALE_AFTER_S = 600.0
+
+
+def _temporary(path: Path) -> Path:
+    return path.with_name(f".{path.name}.tmp{os.getpid()}")
+
+
+def stale_temporaries(models_dir: Path) -> list[Path]:
+    """The fetch's own temporaries (``.<model file>.tmp<pid>``) in ``models_dir`` left by a fetch that was
+    killed (kill -9, a power cut) before it renamed them: their writer is gone (or they are older than
+    ``STALE_AFTER_S``, so the pid was reused). Another fetch's temporaries while it runs are not among them;
+    nor is any other file."""
+    found = []
+    try:
+        entries = list(os.scandir(models_dir))
+    except OSError:
+        return found
+    now = time.time()
+    for entry in entries:
+        m = _TEMPORARY.fullmatch(entry.name)
+        if not m or not entry.is_file(follow_symlinks=False):
+            continue
+        pid = int(m.group(2))
+        try:
+            age = now - entry.stat(follow_symlinks=False).st_mtime
+        except OSError:
+            continue
+        if pid == os.getpid() or (_alive(pid) and age < STALE_AFTER_S):
+            continue
+        found.append(Path(entry.path))
+    return sorted(found)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def remove_stale_temporaries(models_dir: Path, say: Callable[[str], None]) -> tuple[str, ...]:
+    """Remove :func:`stale_temporaries` and say so (how many, their names and bytes); their names."""
+    removed, total, failed = [], 0, []
+    for path in stale_temporaries(models_dir):
+        try:
+            size = path.stat().st_size
+            path.unlink()
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            failed.append(f"{path.name} ({exc.strerror})")
+            continue
+        removed.append(path.name)
+        total += size
+    if removed:
+        say(f"removed {len(removed)} temporary file(s) left in {models_dir} by an interrupted fetch "
+            f"({total / 1e6:.1f} MB): {', '.join(removed)}")
+    if failed:
+        say(f"could not remove temporary file(s) left by an interrupted fetch: {', '.join(failed)}")
+    return tuple(removed)
+
+
 def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp = _temporary(path)
     try:
         with open(tmp, "wb") as f:
             f.write(data)
@@ -275,11 +346,12 @@ def fetch_models(models_dir: str | os.PathLike, source: str | os.PathLike | None
     t0 = time.perf_counter()
     seconds: dict[str, float] = {}
     paths = ModelPaths.in_dir(Path(models_dir).expanduser())
+    removed = remove_stale_temporaries(paths.models_dir, say)   # a fetch killed before it renamed its files
     if not force:  # the same pinned inputs give the same files, whatever the source
         manifest = up_to_date(paths)
         if manifest is not None:
             seconds["check"] = time.perf_counter() - t0
-            return FetchResult(paths.models_dir, False, manifest, seconds)
+            return FetchResult(paths.models_dir, False, manifest, seconds, removed)
 
     try:
         paths.models_dir.mkdir(parents=True, exist_ok=True)
@@ -342,4 +414,4 @@ def fetch_models(models_dir: str | os.PathLike, source: str | os.PathLike | None
     _write_atomic(paths.models_dir / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
     seconds["write"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t0
-    return FetchResult(paths.models_dir, True, manifest, seconds)
+    return FetchResult(paths.models_dir, True, manifest, seconds, removed)

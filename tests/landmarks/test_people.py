@@ -65,6 +65,8 @@ def test_a_second_real_person_walking_in_is_found_and_tracked(models_dir, shared
 def test_people_round_trip_and_a_bad_entry_is_named(tmp_path):
     rng = np.random.default_rng(5)
     a, b = rng.uniform(0, 480, (33, 5)), rng.uniform(0, 480, (33, 5))
+    a[:, 3:] /= 480                       # visibility and presence are probabilities (outside [0, 1]: unknown)
+    b[:, 3:] /= 480
     frames = [LandmarkFrame(0, 0.0, a, people=(PersonLandmarks(1, a), PersonLandmarks(4, b))),
               LandmarkFrame(1, 0.1, a)]
     path = tmp_path / "p.landmarks.jsonl"

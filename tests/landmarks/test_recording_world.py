@@ -29,6 +29,7 @@ def _world(rng) -> np.ndarray:
 def test_world_round_trips_and_rows_without_a_value_are_null(tmp_path):
     rng = np.random.default_rng(3)
     lms = rng.uniform(0, 480, (33, 5))
+    lms[:, 3:] /= 480                     # visibility and presence are probabilities (outside [0, 1]: unknown)
     frames = [LandmarkFrame(0, 0.0, lms, world=_world(rng)), LandmarkFrame(1, 0.1, None)]
     path = tmp_path / "w.landmarks.jsonl"
     from posed.landmarks import RecordingHeader
