@@ -7,7 +7,7 @@ landmarks topic as it reads a recording) only — never the daemon.
 """
 
 __all__ = ["Alive", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError", "Restored",
-           "RestoredFall", "State", "Status", "restored", "session_config", "without_frames_s"]
+           "RestoredFall", "State", "Status", "Watch", "restored", "session_config", "without_frames_s"]
 _API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 
 

@@ -4,7 +4,8 @@
   ``image_size``, ``timing_ms``, ``root_cam_m``, ``format``, ``version`` ...);
 * fall event -> :class:`falls.FallEvent` (``extra`` keeps ``time_unix``, ``t_onset_unix``, ``t_impact_unix``,
   ``restored``, ``without_frames_s``: read them typed with :func:`restored` and :func:`without_frames_s`);
-* status -> :class:`Status` (``raw`` keeps the whole object; ``restored_open`` typed, ``not_watching``);
+* status -> :class:`Status` (``raw`` keeps the whole object; ``restored_open`` and ``watch`` typed,
+  ``not_watching``);
 * landmarks -> :class:`Landmarks`: ``points``, ``depth_m``, ``world``, ``people`` (each a
   :class:`PersonLandmarks`), ``gravity``, ``floor``, and ``raw``, the whole object as received;
 * a stored event -> :class:`HistoryEntry`; a state reply -> :class:`State` (``raw`` keeps the whole object).
@@ -80,6 +81,7 @@ class Restored:
     at_unix: float
     last_state: str
     due_unix: float | None
+    clock: str | None = None     # "behind" (stepped back), "beyond_horizon": the alarm was due at once (docs/falls.md)
 
 
 def restored(event: FallEvent) -> Restored | None:
@@ -87,7 +89,8 @@ def restored(event: FallEvent) -> Restored | None:
     r = event.extra.get("restored")
     if not isinstance(r, dict) or _number(r.get("at_unix")) is None:
         return None
-    return Restored(_number(r.get("at_unix")), str(r.get("last_state") or ""), _number(r.get("due_unix")))
+    return Restored(_number(r.get("at_unix")), str(r.get("last_state") or ""), _number(r.get("due_unix")),
+                    _text(r.get("clock")))
 
 
 def without_frames_s(event: FallEvent) -> float | None:
@@ -105,7 +108,31 @@ class RestoredFall:
     continued: bool
 
 
-# the daemon's rule for "posed is not watching" (daemon.outbox.watch_hooks.why_not_watching, hooks.on_watch_lost)
+@dataclass(frozen=True)
+class Watch:
+    """The status's ``watch``: whether posed is watching, since when (unix seconds) and why not (``reason``: blind,
+    waiting_for_camera, degraded, escalated, camera lost, camera ended; ``detail``: what the status said),
+    judged by the daemon with the rule of ``hooks.on_watch_lost``."""
+
+    watching: bool
+    since_unix: float
+    reason: str | None = None
+    detail: str | None = None
+
+
+def _watch(obj: dict) -> Watch | None:
+    w = obj.get("watch")
+    if not isinstance(w, dict) or not isinstance(w.get("watching"), bool) or _number(w.get("since_unix")) is None:
+        return None
+    return Watch(w["watching"], _number(w["since_unix"]), _text(w.get("reason")), _text(w.get("detail")))
+
+
+def _text(v) -> str | None:
+    return v if isinstance(v, str) and v else None
+
+
+# the daemon's rule for "posed is not watching" (daemon.outbox.watch_hooks.judge, hooks.on_watch_lost), for a
+# status without ``watch`` (an older posed, or one still starting)
 NOT_WATCHING_STATES = ("blind", "waiting_for_camera", "degraded", "escalated")
 CAMERA_GONE = ("lost", "ended")
 
@@ -125,12 +152,16 @@ class Status:
     unacknowledged_events: int | None
     raw: dict = field(repr=False, default_factory=dict)
     restored_open: tuple[RestoredFall, ...] = ()
+    watch: Watch | None = None
 
     @property
     def not_watching(self) -> str | None:
         """Why posed cannot see a fall now (the state — blind, waiting_for_camera, degraded, escalated — or
-        the camera lost or ended), None while it watches; the daemon's ``hooks.on_watch_lost`` rule, judged on
-        this one status (``starting`` and ``stopping`` count as watching here)."""
+        the camera lost or ended), None while it watches: the status's ``watch`` as the daemon judged it; for a
+        status without one (an older posed, or one still starting) the daemon's ``hooks.on_watch_lost`` rule
+        judged on this one status (``starting`` and ``stopping`` count as watching there)."""
+        if self.watch is not None:
+            return None if self.watch.watching else (self.watch.reason or "not watching")
         if self.state in NOT_WATCHING_STATES:
             return self.state
         if self.camera in CAMERA_GONE:
@@ -146,7 +177,7 @@ class Status:
                    drops=int(obj.get("drops") or 0), restarts=int(obj.get("restarts") or 0),
                    camera=str((obj.get("camera") or {}).get("state", "")),
                    unacknowledged_events=(obj.get("events") or {}).get("unacknowledged"), raw=obj,
-                   restored_open=_restored_open(obj))
+                   restored_open=_restored_open(obj), watch=_watch(obj))
 
 
 def _restored_open(obj: dict) -> tuple[RestoredFall, ...]:

@@ -15,7 +15,9 @@ them, the first ``output_limit`` bytes of its output logged. Its stdin is the no
 ``POSED_WATCH_SINCE_UNIX``, ``POSED_ROBOT`` and ``POSED_HOOK_ATTEMPT`` carry the main fields. Notices are not
 journalled: they are about the present, and a daemon started again judges it afresh (still not watching:
 ``lost`` again after ``watch_lost_after_s``). A flapping camera is one loss (:class:`WatchLoss`): ``back``
-comes once posed has watched for ``watch_lost_after_s`` without a break. What this cannot tell: a daemon that
+comes once posed has watched for ``watch_lost_after_s`` without a break. The same judgement (:func:`judge`)
+is published in every status as ``watch`` (:meth:`WatchLoss.state`: watching or not, since when, why), so a
+reader never judges it again from the state and the camera. What this cannot tell: a daemon that
 is gone altogether (no process left to run a hook); Zenoh's liveliness token ``posed/ROBOT/alive`` and systemd
 say that (docs/daemon.md).
 """
@@ -60,21 +62,35 @@ class WatchNotice:
                 "POSED_WATCH_SINCE_UNIX": repr(round(self.since_unix, 3)), "POSED_ROBOT": self.robot}
 
 
-def why_not_watching(status: dict) -> str | None:
-    """Why the status says posed is not watching (its state and reason), None when it watches; ``UNDECIDED``
-    states give ``""`` (keep the current judgement)."""
+def judge(status: dict) -> tuple[str, str] | str | None:
+    """Whether the status says posed is watching (the one rule of the hooks and of the status's ``watch``):
+    None when it watches; ``(reason, detail)`` when it does not (``reason`` the state — blind,
+    waiting_for_camera, degraded, escalated — or ``camera lost`` / ``camera ended``; ``detail`` what the status
+    said: the blind reason, the camera's error, or ``""``); ``""`` for ``UNDECIDED`` states (keep the current
+    judgement)."""
     state = status.get("state")
     camera = status.get("camera") or {}
     if state in UNDECIDED:
         return ""
     if state in NOT_WATCHING:
         blind = status.get("blind") or {}
-        detail = blind.get("reason") or camera.get("error") or ""
-        return f"{state}: {detail}" if detail else str(state)
+        return str(state), blind.get("reason") or camera.get("error") or ""
     if camera.get("state") in CAMERA_GONE:
-        detail = camera.get("error") or ""
-        return f"camera {camera['state']}: {detail}" if detail else f"camera {camera['state']}"
+        return f"camera {camera['state']}", camera.get("error") or ""
     return None
+
+
+def why_not_watching(status: dict) -> str | None:
+    """Why the status says posed is not watching (its state and reason), None when it watches; ``UNDECIDED``
+    states give ``""`` (keep the current judgement)."""
+    return _why(judge(status))
+
+
+def _why(judged) -> str | None:
+    if judged is None or judged == "":
+        return judged
+    reason, detail = judged
+    return f"{reason}: {detail}" if detail else reason
 
 
 class WatchLoss:
@@ -96,14 +112,40 @@ class WatchLoss:
         self._watching_since: float | None = None           # monotonic; None while not watching
         self._reason = ""
         self._told = False
+        # the status's ``watch`` (:meth:`state`): watching, since (unix), reason, detail; None before a judgement
+        self._state: tuple[bool, float, str | None, str | None] | None = None
 
     @property
     def lost(self) -> bool:
         """A ``lost`` notice was given and no ``back`` since."""
         return self._told
 
+    def state(self) -> dict | None:
+        """The status's ``watch``: ``{"watching", "since_unix" (since when posed has been in this state, watching
+        or not), "reason" (why not: the state or ``camera lost``/``ended``; None while watching), "detail" (what
+        the status said: the blind reason, the camera's error; None while watching)}``. The judgement is the
+        hooks' (:func:`judge`): ``starting`` and ``stopping`` keep the one before them, so a daemon still
+        starting has none yet: None (the status's ``state`` says ``starting``). A flapping camera's short
+        returns are said as they happen here (``since_unix`` is the latest change); the hooks add them up."""
+        if self._state is None:
+            return None
+        watching, since, reason, detail = self._state
+        return {"watching": watching, "since_unix": round(since, 4), "reason": reason, "detail": detail}
+
+    def _judged(self, judged, now_unix: float) -> None:
+        if judged == "":
+            return
+        watching = judged is None
+        reason, detail = (None, None) if watching else judged
+        if self._state is None or self._state[0] != watching:
+            self._state = (watching, now_unix, reason, detail or None)
+        else:
+            self._state = (watching, self._state[1], reason, detail or None)
+
     def update(self, status: dict, now: float, now_unix: float) -> WatchNotice | None:
-        why = why_not_watching(status)
+        judged = judge(status)
+        self._judged(judged, now_unix)
+        why = _why(judged)
         if self._last is not None and not self._last[1]:
             self._not_watching_s += max(0.0, now - self._last[0])
         if why == "":                                   # undecided: the current judgement goes on

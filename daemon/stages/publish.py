@@ -21,7 +21,8 @@ supervisor's: 3 s at any usual frame rate) the detectors' alarm timers run on wi
 (:meth:`FallWatch.tick`).
 
 Between frames: ``posed/ROBOT/status`` (the supervisor's status every ``pipeline.status_period_s``, plus the
-Zenoh session and the event backlog); unacknowledged events published again when a new subscriber to
+Zenoh session, the event backlog and ``watch``: whether posed is watching, since when and why not, the rule of
+``hooks.on_watch_lost``); unacknowledged events published again when a new subscriber to
 events/fall appears and every ``zenoh.event_republish_s``; history maintenance. The bus also holds the
 liveliness token ``posed/ROBOT/alive``, the queryables ``posed/ROBOT/state`` (latest pose + status) and
 ``posed/ROBOT/events/history`` (stored events; parameters ``since``, ``until`` (unix seconds or ISO 8601),
@@ -38,7 +39,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -158,9 +158,10 @@ class PublisherStage:
         ``tick_after_s``, the detectors' timers run on to the capture clock's now (the monotonic clock, or for an
         unpaced replay, whose capture clock runs ahead of it, the last frame's capture time plus the time since).
         A frame that comes later, with an older capture time, raises nothing twice (FallDetector.tick)."""
-        events = self.restored.due(now, self.falls)
         quiet = now - self._frame_at
-        if quiet >= self.tick_after_s:
+        frameless = quiet >= self.tick_after_s
+        events = self.restored.due(now, self.falls, quiet if frameless else None)
+        if frameless:
             t = now if self._frame_t is None else max(now, self._frame_t + quiet)
             ticked = self.falls.tick(t, quiet)
             self.restored.observe(ticked)
@@ -198,13 +199,18 @@ class PublisherStage:
         status["storage"] = self.storage()
         if self.ros2 is not None:
             status["ros2"] = self.ros2.status()
-        self.bus.put_status(status_message(status, self.rt.config.robot_id, clock.now()))
-        self.watching(status)
+        now = clock.now()
+        self.watching(status, now)
+        watch = self.watch.state()          # absent while starting: no judgement yet (WatchLoss.state)
+        if watch is not None:
+            status["watch"] = watch
+        self.bus.put_status(status_message(status, self.rt.config.robot_id, now))
 
-    def watching(self, status: dict) -> None:
-        """posed not watching for ``hooks.watch_lost_after_s``, or watching again after that: logged and handed
-        to ``hooks.on_watch_lost`` (:mod:`daemon.outbox.watch_hooks`)."""
-        notice = self.watch.update(status, clock.now(), time.time())
+    def watching(self, status: dict, now: float) -> None:
+        """Whether posed watches, judged on each status once (:class:`WatchLoss`: the status's ``watch``, its
+        times on the status's own clock); not watching for ``hooks.watch_lost_after_s``, or watching again after
+        that: logged and handed to ``hooks.on_watch_lost`` (:mod:`daemon.outbox.watch_hooks`)."""
+        notice = self.watch.update(status, now, clock.wall_from_monotonic(now))
         if notice is None:
             return
         fields = notice.to_json()

@@ -13,7 +13,8 @@ changes nothing. Older open falls that a receiver acknowledged are not re-armed 
 stepped back since it was journalled, are alarmed at once (``_open_fall``: rather early than never).
 
 - **The alarm.** Raised when due (:meth:`RestoredFalls.due`, called between frames, frames or none); one
-  already past due at once, on the stage's first tick after its warm-up. Its content is the detector's alarm
+  already past due at once, on the stage's first tick after its warm-up. Raised while no frame has come for the
+  blind threshold, it carries ``without_frames_s`` as the detector's alarm without frames does. Its content is the detector's alarm
   for that event: the same id, robot, ``t_onset`` and ``t_impact`` (as stored: the capture clock of the run
   that raised it) with ``t_onset_unix`` and ``t_impact_unix`` as stored, the first message's features plus
   ``not_recovered``, its confidence (at least 0.9), the last message's pose, person and geometry; ``t_detect``
@@ -85,6 +86,14 @@ class OpenFall:
     @property
     def open(self) -> bool:
         return not self.closed
+
+    def message(self, state: str, t_detect: float, confidence: float, features: tuple[str, ...],
+                pose: dict | None, extra: dict) -> FallEvent:
+        """A message of this fall (its id, robot, ``t_onset`` and ``t_impact`` as stored), ``extra`` with what
+        every message of it carries (``carried``: the unix times, ``restored``) laid over."""
+        return FallEvent(id=self.id, robot=self.robot, state=state, t_onset=self.t_onset, t_impact=self.t_impact,
+                         t_detect=t_detect, confidence=confidence, features=features, pose=pose,
+                         extra={**extra, **self.carried})
 
 
 class RestoredFalls:
@@ -158,9 +167,11 @@ class RestoredFalls:
 
     # ------------------------------------------------------------------ the alarm
 
-    def due(self, now: float, watch=None) -> list[FallEvent]:
+    def due(self, now: float, watch=None, without_frames_s: float | None = None) -> list[FallEvent]:
         """The alarms due at ``now`` (monotonic) of the restored falls kept here (not continued by a detector
-        that still has them: ``watch`` is the stage's :class:`FallWatch`)."""
+        that still has them: ``watch`` is the stage's :class:`FallWatch`). ``without_frames_s``: no frame has
+        come for that long (at least the blind threshold; None: frames come); an alarm raised then carries it,
+        as the detector's own alarm without frames does (:meth:`FallWatch.tick`)."""
         out = []
         for f in self.open:
             if "alarm" in f.sent:
@@ -173,10 +184,11 @@ class RestoredFalls:
                                  note="the detector that continued a restored fall lost it; its alarm is kept")
             if now < f.due - 1e-9:
                 continue
-            extra = {**f.last_extra, **f.carried}
-            out.append(FallEvent(id=f.id, robot=f.robot, state="alarm", t_onset=f.t_onset, t_impact=f.t_impact,
-                                 t_detect=now, confidence=round(max(f.confidence, 0.9), 3),
-                                 features=f.features + ("not_recovered",), pose=f.pose, extra=extra))
+            extra = dict(f.last_extra)
+            if without_frames_s is not None:
+                extra["without_frames_s"] = round(float(without_frames_s), 3)
+            out.append(f.message("alarm", now, round(max(f.confidence, 0.9), 3), f.features + ("not_recovered",),
+                                 f.pose, extra))
             f.sent.add("alarm")
         return out
 
@@ -245,10 +257,8 @@ class RestoredFalls:
         if "on_floor" in f.sent:
             return []
         f.sent.add("on_floor")
-        extra = {**e.extra, "geometry": dict(f.geometry), **f.carried}
-        return [FallEvent(id=f.id, robot=f.robot, state="on_floor", t_onset=f.t_onset, t_impact=f.t_impact,
-                          t_detect=e.t_detect, confidence=f.confidence, features=f.features + ("still_on_floor",),
-                          pose=e.pose, extra=extra)]
+        return [f.message("on_floor", e.t_detect, f.confidence, f.features + ("still_on_floor",), e.pose,
+                          {**e.extra, "geometry": dict(f.geometry)})]
 
     def _gather(self, msg, watch, t: float) -> None:
         """Who is in view and who is judged up (the detector's recovery rule), per person."""
@@ -298,14 +308,12 @@ class RestoredFalls:
             extra["person"] = key
             extra["root_cam_m"] = None if person.root_cam_m is None else [round(float(v), 3)
                                                                           for v in person.root_cam_m]
-        extra.update(f.carried)
         result = people.in_frame.get(key)
         f.sent.add("recovered")
         f.closed = True
         self.log.info("restored_fall_recovered", id=f.id, by="seen_up", person=key, alarm_sent="alarm" in f.sent)
-        return [FallEvent(id=f.id, robot=f.robot, state="recovered", t_onset=f.t_onset, t_impact=f.t_impact,
-                          t_detect=t, confidence=0.9, features=("up_again",),
-                          pose=result.to_json() if result is not None else None, extra=extra)]
+        return [f.message("recovered", t, 0.9, ("up_again",), result.to_json() if result is not None else None,
+                          extra)]
 
 
 def _open_fall(event_id: str, items: list, cfg: FallsConfig, now: float, now_unix: float,

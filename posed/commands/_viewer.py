@@ -121,7 +121,9 @@ class Summary:
             decoded = Status.from_json(status) if "state" in status else None
             blind = decoded.not_watching if decoded else None
             if blind:       # posed runs but sees nothing: no fall can be detected (hooks.on_watch_lost's rule)
-                parts.append(f"NOT WATCHING ({blind}): a fall would not be detected")
+                since = decoded.watch.since_unix if decoded.watch is not None else None
+                parts.append(f"NOT WATCHING ({blind}): a fall would not be detected"
+                             + (f", since {_clock(since)}" if since is not None else ""))
             for r in decoded.restored_open if decoded else ():
                 parts.append(f"fall {r.id[:8]} taken back after a restart: "
                              + ("alarm sent" if r.alarm else f"alarm due {_clock(r.due_unix)}"))

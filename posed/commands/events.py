@@ -2,6 +2,9 @@
 ``posed events ack ID [--state S] [--by NAME]``: acknowledge one (a Zenoh put on ``posed/ROBOT/events/ack``;
 ``by``, who acknowledged, defaults to USER@HOST).
 
+Rows of the journal that are not fall-event messages (damaged) are skipped and named in one line on stderr
+with the sqlite3 command that shows them (--json: ``unreadable_rows``, their rowids).
+
 Listing exit status: 0 listed (or no journal yet), 1 the journal cannot be read, 2 a bad option (a time that
 cannot be read, --since after --until, a --journal that is a folder), 74 writing the list failed (a full
 disk)."""
@@ -21,6 +24,10 @@ from posed.daemon.config.paths import EVENTS_FILE, reading_state_dir
 
 STATES = ("falling", "on_floor", "alarm", "recovered")  # falls.FALL_STATES (not imported: no numpy here)
 MAX_BY_CHARS = 128                                      # daemon.bus.acks.MAX_BY_CHARS
+SHOW_ROWIDS = 20                                        # unreadable journal rows named by rowid
+CLOCK_NOTES = {"behind": "alarm raised at once: the clock was stepped back",
+               "beyond_horizon": "alarm raised at once: the fall is more than a day old by this clock and nobody "
+                                 "acknowledged it"}     # restored.clock (docs/falls.md, "The alarm across a restart")
 
 
 def default_by() -> str:
@@ -110,10 +117,25 @@ def run(args: argparse.Namespace) -> int:
     try:
         with EventJournal(path, readonly=True) as journal:
             stored = journal.query(since, until, args.limit, unacked=args.unacked)
+            unreadable = sorted(journal.unreadable_rows)
     except (JournalError, FileNotFoundError, PermissionError) as exc:
         print(f"posed events: {exc}{_permission_hint(path, exc)}", file=sys.stderr)
         return 1
-    return _print_listing(args, path, stored, hooks_kept=_keeps_hooks(path))
+    if unreadable:
+        print(unreadable_line(path, unreadable), file=sys.stderr)
+    return _print_listing(args, path, stored, hooks_kept=_keeps_hooks(path), unreadable=unreadable)
+
+
+def unreadable_line(path: Path, rowids: list[int]) -> str:
+    """One line naming the journal's rows that are not fall-event messages (damaged by hand, a disk, a bug; the
+    journal skips them) and the sqlite3 command that shows them."""
+    import shlex
+
+    shown = ", ".join(str(r) for r in rowids[:SHOW_ROWIDS]) + (", ..." if len(rowids) > SHOW_ROWIDS else "")
+    query = f"SELECT rowid, * FROM messages WHERE rowid IN ({', '.join(str(r) for r in rowids[:SHOW_ROWIDS])})"
+    return (f"posed events: {len(rowids)} row(s) of the journal could not be read (not fall-event messages: "
+            f"damaged) and are not listed (rowid {shown}); look at them: sqlite3 {shlex.quote(str(path))} "
+            f"{shlex.quote(query)}")
 
 
 def _keeps_hooks(path: Path) -> bool:
@@ -134,26 +156,33 @@ def _keeps_hooks(path: Path) -> bool:
 
 
 def notes(extra: dict) -> str:
-    """What a reader must know beside the state: the fall was taken back after a restart (``restored``), the
-    alarm was raised with no camera frame (``without_frames_s``)."""
+    """What a reader must know beside the state: the fall was taken back after a restart (``restored``; its alarm
+    raised at once for a stepped clock: ``restored.clock``), the alarm was raised with no camera frame
+    (``without_frames_s``)."""
     out = []
     restored = extra.get("restored")
     if isinstance(restored, dict):
         out.append(f"taken back after a restart (was {restored.get('last_state') or '?'})")
+        clock = restored.get("clock")
+        if isinstance(clock, str) and clock:
+            out.append(CLOCK_NOTES.get(clock, f"clock: {clock}"))
     blind = extra.get("without_frames_s")
     if isinstance(blind, (int, float)) and not isinstance(blind, bool):
         out.append(f"raised with no camera frame for {blind:.0f} s")
     return "; ".join(out)
 
 
-def _print_listing(args: argparse.Namespace, path: Path, stored, hooks_kept: bool = True) -> int:
-    """The list on standard output (``stored`` None: there is no journal yet); 74 when it cannot be written."""
+def _print_listing(args: argparse.Namespace, path: Path, stored, hooks_kept: bool = True,
+                   unreadable: list[int] = ()) -> int:
+    """The list on standard output (``stored`` None: there is no journal yet); 74 when it cannot be written.
+    ``unreadable``: the rowids of the journal's rows that could not be read (said on stderr; in --json)."""
     out = Output("posed events", None)
     out.open()
     try:
         if args.json:
             events = [] if stored is None else [s.to_json() for s in stored]
-            print(json.dumps({"journal": str(path), "events": events}), file=out)
+            print(json.dumps({"journal": str(path), "events": events, "unreadable_rows": list(unreadable)}),
+                  file=out)
         elif stored is None:
             print(f"no event journal at {path} yet (the daemon creates it with its first fall event)", file=out)
         elif not stored:

@@ -83,12 +83,18 @@ class Browser:
 
     def wait_for(self, expression: str, timeout: float, what: str):
         deadline = time.monotonic() + timeout
+        error = None
         while time.monotonic() < deadline:
-            value = self.js(expression)
-            if value:
-                return value
+            try:        # right after a navigation the old (blank) document may still answer: not yet, not wrong
+                value = self.js(expression)
+            except BrowserError as exc:
+                error = exc
+            else:
+                if value:
+                    return value
             time.sleep(0.25)
-        raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what} ({expression})")
+        raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what} ({expression})"
+                             + (f"; last error: {error}" if error is not None else ""))
 
     def screenshot(self, path: Path) -> None:
         data = self.call("Page.captureScreenshot", format="png", captureBeyondViewport=True)["data"]

@@ -5,10 +5,12 @@ Messages (JSON objects with ``type``): ``pose`` (at most ``pose_rate_hz`` per se
 measured — fitting.measured; an unseen one is absent — in metres, camera axes — x image right, y image down,
 z away from the camera — relative to the mid-hip, the mid-hip's camera position when known, and the main joint
 angles, null when not measured), ``status`` (with ``floor``: the fall detector's gravity and floor;
-``watching``/``not_watching``: whether posed can see at all, the rule of ``hooks.on_watch_lost``, with why and
-since when; ``restored_open``: falls taken back after a restart whose alarm is still due),
+``watching``/``not_watching``: whether posed can see at all, with why and since when: the status's ``watch``,
+judged by the daemon (the rule of ``hooks.on_watch_lost``), else — an older posed, or one still starting — the
+same rule judged here, since when this view saw it (``since_known`` false when it was so already at the first
+status); ``restored_open``: falls taken back after a restart whose alarm is still due),
 ``event`` (each fall-event message once per (id, state), with ``restored`` — taken back from the journal
-after a restart — and ``without_frames_s`` — an alarm raised with no camera frame for that long), ``acked``, ``alive``, ``bus`` and ``robot``.
+after a restart; ``clock`` when its alarm was raised at once for a stepped clock — and ``without_frames_s`` — an alarm raised with no camera frame for that long), ``acked``, ``alive``, ``bus`` and ``robot``.
 With several people in view one person is drawn: the household member the status says is followed, else each
 frame's own person. ``snapshot()`` is what a page that opens now needs first: the last status, the last minute
 of angles, the events seen, whether the robot is up.
@@ -255,13 +257,16 @@ class Hub:
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
                "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
                "storage": storage_of(status.raw), "restored_open": restored_open_of(status.raw)}
-        why = not_watching(status.raw)
+        watch = watch_of(status.raw)
+        why = not_watching(status.raw) if watch is None else watch[0]
         with self._lock:
             if why == "":       # starting or stopping: the judgement so far stands
                 why = self._not_watching[0] if self._not_watching else None
             if why is None:
                 self._not_watching = None
                 self._saw_watching = True
+            elif watch is not None:     # the daemon's own judgement: since when is known whenever this view began
+                self._not_watching = (why, watch[1], True)
             elif self._not_watching is None:     # since now, or since before the first status heard here
                 self._not_watching = (why, self._wall(), self._saw_watching)
             else:
@@ -341,6 +346,21 @@ def not_watching(raw) -> str | None:
     return None
 
 
+def watch_of(raw) -> tuple[str | None, float] | None:
+    """The status's ``watch`` (the daemon's own judgement, posed since it has the field): (why not in words, None
+    while watching; since when, unix s); None for a status without one (an older posed, or one still starting:
+    then :func:`not_watching` judges)."""
+    w = raw.get("watch") if isinstance(raw, dict) else None
+    if not isinstance(w, dict) or not isinstance(w.get("watching"), bool) or _num(w.get("since_unix")) is None:
+        return None
+    if w["watching"]:
+        return None, _num(w["since_unix"])
+    reason = w.get("reason") if isinstance(w.get("reason"), str) and w.get("reason") else "not watching"
+    detail = w.get("detail") if isinstance(w.get("detail"), str) else ""
+    words = NOT_WATCHING_WORDS.get(reason.removeprefix("camera "), reason)
+    return words + (f" ({detail})" if detail else ""), _num(w["since_unix"])
+
+
 def restored_open_of(raw) -> list[dict]:
     """The falls the daemon took back from its journal after a restart and that are still open (the status's
     ``falls.restored_open``): id, when the alarm is due (unix s), whether it was sent."""
@@ -359,8 +379,10 @@ def restored_of(extra: dict) -> dict | None:
     if not isinstance(r, dict):
         return None
     last = r.get("last_state")
+    clock = r.get("clock")
     return {"at_unix": _num(r.get("at_unix")), "due_unix": _num(r.get("due_unix")),
-            "last_state": STATE_WORDS.get(last, last) if isinstance(last, str) else None}
+            "last_state": STATE_WORDS.get(last, last) if isinstance(last, str) else None,
+            "clock": clock if isinstance(clock, str) else None}
 
 
 def storage_of(raw) -> dict | None:

@@ -236,7 +236,8 @@ function showStatus(s) {
   setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
   setText("st-camera", s.camera || "–"); setText("st-drops", s.drops); setText("st-restarts", s.restarts);
   const nw = s.not_watching;
-  setText("st-watching", nw ? `NO: ${nw.reason}` : s.state === "starting" ? "not yet (starting)" : "yes");
+  setText("st-watching", nw ? `NO: ${nw.reason}` + (nw.since_known ? `, since ${sinceText(nw.since_unix)}` : "") :
+    s.state === "starting" ? "not yet (starting)" : "yes");
   document.getElementById("st-watching").className = nw ? "warn" : "";
   const restored = s.restored_open || [];
   document.getElementById("st-restored-row").hidden = !restored.length;
@@ -271,6 +272,11 @@ const serverNow = () => Date.now() / 1000 - clockSkew;
 function clockText(t) {  // HH:MM:SS in this browser's zone
   const d = toDate(t);
   return d ? `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}` : "–";
+}
+function sinceText(t) {  // HH:MM:SS, with the date when it is not today
+  const d = toDate(t), now = new Date();
+  if (!d) return "–";
+  return d.toDateString() === now.toDateString() ? clockText(t) : localTime(t);
 }
 function ageText(t) {  // "at 22:31:24, 35 s ago"
   if (t === null || t === undefined) return "never";
@@ -310,7 +316,7 @@ function showLiveness() {  // the red bar, the "live" badge, and everything stal
   const wbar = document.getElementById("watching");
   wbar.hidden = !nw;
   wbar.textContent = nw ? `posed on ${robot} is running but NOT WATCHING ` + (nw.since_known ?
-    `since ${clockText(nw.since_unix)}` : `(already when this view started, ${clockText(nw.since_unix)})`) +
+    `since ${sinceText(nw.since_unix)}` : `(already when this view started, ${clockText(nw.since_unix)})`) +
     `: ${nw.reason} — a fall would NOT be detected.` : "";
   const waiting = view.streamLost === null && r.state === "waiting";
   const conn = document.getElementById("conn");
@@ -342,11 +348,18 @@ function fallsById() {  // [{id, msgs (in order), first, last (unix s)}], the ne
 
 const esc = (t) => String(t).replace(/[&<>"']/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;"})[c]);
 
+const CLOCK_NOTES = {  // restored.clock: why the restored alarm was raised at once (docs/falls.md)
+  behind: "alarm raised at once: the clock was stepped back, so how long ago the fall was is unknown",
+  beyond_horizon: "alarm raised at once: the fall was more than a day ago by this clock and nobody had " +
+    "acknowledged it (posed was down that long, or the clock was stepped forward)",
+};
+
 function caveats(msgs, id) {  // a fall taken back after a restart, an alarm raised with no camera frame
   const out = [];
   const r = msgs.map((m) => m.restored).find((x) => x);
   if (r) out.push(`posed restarted during this fall and took it back at ${clockText(r.at_unix)}` +
     (r.last_state ? ` (last seen: ${r.last_state})` : ""));
+  if (r && CLOCK_NOTES[r.clock]) out.push(CLOCK_NOTES[r.clock]);
   const open = ((view.status && view.status.restored_open) || []).find((o) => o.id === id && !o.alarm);
   if (open && !msgs.some((m) => m.state === "alarm" || m.state === "recovered"))
     out.push(`ALARM due at ${clockText(open.due_unix)} unless the person is seen up`);
