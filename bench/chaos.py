@@ -22,6 +22,12 @@ The report counts fall-event messages (one per event id and state): ``produced``
 ``lost`` = produced or journaled but never received, which must be 0. Also: the longest time without a
 pose, the restarts, the memory (PSS sum of all processes) before and after, the exit status, processes
 left behind. Times in seconds (monotonic clock), memory in MB.
+
+``alarms`` (:mod:`bench.chaos_alarms`): every fall opened (``falling`` or ``on_floor``) must get exactly one
+``alarm`` with its id, on time within ``alarm_grace_s``, unless ``recovered`` came first; ``violations`` must
+be 0. To test it under the faults that matter, a stage is killed -9 shortly after each fall event is received
+(``midfall_kill_share``; the first such kill hits the publisher, where the open fall lives), and the settle
+also waits for the alarms of the falls opened during the chaos (at most ``settle_s``).
 """
 
 from __future__ import annotations
@@ -39,7 +45,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from posed.bench import chaos_bus, chaos_faults, chaos_inputs
+from posed.bench import chaos_alarms, chaos_bus, chaos_faults, chaos_inputs
 
 STAGES = ("capture", "landmarks", "fitting", "publisher")
 
@@ -68,6 +74,11 @@ class ChaosPlan:
     web_idle: int = 1000                        # idle connections to the web stage (0: the web stage is off)
     storage_faults: bool = True                 # the state directory goes read-only, then full (root only)
     storage_kb: int = 16384                     # the state directory's tmpfs
+    midfall_kill_share: float = 1.0             # share of fall events after which a stage is killed -9 before
+    #                                             the alarm is due (bench.chaos_alarms.MidFallKills; 0: none)
+    alarm_grace_s: float = 15.0                 # an alarm this much later than due is late; an open fall without
+    #                                             alarm or recovered by then is missing (a SIGSTOP up to 8 s, the
+    #                                             watchdog's 5 s, a restart and its warm-up)
 
 
 UNIT = Path(__file__).resolve().parents[1] / "deploy" / "posed.service"
@@ -154,6 +165,16 @@ def _signal(pid: int, sig: int) -> bool:
         return False
 
 
+def _alarm_after_s(overrides: tuple[str, ...]) -> float:
+    """``falls.alarm_after_s`` of the daemon the campaign starts: the input's override, else the default."""
+    for o in overrides:
+        if o.startswith("falls.alarm_after_s="):
+            return float(o.split("=", 1)[1])
+    from posed.falls.config import FallsConfig
+
+    return float(FallsConfig().alarm_after_s)
+
+
 def _mem(status: dict | None) -> dict:
     if not status:
         return {}
@@ -188,7 +209,12 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
 
     from posed.client import session_config
 
-    faults = {"kill9": 0, "sigstop": 0, "by_stage": {}}
+    faults = {"kill9": 0, "sigstop": 0, "by_stage": {}, "midfall_kill9": 0}
+    kills: list[tuple[float, str]] = []     # (unix time, stage) of every kill -9, for the alarm invariant
+    alarm_after_s = _alarm_after_s(inp.overrides)
+    midfall = chaos_alarms.MidFallKills(alarm_after_s, plan.midfall_kill_share if plan.stage_faults else 0.0,
+                                        seed + 3)
+    t_stop_unix = None
     stopped: dict[int, float] = {}          # pid -> when to SIGCONT
     report: dict = {"input": inp.name, "source": inp.source, "frames_per_pass": inp.frames,
                     "corrupt_frames_per_pass": inp.corrupt, "falls_per_pass": inp.falls_per_pass}
@@ -238,7 +264,7 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                     progress(f"{inp.name}: t={now - t0:5.1f} s {plan.web_idle} idle web connections")
                 while storage_plan and now >= t0 + storage_plan[0][0] * plan.seconds:
                     _, what = storage_plan.pop(0)
-                    _storage_fault(storage, what, obs)
+                    _storage_fault(storage, what, obs, kills)
                     progress(f"{inp.name}: t={now - t0:5.1f} s state directory {what}")
                 st_store = (obs.last_status() or {}).get("storage")
                 if isinstance(st_store, dict):
@@ -261,6 +287,8 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                         pid = st["stages"][stage]["pid"]
                         if rng.random() < plan.kill_share:
                             kind = "kill9" if _signal(pid, signal.SIGKILL) else None
+                            if kind:
+                                kills.append((time.time(), stage))
                         else:
                             kind = "sigstop" if _signal(pid, signal.SIGSTOP) else None
                             stopped[pid] = now + rng.uniform(*plan.stop_s)
@@ -268,6 +296,17 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                             faults[kind] += 1
                             faults["by_stage"][stage] = faults["by_stage"].get(stage, 0) + 1
                             progress(f"{inp.name}: t={now - t0:5.1f} s {kind} {stage} (pid {pid})")
+                with obs.lock:
+                    received = dict(obs.received)
+                midfall.offer(received, now)
+                for event_id, stage in midfall.due(now):
+                    st = obs.last_status() or {}
+                    pid = st.get("stages", {}).get(stage, {}).get("pid")
+                    if pid and pid not in stopped and _signal(pid, signal.SIGKILL):
+                        kills.append((time.time(), stage))
+                        faults["midfall_kill9"] += 1
+                        faults["by_stage"][stage] = faults["by_stage"].get(stage, 0) + 1
+                        progress(f"{inp.name}: t={now - t0:5.1f} s kill9 {stage} (pid {pid}) mid-fall {event_id}")
                 cur = _mem(obs.last_status())
                 for k, v in cur.items():
                     if v is not None and (peak.get(k) is None or v > peak[k]):
@@ -276,12 +315,13 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                     break
                 time.sleep(0.05)
             t_chaos_end = time.monotonic()
+            t_chaos_end_unix = time.time()
             if idle_thread is not None:
                 idle_thread.join(60)
             for what in ("read_only", "full", "freed"):      # a short chaos: every storage fault still runs
                 if storage_plan and storage_plan[0][1] == what:
                     storage_plan.pop(0)
-                    _storage_fault(storage, what, obs)
+                    _storage_fault(storage, what, obs, kills)
             for pid in stopped:
                 _signal(pid, signal.SIGCONT)
             stopped.clear()
@@ -296,7 +336,11 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
                     missing = [r for r in rows if (r[0], r[1]) not in obs.received]
                 st = obs.last_status() or {}
                 running = all(x.get("state") == "running" for x in st.get("stages", {}).values())
-                if not missing and running and time.monotonic() - t_settle > 3.0:
+                # and every fall opened during the chaos is decided, or its alarm overdue by the grace
+                due = chaos_alarms.undecided_due(chaos_alarms.read_messages(journal), alarm_after_s,
+                                                 t_chaos_end_unix)
+                decided = due is None or time.time() > due + plan.alarm_grace_s
+                if not missing and running and decided and time.monotonic() - t_settle > 3.0:
                     break
                 time.sleep(0.2)
             report["settle_s"] = round(time.monotonic() - t_settle, 1)
@@ -321,6 +365,7 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
             if churn is not None:
                 churn.stop()
             t_term = time.monotonic()
+            t_stop_unix = time.time()
             if proc.poll() is None:
                 proc.send_signal(signal.SIGTERM)
             try:
@@ -344,6 +389,7 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
             received = set(obs.received)
             receipts = obs.receipts
             acked_ids = set(obs.acked_ids)
+            alarm_bodies = {k: set(v) for k, v in obs.alarm_bodies.items()}
     rows = _read_journal(state / "events.sqlite3")
     logs = _log_events(out_log)
     produced = {(r.get("id"), r.get("state")) for r in logs if r.get("event") == "fall_event"}
@@ -356,6 +402,10 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
         "lost": len((produced | journaled) - received),
         "by_state": _by_state(journaled),
     }
+    report["alarms"] = chaos_alarms.judge(
+        chaos_alarms.read_messages(state / "events.sqlite3"), logs, kills, alarm_after_s,
+        t_stop_unix if t_stop_unix is not None else time.time(), plan.alarm_grace_s, alarm_bodies)
+    report["alarms"]["alarm_after_s"] = alarm_after_s
     names = [r.get("event") for r in logs]
     report["log"] = {"lines": len(logs), "ack_warnings": sum(n in ("bad_ack", "ack_of_unknown_event") for n in names),
                      "hook_lines": sum(str(n).startswith("hook") for n in names),
@@ -366,16 +416,17 @@ def run_input(inp: chaos_inputs.ChaosInput, plan: ChaosPlan, work: Path, seed: i
     return report
 
 
-def _storage_fault(storage: chaos_faults.StorageFaults, what: str, obs) -> None:
-    """One state-directory fault; going read-only kills the publisher (it holds the journal open) if needed."""
+def _storage_fault(storage: chaos_faults.StorageFaults, what: str, obs, kills: list) -> None:
+    """One state-directory fault; going read-only kills the publisher (it holds the journal open) if needed
+    (appended to ``kills``)."""
     if what != "read_only":
         getattr(storage, what)()
         return
 
     def release() -> None:
         pid = ((obs.last_status() or {}).get("stages", {}).get("publisher", {})).get("pid")
-        if pid:
-            _signal(pid, signal.SIGKILL)
+        if pid and _signal(pid, signal.SIGKILL):
+            kills.append((time.time(), "publisher"))
     storage.read_only(release)
 
 
@@ -422,5 +473,7 @@ def run_campaign(plan: ChaosPlan, shared: Path, progress=lambda msg: None, work:
             runs.append(run_input(inp, plan, d, plan.seed * 100 + i, progress))
     keys = ("produced", "journaled", "published", "received", "acknowledged", "lost", "not_journaled")
     totals = {k: sum(r["events"][k] for r in runs) for k in keys}
+    totals["alarm_violations"] = sum(r["alarms"]["violations"] for r in runs)
+    totals["kills_mid_fall"] = sum(r["alarms"]["midfall"]["kills_mid_fall"] for r in runs)
     return {"benchmark": "chaos", "plan": asdict(plan), "machine": machine(), "runs": runs, "totals": totals,
             "seconds": round(time.monotonic() - t0, 1)}

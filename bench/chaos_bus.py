@@ -40,6 +40,7 @@ class Observer:
         self.received: dict[tuple[str, str], float] = {}   # (id, state) -> first receipt
         self.receipts = 0                                   # every event message, republications included
         self.acked_ids: set[str] = set()
+        self.alarm_bodies: dict[str, set] = {}              # id -> distinct t_detect of its alarm messages
         self._ack_share = ack_share
         self._rng = random.Random(seed)
         self._decided: dict[str, bool] = {}
@@ -73,6 +74,8 @@ class Observer:
             self.receipts += 1
             first = key not in self.received
             self.received.setdefault(key, time.monotonic())
+            if key[1] == "alarm":
+                self.alarm_bodies.setdefault(key[0], set()).add(event.get("t_detect"))
             if key[0] not in self._decided:
                 self._decided[key[0]] = self._rng.random() < self._ack_share
             ack = first and self._decided[key[0]]

@@ -85,8 +85,9 @@ def run(args: argparse.Namespace) -> int:
                       f"{st['status_states']}")
         t = report["totals"]
         print(f"total  produced {t['produced']} journaled {t['journaled']} published {t['published']} acknowledged "
-              f"{t['acknowledged']} lost {t['lost']}  ({report['seconds']} s)")
-    ok = report["totals"]["lost"] == 0 and all(
+              f"{t['acknowledged']} lost {t['lost']}  alarm violations {t['alarm_violations']} "
+              f"(kills mid-fall {t['kills_mid_fall']})  ({report['seconds']} s)")
+    ok = report["totals"]["lost"] == 0 and report["totals"]["alarm_violations"] == 0 and all(
         r["exit_status"] == 0 and r["daemon_survived_chaos"] and r["hooks_left_running"] == 0
         and (not r.get("web") or 0 < r["web"]["probes"] == r["web"]["answered"])
         and (not (r.get("storage") or {}).get("faults") or r["storage"]["status_states"].get("degraded", 0) > 0)
