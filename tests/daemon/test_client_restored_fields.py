@@ -14,41 +14,16 @@ import json
 import os
 import signal
 import subprocess
-import threading
-import time
 from pathlib import Path
 
 import pytest
 
 from posed.client import PosedClient, RestoredFall, contract, restored, without_frames_s
 from posed.commands._child import free_endpoint, run_command, stop
+from tests.daemon.bus_seen import Seen
 
 ROOT = Path(__file__).resolve().parents[2]
 ROBOT = "clientnew"
-
-
-class _Seen:
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.events, self.statuses, self.raw = [], [], []
-
-    def event(self, robot, ev):
-        with self.lock:
-            self.events.append(ev)
-
-    def status(self, robot, st):
-        with self.lock:
-            self.statuses.append(st)
-
-    def wait(self, what, timeout):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self.lock:
-                found = what(self)
-            if found:
-                return found
-            time.sleep(0.2)
-        raise AssertionError(f"timed out after {timeout} s")
 
 
 def _daemon(tmp_path, endpoint, source, *settings):
@@ -83,7 +58,7 @@ def test_a_subscriber_gets_the_new_fields_typed_and_the_schemas_accept_them(daem
     rec = shared_data / "falls" / "urfd_dev" / "urfd_04_fall.landmarks.jsonl"
     endpoint = free_endpoint()
     daemons.append(_daemon(tmp_path / "a", endpoint, f"file:{rec}"))
-    seen = _Seen()
+    seen = Seen()
     with PosedClient.connect(endpoint, wait_s=180) as c:
         c.on_event(ROBOT, seen.event)
         c.on_status(ROBOT, seen.status)
@@ -101,7 +76,7 @@ def test_a_subscriber_gets_the_new_fields_typed_and_the_schemas_accept_them(daem
     endpoint = free_endpoint()
     first = _daemon(tmp_path / "b", endpoint, f"file:{rec}", "falls.alarm_after_s=20")
     daemons.append(first)
-    seen = _Seen()
+    seen = Seen()
     with PosedClient.connect(endpoint, wait_s=180) as c:
         c.on_event(ROBOT, seen.event)
         c.on_status(ROBOT, seen.status)
@@ -134,7 +109,7 @@ def test_posed_watch_says_not_watching_and_the_frameless_alarm(daemons, tmp_path
     endpoint = free_endpoint()
     daemons.append(_daemon(tmp_path, endpoint, f"file:{rec}"))
     with PosedClient.connect(endpoint, wait_s=180) as c:           # up: watch from the start of the replay
-        seen = _Seen()
+        seen = Seen()
         c.on_status(ROBOT, seen.status)
         seen.wait(lambda s: s.statuses, 180)
     r = subprocess.run([sys.executable, "-m", "posed.cli", "watch", ROBOT, "--connect", endpoint, "--seconds", "30"],

@@ -24,31 +24,6 @@ ROOT = Path(__file__).resolve().parents[2]
 SQUAT = Path("reference") / "tfjs_pose_squats" / "pose_squats.mp4"
 
 
-@pytest.fixture
-def tmpfs(tmp_path):
-    """``tmpfs(size)``: a fresh tmpfs of that size under tmp_path, unmounted afterwards."""
-    mounted: list[Path] = []
-
-    def mount(size: str) -> Path:
-        if os.geteuid() != 0:
-            pytest.skip("mounting a tmpfs needs root")
-        mnt = tmp_path / f"tmpfs{len(mounted)}"
-        mnt.mkdir()
-        r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mnt)],
-                           capture_output=True, text=True)
-        if r.returncode:
-            pytest.skip(f"this machine does not let the test mount a tmpfs: {r.stderr.strip()}")
-        mounted.append(mnt)
-        return mnt
-
-    try:
-        yield mount
-    finally:
-        for mnt in mounted:
-            if subprocess.run(["umount", str(mnt)], capture_output=True).returncode:
-                subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
-
-
 _WRITE_EVERY_PAGE = textwrap.dedent("""
     import mmap, os, sys
     from posed.daemon.proc import shm

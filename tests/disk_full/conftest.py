@@ -1,9 +1,8 @@
-"""A real tiny tmpfs to fill up (as root; skipped with the reason where mounting is not permitted), and the
-short real recordings the disk-full tests run the commands on."""
+"""The short real recordings the disk-full tests run the commands on (the tiny tmpfs to fill up is the shared
+``tmpfs`` fixture of tests/conftest.py)."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -14,31 +13,6 @@ from tests.conftest import ROOT, SHARED_DATA
 
 FALL = SHARED_DATA / "falls" / "urfd_dev" / "urfd_00_fall.landmarks.jsonl"
 SQUAT_VIDEO = SHARED_DATA / "reference" / "tfjs_pose_squats" / "pose_squats.mp4"
-
-
-@pytest.fixture
-def tmpfs(tmp_path):
-    """``tmpfs(size)``: a fresh tmpfs of that size (``1m``, ``300k``) under tmp_path, unmounted afterwards."""
-    mounted: list[Path] = []
-
-    def mount(size: str) -> Path:
-        if os.geteuid() != 0:
-            pytest.skip("mounting a tmpfs needs root; this test fills a real tiny disk")
-        mnt = tmp_path / f"tmpfs{len(mounted)}"
-        mnt.mkdir()
-        r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mnt)],
-                           capture_output=True, text=True)
-        if r.returncode:
-            pytest.skip(f"this machine does not let the test mount a tmpfs: {r.stderr.strip()}")
-        mounted.append(mnt)
-        return mnt
-
-    try:
-        yield mount
-    finally:
-        for mnt in mounted:
-            if subprocess.run(["umount", str(mnt)], capture_output=True).returncode:
-                subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
 
 
 def posed(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from posed.commands._child import free_endpoint, run_command, stop
+from posed.commands._child import free_endpoint, run_command
 from posed.daemon.outbox.journal import EventJournal
 from tests.viz.browser import Browser
 
@@ -38,21 +38,6 @@ def _geometry(shared_data: Path) -> list[str]:
     cam = json.loads((shared_data / "falls" / "urfd_dev" / "labels.json").read_text())["camera"]
     return [f"falls.camera_height_m={cam['camera_height_m']}", f"falls.camera_tilt_deg={cam['camera_tilt_deg']}",
             f"falls.camera_roll_deg={cam['camera_roll_deg']}"]
-
-
-@pytest.fixture
-def procs():
-    started: list = []
-    yield started
-    for p in reversed(started):
-        if isinstance(p, Browser):
-            p.close()
-        elif p.poll() is None:
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-            stop(p, 10.0)
 
 
 def _daemon(procs, tmp_path, endpoint, source, *settings):

@@ -18,60 +18,21 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 import pytest
 
 from posed.client import PosedClient, Watch, contract, restored, without_frames_s
-from posed.commands._child import free_endpoint, run_command, stop
+from posed.commands._child import free_endpoint, run_command
 from tests.daemon import restore_util as ru
+from tests.daemon.bus_seen import Seen
 from tests.viz.browser import Browser
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
 ROBOT = "watchsince"
 ALARM_S = 25.0
-
-
-class _Seen:
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.events, self.statuses = [], []
-
-    def event(self, robot, ev):
-        with self.lock:
-            self.events.append(ev)
-
-    def status(self, robot, st):
-        with self.lock:
-            self.statuses.append(st)
-
-    def wait(self, what, timeout, label):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self.lock:
-                found = what(self)
-            if found:
-                return found
-            time.sleep(0.1)
-        raise AssertionError(f"timed out after {timeout} s waiting for {label}")
-
-
-@pytest.fixture
-def procs():
-    started: list = []
-    yield started
-    for p in reversed(started):
-        if isinstance(p, Browser):
-            p.close()
-        elif p.poll() is None:
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-            stop(p, 10.0)
 
 
 def _daemon(procs, tmp_path, endpoint, source: Path):
@@ -94,7 +55,7 @@ def test_the_daemon_says_since_when_it_is_not_watching_and_a_later_page_shows_it
     nobody = ru.write(tmp_path / "nobody.landmarks.jsonl", header, ru.held(frames[0], 0.0, 2.0, nobody=True))
     endpoint = free_endpoint()
     first = _daemon(procs, tmp_path, endpoint, fall)
-    seen = _Seen()
+    seen = Seen()
     with PosedClient.connect(endpoint, wait_s=180) as c:
         c.on_event(ROBOT, seen.event)
         c.on_status(ROBOT, seen.status)
