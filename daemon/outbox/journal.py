@@ -296,7 +296,7 @@ class EventJournal:
 
     def mark_published(self, event_id: str, state: str | None = None) -> None:
         """Record that the message(s) of ``event_id`` (all states so far, or one) went out."""
-        self._record(event_id, state, "published_at")
+        self._record([(event_id, state)], "published_at")
 
     def acknowledge(self, event_id: str, state: str | None = None, by: str | None = None) -> int:
         """A receiver confirmed the event: its messages so far (or one state) are no longer republished.
@@ -318,31 +318,36 @@ class EventJournal:
                 known += sum(1 for item in self._snapshot(Selection(event_id=event_id, unacked=True))
                              if item.key not in self._pending and (state is None or item.event.state == state))
             if known:                            # nothing to mark: no write (a flood of unknown ids is cheap)
-                self._record(event_id, state, "acked_at", {"acked_by": by})
+                self._record([(event_id, state)], "acked_at", {"acked_by": by})
             return known
 
     def mark_hooks_done(self, event_id: str, state: str, outcome: str) -> None:
         """Every hook is done with the message (``outcome``: one of ``journal_rows.HOOK_OUTCOMES``): it is not
         handed to the hooks again."""
         assert outcome in rows.HOOK_OUTCOMES, outcome
-        self._record(event_id, state, "hooks_done_at", {"hooks_outcome": outcome})
+        self._record([(event_id, state)], "hooks_done_at", {"hooks_outcome": outcome})
 
     def mark_hooks_done_many(self, messages: list[tuple[str, str]], outcome: str) -> None:
         """:meth:`mark_hooks_done` for each (event id, state) of ``messages``, in one write (one fsync)."""
         assert outcome in rows.HOOK_OUTCOMES, outcome
-        if not messages:
-            return
+        if messages:
+            self._record(messages, "hooks_done_at", {"hooks_outcome": outcome})
+
+    def _record(self, messages: list[tuple[str, str | None]], column: str, extra: dict | None = None) -> None:
+        """Mark ``column`` (with ``extra``) now on each (event id, state; None: every state) of ``messages``, in
+        memory and in one write; kept in memory to be written later when the file cannot take it."""
         self._check_writable()
-        extra = {"hooks_outcome": outcome}
+        extra = extra or {}
+        exact = {(event_id, state) for event_id, state in messages if state is not None}
+        every_state = {event_id for event_id, state in messages if state is None}
         with self._lock:
             now = self._clock()
-            wanted = set(messages)
             for key, item in list(self._pending.items()):
-                if key in wanted and item.hooks_done_at is None:
-                    self._pending[key] = replace(item, hooks_done_at=now, **extra)
+                if (key in exact or key[0] in every_state) and getattr(item, column) is None:
+                    self._pending[key] = replace(item, **{column: now}, **extra)
+            marks = [(event_id, state, column, now, extra) for event_id, state in messages]
             if self._db is None:
                 self._open()
-            marks = [(event_id, state, "hooks_done_at", now, extra) for event_id, state in messages]
             if self._db is None:
                 self._pending_marks.extend(marks)
                 self._sync_fallback()
@@ -354,29 +359,6 @@ class EventJournal:
                 self._written()
             except (sqlite3.DatabaseError, OSError) as exc:
                 self._pending_marks.extend(marks)
-                self._fail("cannot write to the event journal", exc)
-            self._sync_fallback()
-
-    def _record(self, event_id: str, state: str | None, column: str, extra: dict | None = None) -> None:
-        self._check_writable()
-        extra = extra or {}
-        with self._lock:
-            now = self._clock()
-            for key, item in list(self._pending.items()):
-                if key[0] == event_id and (state is None or key[1] == state) and getattr(item, column) is None:
-                    self._pending[key] = replace(item, **{column: now}, **extra)
-            if self._db is None:
-                self._open()
-            if self._db is None:
-                self._pending_marks.append((event_id, state, column, now, extra))
-                self._sync_fallback()
-                return
-            try:
-                with jfile.Transaction(self._db):
-                    rows.mark(self._db, event_id, state, column, now, extra)
-                self._written()
-            except (sqlite3.DatabaseError, OSError) as exc:
-                self._pending_marks.append((event_id, state, column, now, extra))
                 self._fail("cannot write to the event journal", exc)
             self._sync_fallback()
 
