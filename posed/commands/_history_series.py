@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+from posed.client.types import restored, without_frames_s
 from posed.viz.series import AngleSeries, EventMark
 
 
@@ -23,18 +24,15 @@ def angle_series(rows: Sequence[tuple], columns: Sequence[str]) -> AngleSeries:
 def event_marks(stored: Iterable) -> list[EventMark]:
     """Journal messages (``StoredEvent``) as marks on the clock, each with whose fall it is when known."""
     return [EventMark(s.event.id, s.event.state, s.wall, s.acked_at, whose(s.event.extra),
-                      getattr(s, "acked_by", None), *caveats(s.event.extra)) for s in stored]
+                      getattr(s, "acked_by", None), *caveats(s.event)) for s in stored]
 
 
-def caveats(extra: dict) -> tuple[float | None, float | None]:
+def caveats(event) -> tuple[float | None, float | None]:
     """A message's ``restored`` (when posed took the open fall back after a restart, unix s) and
-    ``without_frames_s`` (an alarm raised with no camera frame for that long); None when absent or malformed."""
-    restored = extra.get("restored")
-    at = restored.get("at_unix") if isinstance(restored, dict) else None
-    blind = extra.get("without_frames_s")
-    num = (int, float)
-    return (float(at) if isinstance(at, num) and not isinstance(at, bool) else None,
-            float(blind) if isinstance(blind, num) and not isinstance(blind, bool) else None)
+    ``without_frames_s`` (an alarm raised with no camera frame for that long); None when absent or malformed
+    (the client's readers of the two fields)."""
+    taken_back = restored(event)
+    return (taken_back.at_unix if taken_back is not None else None, without_frames_s(event))
 
 
 def whose(extra: dict) -> str | None:

@@ -4,7 +4,7 @@ put on ``posed/ROBOT/events/ack`` that every receiver uses). The one module that
 
 from __future__ import annotations
 
-from posed.viz.web.hub import Hub, _num, restored_of
+from posed.viz.web.hub import Hub, caveats_of
 
 HISTORY_SINCE = "7d"
 HISTORY_LIMIT = 200
@@ -35,5 +35,5 @@ class RobotLink:
             ev = e.event
             out.append({"id": ev.id, "state": ev.state, "wall_time": ev.wall_time, "confidence": ev.confidence,
                         "published_at": e.published_at, "acked_at": e.acked_at, "acked_by": e.acked_by,
-                        "restored": restored_of(ev.extra), "without_frames_s": _num(ev.extra.get("without_frames_s"))})
+                        **caveats_of(ev.extra)})
         return out

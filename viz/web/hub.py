@@ -284,8 +284,7 @@ class Hub:
         key = (event.id, event.state)
         msg = {"type": "event", "id": event.id, "state": event.state, "t_detect": event.t_detect,
                "wall_time": event.wall_time, "confidence": _num(event.confidence),
-               "features": list(event.features), "restored": restored_of(event.extra),
-               "without_frames_s": _num(event.extra.get("without_frames_s"))}
+               "features": list(event.features), **caveats_of(event.extra)}
         with self._lock:
             if key in self._events:
                 return
@@ -371,6 +370,12 @@ def restored_open_of(raw) -> list[dict]:
         if isinstance(item, dict) and isinstance(item.get("id"), str):
             out.append({"id": item["id"], "due_unix": _num(item.get("due_unix")), "alarm": item.get("alarm") is True})
     return out
+
+
+def caveats_of(extra: dict) -> dict:
+    """A message's caveats as the page shows them, live and in the history: ``restored`` (:func:`restored_of`)
+    and ``without_frames_s`` (an alarm raised with no camera frame for that long; None when absent)."""
+    return {"restored": restored_of(extra), "without_frames_s": _num(extra.get("without_frames_s"))}
 
 
 def restored_of(extra: dict) -> dict | None:
