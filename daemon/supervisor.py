@@ -30,7 +30,6 @@ the supervisor dies (``PR_SET_PDEATHSIG``).
 from __future__ import annotations
 
 import contextlib
-import errno
 import multiprocessing
 import os
 import signal
@@ -163,20 +162,13 @@ class Supervisor:
     def _create_shared_memory(self, names: tuple[str, ...]) -> None:
         """The doorbells, the control segment and the frame ring, every page reserved (shm.create);
         :class:`shm.SharedMemoryFull` when /dev/shm has not room for them."""
-        try:
+        page = os.sysconf("SC_PAGE_SIZE")
+        with shm.no_room_is_full("a doorbell semaphore", page):     # sem_open writes a page into /dev/shm
             doorbells = {name: self._ctx.Semaphore(0) for name in DOORBELLS}
-        except OSError as exc:                    # sem_open writes a page into /dev/shm
-            if exc.errno == errno.ENOSPC:
-                raise shm.full_error("a doorbell semaphore", os.sysconf("SC_PAGE_SIZE")) from exc
-            raise
         self._doorbells = doorbells
         sem_names = [n for n in (getattr(d._semlock, "name", None) for d in doorbells.values()) if n]
-        try:
+        with shm.no_room_is_full("the list of doorbell semaphores", page):
             self._sem_record = shm.record_semaphores(sem_names)    # removed at the next start if we are killed
-        except OSError as exc:
-            if exc.errno == errno.ENOSPC:
-                raise shm.full_error("the list of doorbell semaphores", os.sysconf("SC_PAGE_SIZE")) from exc
-            raise
         self.control = Control.create(names, doorbells)
         if any(s.uses_ring for s in self.plan):
             src = self.config.source

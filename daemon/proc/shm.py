@@ -22,6 +22,7 @@ needed and free and the fix, and the supervisor stops with exit status 78.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import re
@@ -83,6 +84,19 @@ def _mb(n: int) -> str:
     return f"{n / 1e6:.1f} MB" if n >= 1_000_000 else f"{n / 1e3:.0f} kB"
 
 
+@contextlib.contextmanager
+def no_room_is_full(what: str, needed: int):
+    """Within it, an ENOSPC from creating ``what`` (``needed`` bytes) in /dev/shm is :class:`SharedMemoryFull`."""
+    try:
+        yield
+    except SharedMemoryFull:
+        raise
+    except OSError as exc:
+        if exc.errno == errno.ENOSPC:
+            raise full_error(what, needed) from exc
+        raise
+
+
 def reserve(fd: int, size: int, what: str, shm_dir: Path = _SHM_DIR) -> None:
     """Allocate every page of the ``size`` bytes of the file ``fd`` (a segment in ``shm_dir``, a tmpfs) now, so
     that writing into it later can never fail for want of space (a tmpfs page allocated at the first write
@@ -103,12 +117,8 @@ def create(what: str, size: int) -> shared_memory.SharedMemory:
     room for it."""
     name = segment_name(what)
     size = max(1, size)
-    try:
+    with no_room_is_full(f"the {what} segment {name}", size):
         segment = shared_memory.SharedMemory(name=name, create=True, size=size)
-    except OSError as exc:
-        if exc.errno == errno.ENOSPC:
-            raise full_error(f"the {what} segment {name}", size) from exc
-        raise
     try:
         reserve(segment._fd, size, f"the {what} segment {name}")
     except BaseException:
