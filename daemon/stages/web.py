@@ -114,15 +114,22 @@ class _LateLink:
     def attach(self, link) -> None:
         self._link = link
 
-    def ack(self, event_id: str) -> bool:
-        if self._link is None:
-            raise ConnectionError(f"not connected to the robot's bus: {self.reason}")
-        return self._link.ack(event_id)
+    @property
+    def history_limit(self) -> int | None:
+        """The attached link's cap on a history answer (the page says when the robot's answer was cut)."""
+        return getattr(self._link, "history_limit", None)
 
-    def history(self) -> list[dict]:
+    def ack(self, event_id: str, by: str | None = None) -> bool:
+        """``by``: who acknowledged, as the page's user typed it (kept in the robot's journal)."""
+        return self._attached().ack(event_id, by)
+
+    def history(self, since: float | None = None, until: float | None = None) -> list[dict]:
+        return self._attached().history(since=since, until=until)
+
+    def _attached(self):
         if self._link is None:
             raise ConnectionError(f"not connected to the robot's bus: {self.reason}")
-        return self._link.history()
+        return self._link
 
 
 def _raise_open_files(want: int) -> None:

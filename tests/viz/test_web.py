@@ -136,10 +136,10 @@ def test_fall_appears_and_the_button_acknowledges_it_in_the_journal(live, shared
 class _NoRobot:
     """The robot side is never reached by these requests: each is refused before it."""
 
-    def ack(self, event_id):
+    def ack(self, event_id, by=None):
         raise AssertionError("a refused request reached the robot")
 
-    def history(self):
+    def history(self, since=None, until=None):
         return []
 
 

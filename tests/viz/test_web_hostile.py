@@ -23,11 +23,11 @@ class _Robot:
     def __init__(self) -> None:
         self.acks: list[str] = []
 
-    def ack(self, event_id):
+    def ack(self, event_id, by=None):
         self.acks.append(event_id)
         return True
 
-    def history(self):
+    def history(self, since=None, until=None):
         return []
 
 

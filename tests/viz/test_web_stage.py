@@ -91,7 +91,7 @@ def test_daemon_serves_the_page_with_poses_and_the_fall_and_acks_through_it(tmp_
         assert page.status == 200 and "<img" not in body.lower()
         deadline = time.monotonic() + 60
         while True:
-            conn.request("POST", "/api/ack", body=json.dumps({"id": event_id}),
+            conn.request("POST", "/api/ack", body=json.dumps({"id": event_id, "by": "Anna (daughter)"}),
                          headers={"Host": f"127.0.0.1:{port}", "Content-Type": "application/json",
                                   "X-Posed": "ack"})
             reply = conn.getresponse()
@@ -103,6 +103,7 @@ def test_daemon_serves_the_page_with_poses_and_the_fall_and_acks_through_it(tmp_
         with EventJournal(state / "events.sqlite3", readonly=True) as journal:
             stored = [s for s in journal.query() if s.event.id == event_id]
         assert stored and any(s.acked_at is not None for s in stored)
+        assert {s.acked_by for s in stored if s.acked_at is not None} == {"Anna (daughter)"}   # who, as typed
     finally:
         if conn is not None:
             conn.close()

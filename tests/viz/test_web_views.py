@@ -38,10 +38,10 @@ class _Robot:
     def __init__(self, messages):
         self.messages = messages
 
-    def ack(self, event_id):
+    def ack(self, event_id, by=None):
         raise AssertionError("no acknowledgement in this test")
 
-    def history(self):
+    def history(self, since=None, until=None):
         return self.messages
 
 

@@ -10,7 +10,11 @@ judged by the daemon (the rule of ``hooks.on_watch_lost``), else — an older po
 same rule judged here, since when this view saw it (``since_known`` false when it was so already at the first
 status); ``restored_open``: falls taken back after a restart whose alarm is still due),
 ``event`` (each fall-event message once per (id, state), with ``restored`` — taken back from the journal
-after a restart; ``clock`` when its alarm was raised at once for a stepped clock — and ``without_frames_s`` — an alarm raised with no camera frame for that long), ``acked``, ``alive``, ``bus`` and ``robot``.
+after a restart; ``clock`` when its alarm was raised at once for a stepped clock — and ``without_frames_s`` — an alarm raised with no camera frame for that long — and ``robot``, whose it is), ``acked`` (through this page,
+or learned from the robot's journal: acknowledged elsewhere), ``forget`` (events the page no longer lists:
+settled and older than its window, ``fall_list``), ``alive``, ``bus`` and ``robot``.
+The events held are bounded (``fall_list.FallList``): the page's window and every event not settled.
+A hub for every robot (``"*"``) lists every robot's events and shows the pose, status and liveliness of one.
 With several people in view one person is drawn: the household member the status says is followed, else each
 frame's own person. ``snapshot()`` is what a page that opens now needs first: the last status, the last minute
 of angles, the events seen, whether the robot is up.
@@ -34,6 +38,7 @@ from collections import deque
 
 from posed.viz.names import MAIN_ANGLES, evidence_text, short_label
 from posed.viz.series import STATE_WORDS
+from posed.viz.web.fall_list import KEEP_S, FallList
 
 CHART_ANGLES = ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r", "theta_tr")
 WINDOW_S = 60.0
@@ -42,6 +47,9 @@ STALE_PERIODS = 5           # no status and no pose for this many status periods
 STALE_MIN_S = 5.0           # ... and at least this long
 DEFAULT_STATUS_PERIOD_S = 1.0   # pipeline.status_period_s's default, until two statuses tell the real one
 START_GRACE_S = 12.0        # a page just opened waits this long for a first word before it says "down"
+PRUNE_EVERY_S = 60.0        # how often the fall list drops what the page no longer shows (fall_list)
+TRANSIENT = ("pose", "status")    # a page that loses one of these is set right by the next (within a second)
+EVERY_ROBOT = "*"           # a hub for every robot on the bus: events of all, the live view of one
 
 
 def _num(v) -> float | None:
@@ -84,8 +92,9 @@ class Hub:
         self._angles: deque = deque()       # (time_unix, {name: deg|None})
         self._status: dict | None = None
         self._pose: dict | None = None
-        self._events: dict[tuple[str, str], dict] = {}
-        self._acked: set[str] = set()
+        self._falls = FallList()
+        self._next_prune = -math.inf
+        self._shown: str | None = None if robot == EVERY_ROBOT else robot   # whose pose and status are shown
         self._alive: bool | None = None
         self._bus: dict = {"connected": None, "reason": None, "fix": None}   # None: not known yet
         self.poses_in = 0
@@ -106,10 +115,28 @@ class Hub:
 
     # ------------------------------------------------------------------ browsers
     def subscribe(self) -> queue.Queue:
+        """A page's queue. A page that does not keep up loses its oldest messages; when one of them said more
+        than the moment (an event, an acknowledgement, what was forgotten: not a pose), ``resynced`` gives it
+        a fresh snapshot instead of what is left, so it never lists what the hub no longer holds nor misses
+        a fall."""
         q: queue.Queue = queue.Queue(QUEUE_LIMIT)
+        q.stale = False
         with self._lock:
             self._queues.append(q)
         return q
+
+    def resynced(self, q: queue.Queue) -> dict | None:
+        """A snapshot for a page whose queue lost a message that mattered (emptied: the snapshot has it all);
+        None when it lost nothing that matters."""
+        if not getattr(q, "stale", False):
+            return None
+        q.stale = False
+        while True:
+            try:
+                q.get_nowait()
+            except queue.Empty:
+                break
+        return self.snapshot()
 
     def unsubscribe(self, q: queue.Queue) -> None:
         with self._lock:
@@ -126,15 +153,18 @@ class Hub:
                     break
                 except queue.Full:
                     try:
-                        q.get_nowait()
+                        lost = q.get_nowait()
                     except queue.Empty:
-                        pass
+                        continue
+                    if lost.get("type") not in TRANSIENT:
+                        q.stale = True      # an event, an ack...: the page gets a fresh snapshot (resynced)
 
     def snapshot(self) -> dict:
         with self._lock:
-            return {"type": "snapshot", "robot": self.robot, "status": self._status, "pose": self._pose,
-                    "angles": [{"time_unix": t, "angles": a} for t, a in self._angles],
-                    "events": list(self._events.values()), "acked": sorted(self._acked), "alive": self._alive,
+            return {"type": "snapshot", "robot": self.robot, "shown_robot": self._shown, "status": self._status,
+                    "pose": self._pose, "angles": [{"time_unix": t, "angles": a} for t, a in self._angles],
+                    "events": self._falls.messages(), "acked": self._falls.acked(), "alive": self._alive,
+                    "events_keep_days": KEEP_S / 86400,
                     "bus": dict(self._bus), "robot_state": self._judge(),
                     "state_words": dict(STATE_WORDS),
                     "labels": {n: short_label(n) for n in (*MAIN_ANGLES, *CHART_ANGLES)}}
@@ -182,7 +212,9 @@ class Hub:
             return self._judge()
 
     def tick(self) -> None:
-        """Judge again against the clock; send the verdict to the pages when it changed (``robot``)."""
+        """Judge again against the clock; send the verdict to the pages when it changed (``robot``). Every
+        ``PRUNE_EVERY_S`` the fall list drops what the page no longer shows (``forget``)."""
+        self._prune()
         with self._lock:
             verdict = self._judge()
             key = (verdict["state"], verdict["why"], verdict["since_unix"] if verdict["state"] == "down" else None)
@@ -206,11 +238,20 @@ class Hub:
             self._pose_at = now_w
 
     # ------------------------------------------------------------------ robot
+    def _is_shown(self, robot: str) -> bool:
+        """A hub for every robot shows the live parts (pose, status, liveliness) of one: the first whose status
+        came (named on the page); its events are every robot's."""
+        if self._shown is None and robot and robot != EVERY_ROBOT:
+            self._shown = robot
+        return robot == self._shown or self.robot != EVERY_ROBOT
+
     def on_pose(self, robot: str, result) -> None:
         """A ``fitting.FitResult`` from posed/ROBOT/pose (``extra`` holds ``time_unix`` when sent)."""
         now = self._clock()
-        self.poses_in += 1
         with self._lock:
+            if self._shown is None or not self._is_shown(robot):    # every robot: poses once one is chosen
+                return
+            self.poses_in += 1
             self._heard_now("pose")
         if not self._is_followed(result):
             return
@@ -249,10 +290,13 @@ class Hub:
 
     def on_status(self, robot: str, status) -> None:
         """A ``client.Status``."""
+        with self._lock:
+            if not self._is_shown(robot):
+                return
         household = ((status.raw or {}).get("falls") or {}).get("household") or {}
         followed = household.get("followed")
         self._follow = followed if isinstance(followed, int) and not isinstance(followed, bool) else None
-        msg = {"type": "status", "state": status.state, "fps": _num(status.fps),
+        msg = {"type": "status", "robot": robot, "state": status.state, "fps": _num(status.fps),
                "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
                "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
@@ -280,26 +324,73 @@ class Hub:
         self._send(msg)
 
     def on_event(self, robot: str, event) -> None:
-        """A ``falls.FallEvent`` message; repeats (the daemon republishes until acknowledged) are dropped."""
-        key = (event.id, event.state)
-        msg = {"type": "event", "id": event.id, "state": event.state, "t_detect": event.t_detect,
-               "wall_time": event.wall_time, "confidence": _num(event.confidence),
+        """A ``falls.FallEvent`` message; repeats (the daemon republishes until acknowledged) are dropped. Each
+        says which robot it is from (``robot``: a page may list several robots' events)."""
+        msg = {"type": "event", "id": event.id, "state": event.state, "robot": robot or event.robot,
+               "t_detect": event.t_detect, "wall_time": event.wall_time, "confidence": _num(event.confidence),
                "features": list(event.features), **caveats_of(event.extra)}
         with self._lock:
-            if key in self._events:
+            if not self._falls.add(msg, self._wall()):
                 return
-            self._events[key] = msg
-            self._acked.discard(event.id)   # a new state needs its own acknowledgement
+            full = len(self._falls) > self._falls.max_events
         self._send(msg)
+        if full:
+            self._prune(force=True)
 
     def on_acked(self, event_id: str, confirmed: bool) -> None:
         with self._lock:
             if confirmed:
-                self._acked.add(event_id)
+                self._falls.ack(event_id)
         self._send({"type": "acked", "id": event_id, "confirmed": confirmed})
 
-    def on_alive(self, alive: bool) -> None:
+    def on_history(self, stored: list[dict]) -> None:
+        """The robot's stored messages (``/api/history``, or the server's own reading): events acknowledged
+        elsewhere (another page, ``posed ack``, a phone) become acknowledged here too, and on the pages."""
         with self._lock:
+            learned = self._falls.learn(stored)
+        for event_id in learned:
+            self._send({"type": "acked", "id": event_id, "confirmed": True})
+        if learned:
+            self._prune(force=True)
+
+    def robot_of(self, event_id: str) -> str | None:
+        """The robot an event held here is from (None: not held)."""
+        with self._lock:
+            return self._falls.robot_of(event_id)
+
+    def span_of(self, event_id: str) -> tuple[float, float] | None:
+        """When the event's first and last messages held here were (unix s); None: not known."""
+        with self._lock:
+            return self._falls.span(event_id)
+
+    def is_acked(self, event_id: str) -> bool:
+        with self._lock:
+            return self._falls.is_acked(event_id)
+
+    def open_since(self, after: float | None = None) -> float | None:
+        """The time (unix s) of the oldest event held here not known to be acknowledged (of those after
+        ``after``); None: none."""
+        with self._lock:
+            return self._falls.open_since(after)
+
+    def held_events(self) -> int:
+        with self._lock:
+            return len(self._falls)
+
+    def _prune(self, force: bool = False) -> None:
+        now = self._mono()
+        with self._lock:
+            if not force and now < self._next_prune:
+                return
+            self._next_prune = now + PRUNE_EVERY_S
+            gone = self._falls.prune(self._wall())
+        if gone.ids:
+            self._send({"type": "forget", "ids": list(gone.ids)})
+
+    def on_alive(self, alive: bool, robot: str | None = None) -> None:
+        with self._lock:
+            if robot is not None and not (robot == self._shown or self.robot != EVERY_ROBOT):
+                return
             if alive and self._alive is not True:
                 self._rise = self._mono()    # up (or back): its first status is due within a period
             self._alive = alive

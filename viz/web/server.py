@@ -11,7 +11,10 @@ never printed as a traceback.
 Routes: ``GET /`` the page, ``GET /static/NAME`` its files, ``GET /stream`` the events (``text/event-stream``:
 first a ``snapshot``, then the hub's messages — among them ``robot``, whether posed is running and heard from,
 judged twice a second by this server — a comment every ``KEEPALIVE_S`` so proxies keep it open),
-``GET /api/history`` the robot's stored event messages, ``POST /api/ack`` ``{"id": ..., "by": NAME}`` (``by``
+``GET /api/history`` the robot's stored event messages of the page's window (``events``; ``truncated`` when
+the robot sent only its newest ``limit``; what they say was acknowledged, the hub learns — also every
+``ACK_SYNC_S`` on its own while an event it holds is open), ``POST /api/ack`` (409 for an event of another
+robot, or one not listed) ``{"id": ..., "by": NAME}`` (``by``
 optional: who acknowledges, kept in the robot's journal; "posed web" without it).
 
 Who may talk to it: with a token configured every request must carry it (``?token=`` — the page passes its
@@ -24,6 +27,7 @@ server never grants.
 
 from __future__ import annotations
 
+import gzip
 import hmac
 import json
 import queue
@@ -35,6 +39,8 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
+from posed.viz.web.bus import AckRefused
+from posed.viz.web.fall_list import KEEP_S
 from posed.viz.web.hub import Hub
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -42,8 +48,11 @@ TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=u
          ".css": "text/css; charset=utf-8"}
 KEEPALIVE_S = 15.0
 JUDGE_EVERY_S = 0.5             # how often the hub judges whether the robot is still heard from
+ACK_SYNC_S = 60.0               # while an event held is open, how often the robot's journal is read for acks
+SYNC_SPAN_S = 86400.0           # ... one read per day from an open event older than the page's window
 LOOPBACK_HOSTS = {"127.0.0.1", "localhost", "::1", "[::1]"}
 MAX_BODY = 4096
+GZIP_ABOVE = 8192               # JSON answers larger than this go gzipped to a browser that accepts it
 MAX_BY_CHARS = 128                  # who acknowledged: daemon.bus.acks.MAX_BY_CHARS
 MAX_CONNECTIONS = 64            # browsers open a handful each (the page, its files, the stream)
 REQUEST_TIMEOUT_S = 10.0        # to send a request, or between two on a kept-alive connection
@@ -71,6 +80,8 @@ class WebServer(ThreadingHTTPServer):
         self._waiting = _WaitingRoom(self)
         # the robot's verdict is judged against the clock too (a robot that went silent sends nothing)
         threading.Thread(target=self._judge_robot, name="posed-web-robot", daemon=True).start()
+        # acknowledgements given elsewhere (another page, posed ack, a phone) reach the hub even with no page open
+        threading.Thread(target=self._sync_acks, name="posed-web-acks", daemon=True).start()
 
     def _judge_robot(self) -> None:
         while not self.stopping.wait(JUDGE_EVERY_S):
@@ -78,6 +89,31 @@ class WebServer(ThreadingHTTPServer):
                 self.hub.tick()
             except Exception:
                 self.count("failed")
+
+    def read_history(self, since: float | None = None, until: float | None = None) -> list[dict]:
+        """The robot's stored messages (``link.history()``: the page's window; between ``since`` and ``until``,
+        unix s, when given); what they say was acknowledged, the hub learns."""
+        events = self.link.history() if since is None else self.link.history(since=since, until=until)
+        self.hub.on_history(events)
+        return events
+
+    def _sync_acks(self) -> None:
+        """While the hub holds events not known to be acknowledged, read the robot's journal for them: the
+        page's window, and a day from each older one on (once learned acknowledged, it is dropped)."""
+        while not self.stopping.wait(ACK_SYNC_S):
+            try:
+                self.sync_acks()
+            except Exception:       # no bus, no answer: the next round asks again
+                self.count("failed")
+
+    def sync_acks(self) -> None:
+        window = time.time() - KEEP_S
+        since = self.hub.open_since()
+        while since is not None and since < window:
+            self.read_history(since - 60.0, since + SYNC_SPAN_S)
+            since = self.hub.open_since(after=since + SYNC_SPAN_S)
+        if since is not None:
+            self.read_history()
 
     def server_close(self) -> None:
         self.stopping.set()
@@ -269,6 +305,10 @@ class _Handler(BaseHTTPRequestHandler):
         body = json.dumps(obj).encode()
         self.send_response(status)
         self.send_header("Content-Type", "application/json")
+        if len(body) > GZIP_ABOVE and "gzip" in (self.headers.get("Accept-Encoding") or ""):
+            body = gzip.compress(body, compresslevel=5)     # a week's history: 322 kB, 31 kB gzipped
+            self.send_header("Content-Encoding", "gzip")
+            self.send_header("Vary", "Accept-Encoding")
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
         self.end_headers()
@@ -294,7 +334,10 @@ class _Handler(BaseHTTPRequestHandler):
             self._stream()
         elif path == "/api/history":
             try:
-                self._send_json({"events": self.server.link.history()})
+                events = self.server.read_history()
+                limit = getattr(self.server.link, "history_limit", None)
+                self._send_json({"events": events, "window_days": KEEP_S / 86400, "limit": limit,
+                                 "truncated": limit is not None and len(events) >= limit})
             except Exception as exc:
                 self._send_json({"error": f"the robot's history is not available: {exc}"},
                                 HTTPStatus.BAD_GATEWAY)
@@ -333,7 +376,10 @@ class _Handler(BaseHTTPRequestHandler):
         by = by.strip() if by else None
         try:
             # who acknowledged (the name the page's user gave), kept in the robot's journal
-            ok = self.server.link.ack(event_id, by) if by else self.server.link.ack(event_id)
+            ok = self.server.link.ack(event_id, by)
+        except AckRefused as exc:
+            self._send_json({"error": f"cannot acknowledge: {exc}"}, HTTPStatus.CONFLICT)
+            return
         except Exception as exc:
             self._send_json({"error": f"cannot acknowledge: {exc}"}, HTTPStatus.BAD_GATEWAY)
             return
@@ -370,7 +416,7 @@ class _Handler(BaseHTTPRequestHandler):
                     self.wfile.write(b": keep-alive\n\n")
                     self.wfile.flush()
                     continue
-                self._event(msg)
+                self._event(hub.resynced(q) or msg)
         except (BrokenPipeError, ConnectionResetError, TimeoutError):
             pass
         finally:

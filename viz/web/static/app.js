@@ -231,6 +231,7 @@ function setText(id, text) { document.getElementById(id).textContent = text; }
 
 function showStatus(s) {
   view.status = s;
+  if (s.robot && view.everyRobot && view.shownRobot !== s.robot) { view.shownRobot = s.robot; showRobotName(); }
   view.fpsText = s.fps === null ? "–" : s.fps.toFixed(1);
   setText("st-state", s.state); setText("st-fps", view.fpsText);
   setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
@@ -293,7 +294,7 @@ function showRobot(r) {
 }
 
 function showLiveness() {  // the red bar, the "live" badge, and everything stale greyed with its age
-  const r = view.robotState || {state: "waiting"}, robot = document.getElementById("robot").textContent || "the robot";
+  const r = view.robotState || {state: "waiting"}, robot = view.shownRobot || "the robot";
   let text = "";
   if (view.streamLost !== null) {
     text = `This page lost its connection to posed web at ${clockText(view.streamLost)} — falls are NOT shown ` +
@@ -336,6 +337,14 @@ function showLiveness() {  // the red bar, the "live" badge, and everything stal
 
 const EVENTS_SHOWN = 6, HISTORY_SHOWN = 15;   // the newest; the rest behind "show all", always counted
 
+// which robot an event is from: named on every entry and row (a page may list several robots' events)
+const robotText = (robot) => robot ? `robot ${esc(robot)} · ` : "";
+
+function showRobotName() {  // "r1", or "every robot (the live view: r1)"
+  setText("robot", view.everyRobot ? `every robot` + (view.shownRobot ? ` (skeleton and pipeline: ${view.shownRobot})` : "")
+    : view.shownRobot || "");
+}
+
 function fallsById() {  // [{id, msgs (in order), first, last (unix s)}], the newest event first
   const by = {};
   for (const e of Object.values(view.events)) (by[e.id] = by[e.id] || []).push(e);
@@ -372,14 +381,21 @@ function caveats(msgs, id) {  // a fall taken back after a restart, an alarm rai
 function showEvents() {
   const falls = fallsById(), ul = document.getElementById("events");
   view.shownEvents = falls.map((f) => f.id);
-  if (!falls.length) return;
+  const alarm = document.getElementById("alarm");
+  if (!falls.length) {  // none (left): the page says so, never an old list
+    if (!document.getElementById("events-none")) {
+      ul.innerHTML = '<li id="events-none" class="note"></li>'; showLiveness();
+    }
+    alarm.hidden = true; alarm.textContent = "";
+    return;
+  }
   ul.innerHTML = "";
   const open = falls.filter((f) => !view.acked[f.id]).length;
   const shown = view.showAllEvents ? falls : falls.slice(0, EVENTS_SHOWN);
   for (const f of shown) {
     const li = document.createElement("li");
     li.innerHTML = `<span class="fall">${f.msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → ")}</span>
-      <span class="note">${localTime(f.msgs[0].wall_time)} · ${f.id.slice(0, 8)}</span> ` +
+      <span class="note">${localTime(f.msgs[0].wall_time)} · ${robotText(f.msgs[0].robot)}${f.id.slice(0, 8)}</span> ` +
       caveats(f.msgs, f.id).map((c) => `<div class="caveat">${esc(c)}</div>`).join("");
     li.dataset.eventId = f.id;
     if (view.acked[f.id]) {
@@ -404,7 +420,6 @@ function showEvents() {
     b.addEventListener("click", () => { view.showAllEvents = !view.showAllEvents; showEvents(); });
     li.appendChild(b); ul.appendChild(li);
   }
-  const alarm = document.getElementById("alarm");
   alarm.hidden = open === 0;
   alarm.textContent = open ? `${open} fall event(s) not acknowledged` : "";
 }
@@ -426,7 +441,7 @@ async function acknowledge(id, button) {
       "X-Posed": "ack"}, body: JSON.stringify(by ? {id, by} : {id})});
     const body = await r.json();
     if (r.ok && body.confirmed) { view.acked[id] = true; showEvents(); loadHistory(); return; }
-    button.textContent = "not confirmed — retry"; button.disabled = false;
+    button.textContent = r.status === 409 ? body.error : "not confirmed — retry"; button.disabled = r.status === 409;
   } catch (err) {
     button.textContent = "failed — retry"; button.disabled = false;
   }
@@ -438,7 +453,7 @@ function historyRows(events) {  // the robot's stored messages, one row per even
   return Object.entries(by).map(([id, msgs]) => {
     const first = toDate(msgs[0].wall_time), acked = msgs.map((m) => m.acked_at);
     const words = (ms) => ms.map((m) => STATE_WORDS[m.state] || m.state).join(" → ");
-    return {id, time: msgs[0].wall_time, at: first ? first.getTime() : 0, states: words(msgs),
+    return {id, robot: msgs[0].robot, time: msgs[0].wall_time, at: first ? first.getTime() : 0, states: words(msgs),
             acked: acked.every((a) => a) ? Math.max(...acked) : null,
             by: [...new Set(msgs.filter((m) => m.acked_at && m.acked_by).map((m) => m.acked_by))].join(", "),
             notOpen: words(msgs.filter((m) => !m.acked_at)), caveats: caveats(msgs, id),
@@ -446,17 +461,27 @@ function historyRows(events) {  // the robot's stored messages, one row per even
   }).sort((a, b) => b.at - a.at);
 }
 
-let historyAsked = 0;
+let historyAsked = 0, historyBusy = false, historyAgain = false;
 async function loadHistory() {
-  const mine = ++historyAsked;  // answers can come back out of order: only the newest request's is shown
+  // one request at a time, and one more after it when asked meanwhile: a burst of event messages (a robot back
+  // on the bus with a backlog) is a few reads of the robot's journal, never one per message
+  if (historyBusy) { historyAgain = true; return; }
+  historyBusy = true; historyAgain = false;
+  const mine = ++historyAsked;
+  view.historyLoads = (view.historyLoads || 0) + 1;
   try {
     const r = await fetch(withToken("/api/history"));
     const body = await r.json();
     if (mine !== historyAsked) return;
     view.history = body.events || [];
+    view.historyCut = r.ok && body.truncated ? body.limit : null;
     showHistory(r.ok ? null : body.error || r.status);
     showEvents();
-  } catch (err) { /* the next refresh tries again */ }
+  } catch (err) { /* the next refresh tries again */
+  } finally {
+    historyBusy = false;
+    if (historyAgain) setTimeout(loadHistory, 1000);
+  }
 }
 
 function showHistory(error) {
@@ -466,9 +491,13 @@ function showHistory(error) {
   if (!view.history.length) { t.innerHTML = '<tr><td class="note">no fall events stored</td></tr>'; return; }
   const rows = historyRows(view.history);
   view.historyRows = rows.map((x) => x.id);
+  const cut = document.getElementById("history-cut");   // the robot sent its newest messages only: said
+  cut.hidden = !view.historyCut;
+  cut.textContent = view.historyCut ? `Only the newest ${view.historyCut} stored messages are shown (since ` +
+    `${localTime(view.history[0].wall_time)}); earlier falls of the last 7 days are not listed here.` : "";
   const shown = view.showAllHistory ? rows : rows.slice(0, HISTORY_SHOWN);
   t.innerHTML = `<tr><th>started (${zoneText()})</th><th>event</th><th>what happened</th><th>acknowledged</th></tr>` +
-    shown.map((e) => `<tr><td>${localTime(e.time)}</td><td>${e.id.slice(0, 8)}</td><td>${e.states}` +
+    shown.map((e) => `<tr><td>${localTime(e.time)}</td><td>${robotText(e.robot)}${e.id.slice(0, 8)}</td><td>${e.states}` +
       e.caveats.map((c) => `<div class="caveat">${esc(c)}</div>`).join("") + `</td>
       <td>${e.acked ? localTime(e.acked) + (e.by ? " by " + esc(e.by) : "") : e.open < e.count ?
         `<span class="warn">${e.notOpen} not acknowledged</span>` + (e.by ? ` (the rest by ${esc(e.by)})` : "") :
@@ -487,12 +516,16 @@ function showHistory(error) {
 // ------------------------------------------------------------------ the stream
 function onMessage(m) {
   if (m.type === "snapshot") {
-    view.labels = m.labels || {}; setText("robot", m.robot);
+    view.labels = m.labels || {}; view.everyRobot = m.robot === "*"; view.shownRobot = m.shown_robot || null;
+    showRobotName();
     if (m.state_words) STATE_WORDS = m.state_words;
     view.streamLost = null;
+    angleLog.length = 0;   // a snapshot again (a reconnect, or a resync after this page fell behind): its minute
     for (const a of m.angles) angleLog.push(a);
     if (m.status) showStatus(m.status);
+    view.events = {};   // the server's list replaces this page's: what it forgot is gone here too
     for (const e of m.events) view.events[e.id + "/" + e.state] = e;
+    view.acked = {};
     for (const id of m.acked) view.acked[id] = true;
     showAlive(m.alive); showBus(m.bus); showRobot(m.robot_state);
     if (m.pose) {
@@ -511,9 +544,14 @@ function onMessage(m) {
     showStatus(m);
   } else if (m.type === "event") {
     // a new state of an acknowledged event is a new message: the robot needs it acknowledged too
-    view.events[m.id + "/" + m.state] = m; delete view.acked[m.id]; showEvents(); loadHistory();
+    view.events[m.id + "/" + m.state] = m; delete view.acked[m.id]; requestEvents(); loadHistory();
+  } else if (m.type === "forget") {  // the server no longer holds them: acknowledged and older than the window
+    const gone = new Set(m.ids);
+    for (const k of Object.keys(view.events)) if (gone.has(view.events[k].id)) delete view.events[k];
+    for (const id of m.ids) delete view.acked[id];
+    requestEvents();
   } else if (m.type === "acked") {
-    if (m.confirmed) view.acked[m.id] = true; showEvents();
+    if (m.confirmed) view.acked[m.id] = true; requestEvents();
   } else if (m.type === "alive") {
     showAlive(m.alive);
   } else if (m.type === "bus") {
@@ -521,6 +559,13 @@ function onMessage(m) {
   } else if (m.type === "robot") {
     showRobot(m); if (view.stale) requestDraw();
   }
+}
+
+let eventsPending = false;
+function requestEvents() {  // the fall list drawn once for a burst of messages (a backlog), not once each
+  if (eventsPending) return;
+  eventsPending = true;
+  setTimeout(() => { eventsPending = false; showEvents(); }, 0);
 }
 
 let drawPending = false;
