@@ -13,16 +13,12 @@ from __future__ import annotations
 
 import datetime as dt
 import io
-import os
 from collections.abc import Sequence
-from pathlib import Path
-from zoneinfo import ZoneInfo
 
 import numpy as np
-from matplotlib import dates as mdates
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, MultipleLocator
+from matplotlib.ticker import FixedFormatter, FixedLocator, FuncFormatter, MultipleLocator
 
 from posed.viz.names import PANEL_TITLES, label, side
 from posed.viz.series import AngleSeries, Episode
@@ -34,44 +30,80 @@ AXIS_STYLES = {"theta": "-", "phi": "-.", "psi": ":"}
 FALL_COLOUR = "#d62728"
 LABEL_LIFT_PT = 17.0   # fall numbers this far above the top panel: over its title, never on it
 TIME_STEPS_S = (0.5, 1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200)
+CLOCK_STEPS_S = (60, 120, 300, 600, 900, 1800, 3600, 7200, 10800, 21600, 43200)   # clock-axis ticks under a day
 
 
-def local_zone(name: str | None = None) -> dt.tzinfo:
-    """The time zone ``name`` (IANA, e.g. ``Europe/Berlin``), else this machine's (the robot's) local zone:
-    ``$TZ``, else the zone /etc/localtime points at (so summer time is right on every date), else the current
-    UTC offset as a fixed zone. Raises ``zoneinfo.ZoneInfoNotFoundError`` (a KeyError) for an unknown name."""
-    if name:
-        return ZoneInfo(name)
-    env = os.environ.get("TZ", "").lstrip(":")
-    if env:
-        try:
-            return ZoneInfo(env)
-        except (KeyError, ValueError):
-            pass
-    link = Path("/etc/localtime")
-    if link.is_symlink():
-        target = str(link.resolve())
-        if "zoneinfo/" in target:
-            try:
-                return ZoneInfo(target.split("zoneinfo/", 1)[1])
-            except (KeyError, ValueError):
-                pass
-    return dt.datetime.now().astimezone().tzinfo
-
-
-def zone_text(tz: dt.tzinfo, at: float) -> str:
-    """``Europe/Berlin, UTC+01:00`` (or the abbreviation when the zone has no IANA key)."""
-    d = dt.datetime.fromtimestamp(at, tz)
+def offset_text(d: dt.datetime) -> str:
+    """``UTC+01:00`` (``UTC`` for an unknown offset) of an aware date-time."""
     off = d.strftime("%z")
-    off = f"UTC{off[:3]}:{off[3:]}" if off else "UTC"
+    return f"UTC{off[:3]}:{off[3:5]}" if off else "UTC"
+
+
+def zone_changes(tz: dt.tzinfo, start: float, end: float) -> list[tuple[float, dt.datetime, dt.datetime]]:
+    """Where the UTC offset of ``tz`` changes between two unix times (summer time begins or ends): (unix time of
+    the change, the clock just before it, the clock at it), in order. Found hour by hour, then to the second
+    (zones change their offset at most a few times a year)."""
+    def offset(t: float):
+        return dt.datetime.fromtimestamp(t, tz).utcoffset()
+
+    out = []
+    t, step = float(start), 3600.0
+    while t < end:
+        nxt = min(t + step, float(end))
+        if offset(nxt) != offset(t):
+            lo, hi = t, nxt
+            while hi - lo > 0.5:
+                mid = (lo + hi) / 2
+                lo, hi = (mid, hi) if offset(mid) == offset(t) else (lo, mid)
+            at = float(round(hi))
+            out.append((at, dt.datetime.fromtimestamp(at - 1, tz) + dt.timedelta(seconds=1),
+                        dt.datetime.fromtimestamp(at, tz)))
+        t = nxt
+    return out
+
+
+def zone_text(tz: dt.tzinfo, at: float, until: float | None = None) -> str:
+    """``Europe/Berlin, UTC+01:00`` (or the abbreviation when the zone has no IANA key); with ``until``, every
+    change of the offset in between, the night the clocks go back or forward: ``Europe/London, UTC+01:00 until
+    02:00, when the clocks went back to 01:00 (UTC)`` (the date too when the span is longer than a day)."""
+    d = dt.datetime.fromtimestamp(at, tz)
     key = getattr(tz, "key", None) or d.tzname() or ""
-    return f"{key}, {off}" if key else off
+    text = f"{key}, {offset_text(d)}" if key else offset_text(d)
+    changes = zone_changes(tz, at, until) if until is not None else []
+    dated = until is not None and until - at > 90000.0
+    for _, before, after in changes[:6]:
+        way = "forward" if after.utcoffset() > before.utcoffset() else "back"
+        when = before.strftime("%Y-%m-%d %H:%M" if dated else "%H:%M")
+        text += f"; from {when} the clocks went {way} to {after:%H:%M} ({offset_text(after)})"
+    if len(changes) > 6:
+        text += f"; and {len(changes) - 6} more changes of the offset"
+    return text
+
+
+def clock(t: float, tz: dt.tzinfo, fmt: str = "%H:%M:%S", short: bool = False) -> str:
+    """``t`` as the robot's clock read it (``fmt``), with the zone's abbreviation and offset when that clock
+    time happened twice (the hour the clocks go back): ``01:30:00 BST (UTC+01:00)``, then ``01:30:00 GMT
+    (UTC)``; ``short``: only the abbreviation (the offset when the zone has no letters for it)."""
+    d = dt.datetime.fromtimestamp(t, tz)
+    text = d.strftime(fmt)
+    if d.replace(fold=1 - d.fold).utcoffset() == d.utcoffset():
+        return text
+    abbr = d.tzname() or ""
+    named = abbr.isalpha()
+    if short:
+        return f"{text} {abbr if named else offset_text(d)}"
+    return f"{text} {abbr} ({offset_text(d)})" if named else f"{text} ({offset_text(d)})"
 
 
 def time_formatter(series: AngleSeries, tz: dt.tzinfo):
-    """A function formatting one time of ``series`` for the text (clock ``14:03:05`` or ``1:23.4``)."""
+    """A function formatting one time of ``series`` for the text (clock ``14:03:05``, with the date when the
+    series covers more than one day of the robot's clock and the offset in an hour the clocks went back over;
+    or ``1:23.4`` from a recording's first frame)."""
     if series.clock:
-        return lambda t: dt.datetime.fromtimestamp(t, tz).strftime("%H:%M:%S")
+        days = {dt.datetime.fromtimestamp(float(t), tz).date() for t in (series.time[:1], series.time[-1:])
+                for t in t}
+        fmt = "%Y-%m-%d %H:%M:%S" if len(days) > 1 else "%H:%M:%S"
+        return lambda t: clock(t, tz, fmt)
     return lambda t: f"{int(t // 60)}:{t % 60:04.1f}"
 
 
@@ -102,8 +134,10 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
                  acks: bool = True) -> Figure:
     """The angle plot as a matplotlib Figure (Agg canvas). ``panels``: (panel key or title, angle names);
     ``falls`` on the same clock as ``series``; ``acks``: whether the falls' acknowledgements are known (a
-    journal)."""
-    tz = tz or local_zone()
+    journal); ``tz`` the zone of a clock series (the commands pass ``daemon.timeparse.local_zone``'s), unused
+    for a recording's time."""
+    if series.clock and tz is None:
+        raise ValueError("a clock series needs its time zone: pass tz (the robot's, daemon.timeparse.local_zone)")
     s = series.with_gaps()
     fmt = time_formatter(series, tz)
     n = len(panels)
@@ -152,15 +186,15 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
     _number_falls(axes[0], s, falls)
     bottom_ax = axes[-1]
     if s.clock:
-        loc = mdates.AutoDateLocator(tz=tz, minticks=4, maxticks=10)
-        bottom_ax.xaxis.set_major_locator(loc)
-        # every tick a whole clock time (a bare "30" reads as minutes), the date once, ISO, at the axis' end
-        times = ["%Y", "%Y-%m", "%Y-%m-%d", "%H:%M", "%H:%M", "%H:%M:%S"]
-        bottom_ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(
-            loc, tz=tz, formats=times, zero_formats=times,
-            offset_formats=["", "%Y", "%Y-%m", "%Y-%m-%d", "%Y-%m-%d", "%Y-%m-%d"]))
+        # whole clock times of the robot's zone, found in unix time: the night the clocks go back both 01:00
+        # are ticks (01:00 BST, 01:00 GMT), the hour they skip none (matplotlib's date locator, which steps the
+        # wall clock, left most of such a night without a tick)
+        lo, hi = (v * 86400.0 for v in axes[0].get_xlim())
+        ticks = clock_ticks(tz, lo, hi)
+        bottom_ax.xaxis.set_major_locator(FixedLocator([t / 86400.0 for t in ticks]))
+        bottom_ax.xaxis.set_major_formatter(FixedFormatter(clock_tick_labels(ticks, tz)))
         at = float(s.time[0]) if len(s.time) else 0.0
-        bottom_ax.set_xlabel(f"clock time of the robot ({zone_text(tz, at)})")
+        bottom_ax.set_xlabel(f"clock time of the robot ({zone_text(tz, at, float(s.time[-1]) if len(s.time) else None)})")
     else:
         lo, hi = axes[0].get_xlim()
         step = recording_time_step(hi - lo)
@@ -172,6 +206,48 @@ def angle_figure(series: AngleSeries, panels: Sequence[tuple[str, Sequence[str]]
     for i, line in enumerate(lines, 1):
         fig.text(0.07, (0.12 + 0.22 * (notes - i)) / height_in, line, fontsize=9, color=FALL_COLOUR)
     return fig
+
+
+def clock_ticks(tz: dt.tzinfo, lo: float, hi: float, max_ticks: int = 10) -> list[float]:
+    """Unix times between ``lo`` and ``hi`` at which the robot's clock (``tz``) reads a whole step (a minute to
+    12 hours; whole days for longer spans) — at most about ``max_ticks`` of them. Found in unix time, minute
+    by minute, so a clock time that happens twice (the hour the clocks go back) is a tick twice and one that
+    never happens (the hour they skip) is none."""
+    if hi <= lo:
+        return []
+    step = next((s for s in CLOCK_STEPS_S if (hi - lo) / s <= max_ticks), None)
+    if step is None:
+        days = max(1, int(np.ceil((hi - lo) / 86400.0 / max_ticks)))
+        d = dt.datetime.fromtimestamp(lo, tz).date()
+        out = []
+        while True:
+            t = dt.datetime.combine(d, dt.time(0), tz).timestamp()
+            if t > hi:
+                return out
+            if t >= lo and d.toordinal() % days == 0:
+                out.append(t)
+            d += dt.timedelta(days=1)
+    out = []
+    t = float(np.ceil(lo / 60.0) * 60.0)
+    while t <= hi:
+        c = dt.datetime.fromtimestamp(t, tz)
+        if c.second == 0 and (c.hour * 3600 + c.minute * 60) % step == 0:
+            out.append(t)
+        t += 60.0
+    return out
+
+
+def clock_tick_labels(ticks: Sequence[float], tz: dt.tzinfo) -> list[str]:
+    """``14:30`` per tick (``01:00 BST`` / ``01:00 GMT`` in the hour the clocks go back), the date under the
+    first tick and under each midnight; only the date when the ticks are whole days apart."""
+    clocks = [dt.datetime.fromtimestamp(t, tz) for t in ticks]
+    if len(clocks) > 1 and all(c.time() == dt.time(0) for c in clocks):
+        return [f"{c:%Y-%m-%d}" for c in clocks]
+    out = []
+    for i, (t, c) in enumerate(zip(ticks, clocks, strict=True)):
+        text = clock(t, tz, "%H:%M", short=True)
+        out.append(f"{text}\n{c:%Y-%m-%d}" if i == 0 or (c.hour, c.minute) == (0, 0) else text)
+    return out
 
 
 def recording_time_step(span_s: float, max_ticks: int = 10) -> float:

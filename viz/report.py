@@ -30,8 +30,8 @@ from matplotlib.patches import Patch
 from posed.falls import FallsConfig
 from posed.viz import posture
 from posed.viz.names import MEASURED_ANGLES, PANELS, short_label
-from posed.viz.plots import FALL_COLOUR, plot_angles, zone_text
-from posed.viz.series import AngleSeries, Episode, states_text
+from posed.viz.plots import FALL_COLOUR, clock, plot_angles, zone_text
+from posed.viz.series import CLOCK_SLACK_S, AngleSeries, Episode, states_text
 
 BODY_ANGLES = ("theta_bd", "phi_bd", "psi_bd")
 # a fall whose last message (fall, on the floor) is this recent when the report is made is still going on: the
@@ -176,14 +176,15 @@ def day_grid_figure(states: Sequence[str], falls: Sequence[Episode], span: tuple
         ax.text(61, h + 0.5, text, color=FALL_COLOUR, va="center", ha="left", fontsize=8.5)
     ax.set_xlim(0, 60)
     ax.set_ylim(hours, 0)
-    labels = [dt.datetime.fromtimestamp(span[0] + 3600 * h, tz).strftime("%H:%M") for h in range(hours)]
+    # the hour the clocks go back is there twice (01:00 BST, 01:00 GMT); the hour they skip is not there
+    labels = [clock(span[0] + 3600 * h, tz, "%H:%M", short=True) for h in range(hours)]
     ax.set_yticks([h + 0.5 for h in range(hours)], labels, fontsize=8)
     ax.set_xticks([0, 10, 20, 30, 40, 50, 60], [":00", ":10", ":20", ":30", ":40", ":50", ":60"], fontsize=8)
     ax.tick_params(length=0)
     for side in ("top", "right", "left", "bottom"):
         ax.spines[side].set_visible(False)
-    ax.set_xlabel(f"minute of the hour; clock time of the robot ({zone_text(tz, span[0])}); a fall's minute is "
-                  "outlined in red", fontsize=9)
+    ax.set_xlabel(f"minute of the hour; clock time of the robot ({zone_text(tz, span[0], span[1])}); a fall's "
+                  "minute is outlined in red", fontsize=9)
     handles = [Patch(facecolor=c, hatch=h, edgecolor="#888888", label=k) for k, (c, h) in MINUTE_STYLE.items()
                if k in set(states)]
     fig.legend(handles=handles, loc="lower center", ncol=min(4, len(handles)), frameon=False, fontsize=8.5,
@@ -217,14 +218,20 @@ def angle_ranges(series: AngleSeries) -> list[tuple[str, int, float, float, floa
 
 def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: dt.tzinfo, *, robot: str,
                sources: str, max_step_s: float = 1.0, watched: Sequence[tuple] | None = None,
-               now: float | None = None, down=None, in_progress_s: float | None = None) -> str:
+               now: float | None = None, down=None, in_progress_s: float | None = None,
+               stamped_later: int = 0) -> str:
     """The HTML text of the day's report. ``series`` on the robot's clock (unix seconds), ``falls`` the
     day's episodes (journal), ``sources`` a line naming the files it was made from, ``watched`` the minutes
     posed watched (``WatchLog.minutes`` rows; None: this history does not record them), ``now`` the time
     the report is made (unix; default now): nothing after it is counted; ``down``: the camera's down the
     postures are measured against (camera axes; None: the camera taken as level; viz.posture);
     ``in_progress_s``: a fall whose last message is younger than this when the report is made is "in
-    progress" (default: the fall detector's default ``alarm_after_s`` plus ``IN_PROGRESS_MARGIN_S``)."""
+    progress" (default: the fall detector's default ``alarm_after_s`` plus ``IN_PROGRESS_MARGIN_S``);
+    ``stamped_later``: fall events of the journal outside this day stamped later than ``now`` (a clock that was
+    wrong), said so that a fall hidden on a day still to come is not missed.
+
+    Samples stamped later than ``now`` are not counted (the robot's clock was wrong when they were stored, or
+    is wrong now), and said; falls so stamped are listed, never "in progress"."""
     import time
 
     now = time.time() if now is None else now
@@ -232,12 +239,16 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         in_progress_s = FallsConfig().alarm_after_s + IN_PROGRESS_MARGIN_S
     start = dt.datetime.combine(day, dt.time(0), tz).timestamp()
     end = dt.datetime.combine(day + dt.timedelta(days=1), dt.time(0), tz).timestamp()
-    span = (start, end)
+    span = (start, end)     # 23 or 25 hours the day the clocks go forward or back: every duration is unix time
+    later = int(np.count_nonzero(series.time > now + CLOCK_SLACK_S))
+    if later:               # stamped after now: a clock wrong then or now; never counted as time that has passed
+        keep = series.time <= now + CLOCK_SLACK_S
+        series = AngleSeries(series.time[keep], {k: v[keep] for k, v in series.angles.items()}, series.clock)
     summary = posture.summarise(series.time, series.angles, span, max_step_s, down)
     acct = day_time(summary, watched, span, now)
 
     def fmt(t: float) -> str:
-        return dt.datetime.fromtimestamp(t, tz).strftime("%H:%M:%S")
+        return clock(t, tz)
 
     esc = html.escape
     so_far = "the whole day" if acct.future <= 0 else (
@@ -245,9 +256,12 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
     parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'><title>posed: {esc(robot)}, "
              f"{day.isoformat()}</title><style>{_CSS}</style></head><body>",
              f"<h1>Daily summary, {day.strftime('%A %d %B %Y')}</h1>",
-             f"<p class='meta'>Robot <b>{esc(robot)}</b>; clock: the robot's local time ({esc(zone_text(tz, start))})."
+             f"<p class='meta'>Robot <b>{esc(robot)}</b>; clock: the robot's local time "
+             f"({esc(zone_text(tz, start, end))}){_day_length(start, end)}."
              f" Covers {esc(so_far)}. Made from {esc(sources)}.</p>"]
     parts.append(_watching_html(acct, falls))
+    parts.append(_stamped_later_html(later, [ep for ep in falls if ep.end > now + CLOCK_SLACK_S], stamped_later,
+                                     fmt(now)))
     share_head = "share of the day so far" if acct.future > 0 else "share of the day"
     parts.append(f"<h2>The day</h2><table><tr><th></th><th>time</th><th>{share_head}</th></tr>")
     for what, secs in acct.rows():
@@ -317,6 +331,27 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
     parts.append("<h2>How this is worked out</h2><div class='small'>" + _method_html(down) + "</div>")
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _day_length(start: float, end: float) -> str:
+    """``; this day has 25 hours`` the day the clocks go back (23 the day they go forward), else nothing."""
+    hours = (end - start) / 3600.0
+    return "" if abs(hours - 24.0) < 1e-6 else f"; this day has {hours:g} hours"
+
+
+def _stamped_later_html(samples: int, falls: Sequence[Episode], elsewhere: int, now_text: str) -> str:
+    """What was stamped later than the report was made (a clock wrong then or now), said rather than counted."""
+    if not (samples or falls or elsewhere):
+        return ""
+    what = [f"{samples} sample(s) of this day (not counted below)"] if samples else []
+    if falls:
+        what.append(f"{len(falls)} of this day's fall event(s) (listed below)")
+    if elsewhere:
+        what.append(f"{elsewhere} fall event(s) of a later day (<code>posed events</code> lists them)")
+    return (f"<p class='notice warn'><b>Times later than now:</b> {html.escape(', '.join(what))} were stamped "
+            f"later than this report was made ({html.escape(now_text)}). The robot's clock was wrong when they "
+            "were recorded (set right since, e.g. by NTP at boot on a robot without a clock battery) or is wrong "
+            "now: check it (<code>timedatectl</code>). When they really happened is unknown.</p>")
 
 
 def _watching_html(acct: DayTime, falls: Sequence[Episode]) -> str:

@@ -14,6 +14,12 @@ import numpy as np
 
 from posed.viz.names import FIXED_ANGLES
 
+# a time stamped later than "now" by more than this was stamped by a clock that was wrong then (set right since,
+# e.g. by NTP at the boot of a robot without an RTC battery) or is wrong now (daemon.timeparse.FUTURE_SLACK_S)
+CLOCK_SLACK_S = 2.0
+STAMPED_LATER = ("stamped later than this report was made ({now}): the robot's clock was wrong when it was recorded "
+                 "(set right since, e.g. by NTP at boot) or is wrong now; when it really happened is unknown")
+
 # messages of one event, in the order they can happen (falls.FALL_STATES)
 STATE_WORDS = {"falling": "fall", "on_floor": "on the floor", "alarm": "ALARM", "recovered": "got up"}
 
@@ -146,6 +152,9 @@ class Episode:
             return STATE_WORDS["recovered"]
         if last == "alarm":
             return f"{STATE_WORDS['alarm']} raised (on the floor too long)"
+        if self.end > now + CLOCK_SLACK_S:     # never "in progress", nor a negative time since: a wrong clock
+            return f"{STATE_WORDS[last] if last in STATE_WORDS else last}; last message " + \
+                STAMPED_LATER.format(now=fmt(now))
         if now - self.end < in_progress_s:
             return f"in progress when this report was made ({fmt(now)})"
         if last == "on_floor":

@@ -1,4 +1,6 @@
-"""``posed events [list] [--since T] [--until T] [--limit N] [--unacked] [--json]``: list stored fall events;
+"""``posed events [list] [--since T] [--until T] [--limit N] [--unacked] [--tz ZONE | --utc] [--json]``: list
+stored fall events, each at the time it was journalled in the robot's zone with its UTC offset (the zone
+``posed report`` and ``posed plot history`` use; ``--utc``: UTC, the listing as earlier versions printed it);
 ``posed events ack ID [--state S] [--by NAME]``: acknowledge one (a Zenoh put on ``posed/ROBOT/events/ack``;
 ``by``, who acknowledged, defaults to USER@HOST).
 
@@ -76,6 +78,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _list_options(parser: argparse.ArgumentParser) -> None:
+    from posed.commands.history import add_zone_args
+
     add_config_args(parser, source=False, example="pipeline.state_dir=/var/lib/posed")
     parser.add_argument("--since", metavar="TIME", help="from this time: 2h, 7d, today, 2024-05-01T14:00, ...")
     parser.add_argument("--until", metavar="TIME", help="up to this time (same forms as --since)")
@@ -83,7 +87,9 @@ def _list_options(parser: argparse.ArgumentParser) -> None:
                         help="only the newest N messages (of those --unacked and the times select)")
     parser.add_argument("--unacked", action="store_true", help="only messages not yet acknowledged")
     parser.add_argument("--journal", metavar="FILE", help="journal file (default: events.sqlite3 in the state dir)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    add_zone_args(parser)
+    parser.add_argument("--json", action="store_true", help="print one JSON object (times as unix seconds and ISO "
+                                                            "UTC, whatever the zone)")
 
 
 def journal_path(args: argparse.Namespace, cfg=None) -> Path:
@@ -95,11 +101,12 @@ def journal_path(args: argparse.Namespace, cfg=None) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from posed.commands.history import time_range
+    from posed.commands.history import display_zone, time_range
     from posed.daemon.outbox.journal import EventJournal, JournalError  # not at import: it pulls in structlog
 
     try:
-        since, until = time_range(args)
+        tz = display_zone(args)
+        since, until = time_range(args, tz)
     except ValueError as exc:
         print(f"posed events: {exc}", file=sys.stderr)
         return 2
@@ -123,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         return 1
     if unreadable:
         print(unreadable_line(path, unreadable), file=sys.stderr)
-    return _print_listing(args, path, stored, hooks_kept=_keeps_hooks(path), unreadable=unreadable)
+    return _print_listing(args, path, stored, hooks_kept=_keeps_hooks(path), unreadable=unreadable, tz=tz)
 
 
 def unreadable_line(path: Path, rowids: list[int]) -> str:
@@ -173,9 +180,12 @@ def notes(extra: dict) -> str:
 
 
 def _print_listing(args: argparse.Namespace, path: Path, stored, hooks_kept: bool = True,
-                   unreadable: list[int] = ()) -> int:
+                   unreadable: list[int] = (), tz=None) -> int:
     """The list on standard output (``stored`` None: there is no journal yet); 74 when it cannot be written.
-    ``unreadable``: the rowids of the journal's rows that could not be read (said on stderr; in --json)."""
+    ``unreadable``: the rowids of the journal's rows that could not be read (said on stderr; in --json);
+    ``tz``: the zone of the times (``--utc``: the journal's own UTC text, as earlier versions printed it)."""
+    from posed.daemon.timeparse import clock_text, future_note, zone_name
+
     out = Output("posed events", None)
     out.open()
     try:
@@ -188,15 +198,21 @@ def _print_listing(args: argparse.Namespace, path: Path, stored, hooks_kept: boo
         elif not stored:
             print(f"no events in {path} for that time range", file=out)
         else:
-            print(f"{'wall time (UTC)':<24} {'event':<12} {'state':<10} {'conf':>5} {'pub':>3} {'ack':>3} "
+            utc = tz is None or getattr(args, "utc", False)
+            head = "wall time (UTC)" if utc else f"time ({zone_name(tz)})"
+            width = 24 if utc else 26
+            print(f"{head:<{width}} {'event':<12} {'state':<10} {'conf':>5} {'pub':>3} {'ack':>3} "
                   f"{'acked by':<16} {'hooks':<9}  features", file=out)
+            now = time.time()
             for s in stored:
                 e = s.event
                 by = (s.acked_by or "-") if s.acked_at else ""
-                print(f"{e.wall_time[:23]:<24} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
+                when = e.wall_time[:23] if utc else clock_text(s.wall, tz)
+                said = [n for n in (notes(e.extra), future_note(s.wall, now)) if n]
+                print(f"{when:<{width}} {e.id[:12]:<12} {e.state:<10} {e.confidence:5.2f} "
                       f"{'yes' if s.published_at else 'no':>3} {'yes' if s.acked_at else 'no':>3} "
                       f"{_cut(by, 16):<16} {s.hooks_outcome or ('pending' if hooks_kept else 'not kept'):<9}  "
-                      f"{','.join(e.features)}" + (f"  [{n}]" if (n := notes(e.extra)) else ""), file=out)
+                      f"{','.join(e.features)}" + (f"  [{'; '.join(said)}]" if said else ""), file=out)
         out.close()
     except OutputError as exc:
         return out.failed(exc.exc)
@@ -227,6 +243,13 @@ def _read_journal(path: Path):
         return None
 
 
+def _of_robot(stored, robot: str | None):
+    """The stored messages of ``robot`` (None: all of them); None when there are none (as no journal)."""
+    if stored is None or robot is None:
+        return stored
+    return [s for s in stored if s.event.robot == robot] or None
+
+
 def run_ack(args: argparse.Namespace) -> int:
     from posed.commands._bus import open_client
     from posed.daemon.bus.session import daemon_endpoints
@@ -240,8 +263,12 @@ def run_ack(args: argparse.Namespace) -> int:
     if len(by) > MAX_BY_CHARS or not by.isprintable():
         print(f"posed events ack: --by must be at most {MAX_BY_CHARS} printable characters", file=sys.stderr)
         return 2
+    robot = args.robot or cfg.robot_id
     path = journal_path(args, cfg)
-    stored = _read_journal(path)
+    # the local journal is the config's robot's: another robot's ack (--robot B on robot A's machine) completes
+    # and confirms only from that robot's rows there, else through that robot's history over Zenoh
+    other_robot = not args.journal and robot != cfg.robot_id
+    stored = _of_robot(_read_journal(path), robot if other_robot else None)
     if stored is not None:
         ids = sorted({s.event.id for s in stored if s.event.id.startswith(event_id)})
         if event_id not in ids and len(ids) == 1:
@@ -258,7 +285,6 @@ def run_ack(args: argparse.Namespace) -> int:
                   f"{', '.join(dict.fromkeys(states))}); acknowledge one of those with --state, or the whole "
                   "event without --state", file=sys.stderr)
             return 2
-    robot = args.robot or cfg.robot_id
     endpoints = (args.connect,) if args.connect else daemon_endpoints(cfg.zenoh)
     session = open_client(cfg, endpoints, args.wait, "posed events ack")
     if session is None:
@@ -285,8 +311,8 @@ def run_ack(args: argparse.Namespace) -> int:
         # confirm from the journal the daemon writes (readable when it is ours or we may read the service's)
         deadline = time.monotonic() + args.wait
         while time.monotonic() < deadline:
-            mine = [s for s in (_read_journal(path) or []) if s.event.id == event_id
-                    and (args.state is None or s.event.state == args.state)]
+            mine = [s for s in (_of_robot(_read_journal(path), robot if other_robot else None) or [])
+                    if s.event.id == event_id and (args.state is None or s.event.state == args.state)]
             if mine and all(s.acked_at for s in mine):
                 kept = ", ".join(dict.fromkeys(s.acked_by or "(not said)" for s in mine))
                 print(f"posed events ack: the daemon acknowledged {what} in {path} (acknowledged by: {kept})")

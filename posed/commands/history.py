@@ -1,4 +1,7 @@
-"""``posed history [--since T] [--until T] [--csv] [-o FILE]``: export the stored joint angles.
+"""``posed history [--since T] [--until T] [--tz ZONE | --utc] [--csv] [-o FILE]``: export the stored joint
+angles. The summary's times are in the robot's zone (as ``posed report`` and ``posed plot history`` show them:
+``--tz`` another, ``--utc`` UTC as before), each with its UTC offset; the CSV is unchanged (``wall_time`` ISO
+UTC, ``wall`` unix seconds).
 
 Exit status: 0 written, 2 a bad time or range, a missing history file, or an output that is the history file
 (or the config file) or cannot be created, 74 writing failed (a full disk: a partial output file is removed).
@@ -11,11 +14,12 @@ import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
+from zoneinfo import ZoneInfo
 
 from posed.commands import add_config_args, config_from_args, config_path
 from posed.commands._paths import Output, OutputError, config_inputs, refuse_same_file
 from posed.daemon.config.paths import HISTORY_FILE, reading_state_dir
-from posed.daemon.timeparse import iso, parse_time
+from posed.daemon.timeparse import clock_text, future_note, iso, local_zone, parse_time, zone_name
 
 if TYPE_CHECKING:
     from posed.daemon.config.sections import PipelineConfig
@@ -26,6 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("history", help="export or summarise the stored joint-angle history")
     add_config_args(parser, source=False, example="pipeline.state_dir=/var/lib/posed")
     add_range_args(parser)
+    add_zone_args(parser)
     parser.add_argument("--csv", action="store_true", help="write CSV (one row per kept frame)")
     parser.add_argument("-o", "--output", metavar="FILE", help="write to FILE instead of stdout")
     parser.set_defaults(func=run)
@@ -37,15 +42,39 @@ def add_range_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", metavar="FILE", help="history file (default: history.sqlite3 in the state dir)")
 
 
-def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = None
+def add_zone_args(parser: argparse.ArgumentParser) -> None:
+    """``--tz`` and ``--utc``: the zone the listing's times are printed in (default the robot's, as the report
+    and the plots show them)."""
+    zone = parser.add_mutually_exclusive_group()
+    zone.add_argument("--tz", metavar="ZONE",
+                      help="print times in this time zone, and read a --since/--until without an offset in it "
+                           "(IANA name, e.g. Europe/Berlin; default: this machine's, the robot's, as posed report "
+                           "and posed plot history use)")
+    zone.add_argument("--utc", action="store_true",
+                      help="print times in UTC, as earlier versions did (a --since/--until without an offset is "
+                           "then UTC too)")
+
+
+def display_zone(args: argparse.Namespace):
+    """The zone ``--tz``/``--utc`` name (UTC for ``--utc``), else the robot's (``timeparse.local_zone``);
+    ValueError for an unknown name."""
+    if getattr(args, "utc", False):
+        return ZoneInfo("UTC")
+    try:
+        return local_zone(getattr(args, "tz", None))
+    except (KeyError, ValueError) as exc:     # zoneinfo.ZoneInfoNotFoundError is a KeyError
+        raise ValueError(f"unknown time zone {args.tz!r} ({exc}); use an IANA name such as Europe/Berlin") from None
+
+
+def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = None, tz=None
                  ) -> tuple[AngleHistory, float | None, float | None]:
     """Parse --since/--until/--db and open the history read-only (raises ValueError/FileNotFoundError).
 
     ``pipeline``: the config's pipeline section when the caller has loaded it (else it is loaded here when
-    there is no --db)."""
+    there is no --db); ``tz``: the zone of a --since/--until without an offset (default: this machine's)."""
     from posed.daemon.history.store import AngleHistory  # not at import: it pulls in structlog
 
-    since, until = time_range(args)
+    since, until = time_range(args, tz)
     if args.db:
         path = Path(args.db)
     else:
@@ -54,13 +83,14 @@ def open_history(args: argparse.Namespace, pipeline: PipelineConfig | None = Non
     return AngleHistory(path, readonly=True), since, until
 
 
-def time_range(args: argparse.Namespace) -> tuple[float | None, float | None]:
-    """``--since`` and ``--until`` as Unix times (None: open); ValueError for a time that cannot be read or a
-    --since after the --until."""
-    since = parse_time(args.since) if args.since else None
-    until = parse_time(args.until) if args.until else None
+def time_range(args: argparse.Namespace, tz=None) -> tuple[float | None, float | None]:
+    """``--since`` and ``--until`` as Unix times (None: open), a date or time without an offset in ``tz``
+    (default: this machine's zone); ValueError for a time that cannot be read or a --since after the --until."""
+    since = parse_time(args.since, tz=tz) if args.since else None
+    until = parse_time(args.until, tz=tz) if args.until else None
     if since is not None and until is not None and since > until:
-        raise ValueError(f"--since {args.since} ({iso(since)}) is after --until {args.until} ({iso(until)}): "
+        shown = (lambda t: clock_text(t, tz)) if tz is not None else iso
+        raise ValueError(f"--since {args.since} ({shown(since)}) is after --until {args.until} ({shown(until)}): "
                          "give the earlier time to --since")
     return since, until
 
@@ -96,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
         refused = refuse_same_file(cmd, args.output, [("history database", db), *config_inputs(args)])
         if refused is not None:
             return refused
-        hist, since, until = open_history(args, pipeline)
+        tz = display_zone(args)
+        hist, since, until = open_history(args, pipeline, tz)
     except (ValueError, FileNotFoundError) as exc:
         print(f"{cmd}: {exc}", file=sys.stderr)
         return 2
@@ -113,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
             if args.output:
                 print(f"{n} rows written to {args.output}", file=sys.stderr)
             return 0
-        _summary(hist, since, until, out)
+        _summary(hist, since, until, out, None if args.utc else tz)
         out.close()
     except OutputError as exc:
         return out.failed(exc.exc)
@@ -126,7 +157,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _summary(hist: AngleHistory, since, until, out) -> None:
+def span_line(first: float, last: float, tz) -> str:
+    """``from 2026-10-25 01:29:00+01:00 to 2026-10-25 01:31:59+00:00 (Europe/London)`` (``tz`` None: UTC, as
+    posed printed it before), and what to know of a last time later than now (a clock set right since)."""
+    if tz is None:
+        text = f"from {iso(first)} to {iso(last)} (UTC)"
+    else:
+        text = f"from {clock_text(first, tz)} to {clock_text(last, tz)} ({zone_name(tz, first)})"
+    note = future_note(last)
+    return text + (f"; the last is {note}" if note else "")
+
+
+def _summary(hist: AngleHistory, since, until, out, tz=None) -> None:
     from posed.daemon.history.store import ANGLE_COLUMNS
     from posed.fitting import ANGLE_PLAIN_NAMES, FIXED_ANGLE_NAMES
 
@@ -134,7 +176,7 @@ def _summary(hist: AngleHistory, since, until, out) -> None:
     if not rows:
         print("no joint angles stored for that time range", file=out)
         return
-    print(f"{len(rows)} frames from {iso(rows[0][0])} to {iso(rows[-1][0])} (UTC); --csv exports them (columns by "
+    print(f"{len(rows)} frames {span_line(rows[0][0], rows[-1][0], tz)}; --csv exports them (columns by "
           "the model's symbols, docs/body-model.md)", file=out)
     print("degrees, over the frames in which the camera saw the joint (samples)", file=out)
     print(f"{'angle':<26} {'samples':>7} {'min':>8} {'mean':>8} {'max':>8}", file=out)

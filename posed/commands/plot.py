@@ -86,7 +86,7 @@ def parse_panels(spec: str) -> list[tuple[str, tuple[str, ...]]]:
 
 def _prepare(args, cmd: str):
     """(panels, tz) or an exit status after reporting the problem."""
-    from posed.viz.plots import local_zone
+    from posed.daemon.timeparse import local_zone
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
                                                       *config_inputs(args)])
         if refused is not None:
             return refused
-        hist, since, until = open_history(args, pipeline)
+        hist, since, until = open_history(args, pipeline, tz)
     except (ValueError, FileNotFoundError) as exc:
         print(f"{cmd}: {exc}", file=sys.stderr)
         return 2
@@ -170,9 +170,10 @@ def run(args: argparse.Namespace) -> int:
                 return 1
     import datetime as dt
 
-    day = dt.datetime.fromtimestamp(series.time[0], tz).strftime("%A %d %B %Y")
+    first, last = (dt.datetime.fromtimestamp(t, tz).strftime("%A %d %B %Y") for t in series.time[[0, -1]])
+    span = first if last == first else f"{first} to {last}"     # more than one day: never only the first
     png = plot_angles(series, panels, falls, tz=tz, width_px=args.width,
-                      title=f"Joint angles, {day} (robot clock, {zone_text(tz, series.time[0])})")
+                      title=f"Joint angles, {span} (robot clock, {zone_text(tz, series.time[0])})")
     status = _write(Path(args.output), png, cmd)
     if status:
         return status

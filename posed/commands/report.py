@@ -4,8 +4,9 @@ Reads the joint-angle history, the minutes posed watched (kept in the same file)
 (read-only, like ``posed plot history``) and writes one self-contained HTML file: whether posed was watching,
 time standing, sitting, lying, in view and with nobody in view, sit-to-stand transitions, walking bouts,
 falls and how they ended, the day's joint-angle ranges, the day hour by hour and the angle plot. The day runs
-from local midnight to midnight in the robot's time zone (``--tz`` another); the part of today still to come
-is never counted.
+from local midnight to midnight in the robot's time zone (``--tz`` another; ``daemon.timeparse.local_zone``,
+the zone ``posed events`` and ``posed history`` print in): 23 or 25 hours the day the clocks go forward or back.
+The part of today still to come is never counted, nor what was stamped later than now (a clock set right since).
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ def camera_down(config, state_dir: Path):
 
 def run(args: argparse.Namespace) -> int:
     import datetime as dt
+    import time
 
     import numpy as np
 
@@ -71,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.daemon.history.store import ROW_COLUMNS, AngleHistory, HistoryFileError
     from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError
-    from posed.viz.plots import local_zone
+    from posed.daemon.timeparse import FUTURE_SLACK_S, local_zone
     from posed.viz.report import IN_PROGRESS_MARGIN_S, day_report
     from posed.viz.series import episodes
 
@@ -104,16 +106,20 @@ def run(args: argparse.Namespace) -> int:
         return 2
     series = angle_series(rows, ROW_COLUMNS)     # the angles and the down each sample was fitted against
     falls = []
+    later = 0                                     # fall events of other days stamped later than now
+    now = time.time()
     if journal_path.is_file():
         try:
             with EventJournal(journal_path, readonly=True) as journal:
                 falls = episodes(event_marks(journal.query(start, end)))
+                later = len({s.event.id for s in journal.query(max(end, now + FUTURE_SLACK_S))}
+                            - {ep.id for ep in falls})
         except (JournalError, FileNotFoundError) as exc:
             _err(f"{exc}; the report needs the journal for the falls")
             return 1
     step = float(np.median(np.diff(series.time))) if len(series.time) > 1 else 1.0
     text = day_report(series, falls, day, tz, robot=config.robot_id, max_step_s=max(1.0, 3.0 * step),
-                      watched=watched, down=camera_down(config, db.parent),
+                      watched=watched, down=camera_down(config, db.parent), now=now, stamped_later=later,
                       in_progress_s=config.falls.alarm_after_s + IN_PROGRESS_MARGIN_S,
                       sources=f"{db} ({len(rows)} samples) and "
                               + (f"{journal_path}" if journal_path.is_file() else "no event journal"))
