@@ -127,7 +127,7 @@ def partial_problems(exc) -> list[str]:
         return any(key_covers(key, n) for n in named)
 
     try:
-        found = check(cfg) + hook_program_problems(cfg)
+        found = check(cfg) + hook_program_problems(cfg) + model_provenance_problems(cfg)
     except Exception:       # a check that cannot run on a half-read config: the schema's problems stand
         return []
     return [p for p in found if not covered(p)]
@@ -178,6 +178,26 @@ def _model_problems(cfg: Config) -> list[str]:
         if "posed models fetch" not in text:
             text += "; run: posed models fetch"
         return [f"landmarks: {text}"]
+    return []
+
+
+def model_provenance_problems(cfg: Config) -> list[str]:
+    """Intact landmark models that are not the ones this posed runs (an earlier posed's converter, another
+    mediapipe release's files: ``landmarks.check_provenance``). Not a reason to stop watching: ``posed config
+    check`` lists it (exit 78), ``posed run`` logs it and starts on them; ``posed models fetch`` fixes it.
+    Empty for a landmark recording (no models run) and for models ``check`` already reports as missing."""
+    from posed.landmarks import ModelMissingError, ModelOutdatedError, check_provenance, find_models
+
+    src = cfg.source
+    if src.type == "file" and src.path and is_landmark_recording(src.path.split("?", 1)[0]):
+        return []
+    try:
+        paths = find_models(cfg.landmarks.models_dir or None)
+        check_provenance(paths)
+    except ModelOutdatedError as exc:
+        return [f"landmarks: {exc}"]
+    except (ModelMissingError, ValueError, OSError):      # missing or damaged: check() says so
+        return []
     return []
 
 

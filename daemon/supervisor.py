@@ -96,6 +96,7 @@ class Supervisor:
             c.name == "capture" and c.output == s.input for c in self.plan)), None)
         self._blind = BlindWatch(self._consumer or "landmarks", blind_after_s(config.pipeline.target_fps))
         self._problem: dict | None = None        # the capture stage's last reported problem {error, fix}
+        self.models = models_in_use(config)      # the status's "models": read once, from the manifest
         self._next_blind_log = 0.0
         self.control: Control | None = None
         self.ring: FrameRing | None = None
@@ -445,6 +446,7 @@ class Supervisor:
         return {
             "robot": self.config.robot_id,
             "posed_version": __version__,      # "version" is the message format's (daemon.bus.payloads)
+            "models": self.models,             # which landmark models run (as `posed --version`'s second line)
             "time": clock.iso(time.time()),
             "uptime_s": round(now - self._t0, 1),
             "state": state,
@@ -522,6 +524,17 @@ class Supervisor:
             with contextlib.suppress(OSError):
                 self._sem_record.unlink()
         self.log.info("daemon_stopped", seconds=round(clock.now() - t_start, 2), exit_code=self._exit_code)
+
+
+def models_in_use(config: Config) -> dict:
+    """The landmark models the daemon runs, from the models folder's manifest (``landmarks.installed_models``:
+    dir, converter_version, mediapipe, the two ONNX sha256, or dir and error); never raises."""
+    from posed.landmarks import installed_models
+
+    try:
+        return installed_models(config.landmarks.models_dir or None)
+    except Exception as exc:        # an unreadable folder must not stop the daemon: the status says why
+        return {"dir": str(config.landmarks.models_dir or ""), "error": f"cannot read the models folder: {exc}"}
 
 
 def status_text(status: dict) -> str:

@@ -44,7 +44,16 @@ if TYPE_CHECKING:
     from posed.landmarks.crop import detector_input, landmark_input
     from posed.landmarks.decode import CROP_SIZE as LANDMARK_INPUT_SIZE
     from posed.landmarks.depth import depth_patch_radius, sample_depth, with_depth
-    from posed.landmarks.models import ModelMissingError, default_models_dir, find_models, verify_models
+    from posed.landmarks.models import (
+        ModelMissingError,
+        ModelOutdatedError,
+        check_provenance,
+        default_models_dir,
+        describe_models,
+        find_models,
+        installed_models,
+        verify_models,
+    )
     from posed.landmarks.people import MultiPoseLandmarker
     from posed.landmarks.pipeline import PoseLandmarker, rotate_image, rotate_points
     from posed.landmarks.recording import (
@@ -85,6 +94,10 @@ __all__ = [
     "LandmarkFrame",
     "LandmarkOutputs",
     "ModelMissingError",
+    "ModelOutdatedError",
+    "check_provenance",
+    "describe_models",
+    "installed_models",
     "OnnxDetector",
     "OnnxLandmarkModel",
     "MultiPoseLandmarker",
@@ -133,6 +146,10 @@ _ORIGIN = {
     "SideKeeper": ("posed.landmarks.sides", "SideKeeper"),
     "RecordingSides": ("posed.landmarks.sides", "RecordingSides"),
     "ModelMissingError": ("posed.landmarks.models", "ModelMissingError"),
+    "ModelOutdatedError": ("posed.landmarks.models", "ModelOutdatedError"),
+    "check_provenance": ("posed.landmarks.models", "check_provenance"),
+    "describe_models": ("posed.landmarks.models", "describe_models"),
+    "installed_models": ("posed.landmarks.models", "installed_models"),
     "default_models_dir": ("posed.landmarks.models", "default_models_dir"),
     "find_models": ("posed.landmarks.models", "find_models"),
     "verify_models": ("posed.landmarks.models", "verify_models"),

@@ -2,7 +2,8 @@
 
 ``posed models fetch`` (``landmarks.convert.fetch``) writes a models folder holding MediaPipe's two
 TFLite files, their ONNX conversions and ``manifest.json`` (sources, sha256 of every file, converter
-version). This module only finds and checks that folder; it needs nothing beyond the standard library.
+version). This module only finds and checks that folder, and whether it is what this posed runs
+(``check_provenance``, against ``landmarks.model_pins``); it needs nothing beyond the standard library.
 
 Folder, first that applies: the ``--models-dir`` option / ``landmarks.models_dir`` config key (passed as
 ``configured``), ``$POSED_MODELS_DIR`` (the systemd unit points it at its state dir),
@@ -17,13 +18,19 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from posed.landmarks.model_pins import (
+    CONVERTER_VERSION,
+    DETECTOR_ONNX,
+    DETECTOR_TFLITE,
+    LANDMARK_ONNX,
+    LANDMARK_TFLITE,
+    MEDIAPIPE_VERSION,
+    PINNED,
+)
+
 ENV_MODELS_DIR = "POSED_MODELS_DIR"
 MANIFEST = "manifest.json"
 MANIFEST_FORMAT = 1
-DETECTOR_TFLITE = "pose_detection.tflite"
-LANDMARK_TFLITE = "pose_landmark_full.tflite"
-DETECTOR_ONNX = "pose_detection.onnx"
-LANDMARK_ONNX = "pose_landmark_full.onnx"
 MODEL_FILES = (DETECTOR_ONNX, LANDMARK_ONNX, DETECTOR_TFLITE, LANDMARK_TFLITE)
 FETCH_HINT = "run `posed models fetch`"
 
@@ -34,6 +41,12 @@ class ModelMissingError(FileNotFoundError):
 
 class ModelCorruptError(ModelMissingError):
     """A model file differs from what its manifest records (hash or size); re-fetching fixes it."""
+
+
+class ModelOutdatedError(ModelMissingError):
+    """The folder is intact but not what this posed runs: converted by another converter version, or from
+    TFLite files other than the pinned mediapipe release's (an earlier posed's fetch, a folder copied from
+    elsewhere). ``posed models fetch`` converts the pinned files again (without a download when they are kept)."""
 
 
 @dataclass(frozen=True)
@@ -115,7 +128,8 @@ def verify_models(paths: ModelPaths, include_tflite: bool = False) -> dict:
 
     By default only the two ONNX files the daemon runs are hashed (about 25 MB, tens of ms);
     ``include_tflite`` hashes the TFLite originals too. Raises ModelCorruptError naming the file, the
-    expected and the actual sha256, and ``posed models fetch``.
+    expected and the actual sha256, and ``posed models fetch``. Whether the files are what this posed runs is
+    :func:`check_provenance`'s question, not this one's: an intact folder of an earlier posed still runs.
     """
     manifest = read_manifest(paths)
     names = list(MODEL_FILES if include_tflite else (DETECTOR_ONNX, LANDMARK_ONNX))
@@ -145,3 +159,69 @@ def verify_models(paths: ModelPaths, include_tflite: bool = False) -> dict:
             raise ModelCorruptError(f"model file {path} is damaged (corrupt): sha256 {got}, the manifest expects "
                                     f"{entry['sha256']}; {_fetch_hint(paths.models_dir)} to fetch it again")
     return manifest
+
+
+def _source_text(manifest: dict) -> str:
+    src = manifest.get("source")
+    if not isinstance(src, dict) or not src:
+        return "source not recorded"
+    if src.get("kind") == "pypi":
+        return f"mediapipe {src.get('version', '?')} from PyPI"
+    if src.get("kind") == "wheel":
+        return f"the wheel {src.get('wheel', '?')}"
+    return f"the folder {src.get('path', '?')}"
+
+
+def check_provenance(paths: ModelPaths, manifest: dict | None = None) -> None:
+    """Raise ModelOutdatedError unless the manifest says its ONNX files were made by this posed's converter
+    version (``model_pins.CONVERTER_VERSION``) from the pinned TFLite files of mediapipe ``MEDIAPIPE_VERSION``:
+    an upgrade of posed (a new converter) or of mediapipe (other models) must never change what runs unsaid.
+    Reads nothing but the manifest (``manifest`` when already read). ``posed models verify`` and ``posed config check`` fail on it; ``posed run``
+    logs it and starts (the intact models of the earlier posed watch on until someone fetches: a robot that
+    stopped watching at an upgrade would serve nobody)."""
+    manifest = read_manifest(paths) if manifest is None else manifest
+    fix = (f"run `posed models fetch --models-dir {paths.models_dir}` (it converts the pinned TFLite files again, "
+           "without a download when the folder keeps them)")
+    version = manifest.get("converter_version")
+    if version != CONVERTER_VERSION:
+        raise ModelOutdatedError(
+            f"the landmark models in {paths.models_dir} were converted by converter version {version!r} "
+            f"(manifest {paths.manifest}); this posed runs the models of converter version {CONVERTER_VERSION!r}; "
+            f"{fix}")
+    for pin in PINNED:
+        entry = manifest["files"].get(pin.name)
+        got = entry.get("sha256") if isinstance(entry, dict) else None
+        if got != pin.sha256:
+            raise ModelOutdatedError(
+                f"the landmark models in {paths.models_dir} were converted from a {pin.name} with sha256 {got} "
+                f"({_source_text(manifest)}), not from mediapipe {MEDIAPIPE_VERSION}'s ({pin.sha256}), the one "
+                f"this posed runs; {fix}")
+
+
+def installed_models(models_dir: str | os.PathLike | None = None) -> dict:
+    """What the models folder holds, from its manifest alone (nothing hashed, cheap enough for every status
+    message and ``posed --version``): ``{"dir", "converter_version", "mediapipe", "detector_onnx_sha256",
+    "landmark_onnx_sha256"}``, or ``{"dir", "error"}`` when there is no readable manifest."""
+    d = Path(models_dir).expanduser() if models_dir else default_models_dir()
+    paths = ModelPaths.in_dir(d)
+    try:
+        manifest = read_manifest(paths)
+    except ModelMissingError as exc:
+        return {"dir": str(d), "error": str(exc)}
+    files = manifest["files"]
+    src = manifest.get("source") if isinstance(manifest.get("source"), dict) else {}
+    pinned = all((files.get(p.name) or {}).get("sha256") == p.sha256 for p in PINNED)
+    return {"dir": str(d), "converter_version": str(manifest.get("converter_version", "")),
+            "mediapipe": str(src.get("version") or (MEDIAPIPE_VERSION if pinned else "unknown")),
+            "detector_onnx_sha256": str((files.get(DETECTOR_ONNX) or {}).get("sha256", "")),
+            "landmark_onnx_sha256": str((files.get(LANDMARK_ONNX) or {}).get("sha256", ""))}
+
+
+def describe_models(models: dict) -> str:
+    """:func:`installed_models` as one line for a support person: ``converter 2, mediapipe 0.10.21
+    (pose_detection.onnx ad88d436b6a9, pose_landmark_full.onnx 4181150f1d07) in DIR``, or why there are none."""
+    if "error" in models:
+        return f"none usable in {models['dir']} ({models['error']})"
+    return (f"converter {models['converter_version']}, mediapipe {models['mediapipe']} (pose_detection.onnx "
+            f"{models['detector_onnx_sha256'][:12]}, pose_landmark_full.onnx {models['landmark_onnx_sha256'][:12]}) "
+            f"in {models['dir']}")

@@ -14,7 +14,18 @@ from posed import commands
 from posed.commands._paths import EX_IOERR, EX_PIPE, OutputError, silence_stdout, stdout_name, write_problem
 from posed.daemon.config import EX_CONFIG
 from posed.daemon.config.load import ConfigError
-from posed.daemon.version import __version__
+
+
+class VersionAction(argparse.Action):
+    """``posed --version``: ``posed X.Y.Z`` and, on a second line, the landmark models the daemon runs (converter
+    version, mediapipe release, ONNX hashes: ``daemon.version.version_text``; read from the manifest only when
+    asked, so no other command pays for it)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from posed.daemon.version import version_text
+
+        print(version_text(), flush=True)
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,7 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="posed",
         description="Edge daemon: one camera -> live 3D human pose, joint angles and fall events over Zenoh.",
     )
-    parser.add_argument("--version", action="version", version=f"posed {__version__}")
+    parser.add_argument("--version", action=VersionAction, nargs=0,
+                        help="show posed's version and the landmark models it runs, and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):

@@ -147,7 +147,8 @@ def test_the_installed_wheel_runs_from_its_own_files(installed):
     r = _posed(installed, "--version")
     from posed.daemon.version import __version__
 
-    assert r.returncode == 0 and r.stdout.strip() == f"posed {__version__}", r.stdout + r.stderr
+    assert r.returncode == 0 and r.stdout.splitlines()[0] == f"posed {__version__}", r.stdout + r.stderr
+    assert r.stdout.splitlines()[1].startswith("landmark models: "), r.stdout     # which models it runs
     where = subprocess.run([str(installed / "bin" / "python"), "-c", "from posed import daemon, fitting; "
                             "print(daemon.__file__); print(fitting.__file__)"],
                            capture_output=True, text=True, cwd=installed, check=True).stdout.split()

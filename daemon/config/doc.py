@@ -40,7 +40,17 @@ The state dir (events.sqlite3, history.sqlite3): `pipeline.state_dir` if set, el
 history`, and `posed events ack` to complete an id and confirm the acknowledgement) open the service's
 `/var/lib/posed` instead of that last default when the config in effect is `/etc/posed/config.yaml`, or when
 only `/var/lib/posed` holds the file they read. Reading the service's files needs its permissions (`sudo`, or
-`sudo -u posed`)."""
+`sudo -u posed`).
+
+Times shown to people (`posed events`, `posed history`, `posed report`, `posed plot history`, `posed watch`) are
+in the robot's time zone: `--tz ZONE` when given, else `$TZ`, else the zone `/etc/localtime` points at
+(`timedatectl set-timezone`); there is no config key. `posed events --utc` and `posed history --utc` print UTC.
+
+Upgrades: no config key has been renamed or removed since the first release, so an old
+`/etc/posed/config.yaml` stays valid. The landmark models folder (`landmarks.models_dir`) must hold what this
+posed runs (its manifest: this converter version, mediapipe's pinned TFLite files); an earlier posed's folder
+is named by `posed config check` (exit 78) and at `posed run`'s start, which watches on with it until `posed
+models fetch` converts the kept files again (no download)."""
 
 
 def _yaml_value(value: typing.Any) -> str:

@@ -23,8 +23,11 @@ from onnx import helper
 from posed.landmarks.convert.densify import densify
 from posed.landmarks.convert.onnx_graph import NCHW, NHWC, TO_NCHW, OnnxGraph, value_info
 from posed.landmarks.convert.tflite_graph import Graph, Operator, Tensor, read_graph
+from posed.landmarks.model_pins import CONVERTER_VERSION
 
-CONVERTER_VERSION = "2"  # 2: outputs can be selected; unused operators are pruned
+# CONVERTER_VERSION (above): this converter's version, kept in one place with the models it was validated with
+# (landmarks.model_pins; 2: outputs can be selected, unused operators are pruned): bump it there
+
 OPSET = 17
 IR_VERSION = 8  # onnxruntime >= 1.14 reads it
 NHWC_AXIS_TO_NCHW = {0: 0, 1: 2, 2: 3, 3: 1}

@@ -2,8 +2,10 @@
 
 The two TFLite files come from the ``mediapipe==0.10.21`` wheel on PyPI (the last release that ships
 them; newer wheels do not) or from ``--from PATH`` (that wheel, or a folder holding the two files). Both
-are pinned by sha256. The folder then holds the TFLite originals, their ONNX conversions and
-``manifest.json``; a second run with everything intact does nothing.
+are pinned by sha256 (``landmarks.model_pins``). The folder then holds the TFLite originals, their ONNX
+conversions and ``manifest.json``; a second run with everything intact does nothing. The download and what its
+failures mean: ``fetch_pip``; the errors: ``fetch_errors``. The folder is replaced all or nothing
+(:func:`_replace_all`): a fetch that fails leaves the models that worked as they were.
 """
 
 from __future__ import annotations
@@ -13,7 +15,6 @@ import hashlib
 import json
 import os
 import re
-import subprocess
 import sys
 import tempfile
 import time
@@ -26,7 +27,17 @@ from pathlib import Path
 import numpy as np
 
 from posed.landmarks.convert.converter import CONVERTER_VERSION, OPSET, convert
+from posed.landmarks.convert.fetch_errors import (
+    EX_DATAERR,
+    EX_IOERR,
+    EX_SOFTWARE,
+    FetchError,
+    is_read_only,
+    write_error,
+)
+from posed.landmarks.convert.fetch_pip import pip_download
 from posed.landmarks.convert.tflite_graph import read_graph
+from posed.landmarks.model_pins import MEDIAPIPE_VERSION, PINNED, WHEEL_NAME
 from posed.landmarks.models import (
     DETECTOR_ONNX,
     DETECTOR_TFLITE,
@@ -36,53 +47,11 @@ from posed.landmarks.models import (
     MANIFEST_FORMAT,
     ModelMissingError,
     ModelPaths,
+    check_provenance,
     read_manifest,
     sha256_file,
     verify_models,
 )
-
-MEDIAPIPE_VERSION = "0.10.21"
-# Any platform's wheel holds the same two files; this one is asked for explicitly so the download works
-# from any host (e.g. another Python version or an ARM board).
-WHEEL_PLATFORM = ("manylinux_2_28_x86_64", "3.11", "cp", "cp311")
-WHEEL_NAME = f"mediapipe-{MEDIAPIPE_VERSION}-cp311-cp311-manylinux_2_28_x86_64.whl"
-WHEEL_SHA256 = "05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3"  # recorded, not required
-
-EX_DATAERR, EX_UNAVAILABLE, EX_SOFTWARE, EX_CANTCREAT, EX_IOERR = 65, 69, 70, 73, 74
-
-
-@dataclass(frozen=True)
-class PinnedModel:
-    name: str  # file name in the models folder
-    member: str  # path inside the mediapipe wheel
-    sha256: str
-    size: int
-    onnx_name: str
-    outputs: tuple[str, ...] | None = None  # TFLite outputs the ONNX model keeps (None = all)
-
-
-# The landmark model's outputs: Identity = 39 landmarks in crop pixels, Identity_1 = pose flag,
-# Identity_2 = 256x256 segmentation logits, Identity_3 = 64x64x39 heatmap, Identity_4 = 39 world landmarks.
-# posed never reads the segmentation mask, and computing it is about 45% of the model's time, so the
-# converted model leaves it out.
-LANDMARK_OUTPUTS = ("Identity", "Identity_1", "Identity_3", "Identity_4")
-
-PINNED = (
-    PinnedModel(DETECTOR_TFLITE, "mediapipe/modules/pose_detection/pose_detection.tflite",
-                "9ba9dd3d42efaaba86b4ff0122b06f29c4122e756b329d89dca1e297fd8f866c", 2_959_046, DETECTOR_ONNX),
-    PinnedModel(LANDMARK_TFLITE, "mediapipe/modules/pose_landmark/pose_landmark_full.tflite",
-                "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f", 6_440_512, LANDMARK_ONNX,
-                LANDMARK_OUTPUTS),
-)
-
-
-class FetchError(RuntimeError):
-    """``posed models fetch`` failed; the message says what and how to fix it; ``exit_code`` is a
-    sysexits code."""
-
-    def __init__(self, message: str, exit_code: int = EX_SOFTWARE) -> None:
-        super().__init__(message)
-        self.exit_code = exit_code
 
 
 @dataclass(frozen=True)
@@ -96,15 +65,6 @@ class FetchResult:
 
 def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
-
-
-def _offline_hint() -> str:
-    plat, py, impl, abi = WHEEL_PLATFORM
-    return (f"On a machine with internet access, run `pip download mediapipe=={MEDIAPIPE_VERSION} --no-deps "
-            f"--only-binary=:all: --platform {plat} --python-version {py} --implementation {impl} "
-            f"--abi {abi} "
-            f"-d DIR`, copy DIR here and run `posed models fetch --from DIR` (a folder holding "
-            f"{DETECTOR_TFLITE} and {LANDMARK_TFLITE} works too)")
 
 
 # ---- getting the TFLite bytes ---------------------------------------------------------------------------
@@ -155,26 +115,9 @@ def _from_path(path: Path) -> tuple[dict[str, bytes], dict]:
 
 
 def _download(say: Callable[[str], None]) -> tuple[dict[str, bytes], dict]:
-    plat, py, impl, abi = WHEEL_PLATFORM
     say(f"downloading mediapipe=={MEDIAPIPE_VERSION} ({WHEEL_NAME}, about 36 MB) from PyPI with pip")
     with tempfile.TemporaryDirectory(prefix="posed-models-") as tmp:
-        cmd = [sys.executable, "-m", "pip", "download", f"mediapipe=={MEDIAPIPE_VERSION}", "--no-deps",
-               "--only-binary=:all:", "--platform", plat, "--python-version", py, "--implementation", impl,
-               "--abi", abi, "--disable-pip-version-check", "--no-input", "-d", tmp]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
-        except subprocess.TimeoutExpired as exc:
-            raise FetchError(f"pip download of mediapipe=={MEDIAPIPE_VERSION} timed out after 30 min. "
-                             f"{_offline_hint()}", EX_UNAVAILABLE) from exc
-        except OSError as exc:
-            raise FetchError(f"cannot run pip ({exc}). {_offline_hint()}", EX_UNAVAILABLE) from exc
-        wheels = sorted(Path(tmp).glob("mediapipe-*.whl"))
-        if proc.returncode != 0 or not wheels:
-            tail = " | ".join(line.strip() for line in (proc.stderr or proc.stdout).strip().splitlines()[-3:])
-            raise FetchError(f"could not download mediapipe=={MEDIAPIPE_VERSION} from PyPI (pip exit "
-                             f"{proc.returncode}: {tail or 'no output'}). Offline? {_offline_hint()}",
-                             EX_UNAVAILABLE)
-        wheel = wheels[0]
+        wheel = pip_download(Path(tmp))
         return _read_wheel(wheel), {"kind": "pypi", "package": "mediapipe", "version": MEDIAPIPE_VERSION,
                                     "wheel": wheel.name, "wheel_sha256": sha256_file(wheel)}
 
@@ -190,17 +133,7 @@ def _check_pins(data: dict[str, bytes], origin: str) -> None:
 
 
 # ---- the folder -----------------------------------------------------------------------------------------
-def _write_error(path: Path, exc: OSError) -> FetchError:
-    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        return FetchError(f"no space left writing {path} (the models need about 45 MB); free some space or "
-                          "choose another folder with --models-dir or POSED_MODELS_DIR", EX_CANTCREAT)
-    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
-        return FetchError(f"cannot write {path}: {exc.strerror}; choose a writable folder with --models-dir "
-                          "or POSED_MODELS_DIR (or fix the folder's permissions)", EX_CANTCREAT)
-    return FetchError(f"cannot write {path}: {exc}", EX_IOERR)
-
-
-# The temporary name of each file the fetch writes: ``.<file>.tmp<pid of the writer>`` (:func:`_write_atomic`).
+# The temporary name of each file the fetch writes: ``.<file>.tmp<pid of the writer>`` (:func:`_stage`).
 OWN_FILES = (DETECTOR_TFLITE, LANDMARK_TFLITE, DETECTOR_ONNX, LANDMARK_ONNX, MANIFEST)
 _TEMPORARY = re.compile(r"\.(" + "|".join(re.escape(n) for n in OWN_FILES) + r")\.tmp([0-9]+)")
 # A temporary is written and renamed within seconds; one this old is stale whatever its writer's pid now is.
@@ -269,32 +202,59 @@ def remove_stale_temporaries(models_dir: Path, say: Callable[[str], None]) -> tu
     return tuple(removed)
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
+def _stage(path: Path, data: bytes) -> Path:
+    """Write ``data`` to ``path``'s temporary name and fsync it; the temporary (``path`` is not touched)."""
     tmp = _temporary(path)
     try:
         with open(tmp, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
-        raise _write_error(path, exc) from exc
+        raise write_error(path, exc) from exc
+    return tmp
+
+
+def _replace_all(models_dir: Path, files: dict[str, bytes]) -> None:
+    """Put ``files`` (name -> bytes, the manifest among them) in ``models_dir`` all or nothing: every file is
+    first written beside the old ones under its temporary name, so a full disk, a read-only or vanished
+    folder or an I/O error leaves the folder as it was (the models that worked keep working, their manifest
+    still vouching for them). Only then the manifest goes, the files are renamed over the old ones and the new
+    manifest comes last: a crash in these renames leaves a folder that reads as missing, never as valid."""
+    staged: dict[str, Path] = {}
+    try:
+        for name, data in files.items():
+            staged[name] = _stage(models_dir / name, data)
+    except FetchError:
+        for tmp in staged.values():
+            tmp.unlink(missing_ok=True)
+        raise
+    order = [name for name in files if name != MANIFEST] + [MANIFEST]
+    try:
+        (models_dir / MANIFEST).unlink(missing_ok=True)  # no manifest = incomplete while files change
+        for name in order:
+            os.replace(staged[name], models_dir / name)
+        dir_fd = os.open(models_dir, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)        # the renames themselves on disk
+        finally:
+            os.close(dir_fd)
+    except OSError as exc:
+        for tmp in staged.values():
+            tmp.unlink(missing_ok=True)
+        raise write_error(models_dir, exc) from exc
 
 
 def up_to_date(paths: ModelPaths) -> dict | None:
     """The manifest when the folder is complete, made by this converter version from the pinned TFLite
     files, and every file matches its recorded size and sha256; else None."""
     try:
-        manifest = read_manifest(paths)
-        if manifest.get("converter_version") != CONVERTER_VERSION:
-            return None
-        files = manifest["files"]
-        if any(files.get(pin.name, {}).get("sha256") != pin.sha256 for pin in PINNED):
-            return None
-        return verify_models(paths, include_tflite=True)
-    except ModelMissingError:
+        manifest = verify_models(paths, include_tflite=True)    # every file, then the converter version and pins
+        check_provenance(paths, manifest)
+    except ModelMissingError:                                    # ModelCorruptError, ModelOutdatedError alike
         return None
+    return manifest
 
 
 def _kept_tflite(paths: ModelPaths) -> tuple[dict[str, bytes], dict] | None:
@@ -356,9 +316,10 @@ def fetch_models(models_dir: str | os.PathLike, source: str | os.PathLike | None
     try:
         paths.models_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise _write_error(paths.models_dir, exc) from exc
+        raise write_error(paths.models_dir, exc) from exc
     if not os.access(paths.models_dir, os.W_OK | os.X_OK):
-        raise _write_error(paths.models_dir, PermissionError(errno.EACCES, "permission denied"))
+        code = errno.EROFS if is_read_only(paths.models_dir) else errno.EACCES
+        raise write_error(paths.models_dir, OSError(code, os.strerror(code)))
 
     t = time.perf_counter()
     got = None if source is not None else _kept_tflite(paths)
@@ -404,14 +365,9 @@ def fetch_models(models_dir: str | os.PathLike, source: str | os.PathLike | None
                   "tflite": getattr(tflite, "__version__", "unknown")},
     }
     t = time.perf_counter()
-    try:
-        (paths.models_dir / MANIFEST).unlink(missing_ok=True)  # no manifest = incomplete while files change
-    except OSError as exc:
-        raise _write_error(paths.models_dir / MANIFEST, exc) from exc
-    for pin in PINNED:
-        _write_atomic(paths.models_dir / pin.name, data[pin.name])
-        _write_atomic(paths.models_dir / pin.onnx_name, converted[pin.onnx_name])
-    _write_atomic(paths.models_dir / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
+    blobs = {name: blob for pin in PINNED for name, blob in ((pin.name, data[pin.name]),
+                                                             (pin.onnx_name, converted[pin.onnx_name]))}
+    _replace_all(paths.models_dir, {**blobs, MANIFEST: (json.dumps(manifest, indent=2) + "\n").encode()})
     seconds["write"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t0
     return FetchResult(paths.models_dir, True, manifest, seconds, removed)

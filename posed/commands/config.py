@@ -42,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     from posed.daemon.config.paths import config_file, state_dir
-    from posed.daemon.preflight import check, hook_program_problems
+    from posed.daemon.preflight import check, hook_program_problems, model_provenance_problems
     from posed.daemon.state_check import state_dir_problems
 
     path = args.file if args.file else config_file(None)
@@ -53,7 +53,8 @@ def _check(args: argparse.Namespace) -> int:
         return config_problems(exc, lambda p: f"{name}: {p}")
     problems = check(cfg)
     stopping = len(problems)            # these stop `posed run`; a failing state dir only degrades it
-    problems += state_dir_problems(state_dir(cfg.pipeline)) + hook_program_problems(cfg)
+    problems += (state_dir_problems(state_dir(cfg.pipeline)) + hook_program_problems(cfg)
+                 + model_provenance_problems(cfg))
     lines: list[str] = []
     if args.source and not stopping:
         from posed.commands._probe import probe

@@ -80,16 +80,24 @@ def _fetch(args: argparse.Namespace) -> int:
 
 
 def _verify(args: argparse.Namespace) -> int:
-    from posed.landmarks import ModelMissingError, find_models, verify_models
+    from posed.landmarks import (
+        ModelMissingError,
+        check_provenance,
+        describe_models,
+        find_models,
+        installed_models,
+        verify_models,
+    )
 
     try:
         paths = find_models(_models_dir(args))
         manifest = verify_models(paths, include_tflite=True)
-    except ModelMissingError as exc:
+        check_provenance(paths, manifest)      # intact, and what this posed runs
+    except ModelMissingError as exc:           # ModelCorruptError, ModelOutdatedError alike
         print(f"posed models verify: {exc}", file=sys.stderr)
         return 1
-    print(f"posed models: {paths.models_dir} intact (converter {manifest.get('converter_version')}, "
-          f"source {json.dumps(manifest.get('source'))})")
+    print(f"posed models: intact: {describe_models(installed_models(paths.models_dir))} "
+          f"(source {json.dumps(manifest.get('source'))})")
     return 0
 
 

@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from posed.daemon.config.paths import state_dir
-    from posed.daemon.preflight import check, hook_program_problems, resolve_source
+    from posed.daemon.preflight import check, hook_program_problems, model_provenance_problems, resolve_source
     from posed.daemon.state_check import state_dir_problems
     from posed.daemon.supervisor import Supervisor
 
@@ -40,6 +40,10 @@ def _run(args: argparse.Namespace) -> int:
     for p in hook_program_problems(cfg):
         logs.get("supervisor").error("hook_unusable", problem=p,
                                      note="starting anyway: fall events are still published and journalled")
+    for p in model_provenance_problems(cfg):
+        logs.get("supervisor").error("models_outdated", problem=p,
+                                     note="starting anyway on these intact models: posed watches on until they "
+                                          "are fetched again")
     return Supervisor(cfg).run()
 
 

@@ -17,7 +17,7 @@ from posed.commands import config_from_args, config_path
 from posed.daemon.config import load_config
 from posed.daemon.config.paths import SERVICE_STATE_DIR, config_file, reading_state_dir
 from posed.daemon.config.sections import PipelineConfig
-from posed.daemon.version import __version__
+from posed.daemon.version import __version__, version_text
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -95,7 +95,11 @@ def test_version(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["--version"])
     assert exc.value.code == 0
-    assert capsys.readouterr().out.strip() == f"posed {__version__}"
+    first, *rest = capsys.readouterr().out.splitlines()
+    assert first == f"posed {__version__}"
+    # which models the robot runs (fails without it: the version alone): converter, mediapipe, hashes, or why none
+    assert len(rest) == 1 and rest[0].startswith("landmark models: "), rest
+    assert rest[0] == version_text().splitlines()[1]
     from importlib import metadata
 
     assert __version__ == metadata.version("posed")            # pyproject reads it from daemon/version.py

@@ -18,7 +18,8 @@ import pytest
 
 from posed.cli import main
 from posed.landmarks.convert.converter import CONVERTER_VERSION
-from posed.landmarks.convert.fetch import PINNED, FetchError, _write_error, fetch_models, up_to_date
+from posed.landmarks.convert.fetch import PINNED, FetchError, fetch_models, up_to_date
+from posed.landmarks.convert.fetch_errors import write_error
 from posed.landmarks.models import (
     ENV_MODELS_DIR,
     MODEL_FILES,
@@ -293,7 +294,7 @@ def test_unwritable_target(tflite_folder, tmp_path):
 @pytest.mark.parametrize("code, words", [(errno.ENOSPC, "no space left"), (errno.EACCES, "--models-dir"),
                                          (errno.EROFS, "POSED_MODELS_DIR"), (errno.EIO, "cannot write")])
 def test_write_errors_say_what_to_do(tmp_path, code, words):
-    err = _write_error(tmp_path / "x.onnx", OSError(code, os.strerror(code)))
+    err = write_error(tmp_path / "x.onnx", OSError(code, os.strerror(code)))
     assert words in str(err) and str(tmp_path / "x.onnx") in str(err)
 
 
