@@ -168,6 +168,16 @@ class Status:
             return f"camera {self.camera}"
         return None
 
+    @property
+    def robot_id_conflict(self) -> tuple[str, ...]:
+        """The other posed daemons on the network that use this robot's id too (each "pid N on host H (Zenoh id
+        Z)"), as this daemon sees them (the status's ``zenoh.robot_id_conflict``); empty when none, or from a posed
+        before this field. Their messages are mixed with this robot's until one is given another robot_id."""
+        zenoh = self.raw.get("zenoh") if isinstance(self.raw, dict) else None
+        conflict = zenoh.get("robot_id_conflict") if isinstance(zenoh, dict) else None
+        others = conflict.get("other_daemons") if isinstance(conflict, dict) else None
+        return tuple(str(o) for o in others) if isinstance(others, list) else ()
+
     @classmethod
     def from_json(cls, obj: dict, robot: str = "") -> Status:
         if "state" not in obj:

@@ -51,3 +51,58 @@ def state_dir_problems(folder: Path) -> list[str]:
         return [f"pipeline.state_dir: {folder} has only {free} bytes free (at least {MIN_FREE_BYTES} needed); "
                 f"fall events would only be kept in memory and the fallback file; {fix}"]
     return []
+
+
+class StateDirInUse(RuntimeError):
+    """Another running posed daemon holds the state directory; the message names it and the fix."""
+
+
+def claim_state_dir(folder: Path) -> int | None:
+    """Hold ``folder`` (``pipeline.state_dir`` resolved) for this daemon while the process lives: an exclusive
+    ``flock`` on the folder itself (no file is added; the kernel lets it go when the process exits, also on kill
+    -9). Returns the descriptor to keep open, None when the folder cannot be opened or locked at all (missing,
+    unreadable, a file system without locks: the daemon then runs degraded or unchecked, as before).
+
+    Raises :class:`StateDirInUse` when another process holds it: two daemons on one state dir would write one
+    event journal and one history (each taking the other's fall events back at its next start and answering
+    them as its own), one learned geometry per camera and one fallback file."""
+    import fcntl
+
+    try:
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = _lock_holder(fd)
+        os.close(fd)
+        raise StateDirInUse(
+            f"pipeline.state_dir: {folder} is in use by another posed daemon ({holder}); two daemons on one state "
+            "directory would mix their fall-event journals and histories; give each daemon its own "
+            "pipeline.state_dir (e.g. /var/lib/posed/<robot_id>), or stop the other one first") from None
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def _lock_holder(fd: int) -> str:
+    """Who holds the flock on ``fd``'s file: "pid N: its command line" from /proc/locks, or "pid unknown"."""
+    st = os.fstat(fd)
+    where = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    try:
+        with open("/proc/locks") as fh:
+            pids = [int(f[4]) for f in (line.split() for line in fh)
+                    if len(f) > 5 and f[1] == "FLOCK" and f[5] == where]
+    except (OSError, ValueError):
+        pids = []
+    if not pids:
+        return "pid unknown"
+    try:
+        with open(f"/proc/{pids[0]}/cmdline", "rb") as fh:
+            cmd = fh.read(4096).replace(b"\0", b" ").decode("utf-8", "replace").strip()
+    except OSError:
+        cmd = ""
+    cmd = cmd if len(cmd) <= 300 else cmd[:297] + "..."
+    return f"pid {pids[0]}" + (f": {cmd}" if cmd else "")

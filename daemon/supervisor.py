@@ -96,6 +96,7 @@ class Supervisor:
             c.name == "capture" and c.output == s.input for c in self.plan)), None)
         self._blind = BlindWatch(self._consumer or "landmarks", blind_after_s(config.pipeline.target_fps))
         self._problem: dict | None = None        # the capture stage's last reported problem {error, fix}
+        self._conflict: dict | None = None       # the publisher's zenoh.robot_id_conflict: our robot id used twice
         self.models = models_in_use(config)      # the status's "models": read once, from the manifest
         self._next_blind_log = 0.0
         self.control: Control | None = None
@@ -199,6 +200,8 @@ class Supervisor:
         proc.start()
         slot.process = proc
         slot.restart_at = None
+        if spec.name == "publisher":
+            self._conflict = None       # a new publisher's session says it again while it lasts
         self.control.board.row(spec.name).set("pid", proc.pid)
 
     # ------------------------------------------------------------------ the loop
@@ -213,7 +216,7 @@ class Supervisor:
             self._ready_sent = True
             for slot in self._slots.values():
                 self.control.board.row(slot.spec.name).set("go", 1.0)
-            self.notifier.ready(status_text(self.status(now)) + f"; warm-up took {now - self._t0:.1f} s")
+            self.notifier.ready(status_text(self.status(now), self._conflict) + f"; warm-up took {now - self._t0:.1f} s")
             self.log.info("daemon_ready", warmup_s=round(now - self._t0, 2))
         if now >= self._next_status:
             self._next_status = now + self.config.pipeline.status_period_s
@@ -231,6 +234,8 @@ class Supervisor:
                 self._camera_info = dict(info["camera"])
             if "problem" in info:
                 self._problem = dict(info["problem"])
+            if "robot_id_conflict" in info:
+                self._conflict = info["robot_id_conflict"]
             if "fatal" in info:
                 self._fatal(slot.spec.name, info["fatal"], info.get("fix", ""))
 
@@ -382,7 +387,7 @@ class Supervisor:
             self.control.mailbox("status").put(status)
         except ValueError as exc:
             self.log.error("status_too_large", error=str(exc))
-        self.notifier.status(status_text(status))
+        self.notifier.status(status_text(status, self._conflict))
         e2e = status["latency_ms"]
         if now >= self._next_stats_log:
             self._next_stats_log = now + self.config.logging.stats_period_s
@@ -537,8 +542,22 @@ def models_in_use(config: Config) -> dict:
         return {"dir": str(config.landmarks.models_dir or ""), "error": f"cannot read the models folder: {exc}"}
 
 
-def status_text(status: dict) -> str:
-    """systemd's STATUS= line for a status object: the state first, then what matters for it."""
+def status_text(status: dict, conflict: dict | None = None) -> str:
+    """systemd's STATUS= line for a status object: the state first, then what matters for it; ``conflict``: the
+    publisher's ``zenoh.robot_id_conflict`` (another daemon uses our robot id), said at the end."""
+    return _state_text(status) + conflict_text(conflict)
+
+
+def conflict_text(conflict: dict | None) -> str:
+    """``; ROBOT ID IN USE TWICE (pid 12 on host nuc1 (Zenoh id ...)): give each ...`` while another daemon on
+    the network uses this robot id (its log's ``robot_id_in_use`` has the whole fix); "" when none."""
+    if not conflict:
+        return ""
+    others = "; ".join(str(o) for o in conflict.get("other_daemons") or ()) or "another posed daemon"
+    return f"; ROBOT ID IN USE TWICE ({others}): give each posed daemon on one Zenoh network its own robot_id"
+
+
+def _state_text(status: dict) -> str:
     cam = status["camera"]
     if status["state"] == "waiting_for_camera":
         error = f": {cam['error']}" if cam.get("error") else ""

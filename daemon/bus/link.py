@@ -4,7 +4,9 @@ declared on it (interfaces.md section 4).
 * publishers with per-stream QoS: ``pose`` (congestion control DROP, DATA_HIGH, express: never blocks the
   pipeline), ``landmarks`` and ``status`` (DROP), ``events/fall`` (reliable, congestion control BLOCK,
   INTERACTIVE_HIGH: never dropped);
-* the liveliness token ``alive``; the queryables ``state`` and ``events/history`` (:mod:`daemon.bus.queries`);
+* the liveliness token ``alive``, and ``alive/<instance>`` with a liveliness subscriber to its siblings: another
+  daemon with this robot id on the network is said loudly (:mod:`daemon.bus.robot_claim`); the queryables
+  ``state`` and ``events/history`` (:mod:`daemon.bus.queries`);
   the subscriber ``events/ack``, whose acknowledgements (:mod:`daemon.bus.acks`) go to the ``on_ack`` callback
   as ``(event id, state or None)``; a payload that is not one is counted (``acks_rejected``) and logged with a
   rate limit (:class:`daemon.proc.throttle.Throttle`), so a flood cannot fill the log.
@@ -18,10 +20,13 @@ journal). Times are seconds on the monotonic clock.
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Callable
 
 from posed.daemon.bus import acks, queries
+from posed.daemon.bus.listen_check import ListenPortTaken, taken_listen_problems
 from posed.daemon.bus.payloads import dumps
+from posed.daemon.bus.robot_claim import RobotIdWatch, instance_name
 from posed.daemon.bus.session import ZenohConfigError, describe_open_error, open_session
 from posed.daemon.bus.topics import Topics
 from posed.daemon.config.sections import ZenohConfig
@@ -30,6 +35,7 @@ from posed.daemon.proc.throttle import Throttle
 MATCH_POLL_S = 0.5          # how often the events/fall publisher's matching status is read
 LINK_POLL_S = 1.0           # how often the routers (and peers) the session reaches are counted
 LOG_FAILURE_EVERY = 12      # after the first, every 12th failed attempt to open the session is logged
+LISTEN_TAKEN_FATAL_S = 10.0     # a listen port another program still holds after this long stops the daemon (78)
 
 
 def declare_publishers(session, topics: Topics) -> dict:
@@ -79,6 +85,8 @@ class BusLink:
         self._next_link_poll = 0.0
         self._reached = 0               # routers (client mode) or routers and peers seen at the last count
         self._link_seen = False         # reached one at least once since start
+        self._taken_since: float | None = None          # when a listen port was first found taken
+        self.robot_ids: RobotIdWatch | None = None      # other daemons with this robot id, once the session opened
 
     @property
     def is_open(self) -> bool:
@@ -96,6 +104,7 @@ class BusLink:
         except ZenohConfigError:
             raise
         except Exception as exc:        # ZError: unreachable router, busy port
+            self._listen_taken(exc, now)
             self._open_failures += 1
             self._next_open = now + self.cfg.reconnect_s
             self._error = describe_open_error(self.cfg, exc)
@@ -105,10 +114,15 @@ class BusLink:
             return False
         self.session = self._stack.enter_context(session)
         self._error = ""
+        self._taken_since = None
         t = self.topics
         self._pubs = declare_publishers(session, t)
+        instance = instance_name(str(session.zid()), pid=os.getppid())     # the supervisor: `posed run`
+        self.robot_ids = RobotIdWatch(t.robot, instance, self.log)
         self._keep = [
             session.liveliness().declare_token(t.alive),
+            session.liveliness().declare_token(t.daemon(instance)),
+            session.liveliness().declare_subscriber(t.daemons, self.robot_ids.on_token, history=True),
             session.declare_queryable(t.state, self._on_state_query, complete=True),
             # "history/**" also matches the bare key: one queryable answers both forms
             session.declare_queryable(f"{t.history}/**", self._on_history_query, complete=True),
@@ -119,6 +133,22 @@ class BusLink:
         self.log.info("zenoh_open", zid=str(session.zid()), mode=self.cfg.mode,
                       listen=list(self.cfg.listen), connect=list(self.cfg.connect))
         return True
+
+    def _listen_taken(self, exc: Exception, now: float) -> None:
+        """A listen port held by another program (two daemons on one port: both started at once, so that
+        ``posed run``'s own check found it free) for LISTEN_TAKEN_FATAL_S is a configuration problem: raises
+        :class:`ListenPortTaken` naming the holder and the fix, and the daemon stops with 78 instead of running
+        on without a bus, heard by nobody."""
+        if "Address already in use" not in str(exc):
+            self._taken_since = None
+            return
+        if self._taken_since is None:
+            self._taken_since = now
+        if now - self._taken_since < LISTEN_TAKEN_FATAL_S:
+            return
+        problems = taken_listen_problems(self.cfg, wait_s=0.0)
+        if problems:
+            raise ListenPortTaken("; ".join(problems))
 
     def release(self) -> None:
         """Undeclare the token (receivers see DELETE on posed/ROBOT/alive), queryables and publishers."""
@@ -138,6 +168,8 @@ class BusLink:
         """The ``zenoh`` part of the status object."""
         out = {"session": "open" if self.session is not None else "retrying", "mode": self.cfg.mode,
                "listen": list(self.cfg.listen), "connect": list(self.cfg.connect), "error": self._error or None}
+        if self.robot_ids is not None:
+            out["robot_id_conflict"] = self.robot_ids.status()
         if self.session is not None:
             try:
                 out["peers"] = len(list(self.session.info.peers_zid()))
@@ -155,6 +187,8 @@ class BusLink:
         if self.session is None or now < self._next_link_poll:
             return
         self._next_link_poll = now + LINK_POLL_S
+        if self.robot_ids is not None:
+            self.robot_ids.remind(now)
         if self.cfg.mode != "client" and not self.cfg.connect:
             return
         try:

@@ -38,6 +38,15 @@ class Topics:
     def alive(self) -> str:
         return f"{self.root}/alive"
 
+    def daemon(self, instance: str) -> str:
+        """This daemon's own liveliness token (daemon.bus.robot_claim): ``alive/<instance>``."""
+        return f"{self.alive}/{instance}"
+
+    @property
+    def daemons(self) -> str:
+        """Every daemon's token under this robot id (more than one: two daemons share the robot id)."""
+        return f"{self.alive}/*"
+
     @property
     def state(self) -> str:
         return f"{self.root}/state"

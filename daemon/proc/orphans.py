@@ -33,9 +33,21 @@ def owner_tag(supervisor_pid: int, stage_pid: int) -> str:
     return f"{supervisor_pid}:{stage_pid}"
 
 
+def _pid_namespace(path: Path) -> str | None:
+    try:
+        return os.readlink(path / "ns" / "pid")
+    except OSError:
+        return None
+
+
 def owned(match: Callable[[int, int], bool], proc: Path = Path("/proc")) -> list[int]:
-    """Pids of the processes whose ``POSED_HOOK_OWNER`` (supervisor pid, stage pid) satisfies ``match``."""
+    """Pids of the processes whose ``POSED_HOOK_OWNER`` (supervisor pid, stage pid) satisfies ``match``.
+
+    Only processes of this process's pid namespace count: the pids in the tag of a hook started in another one
+    (a daemon in a container, whose processes the host sees) are that namespace's, and a supervisor alive there
+    may look dead here; its hooks are not this daemon's to end."""
     me = os.getpid()
+    own_ns = _pid_namespace(proc / "self")
     found = []
     try:
         entries = list(proc.iterdir())
@@ -44,6 +56,8 @@ def owned(match: Callable[[int, int], bool], proc: Path = Path("/proc")) -> list
     for entry in entries:
         if not entry.name.isdigit() or int(entry.name) == me:
             continue
+        if own_ns is not None and _pid_namespace(entry) != own_ns:
+            continue        # another pid namespace's (or gone, or not ours to read)
         try:
             env = (entry / "environ").read_bytes()
         except OSError:     # gone, or not ours to read

@@ -13,6 +13,14 @@ whole group also kills): the supervisor lists their names in ``posed-<pid>-semap
 (:func:`record_semaphores`), and :func:`remove_stale` unlinks the listed ones of a supervisor that is gone,
 and no other ``sem.*`` file.
 
+Names are per pid, and a pid says nothing across pid namespaces: daemons in two containers that share /dev/shm
+(``--ipc=host``, a bind-mounted /dev/shm) both run as pid 1 or 7, and a pid that looks dead here may run there.
+So the supervisor also holds a shared ``flock`` on each file it made (segments and the semaphore list; the
+kernel lets it go when the process ends, also with SIGKILL): :func:`remove_stale` leaves a file that is held,
+whatever its pid says; :func:`create` and :func:`record_semaphores` replace a file of their own name that nobody
+holds (a leftover: a restarted container's pid 1 is alive, so its old files look in use) and give a name held by
+a live daemon a suffix (``posed-1-control-3f2a9c``) rather than fail on it or overwrite it.
+
 A segment's pages are reserved when it is created (:func:`reserve`: ``posix_fallocate`` on its fd). Without
 that, a full /dev/shm (a container's 64 MB default, another program's files) is found only when a page is
 first written: the writing process (the supervisor, or the capture stage in a restart loop) dies of SIGBUS
@@ -24,8 +32,10 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import os
 import re
+import secrets
 from multiprocessing import resource_tracker, shared_memory
 from pathlib import Path
 
@@ -112,19 +122,58 @@ def reserve(fd: int, size: int, what: str, shm_dir: Path = _SHM_DIR) -> None:
 
 
 def create(what: str, size: int) -> shared_memory.SharedMemory:
-    """Create (and zero) a segment owned by this process with all its pages reserved (:func:`reserve`);
-    unlink it with :func:`destroy`. :class:`SharedMemoryFull` (and nothing left behind) when /dev/shm has not
-    room for it."""
+    """Create (and zero) a segment owned by this process with all its pages reserved (:func:`reserve`), held
+    (a shared flock) while this process keeps it; unlink it with :func:`destroy`. :class:`SharedMemoryFull` (and
+    nothing left behind) when /dev/shm has not room for it. A name another live daemon holds (another pid
+    namespace) gets a suffix; a name nobody holds is a leftover and is replaced."""
     name = segment_name(what)
     size = max(1, size)
-    with no_room_is_full(f"the {what} segment {name}", size):
-        segment = shared_memory.SharedMemory(name=name, create=True, size=size)
+    for _ in range(3):
+        try:
+            with no_room_is_full(f"the {what} segment {name}", size):
+                segment = shared_memory.SharedMemory(name=name, create=True, size=size)
+            break
+        except FileExistsError:
+            name = _free_name(name, segment_name(what))
+    else:
+        segment = shared_memory.SharedMemory(name=name, create=True, size=size)    # says which name exists
     try:
+        fcntl.flock(segment._fd, fcntl.LOCK_SH)
         reserve(segment._fd, size, f"the {what} segment {name}")
     except BaseException:
         destroy(segment)
         raise
     return segment
+
+
+def _held(path: Path) -> bool:
+    """True when a running process holds a flock on ``path`` (a supervisor of any pid namespace)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return False
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def _free_name(name: str, base: str, shm_dir: Path = _SHM_DIR) -> str:
+    """After ``name`` was found to exist: the same name once a leftover nobody holds is removed, or ``base``
+    with a random suffix when a live daemon (another pid namespace) holds it."""
+    path = shm_dir / name
+    if _held(path):
+        return f"{base}-{secrets.token_hex(3)}"
+    if base.endswith(f"-{SEMAPHORES}"):
+        _remove_semaphores(path, shm_dir)       # a killed supervisor's list: its semaphores go with it
+    with contextlib.suppress(OSError):
+        path.unlink()
+    return name
 
 
 def attach(name: str) -> shared_memory.SharedMemory:
@@ -159,29 +208,46 @@ def release(segment: shared_memory.SharedMemory, owner: bool) -> None:
             pass
 
 
+_HELD_RECORDS: dict[Path, int] = {}       # the semaphore lists this process wrote, held (flock) while it lives
+
+
 def record_semaphores(names: list[str], shm_dir: Path = _SHM_DIR) -> Path | None:
-    """Write the names of this process's named semaphores (``/mp-xxxx``) to ``posed-<pid>-semaphores`` so
-    that the next start can remove them if this process is killed; None when /dev/shm is not there."""
+    """Write the names of this process's named semaphores (``/mp-xxxx``) to ``posed-<pid>-semaphores`` (held
+    while this process lives) so that the next start can remove them if this process is killed; None when
+    /dev/shm is not there. A list of the same name that a live daemon holds (another pid namespace) is left
+    alone: this one gets a suffix."""
     if not shm_dir.is_dir():
         return None
-    path = shm_dir / segment_name(SEMAPHORES)
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w") as fh:
-        fh.write("".join(f"{n}\n" for n in names))
+    base = segment_name(SEMAPHORES)
+    path = shm_dir / base
+    for _ in range(3):
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
+            break
+        except FileExistsError:
+            path = shm_dir / _free_name(path.name, base, shm_dir)
+    else:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
+    fcntl.flock(fd, fcntl.LOCK_SH)
+    os.write(fd, "".join(f"{n}\n" for n in names).encode())
+    _HELD_RECORDS[path] = fd
     return path
 
 
 def remove_stale(shm_dir: Path = _SHM_DIR) -> list[str]:
-    """Unlink ``posed-<pid>-*`` segments whose supervisor process no longer exists, and the semaphores such
-    a supervisor listed; returns the names removed."""
+    """Unlink ``posed-<pid>-*`` segments whose supervisor process no longer exists and that no running
+    supervisor holds (one in another pid namespace), and the semaphores such a supervisor listed; returns the
+    names removed."""
     removed = []
     if not shm_dir.is_dir():
         return removed
     for path in shm_dir.glob(f"{PREFIX}*"):
         m = re.fullmatch(rf"{PREFIX}(\d+)-(.+)", path.name)
-        if not m or _alive(int(m.group(1))):
+        if not m:
             continue
-        if m.group(2) == SEMAPHORES:
+        if _alive(int(m.group(1))) or _held(path):
+            continue
+        if m.group(2) == SEMAPHORES or m.group(2).startswith(f"{SEMAPHORES}-"):
             removed += _remove_semaphores(path, shm_dir)
         try:
             path.unlink()

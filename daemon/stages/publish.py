@@ -101,6 +101,7 @@ class PublisherStage:
         self.subreaper = bool(cfg.hooks.on_event or cfg.hooks.on_watch_lost) and orphans.become_subreaper()
         self._next_reap = 0.0
         self._stack = stack
+        self._conflict_said: list | None = None     # the other daemons with our robot id told the supervisor
         self.history = HistoryRecorder(
             AngleHistory(paths.history_path(cfg.pipeline), cfg.falls) if cfg.falls.history_enabled else None,
             rt.log)
@@ -110,7 +111,7 @@ class PublisherStage:
         try:
             opened = self.bus.try_open(now)
         except ZenohConfigError as exc:
-            self.rt.fatal(str(exc), fix="fix zenoh.config_file")
+            self.rt.fatal(str(exc), fix=getattr(exc, "fix", "fix zenoh.config_file"))  # ListenPortTaken: its own
         if opened:
             if self.ros2 is not None:
                 self.ros2.open(self.bus.session, self._stack)
@@ -191,6 +192,7 @@ class PublisherStage:
         """The supervisor's status plus the ``zenoh`` and ``events`` parts."""
         status = dict(status)
         status["zenoh"] = self.bus.status()
+        self.report_conflict(status["zenoh"].get("robot_id_conflict"))
         status["events"] = self.outbox.status()
         status["events"]["acks"]["rejected"] = self.bus.acks_rejected
         status["falls"] = self.falls.status()
@@ -205,6 +207,14 @@ class PublisherStage:
         if watch is not None:
             status["watch"] = watch
         self.bus.put_status(status_message(status, self.rt.config.robot_id, now))
+
+    def report_conflict(self, conflict: dict | None) -> None:
+        """Another daemon with our robot id (``zenoh.robot_id_conflict``), or its end, told to the supervisor when
+        it changes: systemd's STATUS= line says it (daemon.supervisor.status_text)."""
+        others = list(conflict["other_daemons"]) if conflict else None
+        if others != self._conflict_said:
+            self._conflict_said = others
+            self.rt.report(robot_id_conflict=conflict)
 
     def watching(self, status: dict, now: float) -> None:
         """Whether posed watches, judged on each status once (:class:`WatchLoss`: the status's ``watch``, its

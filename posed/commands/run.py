@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from posed.commands import add_config_args, config_from_args, config_problems
@@ -18,9 +19,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from posed.daemon.bus.listen_check import taken_listen_problems
     from posed.daemon.config.paths import state_dir
     from posed.daemon.preflight import check, hook_program_problems, model_provenance_problems, resolve_source
-    from posed.daemon.state_check import state_dir_problems
+    from posed.daemon.state_check import StateDirInUse, claim_state_dir, state_dir_problems
     from posed.daemon.supervisor import Supervisor
 
     try:
@@ -29,12 +31,17 @@ def _run(args: argparse.Namespace) -> int:
         return config_problems(exc, lambda p: f"posed: {p}")
     problems = check(cfg)
     if problems:
-        for p in problems:
-            print(f"posed: {p}", file=sys.stderr)
-        print(f"posed: {len(problems)} problem(s); nothing was started", file=sys.stderr)
-        return EX_CONFIG
+        return _refuse(problems)
+    unusable = state_dir_problems(state_dir(cfg.pipeline))
+    try:        # held until this process exits: a second daemon on the same state dir is refused
+        held = claim_state_dir(state_dir(cfg.pipeline))
+    except StateDirInUse as exc:
+        return _refuse([str(exc)])
+    problems = taken_listen_problems(cfg.zenoh)         # another daemon (or zenohd) on this port
+    if problems:
+        return _refuse(problems)
     logs.configure(cfg.logging.level, cfg.logging.format, robot=cfg.robot_id)
-    for p in state_dir_problems(state_dir(cfg.pipeline)):     # degraded, not stopped: detection goes on
+    for p in unusable:     # degraded, not stopped: detection goes on
         logs.get("supervisor").error("state_dir_unusable", problem=p,
                                      note="starting anyway: fall events are kept in memory and the fallback file")
     for p in hook_program_problems(cfg):
@@ -44,7 +51,19 @@ def _run(args: argparse.Namespace) -> int:
         logs.get("supervisor").error("models_outdated", problem=p,
                                      note="starting anyway on these intact models: posed watches on until they "
                                           "are fetched again")
-    return Supervisor(cfg).run()
+    try:
+        return Supervisor(cfg).run()
+    finally:
+        if held is not None:
+            os.close(held)
+
+
+def _refuse(problems: list[str]) -> int:
+    """Each problem on stderr, and the exit status of a configuration problem (78: systemd does not restart)."""
+    for p in problems:
+        print(f"posed: {p}", file=sys.stderr)
+    print(f"posed: {len(problems)} problem(s); nothing was started", file=sys.stderr)
+    return EX_CONFIG
 
 
 def _demo_recording(path):

@@ -59,12 +59,47 @@ class _Decoded:
         return self._text
 
 
-def _subscribe(posed, robot: str, summary) -> list:
-    """The Summary fed by the client (:mod:`client`): poses, status and fall events decoded; robots coming and
-    going printed as they happen."""
-    return [posed.on_pose(robot, lambda _r, fit: summary.on_pose(_Decoded(fit.to_json()))),
-            posed.on_status(robot, lambda _r, status: summary.on_status(_Decoded(status.raw))),
-            posed.on_event(robot, lambda _r, event: summary.on_event(_Decoded(event.to_json()))),
+class Robots:
+    """One :class:`Summary` per robot, so that with several robots on the bus (``posed watch`` of ``*``) each has its
+    own line, prefixed with its id: one robot's poses, fps, status and events never mixed into another's. Asked
+    for one robot, its lines are as they were, unprefixed."""
+
+    def __init__(self, robot: str, make) -> None:
+        import threading
+
+        self.robot, self._make = robot, make
+        self._lock = threading.Lock()
+        self._by_robot: dict = {}
+        self._waiting = make()          # shown while no robot has said anything yet
+
+    def summary(self, robot: str):
+        with self._lock:
+            if robot not in self._by_robot:
+                self._by_robot[robot] = self._make()
+            return self._by_robot[robot]
+
+    def lines(self, elapsed_s: float) -> list[str]:
+        with self._lock:
+            robots = sorted(self._by_robot.items())
+        if not robots:
+            return self._waiting.line(elapsed_s)
+        out = []
+        for robot, summary in robots:
+            prefix = f"{robot}  " if self.robot == "*" else ""
+            out += [prefix + line for line in summary.line(elapsed_s)]
+            conflict = ((summary.status or {}).get("zenoh") or {}).get("robot_id_conflict")
+            if conflict:
+                out.append(f"{prefix}ROBOT ID IN USE TWICE: {conflict.get('error')} "
+                           f"({'; '.join(conflict.get('other_daemons') or [])}); fix: {conflict.get('fix')}")
+        return out
+
+
+def _subscribe(posed, robot: str, robots: Robots) -> list:
+    """The Summaries fed by the client (:mod:`client`), one per robot: poses, status and fall events decoded;
+    robots coming and going printed as they happen."""
+    return [posed.on_pose(robot, lambda r, fit: robots.summary(r).on_pose(_Decoded(fit.to_json()))),
+            posed.on_status(robot, lambda r, status: robots.summary(r).on_status(_Decoded(status.raw))),
+            posed.on_event(robot, lambda r, event: robots.summary(r).on_event(_Decoded(event.to_json()))),
             posed.on_alive(lambda a: print(f"posed watch: robot {a.robot} {'up' if a.alive else 'gone'}",
                                            flush=True), robot)]
 
@@ -85,14 +120,14 @@ def _watch(args: argparse.Namespace) -> int:
     with session:
         if args.json:
             return _print_json(session, args, t0)
-        summary = Summary()
-        keep = _subscribe(PosedClient(session), args.robot, summary)
+        robots = Robots(args.robot, Summary)
+        keep = _subscribe(PosedClient(session), args.robot, robots)
         print(f"posed watch: {args.connect}, robot {args.robot} (Ctrl-C to stop)", flush=True)
         next_line = t0 + 1.0
         try:
             while not args.seconds or time.monotonic() - t0 < args.seconds:
                 time.sleep(max(0.0, next_line - time.monotonic()))
-                for line in summary.line(next_line - t0):
+                for line in robots.lines(next_line - t0):
                     print(line, flush=True)
                 next_line += 1.0
         except KeyboardInterrupt:

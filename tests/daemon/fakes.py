@@ -66,7 +66,9 @@ class FakeSession:
         return self._declare("subscriber", key, callback)
 
     def liveliness(self):
-        return SimpleNamespace(declare_token=lambda key: self._declare("token", key))
+        return SimpleNamespace(declare_token=lambda key: self._declare("token", key),
+                               declare_subscriber=lambda key, callback, **options: self._declare(
+                                   "liveliness_subscriber", key, callback, **options))
 
 
 class FakeQuery:

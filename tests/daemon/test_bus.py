@@ -135,13 +135,15 @@ def test_link_declares_each_stream_with_its_qos_and_releases_them(fake_zenoh):
         assert fall["reliability"] == zenoh.Reliability.RELIABLE
         assert fall["priority"] == zenoh.Priority.INTERACTIVE_HIGH
         assert e["posed/r1/alive"].kind == "token"
+        assert [k for k, x in e.items() if x.kind == "token" and k.startswith("posed/r1/alive/fake-zid.")]
+        assert e["posed/r1/alive/*"].kind == "liveliness_subscriber" and e["posed/r1/alive/*"].options["history"]
         assert e["posed/r1/state"].kind == "queryable" and e["posed/r1/state"].options == {"complete": True}
         assert e["posed/r1/events/history/**"].kind == "queryable"
         assert link.put_pose({"seq": 1}) and link.wants_landmarks and link.put_event({"id": "e1"})
         assert e["posed/r1/pose"].sent == ['{"seq": 1}'] and e["posed/r1/events/fall"].sent == ['{"id": "e1"}']
         assert link.latest.snapshot()["pose"] == {"seq": 1}
         assert link.status() == {"session": "open", "mode": "peer", "listen": ["tcp/127.0.0.1:7447"],
-                                 "connect": [], "error": None, "peers": 2, "routers": 0}
+                                 "connect": [], "error": None, "robot_id_conflict": None, "peers": 2, "routers": 0}
         ack = e["posed/r1/events/ack"].callback
         ack(sample('{"id": "e1"}'))
         ack(sample("   "))

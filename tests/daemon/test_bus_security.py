@@ -147,3 +147,39 @@ def test_only_listed_receivers_ack_and_read_history(tmp_path):
 def _journal(tmp_path: Path) -> list[tuple[str, float | None]]:
     with sqlite3.connect(tmp_path / "state" / "events.sqlite3") as db:
         return db.execute("SELECT event_id, acked_at FROM messages ORDER BY wall").fetchall()
+
+
+def test_two_daemons_with_one_robot_id_find_each_other_on_the_secured_bus(tmp_path, shared_data):
+    """Two real `posed run` daemons with one robot id and the shipped posed-daemon.json5 (mutual TLS, access
+    control), the second connected to the first: each says ``robot_id_in_use`` naming the other, and a listed
+    receiver reads it in the status. Fails without the access-control rules for ``posed/*/alive/*`` (the
+    daemons' own tokens and their liveliness subscribers were denied: nothing was said), or without the
+    daemon's connect certificate (the second one could not connect at all)."""
+    from tests.daemon.robots_util import Daemon, stop_all, wait
+
+    certs = tmp_path / "certs"
+    r = subprocess.run(["sh", str(DEPLOY / "make-certs.sh"), str(certs), LISTED], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    daemon_cfg = _render(DEPLOY / "posed-daemon.json5", tmp_path / "posed-daemon.json5", certs)
+    ports = free_port(), free_port()
+    eps = [f"tls/127.0.0.1:{p}" for p in ports]
+    tls = ("--set", f"zenoh.config_file={daemon_cfg}")
+    a = Daemon(tmp_path, "a", "dup", ports[0], shared_data, extra=(*tls, "--set", f"zenoh.listen=[{eps[0]}]"))
+    b = None
+    try:
+        a.wait_log("zenoh_open", 90)
+        b = Daemon(tmp_path, "b", "dup", ports[1], shared_data,
+                   extra=(*tls, "--set", f"zenoh.listen=[{eps[1]}]", "--set", f"zenoh.connect=[{eps[0]}]"))
+        said_a, said_b = a.wait_log("robot_id_in_use", 60), b.wait_log("robot_id_in_use", 60)
+        assert any(f"pid {b.pid} on host" in o for o in said_a[0]["other_daemons"]), said_a
+        assert any(f"pid {a.pid} on host" in o for o in said_b[0]["other_daemons"]), said_b
+        with _receiver(tmp_path, certs, LISTED, eps[0]) as listed:
+            statuses, _sub = _statuses(listed, "dup")
+            wait(lambda: any((s.get("zenoh") or {}).get("robot_id_conflict") for s in statuses), 30,
+                 "the conflict in the status a listed receiver reads", a)
+        stop_all(b)
+        a.wait_log("robot_id_conflict_ended", 30)
+        assert a.proc.poll() is None
+    finally:
+        stop_all(*(d for d in (b, a) if d is not None))
