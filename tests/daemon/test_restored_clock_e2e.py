@@ -27,6 +27,7 @@ from tests.daemon import restore_util as ru
 from tests.daemon.test_alarm_journal_adversity_e2e import _alarms, _clock_behind_and_a_bad_row
 from tests.daemon.test_alarm_kept_e2e import Daemon, state_of, wait_for
 from tests.viz.browser import Browser
+from tests.viz.web_cli import posed_web
 
 ROOT = Path(__file__).resolve().parents[2]
 HISTORY = "(document.getElementById('history') || {textContent: ''}).textContent"
@@ -85,11 +86,7 @@ def test_a_clock_stepped_back_and_a_damaged_row_are_said_to_the_reader(tmp_path,
         assert shown.returncode == 0 and "damaged" in shown.stdout and "{not json" in shown.stdout, shown
 
         # posed web: the history's restored alarm says why it came at once
-        web = subprocess.Popen([sys.executable, "-m", "posed.cli", "web", "clock", "--connect", endpoint, "--port",
-                                "0", "--wait", "120"], cwd=ROOT, stdout=subprocess.PIPE,
-                               stderr=subprocess.DEVNULL, text=True, start_new_session=True)
-        url = web.stdout.readline().strip()
-        assert url.startswith("http://127.0.0.1:"), url
+        web, url = posed_web("clock", endpoint, 120)
         browser = Browser(tmp_path / "profile")
         browser.open(url)
         browser.wait_for(f"{HISTORY}.includes('the clock was stepped back')", 60, "the clock note in the history")

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 import time
 
 import pytest
@@ -19,6 +18,7 @@ from posed.daemon.outbox.journal import EventJournal
 from posed.falls import FallEvent
 from tests.viz.browser import Browser
 from tests.viz.test_web import ROOT
+from tests.viz.web_cli import posed_web
 
 DAY = 86400.0
 ROWS = "[...document.querySelectorAll('#history tr')].slice(1)"
@@ -68,11 +68,8 @@ def test_three_months_of_falls_on_the_page(tmp_path, shared_data, procs):
                        "source.realtime=true", "pipeline.target_fps=5"], source=f"file:{rec}")
     procs.append(subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                   start_new_session=True))
-    web = subprocess.Popen([sys.executable, "-m", "posed.cli", "web", "longrun", "--connect", endpoint, "--port",
-                            "0", "--wait", "120"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                           text=True, start_new_session=True)
+    web, url = posed_web("longrun", endpoint, 120)
     procs.append(web)
-    url = web.stdout.readline().strip()
     b = Browser(tmp_path / "profile")
     procs.append(b)
     b.open(url)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import threading
 
 import pytest
 
@@ -16,7 +15,6 @@ from posed.falls import FallEvent
 from posed.viz.web.fall_list import KEEP_S, MAX_EVENTS
 from posed.viz.web.hub import PRUNE_EVERY_S, Hub
 from posed.viz.web.server import WebServer
-from tests.viz.browser import Browser
 
 DAY = 86400.0
 T_END = dt.datetime(2026, 12, 7, 12, 0, tzinfo=dt.UTC).timestamp()
@@ -169,24 +167,8 @@ class _Journal:
 
 
 @pytest.fixture
-def served(tmp_path):
-    opened = []
-
-    def open_page(hub, link):
-        server = WebServer(hub, link, "127.0.0.1", 0)
-        threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
-        browser = Browser(tmp_path / f"profile{len(opened)}")
-        opened.append((server, browser))
-        browser.open(server.url)
-        browser.wait_for("window.posedView && posedView.labels && posedView.labels.theta_kn_l", 30,
-                         "the page and its first message")
-        return browser
-
-    yield open_page
-    for server, browser in opened:
-        browser.close()
-        server.shutdown()
-        server.server_close()
+def served(served_page):
+    return lambda hub, link: served_page(hub, link, "window.posedView && posedView.labels && posedView.labels.theta_kn_l")
 
 
 def test_a_page_open_for_months_drops_old_falls_and_keeps_the_open_alarm(served):

@@ -8,28 +8,23 @@ and one from r1's page to r1."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import time
 
 import pytest
 
 from posed.daemon.outbox.journal import EventJournal
 from tests.daemon.zenoh_util import free_port
-from tests.interop.daemons import ROOT, URFD, Daemon, fall_overrides
+from tests.interop.daemons import URFD, Daemon, fall_overrides
 from tests.interop.test_fleet import FLEET, fleet_router
 from tests.viz.browser import Browser
+from tests.viz.web_cli import posed_web
 
 EVENTS = "Object.values(posedView.events)"
 
 
 def _web(robot: str, endpoint: str, procs: list) -> str:
-    proc = subprocess.Popen([sys.executable, "-m", "posed.cli", "web", robot, "--connect", endpoint, "--port", "0",
-                             "--wait", "60"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            text=True, start_new_session=True)
+    proc, url = posed_web(robot, endpoint, 60)
     procs.append(proc)
-    url = proc.stdout.readline().strip()
-    assert url.startswith("http://127.0.0.1:"), url
     return url
 
 

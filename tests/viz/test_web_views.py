@@ -10,7 +10,6 @@ import datetime as dt
 import math
 import os
 import re
-import threading
 from pathlib import Path
 
 import pytest
@@ -19,8 +18,6 @@ from posed.client.types import Status
 from posed.falls import FallEvent
 from posed.fitting import BODY_LANDMARK_NAMES, FitResult, Measured
 from posed.viz.web.hub import Hub, floor_of
-from posed.viz.web.server import WebServer
-from tests.viz.browser import Browser
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
@@ -73,24 +70,9 @@ def _lying_pose(down, floor):
 
 
 @pytest.fixture
-def page(tmp_path):
-    opened = []
-
-    def open_page(hub, robot):
-        server = WebServer(hub, robot, "127.0.0.1", 0)
-        threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
-        browser = Browser(tmp_path / "profile")
-        opened.append((server, browser))
-        browser.open(server.url)
-        browser.wait_for("window.posedView && document.getElementById('robot').textContent === 'r'", 30,
-                         "the page and its first message")
-        return browser
-
-    yield open_page
-    for server, browser in opened:
-        browser.close()
-        server.shutdown()
-        server.server_close()
+def page(served_page):
+    return lambda hub, robot: served_page(hub, robot, "window.posedView && document.getElementById('robot')"
+                                                      ".textContent === 'r'")
 
 
 def test_falls_newest_first_grouped_capped_in_iso_local_time(page):

@@ -18,7 +18,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -26,6 +25,7 @@ import pytest
 from posed.commands._child import free_endpoint, run_command
 from posed.daemon.outbox.journal import EventJournal
 from tests.viz.browser import Browser
+from tests.viz.web_cli import posed_web
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
@@ -52,12 +52,8 @@ def _daemon(procs, tmp_path, endpoint, source, *settings):
 
 
 def _page(procs, tmp_path, endpoint) -> Browser:
-    web = subprocess.Popen([sys.executable, "-m", "posed.cli", "web", ROBOT, "--connect", endpoint, "--port", "0",
-                            "--wait", "180"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                           text=True, start_new_session=True)
+    web, url = posed_web(ROBOT, endpoint, 180)
     procs.append(web)
-    url = web.stdout.readline().strip()
-    assert url.startswith("http://127.0.0.1:"), url
     b = Browser(tmp_path / "profile")
     procs.append(b)
     b.open(url)

@@ -17,7 +17,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from posed.commands._child import free_endpoint, run_command
 from tests.daemon import restore_util as ru
 from tests.daemon.bus_seen import Seen
 from tests.viz.browser import Browser
+from tests.viz.web_cli import posed_web
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
@@ -91,12 +91,8 @@ def test_the_daemon_says_since_when_it_is_not_watching_and_a_later_page_shows_it
         assert contract.errors(bad, "status"), "the status schema accepts any watch"
 
         time.sleep(3.0)         # the page opens later: posed has not been watching for a while already
-        web = subprocess.Popen([sys.executable, "-m", "posed.cli", "web", ROBOT, "--connect", endpoint, "--port",
-                                "0", "--wait", "120"], cwd=ROOT, stdout=subprocess.PIPE,
-                               stderr=subprocess.DEVNULL, text=True, start_new_session=True)
+        web, url = posed_web(ROBOT, endpoint, 120)
         procs.append(web)
-        url = web.stdout.readline().strip()
-        assert url.startswith("http://127.0.0.1:"), url
         b = Browser(tmp_path / "profile")
         procs.append(b)
         b.open(url)
