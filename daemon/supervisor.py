@@ -98,6 +98,7 @@ class Supervisor:
         self._problem: dict | None = None        # the capture stage's last reported problem {error, fix}
         self._conflict: dict | None = None       # the publisher's zenoh.robot_id_conflict: our robot id used twice
         self.models = models_in_use(config)      # the status's "models": read once, from the manifest
+        self.time_zone = robot_zone()            # the status's "time_zone": the zone people read times in
         self._next_blind_log = 0.0
         self.control: Control | None = None
         self.ring: FrameRing | None = None
@@ -452,6 +453,7 @@ class Supervisor:
             "robot": self.config.robot_id,
             "posed_version": __version__,      # "version" is the message format's (daemon.bus.payloads)
             "models": self.models,             # which landmark models run (as `posed --version`'s second line)
+            "time_zone": self.time_zone,       # the robot's IANA zone (daemon.timeparse.local_zone), or null
             "time": clock.iso(time.time()),
             "uptime_s": round(now - self._t0, 1),
             "state": state,
@@ -529,6 +531,15 @@ class Supervisor:
             with contextlib.suppress(OSError):
                 self._sem_record.unlink()
         self.log.info("daemon_stopped", seconds=round(clock.now() - t_start, 2), exit_code=self._exit_code)
+
+
+def robot_zone() -> str | None:
+    """This machine's (the robot's) IANA time zone by ``daemon.timeparse.local_zone``'s rule (``$TZ``, else
+    /etc/localtime), which every command shows times in; None when only a fixed offset is known. Read once at
+    start: a zone changed with timedatectl takes a restart, as for every other process."""
+    from posed.daemon.timeparse import local_zone
+
+    return getattr(local_zone(), "key", None)
 
 
 def models_in_use(config: Config) -> dict:

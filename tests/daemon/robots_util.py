@@ -18,11 +18,12 @@ FALL = Path("falls") / "urfd_dev" / "urfd_04_fall.landmarks.jsonl"
 
 class Daemon:
     """One ``posed run`` in a session of its own (so a kill -9 of its whole group reaches only it); ``prefix``:
-    what runs it (e.g. ``unshare --pid --fork``: a pid namespace of its own, as in a container)."""
+    what runs it (e.g. ``unshare --pid --fork``: a pid namespace of its own, as in a container); ``env``: added to
+    its environment."""
 
     def __init__(self, tmp_path: Path, name: str, robot: str, port: int, shared_data: Path, *,
                  state: Path | None = None, connect: int | None = None, extra: tuple[str, ...] = (),
-                 prefix: tuple[str, ...] = ()) -> None:
+                 prefix: tuple[str, ...] = (), env: dict[str, str] | None = None) -> None:
         self.dir = tmp_path / name
         self.dir.mkdir(parents=True, exist_ok=True)
         self.robot, self.port = robot, port
@@ -35,7 +36,7 @@ class Daemon:
         if connect is not None:
             cmd += ["--set", f"zenoh.connect=[tcp/127.0.0.1:{connect}]"]
         self.out, self.err = self.dir / "out.log", self.dir / "err.log"
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, env=os.environ.copy(), stdout=open(self.out, "w"),
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, **(env or {})}, stdout=open(self.out, "w"),
                                      stderr=open(self.err, "w"), start_new_session=True)
 
     @property

@@ -103,11 +103,12 @@ def test_two_daemons_with_one_robot_id_on_one_bus_are_said_loudly(tmp_path, shar
     other one stopped (fails without it: the line said nothing of it)."""
     listener = NotifyListener(str(tmp_path / "notify.sock"))
     monkeypatch.setenv("NOTIFY_SOCKET", listener.sock.getsockname())
-    a = Daemon(tmp_path, "a", "robX", free_port(), shared_data)      # the only one that tells systemd
+    a = Daemon(tmp_path, "a", "robX", free_port(), shared_data,      # the only one that tells systemd
+               env={"TZ": "Asia/Tokyo"})                            # a robot in Tokyo: its status says so
     monkeypatch.delenv("NOTIFY_SOCKET")
     try:
         a.wait_log("zenoh_open", 90)
-        b = Daemon(tmp_path, "b", "robX", free_port(), shared_data, connect=a.port)
+        b = Daemon(tmp_path, "b", "robX", free_port(), shared_data, connect=a.port, env={"TZ": "Asia/Tokyo"})
         said_a, said_b = a.wait_log("robot_id_in_use", 60), b.wait_log("robot_id_in_use", 60)
         assert said_a[0]["level"] == "error" and "its own robot_id" in said_a[0]["fix"]
         assert any(f"pid {b.pid} on host" in o for o in said_a[0]["other_daemons"]), said_a
@@ -122,6 +123,10 @@ def test_two_daemons_with_one_robot_id_on_one_bus_are_said_loudly(tmp_path, shar
                 models = [st.raw.get("models") for st in seen.statuses]
             assert models and all(m == installed_models() for m in models), models[-1:]
             assert "dir" in models[0] and ("converter_version" in models[0] or "error" in models[0]), models[0]
+            # the zone the robot's views show times in (posed web takes it: a carer abroad reads home time)
+            with seen.lock:
+                zones = [st.raw.get("time_zone") for st in seen.statuses]
+            assert zones and set(zones) == {"Asia/Tokyo"}, zones
         lines = _watch(a.endpoint, "robX", seconds=3.0)
         loud = [line for line in lines if line.startswith("ROBOT ID IN USE TWICE")]
         # each second's line is from the latest status, of either daemon: each names the other one

@@ -119,6 +119,37 @@ def test_falls_newest_first_grouped_capped_in_iso_local_time(page):
     b.screenshot(ARTIFACTS / "web_views_falls.png")
 
 
+def test_times_are_on_the_robots_clock_in_its_zone_whatever_the_browsers(page):
+    """A carer abroad: the page shows the time it happened at home (the status's time_zone), as the report and
+    `posed events` do, and names that zone; before the status says, the browser's zone."""
+    hub = Hub("r")
+    at = T0 + dt.timedelta(minutes=7)
+    ev = FallEvent("evzone" + "x" * 6, "r", "falling", 1.0, 1.5, 2.0, 0.9, wall_time=_iso(at))
+    hub.on_event("r", ev)
+    messages = [{"id": ev.id, "state": "falling", "wall_time": ev.wall_time, "confidence": 0.9,
+                 "published_at": at.timestamp(), "acked_at": None}]
+    b = page(hub, _Robot(messages))
+    b.wait_for("document.querySelectorAll('#history tr').length > 1", 30, "the event history")
+    browser_zone = b.js("Intl.DateTimeFormat().resolvedOptions().timeZone")
+    robot_zone = "Asia/Tokyo" if browser_zone != "Asia/Tokyo" else "America/New_York"
+    assert browser_zone in b.js("document.querySelector('#history th').textContent")
+    hub.on_status("r", Status.from_json({"state": "running", "fps": 10.0, "camera": {"state": "open"},
+                                         "time_zone": robot_zone}, "r"))
+    b.wait_for(f"document.querySelector('#history th').textContent.includes({robot_zone!r})", 30,
+               "the history in the robot's zone")
+    from zoneinfo import ZoneInfo
+
+    local = at.astimezone(ZoneInfo(robot_zone))
+    offset = local.strftime("%z")
+    assert f"({robot_zone}, UTC{offset[:3]}:{offset[3:]})" in b.js("document.querySelector('#history th').textContent")
+    first = b.js("document.querySelector('#history tr:nth-child(2) td').textContent")
+    assert first == local.strftime("%Y-%m-%d %H:%M:%S"), (first, local)
+    # a zone this browser does not know is not taken: the times stay in the zone the heading names
+    hub.on_status("r", Status.from_json({"state": "running", "time_zone": "Not/AZone"}, "r"))
+    b.wait_for("posedView.status && posedView.status.time_zone === 'Not/AZone'", 30, "the odd status")
+    assert robot_zone in b.js("document.querySelector('#history th').textContent")
+
+
 def test_floor_from_the_fall_detector_and_only_measured_joints(page):
     hub = Hub("r")
     b = page(hub, _Robot([]))

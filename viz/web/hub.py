@@ -300,7 +300,8 @@ class Hub:
                "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
                "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
-               "storage": storage_of(status.raw), "restored_open": restored_open_of(status.raw)}
+               "storage": storage_of(status.raw), "restored_open": restored_open_of(status.raw),
+               "time_zone": zone_of(status.raw)}
         watch = watch_of(status.raw)
         why = not_watching(status.raw) if watch is None else watch[0]
         with self._lock:
@@ -479,6 +480,12 @@ def restored_of(extra: dict) -> dict | None:
     return {"at_unix": _num(r.get("at_unix")), "due_unix": _num(r.get("due_unix")),
             "last_state": STATE_WORDS.get(last, last) if isinstance(last, str) else None,
             "clock": clock if isinstance(clock, str) else None}
+
+
+def zone_of(raw) -> str | None:
+    """The robot's IANA time zone from its status (``time_zone``), the page's clock; None when not said."""
+    zone = (raw or {}).get("time_zone") if isinstance(raw, dict) else None
+    return zone if isinstance(zone, str) and 0 < len(zone) <= 64 else None
 
 
 def storage_of(raw) -> dict | None:

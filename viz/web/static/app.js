@@ -210,9 +210,27 @@ function showAnglesNow(pose) {
 // ------------------------------------------------------------------ status, events, history
 const ZONE = Intl.DateTimeFormat().resolvedOptions().timeZone;
 const pad = (n) => String(n).padStart(2, "0");
-function zoneText() {  // "Europe/Berlin, UTC+01:00": this browser's zone, where every time on the page is shown
-  const off = -new Date().getTimezoneOffset();
-  return `${ZONE}, UTC${off < 0 ? "-" : "+"}${pad(Math.floor(Math.abs(off) / 60))}:${pad(Math.abs(off) % 60)}`;
+// Every time on the page is on the robot's clock, in the robot's zone (its status's time_zone), as the report,
+// `posed events` and `posed plot history` show them: a carer abroad reads the time it happened at home. Until
+// the status says (or for an old daemon), this browser's zone; the headings name the zone either way.
+let viewZone = ZONE;
+function setZone(zone) {  // the robot's IANA zone; false when this browser does not know it (kept as it was)
+  if (typeof zone !== "string" || !zone || zone === viewZone) return false;
+  try { new Intl.DateTimeFormat("en-GB", {timeZone: zone}); } catch (e) { return false; }
+  viewZone = zone;
+  return true;
+}
+function partsOf(d) {  // {year, month, day, hour, minute, second, timeZoneName: "GMT+01:00"} of a Date in viewZone
+  const f = new Intl.DateTimeFormat("en-GB", {timeZone: viewZone, year: "numeric", month: "2-digit",
+    day: "2-digit", hour: "2-digit", minute: "2-digit", second: "2-digit", hourCycle: "h23",
+    timeZoneName: "longOffset"});
+  const o = {};
+  for (const p of f.formatToParts(d)) o[p.type] = p.value;
+  return o;
+}
+function zoneText() {  // "Europe/Berlin, UTC+01:00": the zone every time on the page is shown in
+  const off = partsOf(new Date()).timeZoneName.replace("GMT", "") || "+00:00";
+  return `${viewZone}, UTC${off}`;
 }
 
 function toDate(t) {  // an ISO time (UTC unless it says otherwise), or unix seconds
@@ -221,16 +239,18 @@ function toDate(t) {  // an ISO time (UTC unless it says otherwise), or unix sec
   return isNaN(d) ? null : d;
 }
 
-function localTime(t) {  // ISO 8601 in this browser's zone, as every other posed view writes times: 2026-12-02 19:42:47
+function localTime(t) {  // ISO 8601 in the page's zone (the robot's), as every other posed view writes times: 2026-12-02 19:42:47
   const d = toDate(t);
   if (!d) return t === null || t === undefined || t === "" ? "–" : String(t);
-  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())} ${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}`;
+  const o = partsOf(d);
+  return `${o.year}-${o.month}-${o.day} ${o.hour}:${o.minute}:${o.second}`;
 }
 
 function setText(id, text) { document.getElementById(id).textContent = text; }
 
 function showStatus(s) {
   view.status = s;
+  if (setZone(s.time_zone) && view.history) showHistory();   // times drawn so far are drawn again below
   if (s.robot && view.everyRobot && view.shownRobot !== s.robot) { view.shownRobot = s.robot; showRobotName(); }
   view.fpsText = s.fps === null ? "–" : s.fps.toFixed(1);
   setText("st-state", s.state); setText("st-fps", view.fpsText);
@@ -270,14 +290,17 @@ function showAlive(alive) {
 // ------------------------------------------------------------------ is posed watching: the server's verdict
 let clockSkew = 0;   // this browser's clock minus the server's (s): ages are told on the server's clock
 const serverNow = () => Date.now() / 1000 - clockSkew;
-function clockText(t) {  // HH:MM:SS in this browser's zone
+function clockText(t) {  // HH:MM:SS in the page's zone (the robot's)
   const d = toDate(t);
-  return d ? `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}` : "–";
-}
-function sinceText(t) {  // HH:MM:SS, with the date when it is not today
-  const d = toDate(t), now = new Date();
   if (!d) return "–";
-  return d.toDateString() === now.toDateString() ? clockText(t) : localTime(t);
+  const o = partsOf(d);
+  return `${o.hour}:${o.minute}:${o.second}`;
+}
+function sinceText(t) {  // HH:MM:SS, with the date when it is not today (the robot's day)
+  const d = toDate(t);
+  if (!d) return "–";
+  const o = partsOf(d), n = partsOf(new Date());
+  return o.year === n.year && o.month === n.month && o.day === n.day ? clockText(t) : localTime(t);
 }
 function ageText(t) {  // "at 22:31:24, 35 s ago"
   if (t === null || t === undefined) return "never";
