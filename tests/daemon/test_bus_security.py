@@ -183,3 +183,62 @@ def test_two_daemons_with_one_robot_id_find_each_other_on_the_secured_bus(tmp_pa
         assert a.proc.poll() is None
     finally:
         stop_all(*(d for d in (b, a) if d is not None))
+
+
+def test_a_watching_certificate_cannot_fake_a_second_daemon(tmp_path, shared_data):
+    """A real `posed run` with the shipped posed-daemon.json5, and clients from the shipped receiver.json5: an
+    unlisted (watching) certificate and a listed receiver's each declare a token ``posed/ROBOT/alive/<instance>``
+    and follow ``posed/ROBOT/alive/*``, as a second daemon would; for seconds the daemon says nothing
+    (no ``robot_id_in_use``, ``zenoh.robot_id_conflict`` null in the status a listed receiver reads). Control:
+    the same token from a client holding the daemons' certificate (CN posed-daemon) is a conflict at once, and
+    its end is said. Fails if the access control admits ``posed/*/alive/*`` tokens from any other certificate
+    (e.g. the policy of "daemon_tokens_in" given the subject "tls_peers")."""
+    from tests.daemon.robots_util import Daemon, stop_all, wait
+
+    certs = tmp_path / "certs"
+    r = subprocess.run(["sh", str(DEPLOY / "make-certs.sh"), str(certs), LISTED, "watcher"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    daemon_cfg = _render(DEPLOY / "posed-daemon.json5", tmp_path / "posed-daemon.json5", certs)
+    port = free_port()
+    ep = f"tls/127.0.0.1:{port}"
+    a = Daemon(tmp_path, "a", "solo", port, shared_data,
+               extra=("--set", f"zenoh.config_file={daemon_cfg}", "--set", f"zenoh.listen=[{ep}]"))
+    sessions: list[zenoh.Session] = []
+    try:
+        a.wait_log("zenoh_open", 90)
+        listed = _receiver(tmp_path, certs, LISTED, ep)
+        sessions.append(listed)
+        statuses, _sub = _statuses(listed, "solo")
+        watcher = _receiver(tmp_path, certs, "watcher", ep)
+        sessions.append(watcher)
+        seen: dict[str, str] = {}           # what the watcher's liveliness subscriber hears: key -> kind
+        _fakes = [watcher.liveliness().declare_token("posed/solo/alive/fake.1.host"),
+                  watcher.liveliness().declare_subscriber(
+                      "posed/solo/alive/*", lambda s: seen.__setitem__(str(s.key_expr), str(s.kind)), history=True),
+                  listed.liveliness().declare_token("posed/solo/alive/fake.2.host")]
+        # the watcher is really on the bus and may watch: it hears the daemon's own token (subscriber and query)
+        own = f".{a.pid}."
+        wait(lambda: any(own in k for k in seen), 20, "the daemon's own token, heard by the watcher", a)
+        replies = watcher.liveliness().get("posed/solo/alive/*", timeout=3)
+        assert any(own in str(r.ok.key_expr) for r in replies if r.ok is not None)
+        n = len(statuses)
+        wait(lambda: len(statuses) >= n + 8, 20, "eight more status messages (4 s)", a)    # 0.5 s period
+        assert a.events("robot_id_in_use") == [], "a watching certificate faked a second daemon"
+        assert all((s.get("zenoh") or {}).get("robot_id_conflict") is None for s in statuses), statuses[-1]
+        assert "robot_id_conflict" in statuses[-1]["zenoh"], statuses[-1]["zenoh"]
+
+        # control: the daemons' certificate (as a second daemon holds it) is heard at once, and alone
+        with _receiver(tmp_path, certs, "posed-daemon", ep) as daemon_cert:
+            token = daemon_cert.liveliness().declare_token("posed/solo/alive/other.3.host")
+            said = a.wait_log("robot_id_in_use", 20)
+            assert said[0]["other_daemons"] == ["pid 3 on host host (Zenoh id other)"], said
+            wait(lambda: any((s.get("zenoh") or {}).get("robot_id_conflict") for s in statuses), 10,
+                 "the conflict in the status a listed receiver reads", a)
+            token.undeclare()
+            a.wait_log("robot_id_conflict_ended", 20)
+        assert a.proc.poll() is None
+    finally:
+        for s in sessions:
+            s.close()
+        stop_all(a)
