@@ -17,17 +17,20 @@ from zoneinfo import ZoneInfo
 _RELATIVE = re.compile(r"^-?(\d+(?:\.\d+)?)\s*(s|sec|m|min|h|d|w)$")
 _UNIT_S = {"s": 1, "sec": 1, "m": 60, "min": 60, "h": 3600, "d": 86400, "w": 604800}
 # a time stamped later than now by more than this was stamped by a clock that was wrong then or is wrong now
-# (NTP slews small errors and steps only large ones; daemon.stages.restored_falls.CLOCK_SLACK_S alike)
+# (NTP slews small errors and steps only large ones; daemon.stages.restored_falls takes it, viz.series has its twin)
 FUTURE_SLACK_S = 2.0
 
 
 def local_zone(name: str | None = None) -> tzinfo:
     """The time zone ``name`` (IANA, e.g. ``Europe/Berlin``), else this machine's (the robot's) local zone:
     ``$TZ``, else the zone /etc/localtime points at (so summer time is right on every date), else the current
-    UTC offset as a fixed zone. Raises ``zoneinfo.ZoneInfoNotFoundError`` (a KeyError) for an unknown name.
+    UTC offset as a fixed zone. Raises ValueError naming an unknown ``name`` and what to give instead.
     The one rule of every time shown to people: the commands pass its zone to ``viz``'s plots and report."""
     if name:
-        return ZoneInfo(name)
+        try:
+            return ZoneInfo(name)
+        except (KeyError, ValueError) as exc:     # zoneinfo.ZoneInfoNotFoundError is a KeyError
+            raise ValueError(f"unknown time zone {name!r} ({exc}); use an IANA name such as Europe/Berlin") from None
     env = os.environ.get("TZ", "").lstrip(":")
     if env:
         try:

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 from posed.daemon.clock import iso
 from posed.daemon.stages.fall_watch import _people
+from posed.daemon.timeparse import FUTURE_SLACK_S
 from posed.falls import FallEvent, FallsConfig
 
 RESTORE_HORIZON_S = 24 * 3600.0
@@ -53,9 +54,9 @@ RESTORE_HORIZON_S = 24 * 3600.0
 # for more than a day after a fall, a fall left open by a posed without this restore, or a unix clock stepped
 # forward since) an acknowledged fall is known to someone: it stays in the journal as it was and is named in the
 # log at every start. One nobody acknowledged is alarmed at once, once: the age may be the clock's error.
-CLOCK_SLACK_S = 2.0
+CLOCK_SLACK_S = FUTURE_SLACK_S
 # How far the clock now may be earlier than a time the fall was journalled at before it counts as stepped back:
-# NTP slews small errors (at most 0.5 ms/s) and steps only large ones.
+# NTP slews small errors (at most 0.5 ms/s) and steps only large ones (the views' "stamped later than now" alike).
 STAMPED = ("format", "version", "time_unix")      # made anew for each message (payloads.stamp_event)
 PERSON_KEYS = ("person", "root_cam_m", "person_match", "member", "household")
 STATE_ORDER = {"falling": 0, "on_floor": 1, "alarm": 2, "recovered": 3}

@@ -73,14 +73,14 @@ def run(args: argparse.Namespace) -> int:
     from posed.daemon.history.store import ROW_COLUMNS, AngleHistory, HistoryFileError
     from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError
-    from posed.daemon.timeparse import FUTURE_SLACK_S, local_zone
+    from posed.daemon.timeparse import local_zone
     from posed.viz.report import IN_PROGRESS_MARGIN_S, day_report
-    from posed.viz.series import episodes
+    from posed.viz.series import CLOCK_SLACK_S, episodes
 
     try:
         tz = local_zone(args.tz)
-    except Exception as exc:  # zoneinfo.ZoneInfoNotFoundError is a KeyError
-        _err(f"unknown time zone {args.tz!r} ({exc}); use an IANA name such as Europe/Berlin")
+    except ValueError as exc:     # an unknown --tz, named with the fix
+        _err(str(exc))
         return 2
     try:
         day = _day(args.day, tz)
@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             with EventJournal(journal_path, readonly=True) as journal:
                 falls = episodes(event_marks(journal.query(start, end)))
-                later = len({s.event.id for s in journal.query(max(end, now + FUTURE_SLACK_S))}
+                later = len({s.event.id for s in journal.query(max(end, now + CLOCK_SLACK_S))}
                             - {ep.id for ep in falls})
         except (JournalError, FileNotFoundError) as exc:
             _err(f"{exc}; the report needs the journal for the falls")
