@@ -62,9 +62,21 @@ def open_readonly(path: Path) -> sqlite3.Connection:
     try:
         db.execute("SELECT count(*) FROM messages").fetchone()
     except sqlite3.Error as exc:
+        being_created = _no_tables(db)
         db.close()
+        if being_created:   # the daemon made the file and has not written its table yet: no event so far
+            raise FileNotFoundError(f"no event journal at {path} yet: the daemon is creating it (with its first "
+                                    "fall event); ask again in a moment") from exc
         raise JournalError(read_error(path, exc)) from exc
     return db
+
+
+def _no_tables(db: sqlite3.Connection) -> bool:
+    """Whether the file holds no table at all (created a moment ago, its schema not yet committed)."""
+    try:
+        return db.execute("SELECT count(*) FROM sqlite_master").fetchone()[0] == 0
+    except sqlite3.Error:
+        return False
 
 
 class Transaction:

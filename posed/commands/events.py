@@ -125,7 +125,9 @@ def run(args: argparse.Namespace) -> int:
         with EventJournal(path, readonly=True) as journal:
             stored = journal.query(since, until, args.limit, unacked=args.unacked)
             unreadable = sorted(journal.unreadable_rows)
-    except (JournalError, FileNotFoundError, PermissionError) as exc:
+    except FileNotFoundError:       # gone, or being created by the daemon this moment: no event yet
+        return _print_listing(args, path, None)
+    except (JournalError, PermissionError) as exc:
         print(f"posed events: {exc}{_permission_hint(path, exc)}", file=sys.stderr)
         return 1
     if unreadable:

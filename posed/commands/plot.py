@@ -161,7 +161,9 @@ def run(args: argparse.Namespace) -> int:
                     # (without frames) comes after the last stored sample, and is part of that fall
                     ids = dict.fromkeys(m.event.id for m in journal.query(series.time[0], series.time[-1]))
                     falls = episodes(event_marks([m for i in ids for m in journal.get(i)]))
-            except (JournalError, FileNotFoundError) as exc:
+            except FileNotFoundError:   # gone, or being created by the daemon this moment: no fall yet
+                falls = []
+            except JournalError as exc:
                 print(f"{cmd}: {exc}; --no-events draws the angles without the event marks", file=sys.stderr)
                 return 1
     import datetime as dt

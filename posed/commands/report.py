@@ -114,7 +114,9 @@ def run(args: argparse.Namespace) -> int:
                 falls = episodes(event_marks(journal.query(start, end)))
                 later = len({s.event.id for s in journal.query(max(end, now + CLOCK_SLACK_S))}
                             - {ep.id for ep in falls})
-        except (JournalError, FileNotFoundError) as exc:
+        except FileNotFoundError:   # gone, or being created by the daemon this moment: no fall yet
+            falls, later = [], 0
+        except JournalError as exc:
             _err(f"{exc}; the report needs the journal for the falls")
             return 1
     step = float(np.median(np.diff(series.time))) if len(series.time) > 1 else 1.0

@@ -88,6 +88,19 @@ def test_missing_journal_is_still_a_plain_message(tmp_path, capsys):
     assert not missing.parent.exists()
 
 
+def test_a_journal_the_daemon_is_creating_lists_no_event_yet(tmp_path, capsys):
+    """The file exists and its table is not committed yet (the daemon's first fall event, this moment): a reader
+    polling then (a hook, a monitor) gets the listing of no journal yet and exit 0, not a failure."""
+    path = tmp_path / "events.sqlite3"
+    sqlite3.connect(path).close()
+    assert main(["events", "--journal", str(path)]) == 0
+    captured = capsys.readouterr()
+    assert "no event journal" in captured.out and captured.err == ""
+    assert main(["events", "--journal", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["events"] == []
+    assert path.stat().st_size == 0
+
+
 def test_plot_reports_a_corrupt_journal_and_leaves_it_alone(tmp_path, capsys):
     state = tmp_path / "state"
     write_history(state / "history.sqlite3")

@@ -179,10 +179,19 @@ def test_readonly_reads_without_creating_or_moving_anything(tmp_path, capsys):
     assert capsys.readouterr().out == ""            # a reader never logs
 
     other = tmp_path / "other.sqlite3"
-    sqlite3.connect(other).close()                  # an empty database: no tables
+    with sqlite3.connect(other) as db:              # another program's database
+        db.execute("CREATE TABLE notes (text TEXT)")
     with pytest.raises(JournalError, match="not an event journal"):
         EventJournal(other, readonly=True)
-    assert sqlite3.connect(other).execute("SELECT count(*) FROM sqlite_master").fetchone()[0] == 0
+    assert sqlite3.connect(other).execute("SELECT count(*) FROM sqlite_master").fetchone()[0] == 1
+
+    # the daemon has made the file and not yet committed its table (its first fall event, a moment ago): no
+    # event yet, as when there is no file, never "not an event journal" to a reader polling at that moment
+    creating = tmp_path / "creating.sqlite3"
+    sqlite3.connect(creating).close()               # an empty database: no tables
+    with pytest.raises(FileNotFoundError, match="creating it"):
+        EventJournal(creating, readonly=True)
+    assert sqlite3.connect(creating).execute("SELECT count(*) FROM sqlite_master").fetchone()[0] == 0
 
 
 def test_a_selection_means_the_same_on_disk_and_in_memory(tmp_path):

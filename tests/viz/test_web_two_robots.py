@@ -29,13 +29,14 @@ def _web(robot: str, endpoint: str, procs: list) -> str:
 
 
 def _stored(daemon: Daemon) -> dict[str, list]:
-    if not (daemon.state_dir / "events.sqlite3").exists():      # created with the robot's first fall event
+    try:      # created with the robot's first fall event (FileNotFoundError before it, and while being created)
+        with EventJournal(daemon.state_dir / "events.sqlite3", readonly=True) as journal:
+            out: dict[str, list] = {}
+            for s in journal.query():
+                out.setdefault(s.event.id, []).append(s)
+            return out
+    except FileNotFoundError:
         return {}
-    with EventJournal(daemon.state_dir / "events.sqlite3", readonly=True) as journal:
-        out: dict[str, list] = {}
-        for s in journal.query():
-            out.setdefault(s.event.id, []).append(s)
-        return out
 
 
 def _ack(b: Browser, event_id: str) -> None:
