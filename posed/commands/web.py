@@ -19,7 +19,9 @@ from posed.commands import add_config_args, config_from_args, error_printer
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("web", help="serve the live view (3D skeleton, angles, status, fall events with "
                                         "acknowledge) on http://127.0.0.1")
-    parser.add_argument("robot", nargs="?", metavar="ROBOT", help="robot id (default: the config's robot_id)")
+    parser.add_argument("robot", nargs="?", metavar="ROBOT",
+                        help="robot id (default: the config's robot_id); '*': every robot on the bus, a card each, "
+                             "the skeleton of the one chosen")
     parser.add_argument("--connect", action="append", metavar="ENDPOINT",
                         help="Zenoh endpoint of the daemon or router, e.g. tcp/127.0.0.1:7447 (repeatable)")
     parser.add_argument("--port", type=int, metavar="N", help="TCP port (default web.port; 0 = any free one)")

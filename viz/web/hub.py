@@ -14,7 +14,11 @@ after a restart; ``clock`` when its alarm was raised at once for a stepped clock
 or learned from the robot's journal: acknowledged elsewhere), ``forget`` (events the page no longer lists:
 settled and older than its window, ``fall_list``), ``alive``, ``bus`` and ``robot``.
 The events held are bounded (``fall_list.FallList``): the page's window and every event not settled.
-A hub for every robot (``"*"``) lists every robot's events and shows the pose, status and liveliness of one.
+A hub for every robot (``"*"``) lists every robot's events and keeps each robot's live parts (its last status and
+pose, its minute of angles, its liveliness and verdict: newest wins, at most ``MAX_ROBOTS`` robots); a page gets
+those of the one robot it shows (``subscribe(robot)``; poses of the others never reach it) and, for every robot,
+a ``card`` (``cards``: up or down and since when, watching or why not, frames per second, its last pose's time
+and its time zone), the changed ones at most once a tick.
 With several people in view one person is drawn: the household member the status says is followed, else each
 frame's own person. ``snapshot()`` is what a page that opens now needs first: the last status, the last minute
 of angles, the events seen, whether the robot is up.
@@ -38,7 +42,7 @@ from collections import deque
 
 from posed.viz.names import MAIN_ANGLES, evidence_text, short_label
 from posed.viz.series import STATE_WORDS
-from posed.viz.web.fall_list import KEEP_S, FallList
+from posed.viz.web.fall_list import KEEP_S, FallList, unix_of
 
 CHART_ANGLES = ("theta_hp_l", "theta_hp_r", "theta_kn_l", "theta_kn_r", "theta_tr")
 WINDOW_S = 60.0
@@ -50,6 +54,10 @@ START_GRACE_S = 12.0        # a page just opened waits this long for a first wor
 PRUNE_EVERY_S = 60.0        # how often the fall list drops what the page no longer shows (fall_list)
 TRANSIENT = ("pose", "status")    # a page that loses one of these is set right by the next (within a second)
 EVERY_ROBOT = "*"           # a hub for every robot on the bus: events of all, the live view of one
+MAX_ROBOTS = 100            # robots a hub for every robot holds at most (a card each; beyond: counted, unlisted)
+FORGET_GONE_S = KEEP_S      # ... a robot gone this long makes room for a new one when all places are taken
+UNLISTED_KEPT = 1000        # robots beyond MAX_ROBOTS counted at most
+ROBOT_ID_CHARS = 128        # a robot id longer than this is no robot's (a page's address, a hostile message)
 
 
 def _num(v) -> float | None:
@@ -58,6 +66,12 @@ def _num(v) -> float | None:
     except (TypeError, ValueError):
         return None
     return f if math.isfinite(f) else None
+
+
+def _robot_id(robot) -> bool:
+    """Whether ``robot`` can be one robot's id (not ``"*"``, not empty, printable, not too long)."""
+    return (isinstance(robot, str) and 0 < len(robot) <= ROBOT_ID_CHARS and robot != EVERY_ROBOT
+            and robot.isprintable())
 
 
 def floor_of(status_raw: dict) -> dict | None:
@@ -78,50 +92,80 @@ def floor_of(status_raw: dict) -> dict | None:
             "tilt_from": geo.get("tilt_from"), "height_from": geo.get("height_from")}
 
 
+class _Live:
+    """One robot's live parts as a page shows them (the hub's lock guards it): its last status and pose, the last
+    minute of angles, whether it is heard from, and the card last sent to the pages (a hub for every robot)."""
+
+    def __init__(self, robot: str | None, opened: tuple[float, float]) -> None:
+        self.robot = robot
+        self.opened = opened                    # (monotonic, wall) since when it is waited for
+        self.last_pose_at = -math.inf           # the hub's clock: poses thinned to pose_rate_hz
+        self.angles: deque = deque()            # (time_unix, {name: deg|None})
+        self.status: dict | None = None
+        self.pose: dict | None = None
+        self.alive: bool | None = None
+        self.follow: int | None = None          # several people: the track id the status says is followed
+        self.last_seq: int | None = None        # the seq of the last pose that was not another person's
+        # whether the robot is heard from: receipt times on this machine (monotonic for ages, wall to show)
+        self.heard: tuple[float, float] | None = None       # last status or pose
+        self.rise: float | None = None                       # monotonic time liveliness last said up
+        self.status_at: float | None = None                  # wall time of the last status received
+        self.pose_at: float | None = None                    # ... and of the last pose
+        self.pose_unix: float | None = None                  # the last pose's own time (the robot's clock)
+        self.status_gaps: deque = deque(maxlen=8)
+        self.status_mono: float | None = None
+        self.verdict: dict | None = None
+        self.not_watching: tuple[str, float, bool] | None = None   # why, since (wall, seen here), whether
+        self.saw_watching = False                                   # ... it was seen watching before
+        self.card: dict | None = None
+
+
+_ALL = object()     # a message for every page (not one robot's live part)
+
+
 class Hub:
     """Thread-safe: the Zenoh callbacks call ``on_*``, the HTTP threads ``subscribe``/``snapshot``."""
 
     def __init__(self, robot: str, pose_rate_hz: float = 15.0, clock=time.monotonic, *,
-                 monotonic=time.monotonic, wall=time.time) -> None:
+                 monotonic=time.monotonic, wall=time.time, max_robots: int = MAX_ROBOTS) -> None:
         self.robot = robot
+        self.every = robot == EVERY_ROBOT
         self.min_pose_gap = 1.0 / pose_rate_hz
+        self.max_robots = max_robots
         self._clock = clock
         self._lock = threading.Lock()
         self._queues: list[queue.Queue] = []
-        self._last_pose_at = -math.inf
-        self._angles: deque = deque()       # (time_unix, {name: deg|None})
-        self._status: dict | None = None
-        self._pose: dict | None = None
         self._falls = FallList()
         self._next_prune = -math.inf
-        self._shown: str | None = None if robot == EVERY_ROBOT else robot   # whose pose and status are shown
-        self._alive: bool | None = None
         self._bus: dict = {"connected": None, "reason": None, "fix": None}   # None: not known yet
         self.poses_in = 0
-        self._follow: int | None = None     # several people: the track id the status says is followed
-        self._last_seq: int | None = None   # the seq of the last pose that was not another person's
-        # whether the robot is heard from: receipt times on this machine (monotonic for ages, wall to show)
         self._mono, self._wall = monotonic, wall
         self._opened = (monotonic(), wall())
-        self._heard: tuple[float, float] | None = None          # last status or pose
-        self._rise: float | None = None                          # monotonic time liveliness last said up
-        self._status_at: float | None = None                     # wall time of the last status received
-        self._pose_at: float | None = None                       # ... and of the last pose
-        self._status_gaps: deque = deque(maxlen=8)
-        self._status_mono: float | None = None
-        self._verdict: dict | None = None
-        self._not_watching: tuple[str, float, bool] | None = None   # why, since (wall, seen here), whether
-        self._saw_watching = False                                   # ... it was seen watching before
+        # one robot: its live parts; every robot: each robot's (at most max_robots), and ``_nobody`` for a page
+        # that has none selected yet (judged as a robot never heard from), ``_asked`` for one a page selected
+        # that is not on the bus (its address kept from before)
+        self._one = None if self.every else _Live(robot, self._opened)
+        self._robots: dict[str, _Live] = {} if self.every else {robot: self._one}
+        self._nobody = _Live(None, self._opened)
+        self._asked: dict[str, _Live] = {}
+        self._unlisted: set[str] = set()        # robots heard from beyond max_robots (at most UNLISTED_KEPT)
+        self._forgotten: list[str] = []         # robots whose card went (gone beyond FORGET_GONE_S), to tell
+        self._next_forget = -math.inf
 
     # ------------------------------------------------------------------ browsers
-    def subscribe(self) -> queue.Queue:
+    def subscribe(self, robot: str | None = None) -> queue.Queue:
         """A page's queue. A page that does not keep up loses its oldest messages; when one of them said more
         than the moment (an event, an acknowledgement, what was forgotten: not a pose), ``resynced`` gives it
         a fresh snapshot instead of what is left, so it never lists what the hub no longer holds nor misses
-        a fall."""
+        a fall. A hub for every robot sends the page the live parts (pose, status, liveliness, verdict) of
+        ``robot`` only (``q.robot``; None: :meth:`default_robot`, which may be None: no robot yet)."""
         q: queue.Queue = queue.Queue(QUEUE_LIMIT)
         q.stale = False
         with self._lock:
+            if not self.every:
+                q.robot = self.robot
+            else:
+                q.robot = robot if _robot_id(robot) else self._default_robot()
             self._queues.append(q)
         return q
 
@@ -136,16 +180,17 @@ class Hub:
                 q.get_nowait()
             except queue.Empty:
                 break
-        return self.snapshot()
+        return self.snapshot(getattr(q, "robot", None))
 
     def unsubscribe(self, q: queue.Queue) -> None:
         with self._lock:
             if q in self._queues:
                 self._queues.remove(q)
 
-    def _send(self, msg: dict) -> None:
+    def _send(self, msg: dict, robot=_ALL) -> None:
+        """To every page; with ``robot`` (a hub for every robot: one robot's live part) to the pages showing it."""
         with self._lock:
-            queues = list(self._queues)
+            queues = [q for q in self._queues if robot is _ALL or getattr(q, "robot", None) == robot]
         for q in queues:
             while True:
                 try:
@@ -159,105 +204,221 @@ class Hub:
                     if lost.get("type") not in TRANSIENT:
                         q.stale = True      # an event, an ack...: the page gets a fresh snapshot (resynced)
 
-    def snapshot(self) -> dict:
+    def _send_live(self, live: _Live, msg: dict) -> None:
+        self._send(msg, live.robot if self.every else _ALL)
+
+    def snapshot(self, robot: str | None = None) -> dict:
+        """What a page that opens now needs first; a hub for every robot: the live parts of ``robot`` (None:
+        none selected), and ``cards``, one per robot (one robot's hub: None)."""
         with self._lock:
-            return {"type": "snapshot", "robot": self.robot, "shown_robot": self._shown, "status": self._status,
-                    "pose": self._pose, "angles": [{"time_unix": t, "angles": a} for t, a in self._angles],
-                    "events": self._falls.messages(), "acked": self._falls.acked(), "alive": self._alive,
+            live = self._live_for_page(robot)
+            return {"type": "snapshot", "robot": self.robot, "shown_robot": live.robot, "status": live.status,
+                    "pose": live.pose, "angles": [{"time_unix": t, "angles": a} for t, a in live.angles],
+                    "events": self._falls.messages(), "acked": self._falls.acked(), "alive": live.alive,
                     "events_keep_days": KEEP_S / 86400,
-                    "bus": dict(self._bus), "robot_state": self._judge(),
+                    "bus": dict(self._bus), "robot_state": self._judge(live),
                     "state_words": dict(STATE_WORDS),
-                    "labels": {n: short_label(n) for n in (*MAIN_ANGLES, *CHART_ANGLES)}}
+                    "labels": {n: short_label(n) for n in (*MAIN_ANGLES, *CHART_ANGLES)},
+                    "cards": [self._card(x) for _, x in sorted(self._robots.items())] if self.every else None,
+                    "unlisted": len(self._unlisted), "max_robots": self.max_robots}
+
+    # ------------------------------------------------------------------ every robot: the cards
+    def _live_for_page(self, robot: str | None) -> _Live:
+        """The live parts a page of ``robot`` shows (lock held): one robot's hub, its own; every robot, that
+        robot's (one not on the bus: a placeholder judged as never heard from), or nobody's."""
+        if not self.every:
+            return self._one
+        if not _robot_id(robot):
+            return self._nobody
+        live = self._robots.get(robot)
+        if live is None:
+            live = self._asked.setdefault(robot, _Live(robot, self._opened))
+        return live
+
+    def _live(self, robot) -> _Live | None:
+        """The robot a message is from (lock held): one robot's hub, its own; every robot, that robot's, held
+        from its first message on; None beyond ``max_robots`` (counted in ``unlisted``) unless one held has
+        been gone for ``FORGET_GONE_S`` (its card goes: ``forget``)."""
+        if not self.every:
+            return self._one
+        if not _robot_id(robot):
+            return None
+        live = self._robots.get(robot)
+        if live is not None:
+            return live
+        if len(self._robots) >= self.max_robots and (robot in self._unlisted and self._mono() < self._next_forget
+                                                     or not self._forget_one()):
+            if len(self._unlisted) < UNLISTED_KEPT:
+                self._unlisted.add(robot)
+            return None
+        live = self._asked.pop(robot, None) or _Live(robot, (self._mono(), self._wall()))
+        self._robots[robot] = live
+        self._unlisted.discard(robot)
+        return live
+
+    def _forget_one(self) -> bool:
+        """Make room (lock held): the robot gone the longest, when that is beyond ``FORGET_GONE_S`` (looked for
+        at most once a second for robots already unlisted: their every pose comes here)."""
+        now_m = self._mono()
+        self._next_forget = now_m + 1.0
+        gone = [(x.heard[0] if x.heard else x.opened[0], r) for r, x in self._robots.items()
+                if self._judge(x)["state"] == "down"]
+        if not gone or now_m - min(gone)[0] < FORGET_GONE_S:
+            return False
+        robot = min(gone)[1]
+        del self._robots[robot]
+        self._forgotten.append(robot)
+        return True
+
+    def _card(self, live: _Live) -> dict:
+        """What a robot's card says (lock held): whether it is up (the verdict, since when it is not), its
+        liveliness, whether it watches and why not, its frames per second, its last pose's time (its clock,
+        whole seconds) and its time zone."""
+        v = self._judge(live)
+        st = live.status or {}
+        return {"robot": live.robot, "state": v["state"], "why": v["why"],
+                "since_unix": None if v["state"] == "up" else v["since_unix"], "alive": live.alive,
+                "status": st.get("state"), "watching": st.get("watching"), "not_watching": st.get("not_watching"),
+                "fps": st.get("fps"), "time_zone": st.get("time_zone"), "unacknowledged": st.get("unacknowledged"),
+                "pose_unix": None if live.pose_unix is None else math.floor(live.pose_unix)}
+
+    def default_robot(self) -> str | None:
+        with self._lock:
+            return self._default_robot()
+
+    def _default_robot(self) -> str | None:
+        """The robot a page of every robot shows when none is chosen (lock held): the one with an unacknowledged
+        alarm (the earliest such fall), else with an unacknowledged fall event, else the first by id; None with
+        no robot (the page's own rule, ``defaultRobot`` in static/app.js, is the same)."""
+        falls: dict[str, list[dict]] = {}
+        for m in self._falls.messages():
+            falls.setdefault(m["id"], []).append(m)
+        best = None
+        for eid, msgs in falls.items():
+            robot = msgs[0].get("robot")
+            if robot not in self._robots or self._falls.is_acked(eid):
+                continue
+            times = [unix_of(m.get("wall_time")) for m in msgs]
+            cand = (0 if any(m.get("state") == "alarm" for m in msgs) else 1,
+                    min((t for t in times if t is not None), default=math.inf), robot)
+            best = cand if best is None or cand < best else best
+        if best is not None:
+            return best[2]
+        return min(self._robots) if self._robots else None
 
     # ------------------------------------------------------------------ is anyone watching
-    def stale_after_s(self) -> float:
+    def stale_after_s(self, live: _Live | None = None) -> float:
         """How long without a status or a pose the robot counts as silent: ``STALE_PERIODS`` status periods
         (the median gap between the statuses received; the default period before two arrived), at least
-        ``STALE_MIN_S``."""
-        gaps = sorted(self._status_gaps)
+        ``STALE_MIN_S``. ``live``: which robot's (default: this hub's robot; every robot: nobody's)."""
+        gaps = sorted((live or self._one or self._nobody).status_gaps)
         period = gaps[len(gaps) // 2] if gaps else DEFAULT_STATUS_PERIOD_S
         return max(STALE_MIN_S, STALE_PERIODS * period)
 
-    def _judge(self) -> dict:
-        """The verdict (call with the lock held): ``state`` up / waiting / down, ``why`` (bus, gone, starting, silent;
-        None when up), ``since_unix`` (when it was last heard from: the last status or pose; when never,
-        when this page's server opened), ``last_heard_unix``, ``status_at``/``pose_at`` (wall times of the
-        last of each received), ``stale_after_s``, ``now_unix`` (this server's clock, so a page can tell
-        ages whatever its own clock says)."""
+    def _judge(self, live: _Live) -> dict:
+        """The verdict on ``live`` (call with the lock held): ``state`` up / waiting / down, ``why`` (bus, gone,
+        starting, silent; None when up), ``since_unix`` (when it was last heard from: the last status or pose;
+        when never, when this page's server opened — every robot: when it was first heard of),
+        ``last_heard_unix``, ``status_at``/``pose_at`` (wall times of the last of each received),
+        ``stale_after_s``, ``now_unix`` (this server's clock, so a page can tell ages whatever its own clock
+        says)."""
         now_m, now_w = self._mono(), self._wall()
-        stale = self.stale_after_s()
-        heard_m, heard_w = self._heard if self._heard else (None, None)
-        since = heard_w if heard_w is not None else self._opened[1]
+        stale = self.stale_after_s(live)
+        heard_m, heard_w = live.heard if live.heard else (None, None)
+        since = heard_w if heard_w is not None else live.opened[1]
         grace = max(stale, START_GRACE_S)
         # heard from since its token (re)appeared: what is shown is this run's, not the last one's
-        fresh = heard_m is not None and (self._rise is None or heard_m >= self._rise)
+        fresh = heard_m is not None and (live.rise is None or heard_m >= live.rise)
         if self._bus.get("connected") is False:
             state, why = "down", "bus"
-        elif self._alive is False:
+        elif live.alive is False:
             state, why = "down", "gone"
         elif fresh and now_m - heard_m <= stale:
             state, why = "up", None
-        elif heard_m is None and now_m - max(self._opened[0], self._rise or -math.inf) <= grace:
+        elif heard_m is None and now_m - max(live.opened[0], live.rise or -math.inf) <= grace:
             state, why = "waiting", None
-        elif heard_m is not None and not fresh and now_m - self._rise <= grace:
+        elif heard_m is not None and not fresh and now_m - live.rise <= grace:
             state, why = "down", "starting"
         else:
             state, why = "down", "silent"
         return {"state": state, "why": why, "since_unix": since, "last_heard_unix": heard_w,
-                "status_at": self._status_at, "pose_at": self._pose_at, "stale_after_s": stale,
+                "status_at": live.status_at, "pose_at": live.pose_at, "stale_after_s": stale,
                 "now_unix": now_w}
 
-    def robot_state(self) -> dict:
+    def robot_state(self, robot: str | None = None) -> dict:
+        """The verdict on this hub's robot (every robot: on ``robot``)."""
         with self._lock:
-            return self._judge()
+            return self._judge(self._live_for_page(robot))
 
     def tick(self) -> None:
         """Judge again against the clock; send the verdict to the pages when it changed (``robot``). Every
-        ``PRUNE_EVERY_S`` the fall list drops what the page no longer shows (``forget``)."""
+        ``PRUNE_EVERY_S`` the fall list drops what the page no longer shows (``forget``). A hub for every robot
+        judges each robot, sends each verdict to the pages showing that robot, and the cards that changed to
+        every page (``cards``: at most one message a tick, whatever the number of robots)."""
         self._prune()
+        out = []
         with self._lock:
-            verdict = self._judge()
-            key = (verdict["state"], verdict["why"], verdict["since_unix"] if verdict["state"] == "down" else None)
-            old = self._verdict
-            if old is not None and (old["state"], old["why"], old["since_unix"] if old["state"] == "down"
-                                    else None) == key:
-                return
-            self._verdict = verdict
-        self._send({"type": "robot", **verdict})
+            lives = list(self._robots.values())
+            if self.every:
+                asked = {getattr(q, "robot", None) for q in self._queues}
+                for robot in [r for r in self._asked if r not in asked]:
+                    del self._asked[robot]
+                lives += [self._nobody, *(self._live_for_page(r) for r in asked if r and r not in self._robots)]
+            for live in lives:
+                verdict = self._judge(live)
+                key = (verdict["state"], verdict["why"], verdict["since_unix"] if verdict["state"] == "down" else None)
+                old = live.verdict
+                if old is not None and (old["state"], old["why"], old["since_unix"] if old["state"] == "down"
+                                        else None) == key:
+                    continue
+                live.verdict = verdict
+                out.append((live, {"type": "robot", **verdict, **({"robot": live.robot} if self.every else {})}))
+            cards = None
+            if self.every:
+                changed = []
+                for _, live in sorted(self._robots.items()):
+                    card = self._card(live)
+                    if card != live.card:
+                        live.card = card
+                        changed.append(card)
+                if changed or self._forgotten:
+                    cards = {"type": "cards", "cards": changed, "forget": self._forgotten,
+                             "unlisted": len(self._unlisted), "max_robots": self.max_robots}
+                    self._forgotten = []
+        for live, msg in out:
+            self._send_live(live, msg)
+        if cards is not None:
+            self._send(cards)
 
-    def _heard_now(self, what: str | None = None) -> None:
+    def _heard_now(self, live: _Live, what: str | None = None) -> None:
         """A sign of life (call with the lock held)."""
         now_m, now_w = self._mono(), self._wall()
-        self._heard = (now_m, now_w)
+        live.heard = (now_m, now_w)
         if what == "status":
-            if self._status_mono is not None:
-                self._status_gaps.append(now_m - self._status_mono)
-            self._status_mono = now_m
-            self._status_at = now_w
+            if live.status_mono is not None:
+                live.status_gaps.append(now_m - live.status_mono)
+            live.status_mono = now_m
+            live.status_at = now_w
         elif what == "pose":
-            self._pose_at = now_w
+            live.pose_at = now_w
 
     # ------------------------------------------------------------------ robot
-    def _is_shown(self, robot: str) -> bool:
-        """A hub for every robot shows the live parts (pose, status, liveliness) of one: the first whose status
-        came (named on the page); its events are every robot's."""
-        if self._shown is None and robot and robot != EVERY_ROBOT:
-            self._shown = robot
-        return robot == self._shown or self.robot != EVERY_ROBOT
-
     def on_pose(self, robot: str, result) -> None:
-        """A ``fitting.FitResult`` from posed/ROBOT/pose (``extra`` holds ``time_unix`` when sent)."""
+        """A ``fitting.FitResult`` from posed/ROBOT/pose (``extra`` holds ``time_unix`` when sent). Every
+        robot: each robot's poses are its own (thinned, kept and sent to the pages showing it)."""
         now = self._clock()
         with self._lock:
-            if self._shown is None or not self._is_shown(robot):    # every robot: poses once one is chosen
+            live = self._live(robot)
+            if live is None:
                 return
             self.poses_in += 1
-            self._heard_now("pose")
-        if not self._is_followed(result):
-            return
-        if now - self._last_pose_at < self.min_pose_gap:
-            return
-        self._last_pose_at = now
+            self._heard_now(live, "pose")
+            live.pose_unix = _num(result.extra.get("time_unix")) or self._wall()
+            if not self._is_followed(live, result):
+                return
+            if now - live.last_pose_at < self.min_pose_gap:
+                return
+            live.last_pose_at = now
         t_unix = _num(result.extra.get("time_unix")) or time.time()
         # only what this frame measured (fitting.measured): null angles, absent joints otherwise
         angles = {n: _num(result.angle(n)) for n in dict.fromkeys((*MAIN_ANGLES, *CHART_ANGLES))}
@@ -266,36 +427,38 @@ class Hub:
                "reason": result.reason, "joints": {k: [_num(c) for c in v] for k, v in joints.items()},
                "root": list(result.root_cam_m) if result.root_cam_m is not None else None, "angles": angles,
                "latency_ms": _num((result.extra.get("timing_ms") or {}).get("total")),
-               "evidence": evidence_text(result.extra.get("evidence"), result.extra.get("lens"))}
+               "evidence": evidence_text(result.extra.get("evidence"), result.extra.get("lens")),
+               "robot": live.robot}
         with self._lock:
-            self._pose = msg
-            self._angles.append((t_unix, angles))
-            while self._angles and self._angles[0][0] < t_unix - WINDOW_S:
-                self._angles.popleft()
-        self._send(msg)
+            live.pose = msg
+            live.angles.append((t_unix, angles))
+            while live.angles and live.angles[0][0] < t_unix - WINDOW_S:
+                live.angles.popleft()
+        self._send_live(live, msg)
 
-    def _is_followed(self, result) -> bool:
+    @staticmethod
+    def _is_followed(live: _Live, result) -> bool:
         """Several people (poses with ``person``): the page draws one, the household member the status says is
         followed, else each frame's own person (published first for its seq): the chart never mixes two
         people's angles."""
         person = result.extra.get("person")
         if person is None:
             return True
-        if self._follow is not None:
-            return person == self._follow
-        if result.seq == self._last_seq:
+        if live.follow is not None:
+            return person == live.follow
+        if result.seq == live.last_seq:
             return False
-        self._last_seq = result.seq
+        live.last_seq = result.seq
         return True
 
     def on_status(self, robot: str, status) -> None:
         """A ``client.Status``."""
         with self._lock:
-            if not self._is_shown(robot):
+            live = self._live(robot)
+            if live is None:
                 return
         household = ((status.raw or {}).get("falls") or {}).get("household") or {}
         followed = household.get("followed")
-        self._follow = followed if isinstance(followed, int) and not isinstance(followed, bool) else None
         msg = {"type": "status", "robot": robot, "state": status.state, "fps": _num(status.fps),
                "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera, "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
@@ -305,24 +468,25 @@ class Hub:
         watch = watch_of(status.raw)
         why = not_watching(status.raw) if watch is None else watch[0]
         with self._lock:
+            live.follow = followed if isinstance(followed, int) and not isinstance(followed, bool) else None
             if why == "":       # starting or stopping: the judgement so far stands
-                why = self._not_watching[0] if self._not_watching else None
+                why = live.not_watching[0] if live.not_watching else None
             if why is None:
-                self._not_watching = None
-                self._saw_watching = True
+                live.not_watching = None
+                live.saw_watching = True
             elif watch is not None:     # the daemon's own judgement: since when is known whenever this view began
-                self._not_watching = (why, watch[1], True)
-            elif self._not_watching is None:     # since now, or since before the first status heard here
-                self._not_watching = (why, self._wall(), self._saw_watching)
+                live.not_watching = (why, watch[1], True)
+            elif live.not_watching is None:     # since now, or since before the first status heard here
+                live.not_watching = (why, self._wall(), live.saw_watching)
             else:
-                self._not_watching = (why, *self._not_watching[1:])
-            nw = self._not_watching
+                live.not_watching = (why, *live.not_watching[1:])
+            nw = live.not_watching
             msg["watching"] = nw is None
             msg["not_watching"] = None if nw is None else {"reason": nw[0], "since_unix": nw[1],
                                                             "since_known": nw[2]}
-            self._status = msg
-            self._heard_now("status")
-        self._send(msg)
+            live.status = msg
+            self._heard_now(live, "status")
+        self._send_live(live, msg)
 
     def on_event(self, robot: str, event) -> None:
         """A ``falls.FallEvent`` message; repeats (the daemon republishes until acknowledged) are dropped. Each
@@ -333,6 +497,7 @@ class Hub:
         with self._lock:
             if not self._falls.add(msg, self._wall()):
                 return
+            self._live(msg["robot"])       # every robot: a robot heard of by its events has a card too
             full = len(self._falls) > self._falls.max_events
         self._send(msg)
         if full:
@@ -389,13 +554,15 @@ class Hub:
             self._send({"type": "forget", "ids": list(gone.ids)})
 
     def on_alive(self, alive: bool, robot: str | None = None) -> None:
+        """The robot's liveliness token (every robot: ``robot``'s; without it, ignored)."""
         with self._lock:
-            if robot is not None and not (robot == self._shown or self.robot != EVERY_ROBOT):
+            live = self._live(robot)
+            if live is None:
                 return
-            if alive and self._alive is not True:
-                self._rise = self._mono()    # up (or back): its first status is due within a period
-            self._alive = alive
-        self._send({"type": "alive", "alive": alive})
+            if alive and live.alive is not True:
+                live.rise = self._mono()    # up (or back): its first status is due within a period
+            live.alive = alive
+        self._send_live(live, {"type": "alive", "alive": alive, **({"robot": live.robot} if self.every else {})})
 
     def on_bus(self, connected: bool, reason: str | None, fix: str | None) -> None:
         """Whether the page's side reaches the robot's bus at all (a page that cannot must say so, never show

@@ -10,7 +10,8 @@ never printed as a traceback.
 
 Routes: ``GET /`` the page, ``GET /static/NAME`` its files, ``GET /stream`` the events (``text/event-stream``:
 first a ``snapshot``, then the hub's messages — among them ``robot``, whether posed is running and heard from,
-judged twice a second by this server — a comment every ``KEEPALIVE_S`` so proxies keep it open),
+judged twice a second by this server — a comment every ``KEEPALIVE_S`` so proxies keep it open; a page of every
+robot names the robot whose live parts it shows, ``?robot=ID``, and gets the ``cards`` of all),
 ``GET /api/history`` the robot's stored event messages of the page's window (``events``; ``truncated`` when
 the robot sent only its newest ``limit``; what they say was acknowledged, the hub learns — also every
 ``ACK_SYNC_S`` on its own while an event it holds is open), ``POST /api/ack`` (409 for an event of another
@@ -400,7 +401,8 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _stream(self) -> None:
         hub = self.server.hub
-        q = hub.subscribe()
+        # a page of every robot says whose live parts it shows (its address' #robot=): those only
+        q = hub.subscribe(parse_qs(urlsplit(self.path).query).get("robot", [None])[0])
         self.send_response(HTTPStatus.OK)
         self.send_header("Content-Type", "text/event-stream")
         self.send_header("Connection", "close")
@@ -408,7 +410,7 @@ class _Handler(BaseHTTPRequestHandler):
         self.end_headers()
         self.close_connection = True
         try:
-            self._event(hub.snapshot())
+            self._event(hub.snapshot(q.robot))
             while not self.server.stopping.is_set():
                 try:
                     msg = q.get(timeout=KEEPALIVE_S)

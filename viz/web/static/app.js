@@ -22,7 +22,10 @@ const ANKLE_HEIGHT = 0.08, WINDOW_S = 60, GAP_S = 3;
 const view = window.posedView = {
   connected: false, poses: 0, drawn: 0, lastPose: null, status: null, fpsText: "",
   events: {}, acked: {}, history: [], labels: {}, yaw: -35, pitch: 20, zoom: 1.0, lastGood: null, floorNote: "",
-  showAllEvents: false, showAllHistory: false, robotState: null, streamLost: null, stale: false};
+  showAllEvents: false, showAllHistory: false, robotState: null, streamLost: null, stale: false,
+  // posed web '*': a card per robot; the robot whose live parts are shown, and why (its card was clicked: "hash";
+  // "default"); which robots' poses were drawn since it was chosen
+  cards: {}, unlisted: 0, maxRobots: 0, selected: null, selectedBy: null, poseRobots: {}};
 const angleLog = []; // {time_unix, angles}
 
 // ------------------------------------------------------------------ 3D skeleton
@@ -220,8 +223,8 @@ function setZone(zone) {  // the robot's IANA zone; false when this browser does
   viewZone = zone;
   return true;
 }
-function partsOf(d) {  // {year, month, day, hour, minute, second, timeZoneName: "GMT+01:00"} of a Date in viewZone
-  const f = new Intl.DateTimeFormat("en-GB", {timeZone: viewZone, year: "numeric", month: "2-digit",
+function partsOf(d, zone) {  // {year, month, day, hour, minute, second, timeZoneName: "GMT+01:00"} of a Date in viewZone (or zone)
+  const f = new Intl.DateTimeFormat("en-GB", {timeZone: zone || viewZone, year: "numeric", month: "2-digit",
     day: "2-digit", hour: "2-digit", minute: "2-digit", second: "2-digit", hourCycle: "h23",
     timeZoneName: "longOffset"});
   const o = {};
@@ -239,19 +242,25 @@ function toDate(t) {  // an ISO time (UTC unless it says otherwise), or unix sec
   return isNaN(d) ? null : d;
 }
 
-function localTime(t) {  // ISO 8601 in the page's zone (the robot's), as every other posed view writes times: 2026-12-02 19:42:47
+function localTime(t, zone) {  // ISO 8601 in the page's zone (the robot's), as every other posed view writes times: 2026-12-02 19:42:47
   const d = toDate(t);
   if (!d) return t === null || t === undefined || t === "" ? "–" : String(t);
-  const o = partsOf(d);
+  const o = partsOf(d, zone);
   return `${o.year}-${o.month}-${o.day} ${o.hour}:${o.minute}:${o.second}`;
+}
+function robotTime(t, robot) {  // every robot: a time of another robot in its own zone, named; else localTime
+  const c = view.everyRobot && robot && view.cards[robot], zone = c && zoneOf(c.time_zone);
+  if (!zone || zone === viewZone) return localTime(t);
+  const d = toDate(t);
+  return d ? `${localTime(t, zone)} (${zone})` : localTime(t);
 }
 
 function setText(id, text) { document.getElementById(id).textContent = text; }
 
 function showStatus(s) {
+  if (view.everyRobot && s.robot !== view.shownRobot) return;   // another robot's: never shown as this one's
   view.status = s;
   if (setZone(s.time_zone) && view.history) showHistory();   // times drawn so far are drawn again below
-  if (s.robot && view.everyRobot && view.shownRobot !== s.robot) { view.shownRobot = s.robot; showRobotName(); }
   view.fpsText = s.fps === null ? "–" : s.fps.toFixed(1);
   setText("st-state", s.state); setText("st-fps", view.fpsText);
   setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
@@ -290,17 +299,18 @@ function showAlive(alive) {
 // ------------------------------------------------------------------ is posed watching: the server's verdict
 let clockSkew = 0;   // this browser's clock minus the server's (s): ages are told on the server's clock
 const serverNow = () => Date.now() / 1000 - clockSkew;
-function clockText(t) {  // HH:MM:SS in the page's zone (the robot's)
+function clockText(t, zone) {  // HH:MM:SS in the page's zone (the robot's; or zone, a valid IANA zone)
   const d = toDate(t);
   if (!d) return "–";
-  const o = partsOf(d);
+  const o = partsOf(d, zone);
   return `${o.hour}:${o.minute}:${o.second}`;
 }
-function sinceText(t) {  // HH:MM:SS, with the date when it is not today (the robot's day)
+function sinceText(t, zone) {  // HH:MM:SS, with the date when it is not today (the robot's day)
   const d = toDate(t);
   if (!d) return "–";
-  const o = partsOf(d), n = partsOf(new Date());
-  return o.year === n.year && o.month === n.month && o.day === n.day ? clockText(t) : localTime(t);
+  const o = partsOf(d, zone), n = partsOf(new Date(), zone);
+  return o.year === n.year && o.month === n.month && o.day === n.day ? clockText(t, zone) :
+    `${o.year}-${o.month}-${o.day} ${o.hour}:${o.minute}:${o.second}`;
 }
 function ageText(t) {  // "at 22:31:24, 35 s ago"
   if (t === null || t === undefined) return "never";
@@ -363,7 +373,7 @@ const EVENTS_SHOWN = 6, HISTORY_SHOWN = 15;   // the newest; the rest behind "sh
 // which robot an event is from: named on every entry and row (a page may list several robots' events)
 const robotText = (robot) => robot ? `robot ${esc(robot)} · ` : "";
 
-function showRobotName() {  // "r1", or "every robot (the live view: r1)"
+function showRobotName() {  // "r1", or "every robot (skeleton and pipeline: r1)"
   setText("robot", view.everyRobot ? `every robot` + (view.shownRobot ? ` (skeleton and pipeline: ${view.shownRobot})` : "")
     : view.shownRobot || "");
 }
@@ -410,6 +420,7 @@ function showEvents() {
       ul.innerHTML = '<li id="events-none" class="note"></li>'; showLiveness();
     }
     alarm.hidden = true; alarm.textContent = "";
+    fleetChanged();
     return;
   }
   ul.innerHTML = "";
@@ -418,7 +429,7 @@ function showEvents() {
   for (const f of shown) {
     const li = document.createElement("li");
     li.innerHTML = `<span class="fall">${f.msgs.map((m) => STATE_WORDS[m.state] || m.state).join(" → ")}</span>
-      <span class="note">${localTime(f.msgs[0].wall_time)} · ${robotText(f.msgs[0].robot)}${f.id.slice(0, 8)}</span> ` +
+      <span class="note">${robotTime(f.msgs[0].wall_time, f.msgs[0].robot)} · ${robotText(f.msgs[0].robot)}${f.id.slice(0, 8)}</span> ` +
       caveats(f.msgs, f.id).map((c) => `<div class="caveat">${esc(c)}</div>`).join("");
     li.dataset.eventId = f.id;
     if (view.acked[f.id]) {
@@ -445,6 +456,7 @@ function showEvents() {
   }
   alarm.hidden = open === 0;
   alarm.textContent = open ? `${open} fall event(s) not acknowledged` : "";
+  fleetChanged();
 }
 
 const byInput = document.getElementById("ack-by");
@@ -520,9 +532,9 @@ function showHistory(error) {
     `${localTime(view.history[0].wall_time)}); earlier falls of the last 7 days are not listed here.` : "";
   const shown = view.showAllHistory ? rows : rows.slice(0, HISTORY_SHOWN);
   t.innerHTML = `<tr><th>started (${zoneText()})</th><th>event</th><th>what happened</th><th>acknowledged</th></tr>` +
-    shown.map((e) => `<tr><td>${localTime(e.time)}</td><td>${robotText(e.robot)}${e.id.slice(0, 8)}</td><td>${e.states}` +
+    shown.map((e) => `<tr><td>${robotTime(e.time, e.robot)}</td><td>${robotText(e.robot)}${e.id.slice(0, 8)}</td><td>${e.states}` +
       e.caveats.map((c) => `<div class="caveat">${esc(c)}</div>`).join("") + `</td>
-      <td>${e.acked ? localTime(e.acked) + (e.by ? " by " + esc(e.by) : "") : e.open < e.count ?
+      <td>${e.acked ? robotTime(e.acked, e.robot) + (e.by ? " by " + esc(e.by) : "") : e.open < e.count ?
         `<span class="warn">${e.notOpen} not acknowledged</span>` + (e.by ? ` (the rest by ${esc(e.by)})` : "") :
         "no"}</td></tr>`).join("");
   if (rows.length > HISTORY_SHOWN) {
@@ -536,10 +548,155 @@ function showHistory(error) {
   }
 }
 
+// ------------------------------------------------------------------ every robot: a card each, one followed
+// posed web '*': a card per robot (up or gone and since when, watching or why not, falls not acknowledged, its
+// last pose's time in its own zone, frames per second); the skeleton, the angles and the pipeline card are one
+// robot's: the one whose card was clicked (kept in the address, #robot=ID, so a reload keeps it), else the one
+// with an unacknowledged alarm, else the first by id. The server sends this page that robot's poses only.
+function hashRobot() {
+  const m = /(?:^#|&)robot=([^&]*)/.exec(location.hash);
+  if (!m) return null;
+  try { return decodeURIComponent(m[1]) || null; } catch (err) { return null; }
+}
+
+function openFalls() {  // {robot: {open, alarm, first}}: events not acknowledged; the earliest alarm's and fall's start
+  const out = {};
+  for (const f of fallsById()) {
+    const r = f.msgs[0].robot;
+    if (view.acked[f.id] || !r) continue;
+    const o = out[r] = out[r] || {open: 0, alarm: Infinity, first: Infinity};
+    o.open += 1; o.first = Math.min(o.first, f.first);
+    if (f.msgs.some((m) => m.state === "alarm")) o.alarm = Math.min(o.alarm, f.first);
+  }
+  return out;
+}
+
+function defaultRobot() {  // the server's rule too (viz.web.hub Hub._default_robot)
+  const open = openFalls(), ids = Object.keys(view.cards).sort();
+  let best = null;
+  for (const r of ids) {
+    const o = open[r];
+    if (!o) continue;
+    const key = o.alarm < Infinity ? [0, o.alarm] : [1, o.first];
+    if (!best || key[0] < best[0] || key[0] === best[0] && key[1] < best[1]) best = [...key, r];
+  }
+  return best ? best[2] : ids.length ? ids[0] : null;
+}
+
+function follow(robot, by) {  // show robot's live parts: its own stream, nothing of the one before
+  view.selectedBy = by;
+  if (robot === view.selected) { showCards(); return; }
+  view.selected = view.shownRobot = robot;
+  view.lastPose = null; view.lastGood = null; view.status = null; view.robotState = null; view.poses = 0;
+  view.poseRobots = {}; angleLog.length = 0;
+  for (const id of ["st-state", "st-fps", "st-latency", "st-camera", "st-drops", "st-restarts", "st-evidence",
+    "st-watching"]) setText(id, "–");
+  setText("st-poses", 0); document.getElementById("angles-now").innerHTML = "";
+  showRobotName(); showCards(); requestDraw();
+  connect();
+}
+
+function fleetChanged() {  // cards, events or acknowledgements changed: the cards again, and the default robot
+  if (!view.everyRobot) return;
+  const asked = hashRobot();
+  if (asked) { if (asked !== view.selected || view.selectedBy !== "hash") follow(asked, "hash"); else showCards(); return; }
+  const d = defaultRobot();
+  if (d !== null && d !== view.selected) follow(d, "default"); else { view.selectedBy = "default"; showCards(); }
+}
+window.addEventListener("hashchange", fleetChanged);
+
+const zoneOk = {};
+function zoneOf(zone) {  // the robot's IANA zone when this browser knows it, else the page's
+  if (typeof zone !== "string" || !zone) return viewZone;
+  if (!(zone in zoneOk)) {
+    try { new Intl.DateTimeFormat("en-GB", {timeZone: zone}); zoneOk[zone] = true; } catch (err) { zoneOk[zone] = false; }
+  }
+  return zoneOk[zone] ? zone : viewZone;
+}
+
+const DOWN_WORDS = {gone: "not running (its Zenoh liveliness token went away)", silent: "sends nothing (stopped or stuck)",
+  starting: "starting again", bus: "this side has no bus"};
+
+function cardParts(c, open) {  // [state pill text, pill class, watching line, whether it watches, falls line, pose line, open]
+  const zone = zoneOf(c.time_zone), since = sinceText(c.since_unix, zone);
+  let pill = "up", cls = "", watch, watching = false;
+  if (c.state === "up") {
+    const nw = c.not_watching;
+    watching = c.watching !== false;
+    watch = !watching && nw ? `NOT WATCHING: ${nw.reason}` + (nw.since_known ? `, since ${sinceText(nw.since_unix, zone)}` : "") :
+      c.status === "starting" ? "not watching yet (starting)" : c.watching ? "watching" : "no status yet";
+  } else if (c.state === "waiting") {
+    pill = "waiting…"; cls = " off"; watch = "not heard from yet";
+  } else {
+    pill = c.why === "starting" ? `starting (down since ${since})` : c.why === "bus" ? "NO BUS" : `GONE since ${since}`;
+    cls = " bad"; watch = "falls NOT detected: " + (DOWN_WORDS[c.why] || "not heard from");
+  }
+  const n = open ? open.open : 0;
+  const falls = n ? `${n} fall event(s) not acknowledged` : "no fall event open";
+  const pose = (c.pose_unix === null || c.pose_unix === undefined ? "no pose yet" :
+    `last pose ${sinceText(c.pose_unix, zone)}`) + ` (${zone})` +
+    (c.fps === null || c.fps === undefined ? "" : ` · ${c.fps.toFixed(1)} fps`);
+  return [pill, cls, watch, watching, falls, pose, n];
+}
+
+const cardEls = new Map();   // robot -> its card's button, kept while the robot is listed (a click is never lost to a redraw)
+function showCards() {
+  const box = document.getElementById("robots");
+  box.hidden = !view.everyRobot;
+  if (!view.everyRobot) return;
+  const open = openFalls(), list = document.getElementById("robot-cards");
+  const ids = Object.keys(view.cards).sort();
+  if (view.selected && !view.cards[view.selected]) ids.unshift(view.selected);   // asked for, not on the bus
+  for (const [id, el] of cardEls) if (!ids.includes(id)) { el.remove(); cardEls.delete(id); }
+  ids.forEach((id, i) => {
+    const c = view.cards[id] || {robot: id, state: "absent"};
+    let b = cardEls.get(id);
+    if (!b) {
+      b = document.createElement("button");
+      b.addEventListener("click", () => { location.hash = "robot=" + encodeURIComponent(id); });
+      cardEls.set(id, b);
+    }
+    if (list.children[i] !== b) list.insertBefore(b, list.children[i] || null);
+    const parts = c.state === "absent" ? null : cardParts(c, open[id]);
+    b.className = "robot-card" + (id === view.selected ? " selected" : "") + (parts && parts[3] ? "" : " down");
+    b.dataset.robot = id; b.dataset.state = c.state;
+    b.setAttribute("aria-pressed", id === view.selected ? "true" : "false");
+    let html;
+    if (c.state === "absent") {
+      html = `<div class="rc-head"><b>${esc(id)}</b> <span class="pill off">not on the bus</span></div>` +
+        '<div class="note">chosen in this page\'s address; no message from it since the page opened</div>';
+    } else {
+      const [pill, cls, watch, watching, falls, pose, n] = parts;
+      html = `<div class="rc-head"><b>${esc(id)}</b> <span class="pill${cls}">${esc(pill)}</span></div>` +
+        `<div class="rc-watch${watching ? "" : " warn"}">${esc(watch)}</div>` +
+        `<div class="rc-falls${n ? " warn" : ""}">${esc(falls)}</div><div class="rc-pose note">${esc(pose)}</div>`;
+    }
+    if (b.posedHtml !== html) { b.innerHTML = html; b.posedHtml = html; }
+  });
+  const note = document.getElementById("robots-note");
+  note.textContent = (ids.length ? "" : "no robot heard from on the bus yet. ") +
+    (view.unlisted ? `${view.unlisted} more robot(s) on the bus are not listed: this page lists at most ` +
+      `${view.maxRobots}. ` : "") +
+    (view.selectedBy === "hash" ? "Following the robot you chose (kept in the address)." :
+      ids.length ? "Following " + (openFalls()[view.selected] ? "the robot with a fall not acknowledged" :
+        "the first robot") + " until you click a card." : "");
+}
+
+function takeCards(m) {  // a snapshot's cards (all), or a cards message (the changed ones)
+  if (m.type === "snapshot") view.cards = {};
+  for (const c of m.cards || []) view.cards[c.robot] = c;
+  for (const id of m.forget || []) delete view.cards[id];
+  view.unlisted = m.unlisted || 0; view.maxRobots = m.max_robots || 0;
+}
+
 // ------------------------------------------------------------------ the stream
 function onMessage(m) {
   if (m.type === "snapshot") {
     view.labels = m.labels || {}; view.everyRobot = m.robot === "*"; view.shownRobot = m.shown_robot || null;
+    if (view.everyRobot) {
+      view.selected = view.shownRobot; view.selectedBy = hashRobot() ? "hash" : "default"; takeCards(m);
+    }
+    view.poseRobots = {};
     showRobotName();
     if (m.state_words) STATE_WORDS = m.state_words;
     view.streamLost = null;
@@ -555,7 +712,11 @@ function onMessage(m) {
       view.lastPose = m.pose; if (m.pose.ok) view.lastGood = m.pose; showEvidence(m.pose); showAnglesNow(m.pose); drawSkeleton();
     }
     showEvents(); drawChart();
+  } else if (view.everyRobot && "robot" in m && (m.robot || null) !== view.shownRobot &&
+             ["pose", "status", "alive", "robot"].includes(m.type)) {
+    // another robot's live part (from a stream of before a selection changed): never shown as this one's
   } else if (m.type === "pose") {
+    view.poseRobots[m.robot] = (view.poseRobots[m.robot] || 0) + 1;
     view.poses += 1; view.lastPose = m; setText("st-poses", view.poses);
     if (m.ok && Object.keys(m.joints).length) view.lastGood = m;
     showEvidence(m);
@@ -581,6 +742,8 @@ function onMessage(m) {
     showBus(m); loadHistory();
   } else if (m.type === "robot") {
     showRobot(m); if (view.stale) requestDraw();
+  } else if (m.type === "cards") {
+    takeCards(m); fleetChanged();
   }
 }
 
@@ -599,8 +762,11 @@ function requestDraw() {
   if (document.hidden) setTimeout(draw, 0); else requestAnimationFrame(draw);
 }
 
-function connect() {
-  const es = new EventSource(withToken("/stream"));
+let es = null;
+function connect() {  // the stream; a page of every robot names the robot it follows (its live parts only)
+  if (es) es.close();
+  const robot = view.selected || hashRobot();
+  es = new EventSource(withToken("/stream" + (robot ? "?robot=" + encodeURIComponent(robot) : "")));
   es.onopen = () => { view.connected = true; showLiveness(); };
   es.onerror = () => {  // the server is gone (or restarting): nothing here is live until the next snapshot
     view.connected = false;
