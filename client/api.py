@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import zenoh
 
+from posed.client import mount as m
 from posed.client import types as t
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
@@ -53,6 +54,14 @@ def _selector(robot: str, tail: str) -> str:
     if not robot or "/" in robot:
         raise ValueError(f"robot {robot!r}: give a robot id or '*' (every robot)")
     return f"posed/{robot}/{tail}"
+
+
+def _one_robot(robot: str, tail: str) -> str:
+    """The key ``posed/ROBOT/tail`` of one robot: ``robot`` a robot id, never ``"*"`` or a key expression."""
+    if not isinstance(robot, str) or not robot or any(c in robot for c in "/*$#?") or robot.strip() != robot:
+        raise ValueError(f"robot {robot!r}: give one robot id (the daemon's robot_id, e.g. 'kitchen'), "
+                         "not '*', a key expression or blank")
+    return _selector(robot, tail)
 
 
 class PosedClient:
@@ -254,3 +263,20 @@ class PosedClient:
             if time.monotonic() >= deadline:
                 return False
             time.sleep(0.3)
+
+    def set_camera_mount(self, robot: str, *, down=None, tilt_deg: float | None = None,
+                         roll_deg: float | None = None, height_m: float | None = None, valid_s: float = 1.0,
+                         time_unix: float | None = None, source: str | None = None) -> dict:
+        """Tell ``robot``'s daemon where its camera is now (``posed/ROBOT/camera/mount``, ``posed.camera_mount``;
+        the daemon uses it with ``falls.camera_mount_from_bus: true``): ``down`` (gravity in the camera's axes:
+        x image right, y image down, z forward) or ``tilt_deg`` and ``roll_deg`` (both; falls.camera_tilt_deg's
+        and camera_roll_deg's convention), ``height_m`` (the optical centre above the floor, 0.05..5),
+        ``valid_s`` (how long it holds, 0.05..3600), ``time_unix`` (when it was true; None: when received),
+        ``source`` (free text). Put it at the camera's rate, or at least every ``valid_s``/2 while the camera
+        moves. Raises ``ValueError`` naming a bad argument and what it may be; returns the message put."""
+        key = _one_robot(robot, m.KEY)
+        msg = m.camera_mount_message(down=down, tilt_deg=tilt_deg, roll_deg=roll_deg, height_m=height_m,
+                                     valid_s=valid_s, time_unix=time_unix, source=source)
+        self.session.put(key, json.dumps(msg, allow_nan=False), encoding=JSON,
+                         congestion_control=zenoh.CongestionControl.DROP)
+        return msg

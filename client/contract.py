@@ -1,5 +1,5 @@
-"""posed's message contract: the name and version of every message posed publishes or answers with, and
-their JSON Schemas (draft 2020-12, shipped in ``client/schemas/``; docs/formats.md describes them).
+"""posed's message contract: the name and version of every message posed publishes or answers with (and of
+the two it takes: ``posed.ack``, ``posed.camera_mount``), and their JSON Schemas (draft 2020-12, shipped in ``client/schemas/``; docs/formats.md describes them).
 
 Each message carries ``format`` (one of :data:`FORMATS`) and ``version``; a version changes only if a field
 would have to change meaning — fields are added freely and never renamed or removed, so a reader of version 1
@@ -24,6 +24,7 @@ FORMATS = {
     "posed.event_history": "event_history",   # reply to the bare key posed/ROBOT/events/history
     "posed.ack": "ack",                       # what a receiver puts on posed/ROBOT/events/ack
     "posed.error": "error",                   # an error reply to a query
+    "posed.camera_mount": "camera_mount",     # what the robot's software puts on posed/ROBOT/camera/mount
 }
 FIT_RESULT = "fit_result"                     # `posed fit` output and the core of posed.pose (no format field)
 SCHEMA_NAMES = (*FORMATS.values(), FIT_RESULT)

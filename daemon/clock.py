@@ -24,3 +24,9 @@ def wall_from_monotonic(t: float) -> float:
 def iso(unix: float) -> str:
     """ISO 8601 UTC with milliseconds."""
     return datetime.fromtimestamp(unix, UTC).isoformat(timespec="milliseconds")
+
+
+def monotonic_from_wall(unix: float) -> float:
+    """Monotonic seconds of a Unix time ``unix`` taken on this machine's clock (the inverse of
+    :func:`wall_from_monotonic`)."""
+    return unix - (time.time() - time.monotonic())

@@ -3,7 +3,8 @@
 Camera axes: x image right, y image down, z away from the camera; gravity ``g`` is a unit vector pointing
 down. Heights are metres along ``g``.
 
-* **Gravity**, in this order: the IMU's (``set_imu``: a RealSense accelerometer, ``falls.imu_gravity``), else
+* **Gravity**, in this order: the robot's (``set_robot``: the camera's pose from the robot's own kinematics,
+  ``falls.camera_mount_from_bus``), else the IMU's (``set_imu``: a RealSense accelerometer, ``falls.imu_gravity``), else
   the floor plane measured in the depth image (``set_depth_floor``: a RealSense, ``falls.floor_from_depth``,
   :mod:`falls.floor_plane`), else the tilt and roll learned from a standing person where ``camera_tilt_auto``/``camera_roll_auto`` and once
   learned (:mod:`falls.geometry`), else the configured ``camera_tilt_deg``/``camera_roll_deg``. A new gravity
@@ -13,7 +14,8 @@ down. Heights are metres along ``g``.
   the camera's own rotation (a robot turning its head), which moves neither the floor nor the camera's
   height above it, and each frame's heights are measured along that frame's true gravity, so they stay
   comparable: each reading is used as it comes, and nothing is forgotten.
-* **Floor**: the plane measured in the depth image (its distance along the gravity in use), else its distance
+* **Floor**: the height the robot gives with its pose, else the plane measured in the depth image (its
+  distance along the gravity in use), else its distance
   below the camera learned from the ankles of a person standing or sitting upright, or from the stance foot of
   one walking upright (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m``
   (0: unknown).
@@ -37,6 +39,13 @@ down. Heights are metres along ``g``.
   the depth floor is refreshed about once a second, with the IMU's gravity as its prior); the depth floor then
   gives the height. The depth floor is live: it is not kept across restarts, and the caller forgets it
   (``set_depth_floor(None)``) when it grows old.
+* **The robot knows best**: a robot that moves its camera (pans and tilts its head, raises a mast) knows the
+  camera's pose from its kinematics at every moment; it ranks above everything (the IMU included) for the
+  gravity, and its height above everything for the floor. From one robot pose to the next nothing is forgotten
+  (as from one IMU reading to the next: each frame's heights are measured along that frame's gravity, above
+  that frame's floor). While it is in force, nothing is learned from people about the camera (the tilt
+  learner, the body's axis: in camera axes, which the robot moves) and :meth:`CameraGeometry.state` keeps
+  what was learned before it; when it ends, that is taken back as it was (``set_robot(None)``).
 """
 
 from __future__ import annotations
@@ -86,6 +95,8 @@ class CameraGeometry:
         self.gravity = self._gravity_cfg           # down, camera axes, unit
         self.roll_deg = cfg.camera_roll_deg       # of the gravity in use
         self._gravity_imu: np.ndarray | None = None
+        self._robot: tuple[np.ndarray, float | None, dict] | None = None   # down (unit), height or None, evidence
+        self._before_robot: dict | None = None      # what was learned from people when the robot took over
         self._depth: tuple[np.ndarray, float, dict] | None = None   # floor plane: down (unit), height, evidence
         self._learner = GravityLearner(self._gravity_cfg) if (cfg.camera_tilt_auto or cfg.camera_roll_auto) else None
         self._floor_cfg = cfg.camera_height_m if cfg.camera_height_m > 0 else None
@@ -109,10 +120,55 @@ class CameraGeometry:
 
     # ------------------------------------------------------------------ gravity
 
+    def set_robot(self, down_camera: np.ndarray | None, height_m: float | None = None,
+                  evidence: dict | None = None) -> bool:
+        """The camera's pose from the robot: ``down_camera`` gravity in camera axes (any length), ``height_m`` the
+        optical centre above the floor (m) or None (the floor then comes from the other sources), ``evidence``
+        (its age, source, ...: shown in the summary and in each event's geometry). It gives the gravity ahead of
+        the IMU and everything else, and its height the floor. None forgets it and takes back what was learned
+        from people before it. Raises ValueError for a broken pose (not finite, a zero down, a height not above
+        0), changing nothing. True when the robot took over or let go (another gravity or floor: heights are
+        not comparable across it); False from one robot pose to the next."""
+        if down_camera is None:
+            if self._robot is None:
+                return False
+            self._robot = None
+            before, self._before_robot = self._before_robot, None
+            # what was seen meanwhile was measured along the robot's gravity and above its floor: not kept
+            self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
+            self._stand, self._stand_weight = None, 0.0
+            restored = self.restored
+            if before is None or self.restore(before) is not None:   # the same configured values: as it was
+                self._refresh()
+            self.restored = restored
+            return True                       # another gravity or floor: the motion is not comparable
+        g = np.asarray(down_camera, float)
+        n = float(np.linalg.norm(g)) if g.shape == (3,) and np.all(np.isfinite(g)) else 0.0
+        if n < 1e-9:
+            raise ValueError(f"the robot's down must be three finite numbers, not all 0; got {down_camera!r}")
+        h = None if height_m is None else float(height_m)
+        if h is not None and not (math.isfinite(h) and h > 0.0):
+            raise ValueError(f"the camera's height above the floor must be a positive number of metres or None, "
+                             f"got {height_m!r}")
+        if self._robot is not None:           # the robot moved its camera: nothing to forget
+            self._robot = (g / n, h, dict(evidence or {}))
+            self._use(self._robot[0])
+            return False
+        self._before_robot = self.state()
+        self._robot = (g / n, h, dict(evidence or {}))
+        changed = self._refresh()
+        self._use(self._robot[0])             # as it comes, even within a step of the gravity in use
+        return changed or h is not None       # a new floor: heights not comparable either
+
+    @property
+    def robot_in_force(self) -> bool:
+        """Whether the robot gives the camera's pose now (:meth:`set_robot`)."""
+        return self._robot is not None
+
     def set_imu(self, down_camera: np.ndarray | None) -> bool:
         """Gravity from an IMU, a down vector in camera axes (any length); None returns to the configured
         (or learned) tilt and roll; a broken reading (not finite, zero) changes nothing. True when the
-        gravity in use changed."""
+        gravity in use changed (never while the robot gives it)."""
         if down_camera is None:
             self._gravity_imu = None
         else:
@@ -122,7 +178,8 @@ class CameraGeometry:
                 return False
             if self._gravity_imu is not None:   # the camera turned (or the reading moved): nothing to forget
                 self._gravity_imu = g / n
-                self._use(self._gravity_imu)
+                if self._robot is None:
+                    self._use(self._gravity_imu)
                 return False
             self._gravity_imu = g / n
         return self._refresh()
@@ -139,7 +196,7 @@ class CameraGeometry:
             if self._depth is None:
                 return False
             self._depth = None
-            return self._gravity_imu is None and self._refresh()
+            return self._gravity_imu is None and self._robot is None and self._refresh()
         n = np.asarray(down_camera, float)
         norm = float(np.linalg.norm(n)) if n.shape == (3,) and np.all(np.isfinite(n)) else 0.0
         h = float(height_m)
@@ -148,12 +205,12 @@ class CameraGeometry:
         if not (math.isfinite(h) and h > 0.0):
             raise ValueError(f"the camera's height above the floor must be a positive number of metres, got {height_m!r}")
         self._depth = (n / norm, h, dict(evidence or {}))
-        return self._gravity_imu is None and self._refresh()
+        return self._gravity_imu is None and self._robot is None and self._refresh()
 
     def learn(self, up_c: np.ndarray, axis_plane_c: np.ndarray, dt: float) -> bool:
         """A straight standing body seen for ``dt`` seconds (:meth:`falls.geometry.GravityLearner.add`); ignored
-        with an IMU or without ``*_auto``. True when the gravity in use changed."""
-        if self._learner is None or self._gravity_imu is not None:
+        with an IMU, while the robot gives the pose, or without ``*_auto``. True when the gravity in use changed."""
+        if self._learner is None or self._gravity_imu is not None or self._robot is not None:
             return False
         return self._learner.add(self.gravity, up_c, axis_plane_c, dt) and self._refresh()
 
@@ -162,8 +219,9 @@ class CameraGeometry:
         """A straight standing body's up axis (unit, camera axes) seen for ``dt`` seconds: gravity while the
         configured geometry is a guess and neither an IMU nor the learned tilt gives it; its ankles (camera axes)
         and their height above the floor give a point on the floor along that axis, used if the guess is
-        rejected before the floor was learned. True when the gravity in use changed."""
-        if self.tilt_measured or up_c is None or not np.all(np.isfinite(up_c)):
+        rejected before the floor was learned; nothing while the robot gives the pose. True when the gravity in
+        use changed."""
+        if self.tilt_measured or self._robot is not None or up_c is None or not np.all(np.isfinite(up_c)):
             return False
         if ankles_c is not None and np.all(np.isfinite(ankles_c)):
             w = min(max(dt, 0.0), 0.2)
@@ -218,7 +276,9 @@ class CameraGeometry:
     def _refresh(self) -> bool:
         cfg = self.cfg
         step = GRAVITY_STEP_DEG
-        if self._gravity_imu is not None:
+        if self._robot is not None:
+            g, src = self._robot[0], "robot"
+        elif self._gravity_imu is not None:
             g, src = self._gravity_imu, "imu"
         elif self._depth is not None:
             g, src = self._depth[0], "depth"
@@ -270,8 +330,10 @@ class CameraGeometry:
 
     @property
     def floor_below_camera(self) -> float | None:
-        """The floor's distance below the camera along gravity (m): measured in the depth image, learned or
-        configured; None unknown."""
+        """The floor's distance below the camera along gravity (m): the robot's, measured in the depth image,
+        learned or configured; None unknown."""
+        if self._robot is not None and self._robot[1] is not None:
+            return self._robot[1]
         depth = self._depth_height()
         if depth is not None:
             return depth
@@ -286,6 +348,8 @@ class CameraGeometry:
         """The floor's distance below the camera (m) when it was *measured*: the depth floor, else the configured
         height of a mount marked measured; None otherwise (a floor learned from a person's feet is in the fit's
         metres, which follow the body size the fit assumes)."""
+        if self._robot is not None and self._robot[1] is not None:
+            return self._robot[1]
         depth = self._depth_height()
         if depth is not None:
             return depth
@@ -337,8 +401,11 @@ class CameraGeometry:
 
     def state(self) -> dict:
         """What was learned from people (gravity from their bodies or image lines, the floor under their feet,
-        their standing height) with how much evidence stands behind each, as JSON-able numbers; the IMU is
-        live and not kept. ``config`` records the configured values it was learned under."""
+        their standing height) with how much evidence stands behind each, as JSON-able numbers; the IMU and the
+        robot are live and not kept (while the robot gives the pose: what was learned before it). ``config``
+        records the configured values it was learned under."""
+        if self._before_robot is not None:
+            return self._before_robot
         cfg = self.cfg
         return {
             "version": STATE_VERSION,
@@ -385,8 +452,10 @@ class CameraGeometry:
 
     @property
     def floor_source(self) -> str:
-        """Where :attr:`floor_below_camera` comes from: depth, learned (from feet), config or lowest_joint (unknown:
-        the lowest fitted joint stands in)."""
+        """Where :attr:`floor_below_camera` comes from: robot, depth, learned (from feet), config or lowest_joint
+        (unknown: the lowest fitted joint stands in)."""
+        if self._robot is not None and self._robot[1] is not None:
+            return "robot"
         if self._depth_height() is not None:
             return "depth"
         if self._floor_learned is not None and self._floor_weight >= FLOOR_MIN_WEIGHT:
@@ -394,15 +463,22 @@ class CameraGeometry:
         return "config" if self.floor_below_camera is not None else "lowest_joint"
 
     def used(self) -> dict:
-        """What a frame is judged with: ``gravity`` imu, depth (the floor plane in the depth image), learned, body
-        (the standing person's axis) or config; ``floor`` depth, learned (from feet), config or
-        lowest_joint (unknown: the lowest fitted joint stands in); ``config`` whether the configured values
-        were measured (``camera_geometry``); ``depth_floor`` the depth floor's evidence when there is one."""
-        out = {"gravity": "imu" if self._gravity_imu is not None else self._gravity_from, "floor": self.floor_source,
-               "config": "measured" if self.measured else "guess"}
+        """What a frame is judged with: ``gravity`` robot, imu, depth (the floor plane in the depth image),
+        learned, body (the standing person's axis) or config; ``floor`` robot, depth, learned (from feet), config
+        or lowest_joint (unknown: the lowest fitted joint stands in); ``config`` whether the configured values
+        were measured (``camera_geometry``); ``depth_floor`` the depth floor's evidence when there is one,
+        ``robot_mount`` the robot's."""
+        gravity = "robot" if self._robot is not None else "imu" if self._gravity_imu is not None else self._gravity_from
+        out = {"gravity": gravity, "floor": self.floor_source, "config": "measured" if self.measured else "guess"}
         if self._depth is not None:
             out["depth_floor"] = self._depth_evidence()
+        if self._robot is not None:
+            out["robot_mount"] = self._robot_evidence()
         return out
+
+    def _robot_evidence(self) -> dict:
+        _, h, evidence = self._robot
+        return {**({} if h is None else {"height_m": round(h, 4)}), **evidence}
 
     def _depth_evidence(self) -> dict:
         n, h, evidence = self._depth
@@ -410,14 +486,18 @@ class CameraGeometry:
 
     def summary(self) -> dict:
         """Tilt and roll (deg), floor below the camera (m, None unknown), where each comes from (config,
-        learned, imu, depth, body; height: depth, learned, config, unknown), the depth floor's evidence
-        (``depth_floor``: height, tilt, roll, inliers, residual, age, ... when there is one), whether the configured values are trusted
-        (``config``: measured or guess) and the seconds of standing the learner has seen."""
+        learned, robot, imu, depth, body; height: robot, depth, learned, config, unknown), the depth floor's
+        evidence (``depth_floor``: height, tilt, roll, inliers, residual, age, ... when there is one), the robot's
+        (``robot_mount``: height, age, source, ... while it gives the pose), whether the configured values are
+        trusted (``config``: measured or guess) and the seconds of standing the learner has seen."""
         tilt, roll = tilt_roll_deg(self.gravity)
         l_tilt, l_roll = self._learner.learned() if self._learner is not None else (None, None)
-        src = "imu" if self._gravity_imu is not None else "depth" if self._depth is not None else None
+        src = "robot" if self._robot is not None else "imu" if self._gravity_imu is not None \
+            else "depth" if self._depth is not None else None
         body = self._gravity_from == "body"
         extra = {} if self._depth is None else {"depth_floor": self._depth_evidence()}
+        if self._robot is not None:
+            extra["robot_mount"] = self._robot_evidence()
         return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": self.floor_below_camera,
                 "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto
                                      else "body" if body else "config"),

@@ -69,6 +69,13 @@ class FallsConfig:
                                        "tilt and roll unless an IMU does, ahead of anything configured or learned; "
                                        "see docs/falls.md"}
     )
+    camera_mount_from_bus: bool = field(
+        default=False, metadata={"doc": "take the camera's pose from the robot: its software puts gravity in the "
+                                        "camera's axes (or tilt and roll) and the camera's height on Zenoh key "
+                                        "posed/ROBOT/camera/mount; while a pose holds it comes first, ahead of the "
+                                        "IMU, the depth floor, learned and configured values; off: no subscriber; "
+                                        "see docs/falls.md"}
+    )
     camera_height_m: float = field(
         default=1.0, metadata={"doc": "camera height above the floor (set it for your robot); 0 = unknown: "
                                       "the floor is then learned from a standing person only",

@@ -20,7 +20,8 @@ without recovering). Messages (``FallEvent``, all with the event's id):
 Heights are relative to the person's standing pelvis height (learned while they stand upright with straight
 legs; before that, estimated from the fitted leg length). The floor is the configured camera height
 (``camera_height_m``), refined from the feet of a person standing upright (``learn_floor``); gravity is the
-configured tilt and roll, learned ones (``camera_*_auto``, :mod:`falls.geometry`) or the IMU's. Frames that
+configured tilt and roll, learned ones (``camera_*_auto``, :mod:`falls.geometry`), the IMU's or the robot's
+(:meth:`FallDetector.set_camera_mount`, with the camera's height). Frames that
 cannot be judged (no person, failed fit, fewer than three of the shoulders and hips in view) change nothing
 but the lost-after-descent rule, the on_floor timer of a person last seen lying, and the alarm timer; gaps up
 to ``max_gap_s`` are bridged. See docs/falls.md for every threshold's reason.
@@ -138,6 +139,20 @@ class FallDetector:
         self.last_camera: Intrinsics | None = None        # the intrinsics it was judged with
 
     # ------------------------------------------------------------------ calibration inputs
+
+    def set_camera_mount(self, down_camera: np.ndarray | None, height_m: float | None,
+                         evidence: dict | None = None) -> bool:
+        """The camera's pose from the robot's kinematics (geometry source ``robot``): ``down_camera`` gravity in
+        camera axes (x image right, y image down, z forward; any length), ``height_m`` the optical centre above
+        the floor (m) or None (gravity only), ``evidence`` shown with it (age_s, source, samples, ...). It comes
+        first, ahead of the IMU and the depth floor, for the gravity, and its height first for the floor; while it
+        holds, nothing is learned from people about the camera. None forgets it (back to the other sources, with
+        what was learned before it). Raises ValueError for a broken pose, changing nothing. True when the gravity
+        or floor source changed, which forgets the motion (:meth:`CameraGeometry.set_robot`)."""
+        changed = self.camera.set_robot(down_camera, height_m, evidence)
+        if changed:
+            self._gap()
+        return changed
 
     def set_gravity(self, down_camera: np.ndarray | None) -> None:
         """Gravity from an IMU (e.g. the RealSense accelerometer), a down vector in camera coordinates;

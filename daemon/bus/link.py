@@ -9,7 +9,9 @@ declared on it (interfaces.md section 4).
   ``state`` and ``events/history`` (:mod:`daemon.bus.queries`);
   the subscriber ``events/ack``, whose acknowledgements (:mod:`daemon.bus.acks`) go to the ``on_ack`` callback
   as ``(event id, state or None)``; a payload that is not one is counted (``acks_rejected``) and logged with a
-  rate limit (:class:`daemon.proc.throttle.Throttle`), so a flood cannot fill the log.
+  rate limit (:class:`daemon.proc.throttle.Throttle`), so a flood cannot fill the log;
+* with ``on_mount`` (``falls.camera_mount_from_bus``) the subscriber ``camera/mount``: each payload's raw bytes go
+  to ``on_mount``, which parses them (:mod:`daemon.stages.mount_feed`); without it, no subscriber.
 
 The session is opened after spawn and entered into the stage's ``ExitStack`` (so it is used inside ``with``);
 when it cannot be opened (client mode without a router, a busy port) ``try_open`` retries every
@@ -61,10 +63,12 @@ class BusLink:
     threads call the query and ack handlers.
 
     ``history(since, until, limit)`` answers ``events/history`` queries; ``on_ack(event_id, state, by)`` is called
-    for each acknowledgement (on a Zenoh thread; ``state`` None: the whole event)."""
+    for each acknowledgement (on a Zenoh thread; ``state`` None: the whole event); ``on_mount(payload bytes)`` for
+    each message on ``camera/mount`` (on a Zenoh thread; None: not subscribed)."""
 
     def __init__(self, cfg: ZenohConfig, robot: str, stack: contextlib.ExitStack, log, *,
-                 history: queries.HistoryLookup, on_ack: Callable[[str, str | None, str | None], None]) -> None:
+                 history: queries.HistoryLookup, on_ack: Callable[[str, str | None, str | None], None],
+                 on_mount: Callable[[bytes], None] | None = None) -> None:
         self.cfg = cfg
         self.topics = Topics(robot)
         self.latest = queries.LatestState()
@@ -72,6 +76,7 @@ class BusLink:
         self._stack = stack             # the session lives in the stage's ``with`` (closed on exit)
         self._history = history
         self._on_ack = on_ack
+        self._on_mount = on_mount
         self.acks_rejected = 0          # payloads on events/ack that were not an acknowledgement
         self._throttle = Throttle()
         self.session = None
@@ -128,6 +133,8 @@ class BusLink:
             session.declare_queryable(f"{t.history}/**", self._on_history_query, complete=True),
             session.declare_subscriber(t.events_ack, self._on_ack_sample),
         ]
+        if self._on_mount is not None:
+            self._keep.append(session.declare_subscriber(t.camera_mount, self._on_mount_sample))
         self._stack.callback(self.release)      # runs before the session's own exit (last in, first out)
         self._matching = False
         self.log.info("zenoh_open", zid=str(session.zid()), mode=self.cfg.mode,
@@ -261,6 +268,13 @@ class BusLink:
 
     def _on_history_query(self, query) -> None:
         queries.answer_history(query, self.topics.history, self._history, self.log)
+
+    def _on_mount_sample(self, sample) -> None:
+        try:
+            payload = sample.payload.to_bytes()
+        except Exception as exc:        # never raise into Zenoh's thread
+            payload = f"unreadable payload: {type(exc).__name__}".encode()
+        self._on_mount(payload)
 
     def _on_ack_sample(self, sample) -> None:
         try:

@@ -35,6 +35,11 @@ class Topics:
         return f"{self.root}/events/ack"
 
     @property
+    def camera_mount(self) -> str:
+        """The robot puts its camera's pose here (daemon.bus.camera_mount; ``falls.camera_mount_from_bus``)."""
+        return f"{self.root}/camera/mount"
+
+    @property
     def alive(self) -> str:
         return f"{self.root}/alive"
 

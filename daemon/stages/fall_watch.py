@@ -27,6 +27,11 @@ misses) is in the status (``falls.geometry.depth_floor``) and in each event's ``
 ``depth_floor.KEEP_S`` (30 s of capture time) is forgotten: the geometry goes back to the other sources. A
 malformed one is counted (``bad_floor``) and logged, and the geometry in use is kept.
 
+The camera's pose from the robot (``falls.camera_mount_from_bus``): the publisher sets :attr:`FallWatch.mount`
+(:class:`daemon.stages.mount_feed.MountFeed`); each frame is given the pose in force at its capture time
+(``FallDetector.set_camera_mount``: the gravity and the height ahead of every other source, with its evidence:
+age at the frame, source, samples received), or none when no pose covers it (the other sources, as without it).
+
 Kept across restarts: what the detector learned from people about the camera (gravity from their bodies or
 image lines, the floor under their feet, their standing height, with the seconds of evidence behind each) is
 written to ``state_file`` (per camera: :func:`geometry_file`) every ``SAVE_EVERY_S`` of capture time when it
@@ -85,6 +90,8 @@ class FallWatch:
         self._on_error = on_error
         self.state_file = Path(state_file) if state_file is not None and detector is not None else None
         self._saved: str | None = None
+        self.mount = None               # the robot's camera poses (MountFeed: at(t), received), or None
+        self.mount_in_force = False     # a robot pose covered the last frame
         self._save_t: float | None = None
         self.save_error: str | None = None
         if self.state_file is not None:
@@ -216,6 +223,11 @@ class FallWatch:
                     self.log.warning("imu_gravity_bad", error=str(exc), seq=msg.result.seq, count=self.bad_gravity)
         if cfg is not None and getattr(cfg, "floor_from_depth", False):
             self._depth_floor(msg)
+        if self.mount is not None:
+            try:
+                self._robot_mount(float(msg.result.t))
+            except (TypeError, ValueError) as exc:    # the feed checked it: a bug, counted, the frame judged
+                self._failed(exc, seq=msg.result.seq)
         try:
             events = self.people.update(_people(msg), float(msg.result.t), msg.result.seq, msg.image_size,
                                         msg.intrinsics)
@@ -249,6 +261,18 @@ class FallWatch:
         self._on_error()
         if self.failures <= LOG_FIRST_FAILURES or self.failures % LOG_FAILURE_EVERY == 0:
             self.log.error("fall_detector_failed", error=repr(exc), **where, failures=self.failures)
+
+    def _robot_mount(self, t: float) -> None:
+        """Give every detector the robot's camera pose in force at capture time ``t``, or forget it."""
+        sample = self.mount.at(t)
+        self.mount_in_force = sample is not None
+        if sample is None:
+            self.people.each(lambda d: d.set_camera_mount(None, None))
+            return
+        down = np.asarray(sample.down, dtype=float)
+        evidence = {"age_s": round(t - sample.t, 3), "valid_s": sample.valid_s, "source": sample.source,
+                    "samples": self.mount.received}
+        self.people.each(lambda d: d.set_camera_mount(down, sample.height_m, evidence))
 
     def _depth_floor(self, msg: FitMsg) -> None:
         """Hand the frame's depth floor (or the last one, aged) to the detector; forget it when too old."""

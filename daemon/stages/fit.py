@@ -18,7 +18,11 @@ assumed lens of ``falls.camera_hfov_deg`` (camera_model.Intrinsics.assume; the f
 one): in perspective, so a camera looking down shows in the body's axes, but with no ``root_cam_m`` (the
 result's ``lens``: assumed). ``fitting.projection: orthographic`` keeps the paper's orthographic fit.
 
-Which way is down (``fitting.vertical: auto``; fitting.vertical): the frame's own gravity (a RealSense IMU's
+Which way is down (``fitting.vertical: auto``; fitting.vertical): the robot's gravity in force at the frame's
+capture time (``falls.camera_mount_from_bus``: the camera poses the publisher received on
+``posed/ROBOT/camera/mount``, passed here through the ``mount`` mailbox as
+:class:`daemon.stages.mount_samples.MountSamples` and matched to the frame by capture time as the fall detector
+matches them), else the frame's own gravity (a RealSense IMU's
 or a recording's ``gravity``, when ``falls.imu_gravity`` is on), else the floor plane the landmark stage
 measured in the depth image (the frame's ``floor``, its ``down``, when ``falls.floor_from_depth`` is on), else
 the camera's configured tilt and roll when ``falls.camera_geometry`` trusts them as measured, else what the
@@ -42,6 +46,7 @@ from posed.daemon.config import paths
 from posed.daemon.messages import FitMsg, origin
 from posed.daemon.stages.base import StageRuntime
 from posed.daemon.stages.fall_watch import SAVE_EVERY_S, geometry_file
+from posed.daemon.stages.mount_samples import MountSamples
 from posed.fitting import level_frame
 
 RESET_GAP_S = 1.0
@@ -110,13 +115,14 @@ class KeptDown:
 
 
 def frame_gravity(frame, mount: np.ndarray | None, use_imu: bool = True,
-                  use_floor: bool = True) -> np.ndarray | None:
-    """The down a frame is fitted with: the frame's own ``gravity`` (an IMU's) when ``use_imu``, else the
+                  use_floor: bool = True, robot: np.ndarray | None = None) -> np.ndarray | None:
+    """The down a frame is fitted with: ``robot`` (the robot's gravity in force at the frame's capture time,
+    :mod:`daemon.stages.mount_samples`) when given, else the frame's own ``gravity`` (an IMU's) when ``use_imu``, else the
     ``down`` of its depth ``floor`` (daemon.stages.depth_floor) when ``use_floor``, each only when it is three
     finite numbers not all 0; else ``mount`` (:func:`mount_gravity`). A malformed one is not this stage's to
     report: the fall detector counts it (``bad_gravity``, ``bad_floor`` in the status)."""
     floor = (getattr(frame, "extra", None) or {}).get("floor") if use_floor else None
-    candidates = (getattr(frame, "gravity", None) if use_imu else None,
+    candidates = (robot, getattr(frame, "gravity", None) if use_imu else None,
                   floor.get("down") if isinstance(floor, dict) else None)
     for g in candidates:
         if g is not None:
@@ -190,11 +196,12 @@ class PeopleFit:
         self.use_floor = use_floor
         self.fitters = PersonFitters(StreamFit(make_fitter()), lambda: StreamFit(make_fitter()))
 
-    def fit(self, frame, t_capture: float, image_size, intrinsics):
-        """(the frame's own person's result, the other people's results)."""
+    def fit(self, frame, t_capture: float, image_size, intrinsics, robot: np.ndarray | None = None):
+        """(the frame's own person's result, the other people's results); ``robot``: the robot's gravity in force
+        at ``t_capture`` (camera axes), or None."""
         if intrinsics is None:
             intrinsics = Intrinsics.assume(self.assumed_hfov_deg, int(image_size[0]), int(image_size[1]))
-        gravity = frame_gravity(frame, self.mount, self.use_imu, self.use_floor)
+        gravity = frame_gravity(frame, self.mount, self.use_imu, self.use_floor, robot)
         people = frame.people
         if not people:
             return self.fitters.main.fit(frame, t_capture, image_size, intrinsics, gravity), ()
@@ -244,6 +251,9 @@ def run(rt: StageRuntime) -> None:
     # no measured mount: what the fall detector learned of the camera from people, kept in the state dir
     kept = None if people.mount is not None else KeptDown(
         rt.config.falls, geometry_file(paths.state_dir(rt.config.pipeline), rt.config.source))
+    # the robot's camera poses (falls.camera_mount_from_bus), from the publisher's session: the latest set taken
+    mounts_box = rt.mailbox("mount") if rt.config.falls.camera_mount_from_bus else None
+    mounts = MountSamples()
     while True:
         rt.beat()
         rt.check_stop()
@@ -257,7 +267,12 @@ def run(rt: StageRuntime) -> None:
             try:
                 if kept is not None:
                     people.mount = kept.at(msg.t_capture)
-                result, others = people.fit(frame, msg.t_capture, msg.image_size, msg.intrinsics)
+                robot = None
+                if mounts_box is not None:
+                    mounts = mounts_box.take() or mounts
+                    sample = mounts.at(msg.t_capture)
+                    robot = None if sample is None else np.asarray(sample.down, dtype=np.float64)
+                result, others = people.fit(frame, msg.t_capture, msg.image_size, msg.intrinsics, robot)
             except Exception as exc:  # the fitter should never raise; if it does, keep the pipeline going
                 failures += 1
                 rt.error()

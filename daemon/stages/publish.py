@@ -28,7 +28,9 @@ liveliness token ``posed/ROBOT/alive``, the queryables ``posed/ROBOT/state`` (la
 ``posed/ROBOT/events/history`` (stored events; parameters ``since``, ``until`` (unix seconds or ISO 8601),
 ``limit``), and the subscriber ``posed/ROBOT/events/ack``: a receiver puts an event id there (text, or JSON
 ``{"id": ...}``) to acknowledge every message of that event so far, or ``{"id": ..., "state": ...}`` for only
-that state's message (:mod:`daemon.bus.acks`).
+that state's message (:mod:`daemon.bus.acks`). With ``falls.camera_mount_from_bus``, the subscriber
+``posed/ROBOT/camera/mount``: the camera's pose from the robot (:class:`daemon.stages.mount_feed.MountFeed`),
+given to the fall detector for the frames it covers and passed on to the fitting stage (the ``mount`` mailbox).
 
 The session is opened here, after spawn, inside ``with``; when it cannot be opened (client mode without a
 router, a busy port) the stage keeps consuming frames, journals events and retries every
@@ -67,6 +69,7 @@ from posed.daemon.proc import orphans
 from posed.daemon.proc.blind import blind_after_s
 from posed.daemon.stages.base import StageRuntime
 from posed.daemon.stages.fall_watch import FallWatch, geometry_file
+from posed.daemon.stages.mount_feed import MountFeed
 from posed.daemon.stages.restored_falls import RestoredFalls
 
 
@@ -78,8 +81,13 @@ class PublisherStage:
         cfg = rt.config
         self.falls = FallWatch.from_config(cfg.falls, cfg.robot_id, rt.log, on_error=rt.error,
                                            state_file=geometry_file(paths.state_dir(cfg.pipeline), cfg.source))
+        # the camera's pose from the robot (falls.camera_mount_from_bus): to the detector and the fitting stage
+        self.mount = MountFeed(rt.log, rt.mailbox("mount")) if cfg.falls.camera_mount_from_bus else None
+        if self.mount is not None:
+            self.falls.mount = self.mount
         self.bus = BusLink(cfg.zenoh, cfg.robot_id, stack, rt.log,
-                           history=self._stored_events, on_ack=self._acknowledge)
+                           history=self._stored_events, on_ack=self._acknowledge,
+                           on_mount=self.mount.on_payload if self.mount is not None else None)
         private_folder(paths.state_dir(cfg.pipeline), rt.log)         # health data: 0700, files 0600
         if cfg.falls.history_enabled:
             private_file(paths.history_path(cfg.pipeline))
@@ -142,6 +150,8 @@ class PublisherStage:
         if status is not None:
             self.publish_status(status)
         self.bus.watch_link(now)
+        if self.mount is not None:
+            self.mount.reforward(now)
         self.falls_between_frames(now)
         if self.bus.event_subscriber_appeared(now):
             self.outbox.subscriber_appeared(now)
@@ -196,6 +206,9 @@ class PublisherStage:
         status["events"] = self.outbox.status()
         status["events"]["acks"]["rejected"] = self.bus.acks_rejected
         status["falls"] = self.falls.status()
+        if self.mount is not None and "geometry" in status["falls"]:
+            geometry = status["falls"]["geometry"]
+            geometry["robot_mount"] = {**geometry.get("robot_mount", {}), **self.mount.status()}
         if self.restored.open:
             status["falls"]["restored_open"] = self.restored.status()
         status["storage"] = self.storage()

@@ -2,7 +2,9 @@
 # make-certs.sh DIR [CN ...]: a private CA, the daemon's certificate (CN posed-daemon, valid for 127.0.0.1 and
 # localhost, plus $POSED_TLS_SAN, e.g. "IP:192.168.1.20,DNS:robot.local") and one client certificate per CN
 # (DIR/CN.pem, DIR/CN.key), all with Debian's openssl. An existing CA in DIR is reused, so more clients can be
-# added later. Keys are written 0600. Days of validity: $POSED_TLS_DAYS (default 825).
+# added later. Keys are written 0600. Days of validity: $POSED_TLS_DAYS (default 825). Every certificate is good
+# for both ends of a link (serverAuth, clientAuth), so a fleet's router is one more CN, made alone with its
+# address: POSED_TLS_SAN="IP:192.168.1.10" make-certs.sh DIR posed-router (deploy/fleet/README.md).
 set -eu
 [ $# -ge 1 ] || { echo "usage: $0 DIR [CLIENT_CN ...]" >&2; exit 64; }
 command -v openssl >/dev/null || { echo "make-certs.sh: openssl is missing: apt-get install openssl" >&2; exit 69; }
