@@ -172,8 +172,7 @@ def run_case(case: Case, fit: Callable[..., FitResult], cfg: FallsConfig, fit_fr
     messages = []
     failures = 0
     fit_ms = []
-    recent: list = []
-    low = low_lying = None
+    lowest = LowestPelvis()
     # the fit is given the down the daemon's fitting stage gives it (daemon.stages.fit.frame_gravity): the IMU's,
     # else the measured mount's (geometry given: cfg measured above)
     mount_down = mount_gravity(cfg) if geometry == "given" else None
@@ -189,19 +188,40 @@ def run_case(case: Case, fit: Callable[..., FitResult], cfg: FallsConfig, fit_fr
         if imu is not None:
             det.set_gravity(imu)
         messages += det.update(result, fr.landmarks, image_size, intrinsics=cam.intrinsics if intrinsics else None)
-        if det.last_sample is not None:
-            recent = (recent + [det.last_sample])[-3:]
-            h = float(np.median([x.h_rel for x in recent]))
-            incl = float(np.median([x.incl for x in recent]))
-            low = h if low is None else min(low, h)
-            if incl > 60:
-                low_lying = h if low_lying is None else min(low_lying, h)
+        lowest.add(det.last_sample)
+    return outcome_of(case, messages, failures, fit_ms, lowest)
+
+
+class LowestPelvis:
+    """The lowest pelvis height a case reached (the detector's ``h_rel``, median of its last 3 samples), overall
+    and while lying (trunk inclination above 60 deg)."""
+
+    def __init__(self) -> None:
+        self.recent: list = []
+        self.low: float | None = None
+        self.low_lying: float | None = None
+
+    def add(self, sample) -> None:
+        """The detector's ``last_sample`` of a frame (None: nothing judged)."""
+        if sample is None:
+            return
+        self.recent = (self.recent + [sample])[-3:]
+        h = float(np.median([x.h_rel for x in self.recent]))
+        incl = float(np.median([x.incl for x in self.recent]))
+        self.low = h if self.low is None else min(self.low, h)
+        if incl > 60:
+            self.low_lying = h if self.low_lying is None else min(self.low_lying, h)
+
+
+def outcome_of(case: Case, messages: list, failures: int, fit_ms: list[float], lowest: LowestPelvis) -> Outcome:
+    """A case's outcome from the detector's messages: caught (a detecting state), latency from the impact."""
     first = next((m for m in messages if m.state in DETECTING_STATES), None)
     latency = None
     if first is not None and case.kind == "fall":
         latency = first.t_detect - (case.truth.t_impact if case.truth.t_impact is not None else 0.0)
     return Outcome(case.name, case.kind, case.split, first is not None, latency, [m.state for m in messages],
-                   len(case.frames), failures, float(np.mean(fit_ms)) if fit_ms else 0.0, low, low_lying)
+                   len(case.frames), failures, float(np.mean(fit_ms)) if fit_ms else 0.0, lowest.low,
+                   lowest.low_lying)
 
 
 def summarise(outcomes: Iterable[Outcome]) -> dict:

@@ -11,7 +11,8 @@ Other packages import only the names of ``__all__`` from ``hal`` itself: sources
 ``is_landmark_recording``, ``is_realsense_recording``), recording (``record``, ``check_output``,
 ``RecordSummary``, ``Db3Writer``, loaded on first use), frame sizes (``scale_factor``, ``working_size``,
 ``downscale``, ``downscale_depth``, ``MAX_DECODE_PIXELS``: the capture stage's one downscale), the replay
-clock (``ReplayClock``) and the errors.
+clock (``ReplayClock``), the accelerometer's gravity filter (``GravityEstimate``, ``G_M_S2``: a benchmark
+runs a moving head's samples through it) and the errors.
 docs/hal.md describes timestamps, recovery, fault injection and recording.
 """
 
@@ -29,6 +30,7 @@ from posed.hal.errors import (
     SourceUnsupported,
 )
 from posed.hal.frame import Frame
+from posed.hal.imu import G_M_S2, GravityEstimate
 from posed.hal.recorder import RecordSummary, check_output, record
 from posed.hal.registry import (
     REGISTRY,
@@ -46,6 +48,8 @@ if TYPE_CHECKING:
     from posed.hal.db3 import Db3Writer
 
 __all__ = [
+    "G_M_S2",
+    "GravityEstimate",
     "MAX_DECODE_PIXELS",
     "REGISTRY",
     "file_problem",

@@ -65,12 +65,74 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "corner cameras, with and without world landmarks and with Holistic's landmarks, CMU, "
                              "--recordings or shared urfd_dev, real videos through posed landmarks), "
                              "each row saying whether values were chosen on it, with the gap to that source")
+    parser.add_argument("--camera", metavar="MOTION[,MOTION]",
+                        help="the moving-camera protocol instead: the simulated scenarios and CMU clips (--split, "
+                             "--only, --truth) seen by a robot head that stays still (static), tilts to follow the "
+                             "person's pelvis (follow: 0.15 s delay, 0.15 s servo, at most 60 deg/s) or scans the "
+                             "room (nod: +-12 deg every 6 s); comma-separated, or all. Each is scored with the "
+                             "default config, the home mount configured as measured, and the true mount of every "
+                             "frame given through FallDetector.set_camera_mount, with and without its height, "
+                             "and the head's accelerometer as hal.imu filters it (bench/falls_moving.py); "
+                             "--synthetic-geometry does not apply")
+
+
+CAMERA_MOTIONS = ("static", "follow", "nod")
+
+
+def _camera_motions(value: str) -> list[str] | str:
+    """The motions of ``--camera`` (a list), or what is wrong with it (a string)."""
+    names = [m.strip() for m in value.split(",") if m.strip()]
+    if names == ["all"]:
+        return list(CAMERA_MOTIONS)
+    bad = [m for m in names if m not in CAMERA_MOTIONS]
+    if bad or not names:
+        return f"--camera takes {', '.join(CAMERA_MOTIONS)} or all (comma-separated), not {value!r}"
+    return [m for m in CAMERA_MOTIONS if m in names]   # static first: the others are compared with it
+
+
+def _camera(args, cfg, splits, shared) -> int:
+    from posed.bench.falls_moving import print_report, run_protocol
+    from posed.daemon.preflight import cache_dir
+
+    motions = _camera_motions(args.camera)
+    clash = [flag for flag, on in (("--mount " + args.mount, args.mount != "robot"), ("--world", args.world),
+                                   ("--extractor " + args.extractor, args.extractor != "blazepose"),
+                                   ("--recordings", bool(args.recordings)), ("--cross-source", args.cross_source),
+                                   ("--no-intrinsics", args.no_intrinsics), ("--markdown", bool(args.markdown)))
+             if on]
+    if isinstance(motions, str) or clash or not splits:
+        why = motions if isinstance(motions, str) else (
+            f"--camera runs the robot camera's scenarios only: drop {', '.join(clash)}" if clash
+            else "--camera needs simulated scenarios: --split tune, heldout, cmu or all")
+        print(f"posed bench falls: {why}", file=sys.stderr)
+        return 2
+
+    def progress(motion, arm, o):
+        if not args.json:
+            oc = o.outcome
+            lat = "" if oc.latency_s is None else f" latency {oc.latency_s:+.2f} s"
+            mark = "ok " if oc.detected == (oc.kind == "fall") else "MISS" if oc.kind == "fall" else "FALSE"
+            print(f"{mark:5} {arm:10} {oc.name:60} {','.join(oc.states) or '-':28}{lat}", file=sys.stderr,
+                  flush=True)
+
+    report = run_protocol(motions, splits, "truth" if args.truth else "real", cfg.falls, args.only, shared,
+                          fit_config=cfg.fitting, cache=None if args.no_cache else cache_dir() / "falls-fits",
+                          progress=progress)
+    if args.json:
+        print(json.dumps(report))
+    else:
+        print_report(report)
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
     from posed.bench.falls import run_bench  # not at import: `posed` imports every bench module to list it
     from posed.daemon.preflight import shared_data
 
+    if args.camera is not None:
+        cfg = config_from_args(args)
+        splits = {"all": ("tune", "heldout", "cmu"), "none": ()}.get(args.split, (args.split,))
+        return _camera(args, cfg, splits, shared_data())
     if args.world and args.extractor != "blazepose":
         print(f"posed bench falls: --world gives the fit BlazePose's world landmarks, which --extractor "
               f"{args.extractor} does not have: drop one of the two", file=sys.stderr)
