@@ -8,7 +8,10 @@ handed as a whole to the fitting stage through the ``mount`` mailbox (and again 
 fitting stage that was restarted since). A payload that is not a camera pose, or
 one dated more than ``MAX_AHEAD_S`` after it arrived (the robot's clock and this one disagree), is counted
 (``rejected``, ``last_error``), logged at most 5 times a minute (:class:`daemon.proc.throttle.Throttle`), and
-changes nothing. The log says when the poses start, change source or stop being in force, never per message.
+changes nothing. A pose that had already run out when it arrived (``time_unix + valid_s`` before its arrival: a
+robot clock behind this one, or a slow link) is kept but can never be in force: counted (``late``) and said
+(``camera_mount_late``, at most 5 times a minute, with the fix). The log says when the poses start, change
+source or stop being in force, never per message.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ class MountFeed:
         self._throttle = Throttle()
         self.samples = MountSamples()
         self.rejected = 0
+        self.late = 0                            # poses that had run out before they arrived (never in force)
         self.last_error: str | None = None
         self._said_source: tuple | None = None   # (source, with height) the log last named
         self._in_force: bool | None = None       # at the last frame
@@ -57,6 +61,8 @@ class MountFeed:
             self._reject(str(exc))
             return
         sample = MountSample(t, mount.valid_s, mount.down, mount.height_m, mount.source)
+        if received - t > mount.valid_s:
+            self._late(received - t, mount.valid_s)
         with self._lock:
             self.samples = samples = self.samples.add(sample)
             said = (mount.source, mount.height_m is not None)
@@ -67,6 +73,20 @@ class MountFeed:
             self.log.info("camera_mount_received" if first else "camera_mount_source_changed", source=mount.source,
                           height_given=mount.height_m is not None, valid_s=mount.valid_s, received=samples.received)
         self._forward(samples)
+
+    def _late(self, delay_s: float, valid_s: float) -> None:
+        """A pose that had already run out when it arrived: kept (it can never be in force), counted and said,
+        because a robot whose every pose arrives late is one whose poses posed never uses."""
+        with self._lock:
+            self.late += 1
+            late = self.late
+        suppressed = self._throttle.allow("camera_mount_late")
+        if suppressed is not None:
+            self.log.warning("camera_mount_late", arrived_after_s=round(delay_s, 3), valid_s=valid_s, late=late,
+                             suppressed=suppressed,
+                             fix="the pose arrived after its time_unix + valid_s, so it is never used: the robot's "
+                                 "clock is behind this machine's (synchronise them, e.g. NTP, or leave time_unix "
+                                 "out) or the link is that slow (give a longer valid_s)")
 
     def _reject(self, error: str) -> None:
         with self._lock:
@@ -121,11 +141,13 @@ class MountFeed:
         return sample
 
     def status(self, now: float | None = None) -> dict:
-        """``received``, ``rejected``, ``last_error``, ``age_s`` (seconds since the newest sample was true, on the
-        capture clock; None before any), ``in_force`` (at the last frame) and ``source`` (the newest's)."""
+        """``received``, ``rejected``, ``late`` (poses that had run out before they arrived), ``last_error``,
+        ``age_s`` (seconds since the newest sample was true, on the capture clock; None before any), ``in_force``
+        (at the last frame) and ``source`` (the newest's)."""
         now = self._now() if now is None else now
         samples = self.samples
         newest = samples.newest
-        return {"received": samples.received, "rejected": self.rejected, "last_error": self.last_error,
+        return {"received": samples.received, "rejected": self.rejected, "late": self.late,
+                "last_error": self.last_error,
                 "age_s": None if newest is None else round(now - newest.t, 3), "in_force": bool(self._in_force),
                 "source": None if newest is None else newest.source}

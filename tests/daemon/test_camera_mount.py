@@ -212,8 +212,8 @@ def test_the_feed_dates_counts_forwards_and_logs_on_change_only():
     assert feed.rejected == 2 and "not JSON" in feed.last_error and feed.received == 2
     assert feed.at(100.1).t == 100.0 and feed.at(100.3).t == pytest.approx(100.2) and feed.at(102.0) is None
     st = feed.status(now=100.5)
-    assert st == {"received": 2, "rejected": 2, "last_error": feed.last_error, "age_s": pytest.approx(0.3),
-                  "in_force": False, "source": "tf"}
+    assert st == {"received": 2, "rejected": 2, "late": 0, "last_error": feed.last_error,
+                  "age_s": pytest.approx(0.3), "in_force": False, "source": "tf"}
     for _ in range(1000):
         feed.on_payload(b"\x00")
         feed.on_payload(_json(down=[0, 1, 0], source="tf"))
@@ -253,3 +253,20 @@ def test_the_parser_agrees_with_the_shipped_schema():
         except BadMount:
             accepted = False
         assert accepted == (contract.errors(msg, "camera_mount") == []), msg
+
+
+def test_poses_from_a_clock_behind_this_one_are_said_late_never_used_silently():
+    """The robot's computer 3 s behind this one: every pose has run out (valid_s 0.5) when it arrives. Kept, never
+    in force, counted as late and said with the fix (rate-limited), not taken for a rejected message."""
+    now = [500.0]
+    log = _Log()
+    feed = MountFeed(log, None, now=lambda: now[0], from_wall=lambda u: u - 1_000_000.0)
+    for k in range(100):
+        now[0] = 500.0 + 0.1 * k
+        feed.on_payload(_json(down=[0, 1, 0], time_unix=1_000_000.0 + now[0] - 3.0, valid_s=0.5))
+    assert feed.received == 100 and feed.late == 100 and feed.rejected == 0
+    assert feed.at(now[0]) is None and feed.status()["late"] == 100
+    said = [kw for _, e, kw in log.lines if e == "camera_mount_late"]
+    assert len(said) == 5 and said[0]["arrived_after_s"] == pytest.approx(3.0) and "NTP" in said[0]["fix"]
+    feed.on_payload(_json(down=[0, 1, 0], time_unix=1_000_000.0 + now[0] - 0.2, valid_s=0.5))   # in sync again
+    assert feed.late == 100 and feed.at(now[0]) is not None
