@@ -2,7 +2,7 @@
 
 ``posed bench falls --camera static|follow|nod`` renders the scenarios and CMU clips of ``posed bench falls``
 (the same bodies, motions, cameras and noise seeds: :mod:`bench.falls_scenarios`, :func:`bench.falls.cmu_cases`)
-through a camera whose tilt changes frame by frame, and scores the detector in five arms.
+through a camera whose tilt changes frame by frame, and scores the detector in six arms.
 
 Camera motions (``MOTIONS``): the scene's own camera (height 0.9-1.3 m, 8-22 deg down, 640x480, 69 deg) is
 the head's home position, ``base``.
@@ -33,7 +33,10 @@ Arms (``ARMS``), each with the shipped config otherwise:
   the other sources (the feet of people standing or sitting upright, else the configured height).
 * ``imu``: the default config and the gravity of an accelerometer on the head (a RealSense D435i's), as
   ``hal.imu`` filters it (:func:`imu_downs`), through ``FallDetector.set_gravity``: what a robot with such a
-  camera gets today without telling posed anything.
+  camera gets without telling posed anything, when only the accelerometer is used.
+* ``imu_gyro``: as ``imu`` with the camera's gyroscope too (:func:`imu_gyro_downs`): the head's true angular
+  rate at 200 Hz with a BMI055's noise and a constant bias drawn per scene from its datasheet's range, and the
+  same noiseless accelerometer, through ``hal.imu.GravityEstimate``'s gyro + accelerometer filter.
 """
 
 from __future__ import annotations
@@ -72,6 +75,12 @@ CMU_NOISE = 0.01
 HIPS = (23, 24)        # MediaPipe landmark numbers of the hips
 TORSO = (11, 12, 23, 24)
 IMU_RATE_HZ = 63.0       # the D435i accelerometer's sample rate (hal/imu.py)
+# The D435i's gyro (Bosch BMI055, datasheet BST-BMI055-DS000, typical values; hal/imu.py): its lowest rate,
+# 200 Hz; noise density 0.014 deg/s/sqrt(Hz), white up to the Nyquist frequency: 0.14 deg/s per sample at
+# 200 Hz; zero-rate offset +-1 deg/s, drawn per scene and axis uniformly in that range and held constant
+GYRO_RATE_HZ = 200.0
+GYRO_NOISE_DENSITY_DEG_S = 0.014
+GYRO_BIAS_DEG_S = 1.0
 LATENCY_TARGET_S = 1.0   # the fall benchmark's median latency target (bench.commands.falls.TARGETS)
 
 
@@ -140,6 +149,9 @@ ARMS = {
     "imu": "the default config and a camera accelerometer's gravity on every frame, as hal.imu gives it (the "
            "head's true down sampled at 63 Hz, the D435i's rate, through hal.imu.GravityEstimate's 0.5 s "
            "low-pass), set with FallDetector.set_gravity; the fit is given the same down",
+    "imu_gyro": "as imu, with the camera's gyroscope too: the head's true angular rate at 200 Hz with a BMI055's "
+                "noise (0.014 deg/s/sqrt(Hz)) and a constant bias drawn per scene within its +-1 deg/s, through "
+                "hal.imu.GravityEstimate's gyro + accelerometer filter (0.5 s accelerometer correction)",
 }
 ROBOT_ARMS = ("robot", "robot_down")
 
@@ -329,6 +341,56 @@ def imu_downs(mc: MovingCase, rate_hz: float = IMU_RATE_HZ) -> list[tuple[float,
     return out
 
 
+def head_rate(tilt0_deg: float, tilt1_deg: float, roll_deg: float, dt: float) -> np.ndarray:
+    """The camera's angular rate (rad/s, its own axes: x right, y down, z forward; right-handed), constant over
+    ``dt`` seconds, that turns its tilt from ``tilt0_deg`` to ``tilt1_deg``. The head tilts about the room's
+    horizontal axis through the camera's sides (:class:`bench.falls_body.WorldCamera`: pan is not simulated),
+    which in the axes of a camera rolled by ``roll`` is (cos roll, -sin roll, 0); a tilt down (forward turning
+    towards image-down) is a negative turn about it."""
+    b = math.radians(roll_deg)
+    rate = math.radians(tilt1_deg - tilt0_deg) / dt
+    return -rate * np.array([math.cos(b), -math.sin(b), 0.0])
+
+
+def gyro_bias(name: str, bias_deg_s: float = GYRO_BIAS_DEG_S) -> np.ndarray:
+    """A scene's constant gyro bias (rad/s, per axis uniform within +-``bias_deg_s``), drawn from its name."""
+    rng = np.random.default_rng(zlib.crc32(("gyro-bias:" + name).encode()))
+    return np.radians(rng.uniform(-bias_deg_s, bias_deg_s, 3))
+
+
+def imu_gyro_downs(mc: MovingCase, rate_hz: float = IMU_RATE_HZ, gyro_hz: float = GYRO_RATE_HZ,
+                   noise_density_deg_s: float = GYRO_NOISE_DENSITY_DEG_S, bias_deg_s: float = GYRO_BIAS_DEG_S
+                   ) -> list[tuple[float, float, float] | None]:
+    """Each frame's gravity as the head's accelerometer and gyroscope give it through
+    :class:`hal.imu.GravityEstimate`: the accelerometer as :func:`imu_downs` (the true down at ``rate_hz``, no
+    noise); the gyro at ``gyro_hz``, each sample the head's mean angular rate since the previous one
+    (:func:`head_rate`) plus white noise of ``noise_density_deg_s * sqrt(gyro_hz / 2)`` per axis and the scene's
+    constant bias (:func:`gyro_bias`), the noise drawn from the scene's name. Read at each frame's capture time."""
+    from posed.hal import G_M_S2, GravityEstimate
+
+    est = GravityEstimate()
+    cam = mc.case.camera
+    tilt_at = mc.tilt_at or (lambda t: cam.tilt)
+    name = mc.case.name.split("/", 1)[1] if mc.motion != "static" else mc.case.name
+    bias = gyro_bias(name, bias_deg_s)
+    rng = np.random.default_rng(zlib.crc32(("gyro-noise:" + mc.case.name).encode()))
+    sigma = math.radians(noise_density_deg_s) * math.sqrt(gyro_hz / 2.0)
+    out = []
+    k = j = 0
+    for fr in mc.case.frames:
+        while k / rate_hz <= fr.t + 1e-12:
+            ts = k / rate_hz
+            est.add(ts, *(-G_M_S2 * np.asarray(gravity_from_tilt(tilt_at(ts), cam.roll), dtype=float)))
+            k += 1
+        while j / gyro_hz <= fr.t + 1e-12:
+            ts = j / gyro_hz
+            w = head_rate(tilt_at((j - 1) / gyro_hz), tilt_at(ts), cam.roll, 1.0 / gyro_hz) if j else np.zeros(3)
+            est.add_gyro(ts, *(w + bias + rng.normal(0.0, sigma, 3)))
+            j += 1
+        out.append(est.at(fr.t))
+    return out
+
+
 def true_down(cam: WorldCamera) -> np.ndarray:
     """Gravity in the camera's axes (x right, y down, z forward): what the robot's head joints and the base's
     mount give; the same function the detector turns a configured tilt into."""
@@ -370,7 +432,7 @@ def run_arm(mc: MovingCase, fit: Callable[..., FitResult], cfg: FallsConfig, arm
     if arm in ROBOT_ARMS and not has_camera_mount():
         raise RuntimeError(f"FallDetector has no set_camera_mount: the {arm} arm cannot run")
     mount_down = mount_gravity(cfg) if arm == "measured" else None
-    imu = imu_downs(mc) if arm == "imu" else None
+    imu = imu_downs(mc) if arm == "imu" else imu_gyro_downs(mc) if arm == "imu_gyro" else None
     messages = []
     failures = judged = in_view = people = 0
     fit_ms: list[float] = []
@@ -393,7 +455,7 @@ def run_arm(mc: MovingCase, fit: Callable[..., FitResult], cfg: FallsConfig, arm
             fit_ms.append(result.fit_ms)
         if arm in ROBOT_ARMS:
             det.set_camera_mount(down, cam.z if arm == "robot" else None)
-        elif arm == "imu" and down is not None:
+        elif arm in ("imu", "imu_gyro") and down is not None:
             det.set_gravity(down)
         messages += det.update(result, fr.landmarks, image_size, intrinsics=base.intrinsics)
         if det.last_features is not None:
@@ -458,6 +520,12 @@ def fit_key(arm: str, motion: str, follow: FollowHead = FOLLOW, nod: Nod = NOD) 
     head = "" if motion == "static" else f"{motion}:{follow if motion == 'follow' else nod}"
     if arm == "imu":
         return f"imu:{IMU_RATE_HZ:g}:{head}"
+    if arm == "imu_gyro":
+        from posed.hal import GravityEstimate
+
+        tau = GravityEstimate().time_constant_s
+        return (f"imu_gyro:{IMU_RATE_HZ:g}:{GYRO_RATE_HZ:g}:{GYRO_NOISE_DENSITY_DEG_S:g}:{GYRO_BIAS_DEG_S:g}:"
+                f"{tau:g}:{head}")
     if arm == "measured" or motion == "static":
         return "given"
     return f"robot:{head}"
@@ -585,7 +653,8 @@ def print_report(report: dict, out=None) -> None:
     print(f"({report['seconds']} s)", file=out)
 
 
-__all__ = ["ARMS", "FOLLOW", "IMU_RATE_HZ", "MOTIONS", "NOD", "ROBOT_ARMS", "ArmOutcome", "FollowController",
-           "FollowHead", "MovingCase", "Nod", "has_camera_mount", "imu_downs", "moving_cases", "print_report", "render",
-           "run_arm", "run_protocol", "true_down"]
+__all__ = ["ARMS", "FOLLOW", "GYRO_RATE_HZ", "IMU_RATE_HZ", "MOTIONS", "NOD", "ROBOT_ARMS", "ArmOutcome",
+           "FollowController", "FollowHead", "MovingCase", "Nod", "gyro_bias", "has_camera_mount", "head_rate",
+           "imu_downs", "imu_gyro_downs", "moving_cases", "print_report", "render", "run_arm", "run_protocol",
+           "true_down"]
 

@@ -9,7 +9,9 @@ Depth may have its own intrinsics and an extrinsic transform to colour (a raw de
 delivers it); ``posed record`` writes depth already aligned to colour (same intrinsics, identity transform).
 An accelerometer stream (``accel_fps``) holds motion frames in the depth sensor's axes, m/s^2, as a D435i's
 (:mod:`hal.imu`); ``posed record`` writes one sample per frame that carried gravity, the opposite of the
-frame's down vector times g (the low-passed reading, not the raw samples).
+frame's down vector times g (the low-passed reading, not the raw samples). A gyro stream (``gyro_fps``) beside
+it, on the same motion sensor, holds angular rates in rad/s in the same axes, as a D435i's gyro
+(``write_gyro``); a recording without one plays as an accelerometer-only camera.
 
 Note: ``rs.extrinsics()`` starts with an all-zero rotation; an unset rotation makes alignment map all depth to
 0, so the identity is always written explicitly.
@@ -35,18 +37,21 @@ class Db3Writer:
 
     ``depth_scale`` None records colour only. ``depth_intrinsics`` default: the colour intrinsics (depth
     already aligned); ``depth_to_colour`` = (rotation 9 values row-major, translation 3 values in metres),
-    default identity. ``accel_fps``: also record an accelerometer stream at this rate (``write_accel``).
+    default identity. ``accel_fps``: also record an accelerometer stream at this rate (``write_accel``);
+    ``gyro_fps`` (with ``accel_fps``): a gyro stream too (``write_gyro``).
     """
 
     def __init__(self, path: str | os.PathLike, intrinsics: Intrinsics, fps: float,
                  depth_scale: float | None = None, depth_intrinsics: Intrinsics | None = None,
                  depth_to_colour: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
                  serial: str = "posed-recording", name: str = "posed recording",
-                 accel_fps: int | None = None) -> None:
+                 accel_fps: int | None = None, gyro_fps: int | None = None) -> None:
         self.path = Path(path)
         if self.path.suffix.lower() != ".db3":
             raise SourceUnsupported(f"{self.path}: librealsense 2.59 records ROS 2 .db3 files only; name the "
                                     "output NAME.db3", str(self.path))
+        if gyro_fps is not None and accel_fps is None:
+            raise ValueError("a gyro stream needs the accelerometer's beside it: give accel_fps too")
         rs = import_rs()
         self._rs = rs
         if self.path.exists():
@@ -77,25 +82,26 @@ class Db3Writer:
             self._depth_profile.register_extrinsics_to(self._colour_profile, ext)
         self._accel_sensor = None
         self._accel_profile = None
+        self._gyro_profile = None
         if accel_fps is not None:
             ms = dev.add_sensor("Motion Module")
-            m = rs.motion_stream()
-            m.type, m.index, m.uid = rs.stream.accel, 0, 2
-            m.fps, m.fmt = max(1, int(accel_fps)), rs.format.motion_xyz32f
-            m.intrinsics = rs.motion_device_intrinsic()
-            self._accel_profile = ms.add_motion_stream(m)
+            self._accel_profile = ms.add_motion_stream(_motion_stream(rs, rs.stream.accel, 2, accel_fps))
+            if gyro_fps is not None:
+                self._gyro_profile = ms.add_motion_stream(_motion_stream(rs, rs.stream.gyro, 3, gyro_fps))
             self._accel_sensor = ms
         self._device = dev
         self._recorder: Any = rs.recorder(str(self.path), dev)
         self._sensors = [s for s in (self._depth_sensor, cs, self._accel_sensor) if s is not None]
+        motion = [p for p in (self._accel_profile, self._gyro_profile) if p is not None]
         for sensor, profile in ((self._depth_sensor, self._depth_profile), (cs, self._colour_profile),
-                                (self._accel_sensor, self._accel_profile)):
+                                (self._accel_sensor, motion)):
             if sensor is not None:
                 sensor.open(profile)
                 sensor.start(_ignore)
         self.depth_scale = depth_scale
         self.frames = 0
         self.accel_samples = 0
+        self.gyro_samples = 0
 
     def write(self, image: np.ndarray, depth: np.ndarray | None, t_ms: float, number: int) -> None:
         """Add one colour image (BGR uint8, H x W x 3) and its depth (uint16 on the depth grid, or None)."""
@@ -116,6 +122,18 @@ class Db3Writer:
         stamped ``t_ms`` on the frames' clock."""
         if self._accel_sensor is None:
             raise ValueError("this recording has no accelerometer stream: open the writer with accel_fps")
+        self._send_motion(self._accel_profile, t_ms, xyz, self.accel_samples)
+        self.accel_samples += 1
+
+    def write_gyro(self, t_ms: float, xyz: tuple[float, float, float]) -> None:
+        """Add one gyro sample (angular rate, rad/s, right-handed, depth sensor axes), stamped ``t_ms`` on the
+        frames' clock."""
+        if self._gyro_profile is None:
+            raise ValueError("this recording has no gyro stream: open the writer with accel_fps and gyro_fps")
+        self._send_motion(self._gyro_profile, t_ms, xyz, self.gyro_samples)
+        self.gyro_samples += 1
+
+    def _send_motion(self, profile: Any, t_ms: float, xyz: tuple[float, float, float], number: int) -> None:
         rs = self._rs
         v = rs.vector()
         v.x, v.y, v.z = (float(c) for c in xyz)
@@ -123,10 +141,9 @@ class Db3Writer:
         f.data = v
         f.timestamp = float(t_ms)
         f.domain = rs.timestamp_domain.hardware_clock
-        f.frame_number = self.accel_samples
-        f.profile = self._accel_profile.as_motion_stream_profile()
+        f.frame_number = int(number)
+        f.profile = profile.as_motion_stream_profile()
         self._accel_sensor.on_motion_frame(f)
-        self.accel_samples += 1
 
     def _send(self, sensor: Any, profile: Any, pixels: np.ndarray, bpp: int, t_ms: float, number: int,
               depth_units: float | None = None) -> None:
@@ -168,6 +185,14 @@ class Db3Writer:
 
 def _ignore(_frame: Any) -> None:
     """Sensor callback: the recorder taps the frames; nothing else needs them."""
+
+
+def _motion_stream(rs: Any, kind: Any, uid: int, fps: int) -> Any:
+    m = rs.motion_stream()
+    m.type, m.index, m.uid = kind, 0, uid
+    m.fps, m.fmt = max(1, int(fps)), rs.format.motion_xyz32f
+    m.intrinsics = rs.motion_device_intrinsic()
+    return m
 
 
 def _video_stream(rs: Any, kind: Any, uid: int, k: Intrinsics, fps: int, fmt: Any, bpp: int) -> Any:

@@ -10,8 +10,9 @@ Per frame: the colour image (BGR), depth aligned to colour by ``rs.align(rs.stre
 ``depth_scale`` metres, from the depth sensor), the colour intrinsics (valid for the aligned depth too), and
 with ``source.imu`` on a camera or recording that has an accelerometer (D435i, D455) the direction of gravity
 (:mod:`hal.imu`: low-passed samples stamped up to the colour frame's time, turned into the colour camera's
-axes by the depth -> colour rotation). Live, the motion sensor is opened on its own beside the pipeline, so
-its 63-250 samples per second never crowd colour framesets out of the pipeline's one-frameset queue.
+axes by the depth -> colour rotation; with the motion sensor's gyro, when it has one, turned with the camera
+between them). Live, the motion sensor is opened on its own beside the pipeline, so its 63-250 accelerometer
+and 200-400 gyro samples per second never crowd colour framesets out of the pipeline's one-frameset queue.
 Playback delivers every colour frame of the recording exactly once, with the depth frame recorded with it;
 frame numbers not above the last one delivered are skipped (a playback re-opened after a stall starts the
 file again) and counted as ``duplicates``. Live, a frameset repeating the last colour frame is skipped too.
@@ -51,7 +52,7 @@ from posed.hal.errors import (
     SourceUnsupported,
 )
 from posed.hal.frame import Frame
-from posed.hal.imu import GravityEstimate, find_accel, rotation_of, sample_sink
+from posed.hal.imu import GravityEstimate, find_accel, find_gyro, rotation_of, sample_sink
 from posed.hal.replay import Timeline
 from posed.hal.rs_playback import PlaybackPipeline
 from posed.hal.source import Source
@@ -80,8 +81,9 @@ class RealSenseSource(Source):
     ``pipeline_factory`` is the seam for tests that script stalls around the real pipeline: live it is called
     with no argument and must return an ``rs.pipeline`` (default, or a subclass); for a recording it is called
     with the pyrealsense2 module and must return a :class:`PlaybackPipeline` (default, or a subclass).
-    ``info`` adds serial, device name, size, fps, depth scale, intrinsics and the counters timeouts, reopens,
-    reopen_failures, hardware_resets, disconnects, duplicates, passes.
+    ``info`` adds serial, device name, size, fps, depth scale, intrinsics, ``imu`` and ``gyro`` (off | none |
+    streaming | error: ...) and the counters timeouts, reopens, reopen_failures, hardware_resets, disconnects,
+    duplicates, passes.
     """
 
     kind = "realsense"
@@ -107,6 +109,7 @@ class RealSenseSource(Source):
         self._gravity: GravityEstimate | None = None   # this start's accelerometer filter, when there is one
         self._imu_sensor: Any = None                   # live: the motion sensor opened beside the pipeline
         self.imu = "off" if not config.imu else "none"  # off | none (no accelerometer) | streaming | error: ...
+        self.gyro = self.imu                            # off | none (no gyro: accelerometer only) | streaming | ...
 
     # -- Source -------------------------------------------------------------------------------------------
     def _open(self) -> None:
@@ -135,7 +138,7 @@ class RealSenseSource(Source):
                 "depth_scale": self.depth_scale, "colour_format": self.colour_format,
                 "depth_alignment": getattr(self, "_depth_mode", "none"),
                 "intrinsics": self.intrinsics.to_json() if self.intrinsics else None, "imu": self.imu,
-                **(self._gravity.counters() if self._gravity is not None else {}),
+                "gyro": self.gyro, **(self._gravity.counters() if self._gravity is not None else {}),
                 "realtime": self.config.realtime if self.playback else True}
 
     def _has_depth(self) -> bool:
@@ -250,6 +253,7 @@ class RealSenseSource(Source):
         if self.playback is not None:
             has_accel = rs.stream.accel in streams
             self.imu = "streaming" if has_accel else "none"
+            self.gyro = "streaming" if has_accel and rs.stream.gyro in streams else "none"
             if self._gravity is not None:
                 self._gravity.rotation = rotation
             if not has_accel:
@@ -257,19 +261,21 @@ class RealSenseSource(Source):
             return
         found = find_accel(rs, dev)
         if found is None:
-            self.imu, self._gravity = "none", None
+            self.imu, self.gyro, self._gravity = "none", "none", None
             return
         sensor, profile = found
+        gyro = find_gyro(rs, sensor)   # on the accelerometer's motion sensor (D435i, D455), at its lowest rate
         self._gravity = GravityEstimate(rotation)
         try:
-            sensor.open(profile)
+            sensor.open(profile if gyro is None else [profile, gyro])
             sensor.start(sample_sink(rs, self._gravity))
         except RuntimeError as exc:  # busy (another program streams it) or lost: colour and depth go on
-            self.imu, self._gravity = f"error: {exc}", None
+            self.imu, self.gyro, self._gravity = f"error: {exc}", f"error: {exc}", None
             _stop_quietly(sensor, close=True)
             return
         self._imu_sensor = sensor
         self.imu = "streaming"
+        self.gyro = "none" if gyro is None else "streaming"
 
     def _stop(self) -> None:
         sensor, self._imu_sensor = self._imu_sensor, None

@@ -7,7 +7,8 @@ The output format follows the name given:
 ``NAME.avi``           MJPG video + sidecar (small, lossy)
 ``NAME.mp4``           MPEG-4 part 2 video + sidecar (small, lossy)
 ``NAME.db3``           RealSense recording: colour + depth aligned to colour, intrinsics, depth scale, and
-                       the accelerometer's gravity (one sample per frame that carried it)
+                       the accelerometer's gravity (one sample per frame that carried it; from a camera
+                       with a gyro, its turn between frames as a gyro stream too)
                        (needs intrinsics: a RealSense source, or source.fx for others)
 ``NAME`` (no suffix)   a folder of PNG images + ``NAME/timestamps.jsonl``
 =====================  ===========================================================================
@@ -26,6 +27,7 @@ the disk than were written, ``frames`` and the sidecar are cut to those the file
 from __future__ import annotations
 
 import errno
+import math
 import os
 import sqlite3
 import time
@@ -46,6 +48,7 @@ from posed.hal.source import Source
 VIDEO_CODECS = {".mkv": "FFV1", ".avi": "MJPG", ".mp4": "mp4v"}
 # a first guess of a frame's encoded size, as a fraction of its raw BGR size (generous: a guess too small
 # lets one frame be lost; too large only stops a recording on a nearly full disk a frame early)
+GYRO_STEP_S = 0.05        # a recording's gyro samples are at most this far apart (hal.imu.GYRO_MAX_GAP_S is 0.1 s)
 FIRST_GUESS = {"FFV1": 1.0, "MJPG": 0.2, "mp4v": 0.2, "png": 0.8, "db3": 1.0}
 DISK_RESERVE_BYTES = 256 * 1024     # kept free: the index written at close, buffered output, sidecar lines
 DISK_FULL = "disk full"
@@ -221,7 +224,11 @@ class _ImageSink(_Sink):
 class _Db3Sink(_Sink):
     format = "db3"
 
-    def __init__(self, path: Path, first: Frame, fps: float, source: str) -> None:
+    def __init__(self, path: Path, first: Frame, fps: float, source: str, gyro: bool = False) -> None:
+        """``gyro``: the source's gravity comes with a gyro's (``info["gyro"]`` streaming): record a gyro stream
+        too, the turn from each frame's gravity to the next (``write``), so that the replay's filter turns its
+        average with the camera as the live one did, and gives the recorded gravity again rather than a
+        low-passed copy of it."""
         from posed.hal.db3 import Db3Writer
 
         if first.intrinsics is None:
@@ -233,7 +240,10 @@ class _Db3Sink(_Sink):
         self.has_depth = first.depth is not None
         # always an accelerometer stream: the first frames of an IMU carry no gravity yet (hal.imu.MIN_SAMPLES)
         self.writer = Db3Writer(path, k, fps, depth_scale=first.depth_scale if self.has_depth else None,
-                                accel_fps=max(1, int(round(fps))))
+                                accel_fps=max(1, int(round(fps))),
+                                gyro_fps=int(round(1.0 / GYRO_STEP_S)) if gyro else None)
+        self.gyro = gyro
+        self._last_down: tuple[float, np.ndarray] | None = None   # (t_ms, unit down) of the last gravity
         self.t0 = first.t
         self.size = (first.width, first.height)
         self.guess = _guess(first, "db3")
@@ -244,8 +254,32 @@ class _Db3Sink(_Sink):
             depth = np.zeros((frame.height, frame.width), np.uint16)  # a frame without depth: 0 = unknown
         t_ms = (frame.t - self.t0) * 1000.0
         if frame.gravity is not None:  # before the colour frame: playback folds samples up to its time
+            if self.gyro:
+                self._write_turn(t_ms, np.asarray(frame.gravity, dtype=np.float64))
             self.writer.write_accel(t_ms, tuple(-G_M_S2 * c for c in frame.gravity))
         self.writer.write(frame.image, depth, t_ms, frame.seq)
+
+    def _write_turn(self, t_ms: float, down: np.ndarray) -> None:
+        """Gyro samples that turn the last frame's down into this one's: the smallest rotation between them at a
+        constant rate (a down d seen from a camera turning at w moves as dd/dt = -w x d, so w is along
+        -(d0 x d1)), in steps of at most ``GYRO_STEP_S`` (hal.imu integrates no longer gap); the first frame's
+        sample only starts the gyro's clock. Colour axes: posed record writes depth already on the colour grid
+        (identity extrinsics), so they are the depth sensor's."""
+        last, self._last_down = self._last_down, (t_ms, down / float(np.linalg.norm(down)))
+        if last is None:
+            self.writer.write_gyro(t_ms, (0.0, 0.0, 0.0))
+            return
+        t0, d0 = last
+        dt_s = (t_ms - t0) / 1000.0
+        if not dt_s > 0:
+            return
+        axis = np.cross(d0, self._last_down[1])
+        s = float(np.linalg.norm(axis))
+        angle = math.atan2(s, float(d0 @ self._last_down[1]))
+        rate = -axis / s * angle / dt_s if s > 0 else np.zeros(3)
+        n = max(1, math.ceil(dt_s / GYRO_STEP_S - 1e-9))
+        for i in range(1, n + 1):
+            self.writer.write_gyro(t0 + (t_ms - t0) * i / n, (float(rate[0]), float(rate[1]), float(rate[2])))
 
     def close(self) -> None:
         self.writer.close()
@@ -307,7 +341,8 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
                 if sink is None:
                     if sink_type is not _ImageSink:
                         folder.mkdir(parents=True, exist_ok=True)
-                    sink = sink_type(path, frame, fps, source.name)
+                    sink = sink_type(path, frame, fps, source.name, **(
+                        {"gyro": dict(source.info).get("gyro") == "streaming"} if sink_type is _Db3Sink else {}))
                 _check_room(folder, sink.need())
                 sink.write(frame)
             except _DiskFull:

@@ -12,9 +12,9 @@ The playback device starts reading when its first sensor starts, and drops frame
 yet; so once all are started the file is rewound (``seek(0)``) and the frames already seen come again: a frame
 not later than the last one of its stream is a repeat and is dropped.
 
-A recording's accelerometer stream (a D435i's, or what ``posed record`` wrote) is played too when ``start`` is
-given a ``motion`` callback: its frames go to that callback (:func:`hal.imu.sample_sink`) as they are read,
-never into the queue, and never hold the reader back.
+A recording's accelerometer stream (a D435i's, or what ``posed record`` wrote), and its gyro stream when it has
+one, are played too when ``start`` is given a ``motion`` callback: their frames go to that callback
+(:func:`hal.imu.sample_sink`) as they are read, never into the queue, and never hold the reader back.
 
 It offers the part of the ``rs.pipeline`` interface :mod:`hal.realsense` uses (``start``,
 ``try_wait_for_frames``, ``stop``) plus ``finished()``: the file has been read and every frame handed out.
@@ -76,7 +76,8 @@ class PlaybackPipeline:
 
     # -- life cycle ---------------------------------------------------------------------------------------
     def start(self, path: str, depth: bool, motion: Callable[[Any], None] | None = None) -> PlaybackProfile:
-        """Play ``path``: colour (and its depth when ``depth``); accelerometer frames to ``motion``, if given."""
+        """Play ``path``: colour (and its depth when ``depth``); accelerometer and gyro frames to ``motion``, if
+        given."""
         rs = self._rs
         self._motion = motion
         self._ctx = rs.context()
@@ -84,15 +85,16 @@ class PlaybackPipeline:
         self._playback = dev.as_playback()
         self._playback.set_real_time(False)  # before streaming: the reader then waits for the callbacks
         wanted = (rs.stream.color, rs.stream.depth) if depth else (rs.stream.color,)
+        motion_streams = (rs.stream.accel, rs.stream.gyro)
         if motion is not None:
-            wanted += (rs.stream.accel,)
+            wanted += motion_streams
         chosen: dict[Any, tuple[Any, Any]] = {}
         for sensor in dev.query_sensors():
             for p in sensor.get_stream_profiles():
                 if p.stream_type() in wanted and p.stream_type() not in chosen:
                     chosen[p.stream_type()] = (sensor, p)
         self._has_depth = rs.stream.depth in chosen
-        periods = [1000.0 / p.fps() for kind, (_, p) in chosen.items() if p.fps() > 0 and kind != rs.stream.accel]
+        periods = [1000.0 / p.fps() for kind, (_, p) in chosen.items() if p.fps() > 0 and kind not in motion_streams]
         self._tolerance_ms = 0.5 * max(periods) if periods else 0.0
         by_sensor: dict[int, tuple[Any, list[Any]]] = {}
         for sensor, p in chosen.values():
@@ -145,7 +147,7 @@ class PlaybackPipeline:
         if last is not None and (ts < last[0] or (ts, number) == last):
             return  # seen before the rewind
         self._last[stream] = (ts, number)
-        if stream == self._rs.stream.accel:
+        if stream in (self._rs.stream.accel, self._rs.stream.gyro):
             if self._motion is not None:
                 self._motion(frame)
             return

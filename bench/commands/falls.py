@@ -72,7 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "room (nod: +-12 deg every 6 s); comma-separated, or all. Each is scored with the "
                              "default config, the home mount configured as measured, and the true mount of every "
                              "frame given through FallDetector.set_camera_mount, with and without its height, "
-                             "and the head's accelerometer as hal.imu filters it (bench/falls_moving.py); "
+                             "and the head's accelerometer as hal.imu filters it, alone (imu) and with the camera's gyro "
+                             "(imu_gyro: BMI055-like noise and bias) (bench/falls_moving.py); "
                              "--synthetic-geometry does not apply")
 
 

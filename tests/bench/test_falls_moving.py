@@ -176,6 +176,60 @@ def test_the_head_s_accelerometer_lags_a_nodding_head_as_a_first_order_low_pass(
     assert len(lag) > 30 and 4.0 < max(lag) <= NOD.amplitude_deg * w * tau / math.hypot(1.0, w * tau) + 0.5
 
 
+def test_the_head_s_gyro_rate_is_the_turn_of_the_camera_s_axes():
+    """bench.falls_moving.head_rate against the camera's own axes (WorldCamera.axes, rows: the camera's x, y, z
+    in the room): a camera whose room-to-camera rotation C turns at rate w (its axes) has dC/dt = -[w]x C, so
+    [w]x = -(dC/dt) C^T, here by a central difference; with a roll, the tilt axis is not the camera's x."""
+    from posed.bench.falls_body import WorldCamera
+    from posed.bench.falls_moving import head_rate
+
+    for tilt, roll, rate in ((12.0, 0.0, 30.0), (20.0, -7.0, -45.0), (-5.0, 4.0, 10.0)):
+        h = 1e-6
+        c0, c1 = WorldCamera(tilt=tilt - rate * h, roll=roll).axes, WorldCamera(tilt=tilt + rate * h, roll=roll).axes
+        c = WorldCamera(tilt=tilt, roll=roll).axes
+        wx = -((c1 - c0) / (2 * h)) @ c.T
+        np.testing.assert_allclose(wx, -wx.T, atol=1e-6)                 # skew: a rotation
+        want = np.array([wx[2, 1], wx[0, 2], wx[1, 0]])
+        got = head_rate(tilt - rate * h, tilt + rate * h, roll, 2 * h)
+        np.testing.assert_allclose(got, want, atol=1e-6)
+        assert np.linalg.norm(got) == pytest.approx(math.radians(abs(rate)))
+
+
+def test_the_head_s_gyro_removes_the_lag_within_its_bias_times_tau():
+    """The imu_gyro arm's gravity under the nod (12.6 deg/s at most). A noiseless, unbiased gyro: the frame's
+    down within the turn between the last gyro sample and the frame plus what the accelerometer's pull adds
+    from samples taken up to 1/63 s before the gyro's last turn (the target of each pull is then behind the
+    average by at most 12.6 deg/s * 5 ms = 0.06 deg): 0.1 deg. With the scene's BMI055-like gyro (noise
+    0.014 deg/s/sqrt(Hz), a bias within +-1 deg/s per axis): the bias's component across down, |b x d|, holds
+    the average |b x d| * tau off (tests/hal/test_imu_gyro.py), the noise adds 0.014 * sqrt(tau / 2) = 0.007
+    deg (1 sigma): within |b x d| * tau + 0.15 deg, against the accelerometer-only filter's lag of up to 5.6 deg
+    (the test above)."""
+    from posed.bench.falls_moving import gyro_bias, imu_downs, imu_gyro_downs
+
+    mc = moving_cases(["tune"], "nod", only="tune/adl/lie-on-bed-side/normal-v30")[0]
+    exact = imu_gyro_downs(mc, noise_density_deg_s=0.0, bias_deg_s=0.0)
+    noisy = imu_gyro_downs(mc)
+    accel = imu_downs(mc)
+    bias = gyro_bias(mc.case.name.removeprefix("nod/"))
+    assert np.all(np.abs(bias) <= math.radians(1.0)) and np.linalg.norm(bias) > 0
+    worst_gyro = worst_accel = 0.0
+    for fr, cam, d0, d1, da in zip(mc.case.frames, mc.cameras, exact, noisy, accel, strict=True):
+        if fr.t < 3.0:
+            continue
+        truth = true_down(cam)
+        assert _angle(d0, truth) < 0.1, fr.t
+        across = float(np.linalg.norm(np.cross(bias, truth)))
+        assert _angle(d1, truth) < math.degrees(across * 0.5) + 0.15, fr.t
+        worst_gyro = max(worst_gyro, _angle(d1, truth))
+        worst_accel = max(worst_accel, _angle(da, truth))
+    assert worst_accel > 4.0 and worst_gyro < worst_accel / 4.0
+
+
+def _angle(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return math.degrees(math.acos(float(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0))))
+
+
 def test_static_arms_score_as_the_fall_benchmark_does():
     """With the head still, the default and measured arms are `posed bench falls --synthetic-geometry default`
     and `given`: the same outcome, scenario by scenario (ground-truth joints)."""
@@ -237,8 +291,8 @@ def test_the_protocol_on_the_command_line(capsys):
     report = json.loads(capsys.readouterr().out)
     assert code == 0
     assert list(report["results"]) == ["static", "nod"] and report["fit"] == "truth"
-    arms = ["default", "measured", "robot", "robot_down", "imu"] if has_camera_mount() else \
-        ["default", "measured", "imu"]
+    arms = ["default", "measured", "robot", "robot_down", "imu", "imu_gyro"] if has_camera_mount() else \
+        ["default", "measured", "imu", "imu_gyro"]
     for motion in ("static", "nod"):
         assert [a for a in report["results"][motion] if "skipped" not in report["results"][motion][a]] == arms
         for arm in arms:
