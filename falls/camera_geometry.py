@@ -18,7 +18,9 @@ down. Heights are metres along ``g``.
   distance along the gravity in use), else its distance
   below the camera learned from the ankles of a person standing or sitting upright, or from the stance foot of
   one walking upright (``learn_floor``; used after ``FLOOR_MIN_WEIGHT`` observations), else ``camera_height_m``
-  (0: unknown).
+  (0: unknown). A height in true metres (the robot's, a configured one marked measured) is judged in the fit's
+  metres once the feet of people standing upright gave their ratio (:meth:`CameraGeometry.fit_scale`; not with a
+  depth floor, whose fit is metric).
 * **Standing pelvis height**: learned from a person standing upright (after ``STAND_MIN_WEIGHT``
   observations); moved with the floor when the learned floor replaces the configured one
   (``shift_standing_pelvis``).
@@ -104,6 +106,8 @@ class CameraGeometry:
         self._floor_weight = 0.0
         self._stand: float | None = None          # standing pelvis height (m), learned
         self._stand_weight = 0.0
+        self._scale: float | None = None          # the fit's metres per true metre, learned (fit_scale)
+        self._scale_weight = 0.0
         mode = cfg.camera_geometry
         self.measured = mode == "measured" or (mode == "auto" and (cfg.camera_tilt_deg, cfg.camera_roll_deg,
                                                                    cfg.camera_height_m) != DEFAULT_GEOMETRY)
@@ -137,6 +141,7 @@ class CameraGeometry:
             # what was seen meanwhile was measured along the robot's gravity and above its floor: not kept
             self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
             self._stand, self._stand_weight = None, 0.0
+            self._scale, self._scale_weight = None, 0.0   # learned against the robot's height
             restored = self.restored
             if before is None or self.restore(before) is not None:   # the same configured values: as it was
                 self._refresh()
@@ -155,6 +160,7 @@ class CameraGeometry:
             self._use(self._robot[0])
             return False
         self._before_robot = self.state()
+        self._scale, self._scale_weight = None, 0.0   # learned against another height: learned again
         self._robot = (g / n, h, dict(evidence or {}))
         changed = self._refresh()
         self._use(self._robot[0])             # as it comes, even within a step of the gravity in use
@@ -316,9 +322,11 @@ class CameraGeometry:
             self._floor_learned = float(self._floor_point @ g)
             if previous == "config":
                 self._stand, self._stand_weight = None, 0.0
+                self._scale, self._scale_weight = None, 0.0
         else:
             self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
             self._stand, self._stand_weight = None, 0.0
+            self._scale, self._scale_weight = None, 0.0
         self._use(g)
         return True
 
@@ -331,9 +339,10 @@ class CameraGeometry:
     @property
     def floor_below_camera(self) -> float | None:
         """The floor's distance below the camera along gravity (m): the robot's, measured in the depth image,
-        learned or configured; None unknown."""
+        learned or configured; None unknown. In the fit's metres: a measured height in true metres (the robot's,
+        a configured one marked measured) is multiplied by the fit's scale once it is known (:meth:`fit_scale`)."""
         if self._robot is not None and self._robot[1] is not None:
-            return self._robot[1]
+            return self._in_fit_metres(self._robot[1])
         depth = self._depth_height()
         if depth is not None:
             return depth
@@ -342,7 +351,36 @@ class CameraGeometry:
         if self._gravity_from == "body" and not self.measured:
             return None   # the body contradicted the configured guess: its height is no better (lowest joint)
         # (a height configured on its own, with the tilt left at 0, is a measurement: kept along the body's gravity)
-        return self._floor_cfg
+        return self._in_fit_metres(self._floor_cfg) if self.measured else self._floor_cfg
+
+    def _true_metres_floor(self) -> float | None:
+        """The floor height in true metres that the fit's scale is learned against: the robot's height, else the
+        configured height of a mount marked measured; None with a depth floor (the fit has the depth image
+        then: its metres are true ones) or without a measured height."""
+        if self._depth is not None:
+            return None
+        if self._robot is not None:
+            return self._robot[1]
+        return self._floor_cfg if self.measured else None
+
+    def fit_scale(self) -> float | None:
+        """The fit's metres per true metre (after ``FLOOR_MIN_WEIGHT`` observations; None before, and with a
+        depth floor): without depth the fit's lengths follow the body height it assumes
+        (``fitting.body_height_m``), and so does every distance it places a body at, so the floor it sees under
+        a standing person's feet is this share of the true one."""
+        if self._depth is not None or self._scale is None or self._scale_weight < FLOOR_MIN_WEIGHT:
+            return None
+        return self._scale
+
+    def _in_fit_metres(self, height_m: float | None) -> float | None:
+        s = self.fit_scale()
+        return height_m if height_m is None or s is None else s * height_m
+
+    @property
+    def floor_scaled(self) -> bool:
+        """Whether :attr:`floor_below_camera` is a true-metre height put in the fit's metres (:meth:`fit_scale`)."""
+        src = self.floor_source
+        return (src == "robot" or (src == "config" and self.measured)) and self.fit_scale() is not None
 
     def metric_floor(self) -> float | None:
         """The floor's distance below the camera (m) when it was *measured*: the depth floor, else the configured
@@ -365,14 +403,21 @@ class CameraGeometry:
         return h / c if c > math.cos(math.radians(30.0)) else None
 
     def observe_floor(self, below_camera_m: float, ankles_c: np.ndarray | None = None,
-                      ankle_height_m: float = 0.0) -> None:
+                      ankle_height_m: float = 0.0, standing: bool = False) -> None:
         """The floor seen below the feet of a person standing or sitting upright (m below the camera); ``ankles_c``
         (their ankles' point, camera axes) and ``ankle_height_m`` (the ankles' height above the floor) keep it as a
         point on the floor, so that a refined body gravity re-projects it instead of forgetting it. Feet at or
         above the camera's height are no floor (the gravity in use is wrong, as a guess 20 deg or more off puts
-        feet a few metres away): dropped."""
+        feet a few metres away): dropped. ``standing``: a person standing upright on straight legs, whose ankles
+        are an ankle's height above the floor by anatomy; with a height in true metres for this mount (the
+        robot's, a configured one marked measured; no depth floor) the two give the fit's scale
+        (:meth:`fit_scale`). Seated feet (on a footrest, tucked under a sofa) and a walker's lower ankle (the
+        swing foot lifts) teach the floor, not the scale."""
         if self.cfg.learn_floor and below_camera_m > 0.0:   # feet above the camera: the gravity in use is wrong
             self._floor_learned, self._floor_weight = _ema(self._floor_learned, self._floor_weight, below_camera_m)
+            true_m = self._true_metres_floor()
+            if standing and true_m is not None:
+                self._scale, self._scale_weight = _ema(self._scale, self._scale_weight, below_camera_m / true_m)
             if ankles_c is not None and np.all(np.isfinite(ankles_c)):
                 w = min(self._floor_weight, EMA_MAX_WEIGHT)
                 p = np.asarray(ankles_c, float) + ankle_height_m * self.gravity   # on the floor
@@ -380,8 +425,10 @@ class CameraGeometry:
                     self._floor_point + (p - self._floor_point) / w
 
     def forget_floor(self) -> None:
-        """The learned floor is not under the person any more (another level): learn it again from their feet."""
+        """The learned floor is not under the person any more (another level): learn it again from their feet, and
+        the fit's scale, learned from the same feet."""
         self._floor_learned, self._floor_weight, self._floor_point = None, 0.0, None
+        self._scale, self._scale_weight = None, 0.0
 
     def observe_standing_pelvis(self, height_m: float) -> None:
         """The pelvis height above the floor of a person standing upright (m)."""
@@ -485,7 +532,8 @@ class CameraGeometry:
         return {"height_m": round(h, 4), **{k: v for k, v in evidence.items() if k != "height_m"}}
 
     def summary(self) -> dict:
-        """Tilt and roll (deg), floor below the camera (m, None unknown), where each comes from (config,
+        """Tilt and roll (deg), floor below the camera (m, None unknown; a measured height as given, in true
+        metres, though it is judged in the fit's: :meth:`fit_scale`), where each comes from (config,
         learned, robot, imu, depth, body; height: robot, depth, learned, config, unknown), the depth floor's
         evidence (``depth_floor``: height, tilt, roll, inliers, residual, age, ... when there is one), the robot's
         (``robot_mount``: height, age, source, ... while it gives the pose), whether the configured values are
@@ -498,7 +546,10 @@ class CameraGeometry:
         extra = {} if self._depth is None else {"depth_floor": self._depth_evidence()}
         if self._robot is not None:
             extra["robot_mount"] = self._robot_evidence()
-        return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": self.floor_below_camera,
+        floor = self.floor_below_camera
+        if floor is not None and self.floor_scaled:   # shown as given (true metres), judged in the fit's
+            floor /= self.fit_scale()
+        return {"tilt_deg": tilt, "roll_deg": roll, "floor_below_camera_m": floor,
                 "tilt_from": src or ("learned" if l_tilt is not None and self.cfg.camera_tilt_auto
                                      else "body" if body else "config"),
                 "roll_from": src or ("learned" if l_roll is not None and self.cfg.camera_roll_auto

@@ -402,17 +402,18 @@ class FallDetector:
         standing = upright_trunk and f.upright_legs
         seated = upright_trunk and f.seated_trunk_up_c is not None
         walking = upright_trunk and f.straight_body
-        source, before = geo.floor_source, geo.floor_below_camera
+        source, before, scaled = geo.floor_source, geo.floor_below_camera, geo.floor_scaled
         if (standing or seated) and f.below_camera_ankles is not None:
             geo.observe_floor(f.below_camera_ankles + ANKLE_OVER_LEG * f.leg_length, f.ankles_c,
-                              ANKLE_OVER_LEG * f.leg_length)
+                              ANKLE_OVER_LEG * f.leg_length, standing=standing)
         elif walking and f.below_camera_low_ankle is not None:
             # walking (legs extended, trunk upright, a knee may be bent in its swing): the lower ankle is the
             # stance foot, on the floor
             geo.observe_floor(f.below_camera_low_ankle + ANKLE_OVER_LEG * f.leg_length, f.low_ankle_c,
                               ANKLE_OVER_LEG * f.leg_length)
         floor = geo.floor_below_camera
-        switched = geo.floor_source != source
+        # another floor: another source, or a true-metre height now put in the fit's metres (CameraGeometry.fit_scale)
+        switched = geo.floor_source != source or geo.floor_scaled != scaled
         delta = floor - before if switched and floor is not None and before is not None else 0.0
         if delta:
             geo.shift_standing_pelvis(delta)   # measured against the old floor
