@@ -25,27 +25,12 @@ def angle_deg(a, b) -> float:
 
 
 def reference(samples, t_query, rotation, tau, tol, min_samples):
-    """A plain re-statement of the filter: samples in time order up to t_query, skip |a| far from g, down =
-    -R a, exponential average with weight 1 - exp(-dt / tau), normalized."""
-    mean, t_last, n = None, None, 0
-    for t, a in samples:
-        if t > t_query:
-            break
-        a = np.asarray(a, float)
-        if abs(np.linalg.norm(a) - G_M_S2) > tol * G_M_S2:
-            continue
-        down = -(rotation @ a)
-        if mean is None:
-            mean = down
-        else:
-            dt = min(max(t - t_last, 0.0), 10 * tau)
-            w = 1 - math.exp(-dt / tau) if dt > 0 else 1 / (n + 1)
-            mean = mean + w * (down - mean)
-        t_last = t if t_last is None else max(t_last, t)
-        n += 1
-    if mean is None or n < min_samples:
-        return None
-    return mean / np.linalg.norm(mean)
+    """A plain re-statement of the accelerometer-only filter: samples in time order up to t_query, skip |a| far
+    from g, down = -R a, exponential average with weight 1 - exp(-dt / tau), normalized (the gyro filter's
+    reference, tests/hal/test_imu_gyro.py, without gyro samples)."""
+    from tests.hal.test_imu_gyro import reference as with_gyro
+
+    return with_gyro(samples, [], t_query, rotation, tau, tol, min_samples)
 
 
 def test_filter_matches_the_reference_and_skips_bumps():
