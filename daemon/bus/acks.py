@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 
+from posed.daemon.bus.inbound import payload_text, text_field
 from posed.daemon.proc.throttle import shown
 from posed.falls import FALL_STATES
 
@@ -40,14 +41,7 @@ class Ack:
 
 def parse_ack_message(payload: bytes | str) -> Ack:
     """The acknowledgement in a payload; raises :class:`BadAck`."""
-    if isinstance(payload, str):
-        payload = payload.encode("utf-8", "surrogatepass")
-    if len(payload) > MAX_PAYLOAD_BYTES:
-        raise BadAck(f"payload of {len(payload)} bytes, more than {MAX_PAYLOAD_BYTES}")
-    try:
-        raw = payload.decode("utf-8").strip()
-    except UnicodeDecodeError as exc:
-        raise BadAck(f"payload is not UTF-8 text (byte {exc.start})") from None
+    raw = payload_text(payload, MAX_PAYLOAD_BYTES, BadAck).strip()
     state = by = None
     if raw.startswith("{"):
         try:
@@ -76,13 +70,4 @@ def parse_ack_message(payload: bytes | str) -> Ack:
 def _by(value) -> str | None:
     """The ``by`` of an acknowledgement: None when absent, null or blank; raises :class:`BadAck` when it is not
     bounded printable text."""
-    if value is None:
-        return None
-    if not isinstance(value, str):
-        raise BadAck(f'"by" must be text (who acknowledged), not {type(value).__name__}')
-    value = value.strip()
-    if len(value) > MAX_BY_CHARS:
-        raise BadAck(f'"by" of {len(value)} characters is too long (at most {MAX_BY_CHARS})')
-    if not value.isprintable():
-        raise BadAck('"by" holds control characters')
-    return value or None
+    return None if value is None else text_field(value, "by", MAX_BY_CHARS, BadAck, "who acknowledged")

@@ -25,6 +25,7 @@ import json
 import math
 from dataclasses import dataclass
 
+from posed.daemon.bus.inbound import payload_text, text_field
 from posed.daemon.proc.throttle import shown
 from posed.falls.features import gravity_from_tilt
 
@@ -60,14 +61,7 @@ class CameraMount:
 
 def parse_camera_mount(payload: bytes | str) -> CameraMount:
     """The camera pose in a payload; raises :class:`BadMount`."""
-    if isinstance(payload, str):
-        payload = payload.encode("utf-8", "surrogatepass")
-    if len(payload) > MAX_PAYLOAD_BYTES:
-        raise BadMount(f"payload of {len(payload)} bytes, more than {MAX_PAYLOAD_BYTES}; expected {EXPECTED}")
-    try:
-        text = payload.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise BadMount(f"payload is not UTF-8 text (byte {exc.start}); expected {EXPECTED}") from None
+    text = payload_text(payload, MAX_PAYLOAD_BYTES, BadMount, EXPECTED)
     try:
         obj = json.loads(text)
     except (ValueError, RecursionError):       # RecursionError: nested deeper than Python's limit
@@ -146,12 +140,5 @@ def _down(value) -> tuple[float, float, float]:
 
 
 def _source(value) -> str | None:
-    """The free-text ``source``: bounded printable text (None when blank)."""
-    if not isinstance(value, str):
-        raise BadMount(f'"source" must be text, not {type(value).__name__}')
-    value = value.strip()
-    if len(value) > MAX_SOURCE_CHARS:
-        raise BadMount(f'"source" of {len(value)} characters is too long (at most {MAX_SOURCE_CHARS})')
-    if not value.isprintable():
-        raise BadMount('"source" holds control characters')
-    return value or None
+    """The free-text ``source``: bounded printable text (None when blank; null is not text)."""
+    return text_field(value, "source", MAX_SOURCE_CHARS, BadMount)
