@@ -5,7 +5,6 @@ learned before it, and None goes back to the other sources as they were."""
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -16,6 +15,7 @@ from posed.falls.camera_geometry import CameraGeometry
 from posed.falls.config import FallsConfig
 from posed.falls.detector import FallDetector
 from posed.falls.features import gravity_from_tilt
+from tests.falls.scene_runs import judge_scene
 
 EVIDENCE = {"age_s": 0.05, "source": "tf:base_link->camera_color_optical_frame", "samples": 12}
 
@@ -145,15 +145,10 @@ WALL = {sc.name: sc for sc in catalogue("tune", "wall")}
 
 
 def _run(sc, robot: bool):
-    counter = itertools.count()
-    det = FallDetector(FallsConfig(), "r1", fit_frame="camera", id_factory=lambda: f"ev{next(counter)}")
-    cam = sc.camera
-    out = []
-    for fr in frames(sc):
-        if robot:
-            det.set_camera_mount(gravity_from_tilt(cam.tilt, cam.roll), cam.z, EVIDENCE)
-        out += det.update(truth_result(fr, cam), fr.landmarks, (cam.width, cam.height), cam.intrinsics)
-    return det, out
+    def mount(det, cam):
+        det.set_camera_mount(gravity_from_tilt(cam.tilt, cam.roll), cam.z, EVIDENCE)
+
+    return judge_scene(sc, mount if robot else None)
 
 
 def test_a_person_found_lying_on_a_wall_camera_is_found_with_the_robots_pose():

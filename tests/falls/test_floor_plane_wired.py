@@ -4,7 +4,6 @@ one; an IMU still gives the gravity, the depth floor then the height; each event
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import replace
 
@@ -17,6 +16,7 @@ from posed.falls.config import FallsConfig
 from posed.falls.detector import FallDetector
 from posed.falls.features import gravity_from_tilt
 from posed.falls.geometry import tilt_roll_deg
+from tests.falls.scene_runs import judge_scene
 
 EVIDENCE = {"inliers": 2400, "fraction": 0.61, "rms_m": 0.007, "age_s": 0.4}
 
@@ -97,15 +97,10 @@ WALL = {sc.name: sc for sc in catalogue("tune", "wall")}
 
 
 def _run(sc, depth_floor: bool):
-    counter = itertools.count()
-    det = FallDetector(FallsConfig(), "r1", fit_frame="camera", id_factory=lambda: f"ev{next(counter)}")
-    cam = sc.camera
-    out = []
-    for fr in frames(sc):
-        if depth_floor:           # the landmark stage's plane, refreshed every frame (0.5 mm, 0.1 deg of noise)
-            det.set_floor_plane(gravity_from_tilt(cam.tilt + 0.1, cam.roll - 0.1), cam.z + 0.0005, EVIDENCE)
-        out += det.update(truth_result(fr, cam), fr.landmarks, (cam.width, cam.height), cam.intrinsics)
-    return det, out
+    def plane(det, cam):      # the landmark stage's plane, refreshed every frame (0.5 mm, 0.1 deg of noise)
+        det.set_floor_plane(gravity_from_tilt(cam.tilt + 0.1, cam.roll - 0.1), cam.z + 0.0005, EVIDENCE)
+
+    return judge_scene(sc, plane if depth_floor else None)
 
 
 @pytest.mark.parametrize("name", ["wall/tune/fall/standing-sideways/fast-v30",
