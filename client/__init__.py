@@ -8,8 +8,8 @@ robot's own software puts (where the camera is: ``PosedClient.set_camera_mount``
 """
 
 __all__ = ["Alive", "CameraMount", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError",
-           "Restored", "RestoredFall", "State", "Status", "Watch", "camera_mount_message", "mount_from_rotation",
-           "quaternion_matrix", "restored", "session_config", "without_frames_s"]
+           "PrivacyState", "Restored", "RestoredFall", "State", "Status", "Watch", "camera_mount_message",
+           "mount_from_rotation", "quaternion_matrix", "restored", "session_config", "without_frames_s"]
 _API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 _MOUNT = {"CameraMount", "camera_mount_message", "mount_from_rotation", "quaternion_matrix"}
 

@@ -10,6 +10,7 @@ and the robot's capture clock (monotonic seconds, only meaningful on that robot)
 from __future__ import annotations
 
 import json
+import math
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -25,8 +26,24 @@ HISTORY_LIMIT = 10000                      # the daemon's largest accepted limit
 JSON = "application/json"
 
 
+PARAMETER_CHARS = (";", "&", "=", "#", "?")   # what a Zenoh selector's parameter value cannot hold
+
+
+def _error_text(payload: bytes) -> str:
+    """An error reply's text: a ``posed.error`` message's ``error`` (what is wrong and how to fix it)."""
+    try:
+        obj = t.loads(payload)
+    except ValueError:
+        return payload.decode(errors="replace")
+    return str(obj.get("error") or obj)
+
+
 class PosedClientError(RuntimeError):
     """The client cannot do what was asked (no connection, a query error); the message says what to do."""
+
+
+class NoAnswerError(PosedClientError):
+    """Nobody answered the query in time (no daemon for that robot, or the bus's access control keeps it away)."""
 
 
 @dataclass(frozen=True)
@@ -263,6 +280,51 @@ class PosedClient:
             if time.monotonic() >= deadline:
                 return False
             time.sleep(0.3)
+
+    # ------------------------------------------------------------------ a pause for privacy
+    def pause(self, for_s: float, by: str | None = None, *, robot: str | None = None,
+              timeout: float = 5.0) -> t.PrivacyState:
+        """Ask ``robot``'s daemon to stop watching for ``for_s`` seconds (its ``posed/ROBOT/privacy/pause``; None:
+        the one robot whose daemon is up), said to be asked by ``by`` (free text, at most 64 printable
+        characters). A pause replaces the running one (its start is kept); one longer than the robot's
+        ``privacy.max_pause_s`` is cut to it (``clamped``); 0 resumes now. Returns the robot's answer; raises
+        :class:`PosedClientError` with the daemon's reason and fix when it refuses (pausing not allowed, a fall
+        not acknowledged) or does not answer within ``timeout`` seconds, ``ValueError`` on a bad argument."""
+        if isinstance(for_s, bool) or not isinstance(for_s, (int, float)) or not math.isfinite(for_s) or for_s < 0:
+            raise ValueError(f"for_s={for_s!r}: give how long to pause in seconds (e.g. 900), or 0 to resume")
+        return self._privacy(f"for={float(for_s)!r}", by, robot, timeout)
+
+    def resume(self, by: str | None = None, *, robot: str | None = None, timeout: float = 5.0) -> t.PrivacyState:
+        """End ``robot``'s pause for privacy now (always allowed; nothing happens when none runs): the robot's
+        answer, ``paused`` False. ``by``, ``robot`` and ``timeout`` as for :meth:`pause`."""
+        return self._privacy("for=0", by, robot, timeout)
+
+    def _privacy(self, params: str, by: str | None, robot: str | None, timeout: float) -> t.PrivacyState:
+        if by is not None:
+            if not isinstance(by, str) or any(c in by for c in PARAMETER_CHARS) or not by.isprintable():
+                raise ValueError(f"by={by!r}: printable text without {' '.join(PARAMETER_CHARS)} (Zenoh selector "
+                                 "parameters cannot carry them)")
+            if by.strip():
+                params += f";by={by.strip()}"
+        if robot is None:
+            up = self.robots(timeout=min(timeout, 2.0))
+            if not up:
+                raise NoAnswerError("no posed daemon is up on this bus: is it running (posed run), and is this "
+                                       "the right endpoint? Or name the robot with robot=")
+            if len(up) > 1:
+                raise PosedClientError(f"{len(up)} robots are up ({', '.join(up)}): say which with robot=")
+            robot = up[0]
+        key = _one_robot(robot, "privacy/pause")
+        replies = self.session.get(f"{key}?{params}", consolidation=zenoh.ConsolidationMode.NONE, timeout=timeout)
+        errors = []
+        for reply in replies:
+            if reply.ok is not None:
+                return t.PrivacyState.from_json(t.loads(reply.ok.payload.to_bytes()), robot)
+            errors.append(_error_text(reply.err.payload.to_bytes()))
+        if errors:
+            raise PosedClientError(f"robot {robot}: {'; '.join(errors)}")
+        raise NoAnswerError(f"no answer from robot {robot!r} on {key} within {timeout} s: is its daemon running "
+                               "(posed run), and may this program query it (the bus's access control)?")
 
     def set_camera_mount(self, robot: str, *, down=None, tilt_deg: float | None = None,
                          roll_deg: float | None = None, height_m: float | None = None, valid_s: float = 1.0,

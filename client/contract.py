@@ -25,6 +25,7 @@ FORMATS = {
     "posed.ack": "ack",                       # what a receiver puts on posed/ROBOT/events/ack
     "posed.error": "error",                   # an error reply to a query
     "posed.camera_mount": "camera_mount",     # what the robot's software puts on posed/ROBOT/camera/mount
+    "posed.privacy": "privacy",               # reply to a query on posed/ROBOT/privacy/pause
 }
 FIT_RESULT = "fit_result"                     # `posed fit` output and the core of posed.pose (no format field)
 SCHEMA_NAMES = (*FORMATS.values(), FIT_RESULT)

@@ -4,8 +4,9 @@
   ``image_size``, ``timing_ms``, ``root_cam_m``, ``format``, ``version`` ...);
 * fall event -> :class:`falls.FallEvent` (``extra`` keeps ``time_unix``, ``t_onset_unix``, ``t_impact_unix``,
   ``restored``, ``without_frames_s``: read them typed with :func:`restored` and :func:`without_frames_s`);
-* status -> :class:`Status` (``raw`` keeps the whole object; ``restored_open`` and ``watch`` typed,
+* status -> :class:`Status` (``raw`` keeps the whole object; ``restored_open``, ``watch`` and ``privacy`` typed,
   ``not_watching``);
+* a pause for privacy (the reply to ``PosedClient.pause``/``resume``) -> :class:`PrivacyState`;
 * landmarks -> :class:`Landmarks`: ``points``, ``depth_m``, ``world``, ``people`` (each a
   :class:`PersonLandmarks`), ``gravity``, ``floor``, and ``raw``, the whole object as received;
 * a stored event -> :class:`HistoryEntry`; a state reply -> :class:`State` (``raw`` keeps the whole object).
@@ -131,9 +132,36 @@ def _text(v) -> str | None:
     return v if isinstance(v, str) and v else None
 
 
+@dataclass(frozen=True)
+class PrivacyState:
+    """A robot's pause for privacy: the reply to a pause or resume (``posed.privacy``, :meth:`PosedClient.pause`)
+    or the status's ``privacy`` (:attr:`Status.privacy`). Times in unix seconds; ``since_unix``, ``until_unix``
+    and ``by`` (who asked; None when not said) are None while not paused; ``clamped``: the pause asked for was
+    longer than ``max_pause_s`` (the robot's ``privacy.max_pause_s``) and was cut to it; ``remaining_s`` seconds
+    left when the message was made. ``raw``: the whole object (``last``, the last pause that ended, in a status)."""
+
+    robot: str
+    paused: bool
+    since_unix: float | None
+    until_unix: float | None
+    by: str | None
+    clamped: bool = False
+    max_pause_s: float | None = None
+    remaining_s: float | None = None
+    raw: dict = field(repr=False, default_factory=dict)
+
+    @classmethod
+    def from_json(cls, obj: dict, robot: str = "") -> PrivacyState:
+        if not isinstance(obj.get("paused"), bool):
+            raise ValueError("not a pause for privacy: no boolean 'paused'")
+        return cls(str(obj.get("robot") or robot), obj["paused"], _number(obj.get("since_unix")),
+                   _number(obj.get("until_unix")), _text(obj.get("by")), obj.get("clamped") is True,
+                   _number(obj.get("max_pause_s")), _number(obj.get("remaining_s")), obj)
+
+
 # the daemon's rule for "posed is not watching" (daemon.outbox.watch_hooks.judge, hooks.on_watch_lost), for a
 # status without ``watch`` (an older posed, or one still starting)
-NOT_WATCHING_STATES = ("blind", "waiting_for_camera", "degraded", "escalated")
+NOT_WATCHING_STATES = ("blind", "waiting_for_camera", "degraded", "escalated", "paused")
 CAMERA_GONE = ("lost", "ended")
 
 
@@ -156,7 +184,7 @@ class Status:
 
     @property
     def not_watching(self) -> str | None:
-        """Why posed cannot see a fall now (the state — blind, waiting_for_camera, degraded, escalated — or
+        """Why posed cannot see a fall now (the state — blind, waiting_for_camera, degraded, escalated, paused — or
         the camera lost or ended), None while it watches: the status's ``watch`` as the daemon judged it; for a
         status without one (an older posed, or one still starting) the daemon's ``hooks.on_watch_lost`` rule
         judged on this one status (``starting`` and ``stopping`` count as watching there)."""
@@ -167,6 +195,16 @@ class Status:
         if self.camera in CAMERA_GONE:
             return f"camera {self.camera}"
         return None
+
+    @property
+    def privacy(self) -> PrivacyState | None:
+        """The robot's pause for privacy (the status's ``privacy``; state ``paused`` while one runs), None from a
+        posed without it."""
+        obj = self.raw.get("privacy") if isinstance(self.raw, dict) else None
+        try:
+            return PrivacyState.from_json(obj, self.robot) if isinstance(obj, dict) else None
+        except ValueError:
+            return None
 
     @property
     def robot_id_conflict(self) -> tuple[str, ...]:

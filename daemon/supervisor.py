@@ -11,8 +11,9 @@ ring), spawns the stage processes (spawn context), and then loops every 0.1 s:
   the capture stage start reading frames (``go``), so warm-up drops no frame of a replay;
 * status every ``pipeline.status_period_s``: per-stage fps, latency, drops, restarts, CPU and memory, camera
   state -> the publisher (posed/ROBOT/status) and STATUS= for systemd; WATCHDOG=1 while every stage is healthy;
-  ``state`` is starting, running, waiting_for_camera (ready, but the camera cannot be opened or was lost:
-  the capture stage retries), blind (the source is open but no frame reaches the landmark stage:
+  ``state`` is starting, running, paused (for privacy: the publisher's pause, or the capture stage's camera
+  closed for one; never blind then, and STATUS= says until when), waiting_for_camera (ready, but the camera
+  cannot be opened or was lost: the capture stage retries), blind (the source is open but no frame reaches the landmark stage:
   :mod:`daemon.proc.blind`; ``blind`` in the status has the reason and the fix, STATUS= says it and one error
   line per ``logging.stats_period_s`` names them), degraded (a stage dead or stuck), escalated or stopping;
 * a recording replayed with ``pipeline.stop_at_end`` none of whose frames was processed ends the daemon with
@@ -97,6 +98,7 @@ class Supervisor:
         self._blind = BlindWatch(self._consumer or "landmarks", blind_after_s(config.pipeline.target_fps))
         self._problem: dict | None = None        # the capture stage's last reported problem {error, fix}
         self._conflict: dict | None = None       # the publisher's zenoh.robot_id_conflict: our robot id used twice
+        self._privacy: dict = {}                 # the publisher's pause for privacy (PrivacyKeeper.status)
         self.models = models_in_use(config)      # the status's "models": read once, from the manifest
         self.time_zone = robot_zone()            # the status's "time_zone": the zone people read times in
         self._next_blind_log = 0.0
@@ -237,6 +239,8 @@ class Supervisor:
                 self._problem = dict(info["problem"])
             if "robot_id_conflict" in info:
                 self._conflict = info["robot_id_conflict"]
+            if "privacy" in info:
+                self._privacy = dict(info["privacy"] or {})
             if "fatal" in info:
                 self._fatal(slot.spec.name, info["fatal"], info.get("fix", ""))
 
@@ -371,7 +375,7 @@ class Supervisor:
         if self._consumer is None:
             return
         was = self._blind.blind
-        camera = self.control.board.row("capture").camera
+        camera = "paused" if self.paused() else self.control.board.row("capture").camera
         blind = self._blind.update(now, self._ready_sent, camera, self._counts(), self._problem)
         if blind is not None and (was is None or now >= self._next_blind_log):
             self._next_blind_log = now + self.config.logging.stats_period_s
@@ -381,6 +385,22 @@ class Supervisor:
             self.log.info("blind_ended", note="frames reach the landmark stage again")
 
     # ------------------------------------------------------------------ status
+    def paused(self) -> bool:
+        """Paused for privacy: the publisher says a pause runs (and its end has not passed), or the capture stage
+        has closed the camera for one. Never blind then, and the state says ``paused``."""
+        p = self._privacy
+        if p.get("paused") and float(p.get("until_unix") or 0.0) > time.time():
+            return True
+        return "capture" in self._slots and self.control.board.row("capture").camera == "paused"
+
+    def _privacy_field(self) -> dict:
+        """The status's ``privacy`` as the supervisor knows it (the publisher's own status refreshes it)."""
+        out = dict(self._privacy) or {"allow_pause": self.config.privacy.allow_pause,
+                                      "max_pause_s": float(self.config.privacy.max_pause_s), "paused": False}
+        if out.get("paused") and out.get("until_unix") is not None:
+            out["remaining_s"] = round(max(0.0, float(out["until_unix"]) - time.time()), 1)
+        return out
+
     def _publish_status(self, now: float) -> None:
         status = self.status(now)
         self.last_status = status
@@ -443,6 +463,8 @@ class Supervisor:
             state = "starting"
         elif not self.healthy():
             state = "degraded"
+        elif self.paused():
+            state = "paused"                    # for privacy: not watching on purpose, until it ends
         elif cap_row is not None and cap_row.camera in ("lost", "opening"):
             state = "waiting_for_camera"        # ready, but no camera to read (unplugged, wrong device)
         elif self._blind.blind is not None:
@@ -464,7 +486,8 @@ class Supervisor:
             "restarts": self.policy.total,
             "camera": {**self._camera_info, "state": cap_row.camera if cap_row else CAMERA_STATES[0],
                        "source": to_uri(self.config.source)},
-            "blind": self._blind.blind,
+            "blind": None if state == "paused" else self._blind.blind,
+            "privacy": self._privacy_field(),
             "storage": self._storage(),
             "stages": stages,
             "supervisor": sup,
@@ -568,8 +591,20 @@ def conflict_text(conflict: dict | None) -> str:
     return f"; ROBOT ID IN USE TWICE ({others}): give each posed daemon on one Zenoh network its own robot_id"
 
 
+def paused_text(privacy: dict) -> str:
+    """``PAUSED for privacy until 15:42 (by voice)``: the end in the robot's local time (daemon.timeparse)."""
+    from posed.daemon.timeparse import local_zone, until_text
+
+    until = privacy.get("until_unix")
+    when = until_text(float(until), local_zone(), zone=False) if until is not None else "?"
+    by = privacy.get("by")
+    return f"PAUSED for privacy until {when}" + (f" (by {by})" if by else "")
+
+
 def _state_text(status: dict) -> str:
     cam = status["camera"]
+    if status["state"] == "paused":
+        return f"{paused_text(status.get('privacy') or {})}; restarts {status['restarts']}"
     if status["state"] == "waiting_for_camera":
         error = f": {cam['error']}" if cam.get("error") else ""
         return (f"waiting_for_camera: {cam['source']} is not available{error}; retrying, restarts "

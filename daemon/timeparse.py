@@ -62,6 +62,15 @@ def clock_text(unix: float, tz: tzinfo) -> str:
     return datetime.fromtimestamp(unix, tz).isoformat(timespec="seconds")
 
 
+def until_text(unix: float, tz: tzinfo, now: float | None = None, zone: bool = True) -> str:
+    """When something ends, as a person reads it: ``15:42 CET`` today in ``tz``, ``2026-12-08 00:19 JST`` on
+    another day (a pause running past midnight); without the zone's name when ``zone`` is false."""
+    at = datetime.fromtimestamp(unix, tz)
+    today = datetime.fromtimestamp(time.time() if now is None else now, tz).date()
+    text = at.strftime("%H:%M" if at.date() == today else "%Y-%m-%d %H:%M")
+    return f"{text} {at.tzname() or ''}".strip() if zone else text
+
+
 def future_note(unix: float, now: float | None = None) -> str:
     """What to say of a time stamped later than ``now`` (empty when it is not): a clock that was wrong when it
     was stamped (set right later, e.g. by NTP after boot on a robot without an RTC battery) or that is wrong

@@ -9,6 +9,10 @@ floor, in progress when the report was made, or no further message) said against
 day's joint-angle ranges; the day hour by hour (one bar per hour, a cell per minute); the angle plot. Where
 posed watched nothing, nothing is counted: "not measured", never 0.
 
+The pauses for privacy (a person asked posed to stop watching for a while: the history's ``paused`` table,
+``daemon.history.paused``) are listed and summed, and counted apart: a minute paused is neither watched nor
+"not watching" (off, or no camera). A day without a pause reads as it did before pausing existed.
+
 A fall's states are said in the words of every other view (``viz.series.STATE_WORDS``: fall, on the floor,
 ALARM, got up), as the web page says them.
 """
@@ -55,11 +59,54 @@ def _hm(seconds: float) -> str:
 POSTURE_STYLE = {"standing": ("#4c9f70", ""), "sitting": ("#e0a030", "//"), "lying": ("#c0392b", "xx")}
 OTHER_STYLE = {"in view, posture not measured": ("#9fb7d0", ".."),
                "watching, nobody in view": ("#dedede", ""),
+               "paused for privacy": ("#cdc6ea", "\\\\"),
                "not watching (posed off or no camera)": ("#ffffff", "---"),
                "not seen (posed's history does not say whether it watched)": ("#ffffff", ""),
                "not yet": ("#f4f4f4", "")}
 MINUTE_STYLE = {**POSTURE_STYLE, **OTHER_STYLE}
-IN_VIEW, NOBODY, OFF, UNKNOWN, NOT_YET = OTHER_STYLE
+IN_VIEW, NOBODY, PAUSED, OFF, UNKNOWN, NOT_YET = OTHER_STYLE
+
+
+@dataclass(frozen=True)
+class DayPause:
+    """One pause for privacy as the day's report counts it, unix seconds: ``start``..``end`` the part of it in
+    the day and before the report was made; ``since_unix``, ``end_unix`` (when it stopped: ended, else the
+    earlier of ``until_unix`` and now) and ``until_unix`` (when it was due to end) the whole pause; ``by`` who
+    asked, ``ended`` how it ended (``time``, ``resumed``, ``stopped``; None: not recorded — still paused when
+    the report was made, or posed killed during it), ``resumed_by`` who asked to resume."""
+
+    start: float
+    end: float
+    since_unix: float
+    end_unix: float
+    until_unix: float
+    by: str | None
+    ended: str | None
+    resumed_by: str | None
+
+
+def day_pauses(paused: Sequence, span: tuple[float, float], now: float) -> list[DayPause]:
+    """The day's part of each pause (``PauseLog.between`` rows: objects with ``since_unix``, ``until_unix``,
+    ``ended_unix``, ``by``, ``ended``, ``resumed_by``; unix seconds) up to ``now``, in time order; pauses
+    wholly outside it left out."""
+    out = []
+    for p in paused:
+        since = float(p.since_unix)
+        stop = max(since, float(p.ended_unix) if p.ended_unix is not None else min(float(p.until_unix), now))
+        start, end = max(since, span[0]), min(stop, span[1], now)
+        if end > start:
+            out.append(DayPause(start, end, since, stop, float(p.until_unix), p.by, p.ended, p.resumed_by))
+    return sorted(out, key=lambda d: (d.start, d.end))
+
+
+def _covered(pieces: Sequence[tuple[float, float]]) -> float:
+    """Seconds covered by the (start, end) pieces, overlaps counted once."""
+    total, reach = 0.0, -np.inf
+    for a, b in sorted(pieces):
+        if b > reach:
+            total += b - max(a, reach)
+            reach = b
+    return total
 
 
 @dataclass(frozen=True)
@@ -67,13 +114,15 @@ class DayTime:
     """Where a day's time went, seconds, the future never counted: ``elapsed`` (midnight to now, or the
     whole day), ``postures`` (standing, sitting, lying: from the angle history), ``watching`` (posed received
     frames), ``person`` (of them with a person in view), ``future`` (the rest of today); ``known`` False when
-    the history has no record of when posed watched (then ``watching`` and ``person`` are None)."""
+    the history has no record of when posed watched (then ``watching`` and ``person`` are None); ``paused``
+    (paused for privacy: neither watching nor "not watching")."""
 
     elapsed: float
     postures: dict[str, float]
     watching: float | None
     person: float | None
     future: float
+    paused: float = 0.0
 
     @property
     def known(self) -> bool:
@@ -83,35 +132,50 @@ class DayTime:
         """(what, seconds) rows of the report's table, in reading order; together they make ``elapsed``."""
         seen = sum(self.postures.values())
         out = [(p, self.postures[p]) for p in posture.POSTURES]
+        paused = [(PAUSED, self.paused)] if self.paused > 0 else []
         if self.known:
             out += [(IN_VIEW, max(0.0, self.person - seen)), (NOBODY, max(0.0, self.watching - max(self.person, seen))),
-                    (OFF, max(0.0, self.elapsed - max(self.watching, seen)))]
+                    *paused, (OFF, self.off)]
         else:
-            out.append((UNKNOWN, max(0.0, self.elapsed - seen)))
+            out += [*paused, (UNKNOWN, max(0.0, self.elapsed - seen - self.paused))]
         return out
+
+    @property
+    def off(self) -> float | None:
+        """Seconds posed was not watching (off, or no camera) and not paused; None when not known."""
+        if not self.known:
+            return None
+        return max(0.0, self.elapsed - max(self.watching, sum(self.postures.values())) - self.paused)
 
 
 def day_time(summary: posture.DaySummary, watched: Sequence[tuple] | None, span: tuple[float, float],
-             now: float) -> DayTime:
-    """The day's accounting from the posture summary and the watched minutes (``WatchLog.minutes`` rows:
-    minute, frames, person, fitted, watched_s, person_s; None: not recorded) up to ``now``."""
+             now: float, paused: Sequence[DayPause] = ()) -> DayTime:
+    """The day's accounting from the posture summary, the watched minutes (``WatchLog.minutes`` rows:
+    minute, frames, person, fitted, watched_s, person_s; None: not recorded) and the day's pauses for privacy
+    (``day_pauses``) up to ``now``."""
     until = min(span[1], now)
     elapsed = max(0.0, until - span[0])
     postures = {p: summary.seconds[p] for p in posture.POSTURES}
+    held = min(elapsed, _covered([(p.start, p.end) for p in paused]))
     if watched is None:
-        return DayTime(elapsed, postures, None, None, span[1] - span[0] - elapsed)
+        return DayTime(elapsed, postures, None, None, span[1] - span[0] - elapsed, held)
     rows = [r for r in watched if span[0] <= r[0] < until]
     watching = min(elapsed, float(sum(r[4] for r in rows)))
     person = min(watching, float(sum(r[5] for r in rows)))
-    return DayTime(elapsed, postures, watching, person, span[1] - span[0] - elapsed)
+    return DayTime(elapsed, postures, watching, person, span[1] - span[0] - elapsed, held)
 
 
 def minute_states(summary: posture.DaySummary, watched: Sequence[tuple] | None, span: tuple[float, float],
-                  now: float) -> list[str]:
-    """One state per minute of the day (``MINUTE_STYLE``'s keys): the posture seen longest in it, else in
-    view with no posture measured, nobody in view, not watching, not seen (unknown), or not yet."""
+                  now: float, paused: Sequence[DayPause] = ()) -> list[str]:
+    """One state per minute of the day (``MINUTE_STYLE``'s keys): the posture seen longest in it, else paused
+    for privacy (when the pause took at least as much of the minute as posed watched of it), in view with no
+    posture measured, nobody in view, not watching, not seen (unknown), or not yet."""
     n = int(round((span[1] - span[0]) / 60.0))
     seconds = [dict.fromkeys(posture.POSTURES, 0.0) for _ in range(n)]
+    held = [0.0] * n                        # seconds of each minute paused for privacy
+    for p in paused:
+        for i in range(max(0, int((p.start - span[0]) // 60)), min(n, int(np.ceil((p.end - span[0]) / 60)))):
+            held[i] += max(0.0, min(p.end, span[0] + 60.0 * (i + 1)) - max(p.start, span[0] + 60.0 * i))
     for r in summary.runs:
         t = r.start
         while t < r.end:
@@ -130,6 +194,8 @@ def minute_states(summary: posture.DaySummary, watched: Sequence[tuple] | None, 
             out.append(best)
         elif t >= now:
             out.append(NOT_YET)
+        elif held[i] > 0 and held[i] >= (row[4] if row is not None else 0.0):
+            out.append(PAUSED)
         elif watched is None:
             out.append(UNKNOWN)
         elif row is None or row[4] <= 0:
@@ -219,7 +285,7 @@ def angle_ranges(series: AngleSeries) -> list[tuple[str, int, float, float, floa
 def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: dt.tzinfo, *, robot: str,
                sources: str, max_step_s: float = 1.0, watched: Sequence[tuple] | None = None,
                now: float | None = None, down=None, in_progress_s: float | None = None,
-               stamped_later: int = 0) -> str:
+               stamped_later: int = 0, paused: Sequence = ()) -> str:
     """The HTML text of the day's report. ``series`` on the robot's clock (unix seconds), ``falls`` the
     day's episodes (journal), ``sources`` a line naming the files it was made from, ``watched`` the minutes
     posed watched (``WatchLog.minutes`` rows; None: this history does not record them), ``now`` the time
@@ -228,7 +294,8 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
     ``in_progress_s``: a fall whose last message is younger than this when the report is made is "in
     progress" (default: the fall detector's default ``alarm_after_s`` plus ``IN_PROGRESS_MARGIN_S``);
     ``stamped_later``: fall events of the journal outside this day stamped later than ``now`` (a clock that was
-    wrong), said so that a fall hidden on a day still to come is not missed.
+    wrong), said so that a fall hidden on a day still to come is not missed; ``paused``: the pauses for privacy
+    that overlap the day (``PauseLog.between`` rows), listed, summed and counted apart from "not watching".
 
     Samples stamped later than ``now`` are not counted (the robot's clock was wrong when they were stored, or
     is wrong now), and said; falls so stamped are listed, never "in progress"."""
@@ -245,7 +312,8 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         keep = series.time <= now + CLOCK_SLACK_S
         series = AngleSeries(series.time[keep], {k: v[keep] for k, v in series.angles.items()}, series.clock)
     summary = posture.summarise(series.time, series.angles, span, max_step_s, down)
-    acct = day_time(summary, watched, span, now)
+    pauses = day_pauses(paused, span, now)
+    acct = day_time(summary, watched, span, now, pauses)
 
     def fmt(t: float) -> str:
         return clock(t, tz)
@@ -260,6 +328,7 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
              f"({esc(zone_text(tz, start, end))}){_day_length(start, end)}."
              f" Covers {esc(so_far)}. Made from {esc(sources)}.</p>"]
     parts.append(_watching_html(acct, falls))
+    parts.append(_paused_html(pauses, acct.paused, day, tz, now))
     parts.append(_stamped_later_html(later, [ep for ep in falls if ep.end > now + CLOCK_SLACK_S], stamped_later,
                                      fmt(now)))
     share_head = "share of the day so far" if acct.future > 0 else "share of the day"
@@ -273,7 +342,7 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         parts.append(f"<tr><td class='small'>{esc(NOT_YET)} (the day is not over)</td><td class='small'>"
                      f"{_hm(acct.future)}</td><td></td></tr>")
     parts.append("</table>")
-    parts.append(_png_tag(day_grid_png(minute_states(summary, watched, span, now), falls, span, tz),
+    parts.append(_png_tag(day_grid_png(minute_states(summary, watched, span, now, pauses), falls, span, tz),
                           "the day hour by hour: posture, in view, watching, not watching"))
     walk_s = sum(b.seconds for b in summary.walking_bouts)
     measured = sum(summary.seconds[p] for p in posture.POSTURES) > 0     # a posture was seen at all
@@ -281,6 +350,7 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         stands, walks = str(summary.sit_to_stand), f"{len(summary.walking_bouts)} ({_hm(walk_s)} in all)"
     else:   # nothing watched (or nobody seen): a count of 0 would read as "did not get up or walk"
         why = ("posed was not watching" if acct.known and acct.watching <= 0 else "no posture was measured")
+        why += " (paused for privacy for a while)" if acct.paused > 0 and acct.known and acct.watching <= 0 else ""
         stands = walks = f"<span class='small'>{NOT_MEASURED} ({why})</span>"
     parts.append("<h2>Activity</h2><table>"
                  f"<tr><td>sit-to-stand transitions</td><td>{stands}</td></tr>"
@@ -328,7 +398,7 @@ def day_report(series: AngleSeries, falls: Sequence[Episode], day: dt.date, tz: 
         png = plot_angles(series, [(k, PANELS[k]) for k in ("legs", "trunk")], falls, tz=tz,
                           title="Hips, knees and trunk over the day")
         parts.append("<h2>Joint angles</h2>" + _png_tag(png, "joint angles over the day"))
-    parts.append("<h2>How this is worked out</h2><div class='small'>" + _method_html(down) + "</div>")
+    parts.append("<h2>How this is worked out</h2><div class='small'>" + _method_html(down, bool(pauses)) + "</div>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
@@ -362,22 +432,57 @@ def _watching_html(acct: DayTime, falls: Sequence[Episode]) -> str:
     if acct.elapsed <= 0:
         return "<p class='notice'>This day has not begun.</p>"
     if acct.watching <= 0:
-        return ("<p class='notice warn'><b>posed was not watching at all this day</b> (off, or no camera): "
+        why = "(off, or no camera)" if acct.paused <= 0 else (
+            f"(paused for privacy for {_hm(acct.paused)}" + (", off or no camera the rest" if acct.elapsed - acct.paused >= 60
+                                                              else "") + ")")
+        return (f"<p class='notice warn'><b>posed was not watching at all this day</b> {why}: "
                 "nothing below says anything about this person.</p>")
-    off = acct.elapsed - acct.watching
+    off = acct.elapsed - acct.watching - acct.paused
     text = f"posed was watching for <b>{_hm(acct.watching)}</b> of {_hm(acct.elapsed)}"
+    if acct.paused > 0:
+        text += f"; paused for privacy for <b>{_hm(acct.paused)}</b> (below)"
     if off >= 60:
         text += f"; <b class='warn'>not watching for {_hm(off)}</b> (off, or no camera)"
     return f"<p class='notice'>{text}.</p>"
 
 
+def _paused_html(pauses: Sequence[DayPause], total: float, day: dt.date, tz: dt.tzinfo, now: float) -> str:
+    """The day's pauses for privacy, summed and listed: ``Watching paused for privacy: 45 min — 14:02–14:47,
+    asked by voice, resumed by time`` (nothing on a day without one)."""
+    if not pauses:
+        return ""
+
+    def at(t: float) -> str:
+        text = clock(t, tz, "%H:%M", short=True)
+        other = dt.datetime.fromtimestamp(t, tz).date()
+        return text if other == day else f"{text} ({'the day before' if other < day else other.isoformat()})"
+
+    items = []
+    for p in pauses:
+        if p.ended is None and p.end_unix >= now and p.until_unix > now:
+            how = f"still paused when this report was made (until {at(p.until_unix)})"
+            item = f"{at(p.since_unix)}–now"
+        else:
+            how = {"time": "resumed by time", "stopped": "ended when posed stopped",
+                   "resumed": f"resumed by {p.resumed_by}" if p.resumed_by else "resumed when asked"}.get(
+                p.ended, "its end was not recorded (posed stopped)")
+            item = f"{at(p.since_unix)}–{at(p.end_unix)}"
+        asked = f"asked by {p.by}" if p.by else "who asked was not said"
+        items.append(html.escape(f"{item}, {asked}, {how}"))
+    return (f"<p class='notice paused'>Watching paused for privacy: <b>{_hm(total)}</b> — " + "; ".join(items)
+            + ".</p>")
+
+
 def _falls_sentence(acct: DayTime, n_falls: int) -> str:
     """Falls said against the time posed was watching, never more."""
-    off = None if not acct.known else acct.elapsed - acct.watching
+    off = None if not acct.known else acct.elapsed - acct.watching - acct.paused
+    paused = f"paused for privacy for {_hm(acct.paused)}" if acct.paused > 0 else ""
     if n_falls:
         head = f"{n_falls} fall event(s) above."
         if off is not None and off >= 60:
             head += f" posed was not watching for {_hm(off)}: a fall then would not be here."
+        if paused:
+            head += f" Watching was {paused}: a fall then would not be here either."
         return head
     if not acct.known:
         return ("No fall was detected while posed was running; this history does not record when that was, so "
@@ -385,13 +490,20 @@ def _falls_sentence(acct: DayTime, n_falls: int) -> str:
     if acct.watching <= 0:
         return "<b class='warn'>posed was not watching this day: it cannot say whether anyone fell.</b>"
     text = f"No fall was detected in the {_hm(acct.watching)} posed was watching"
-    if off >= 60:
+    if off >= 60 and paused:
+        text += f"; it was {paused} and not watching for {_hm(off)}, when a fall would not have been seen"
+    elif off >= 60:
         text += f"; it was not watching for {_hm(off)}, when a fall would not have been seen"
+    elif paused:
+        text += f"; it was {paused}, when a fall would not have been seen"
     return text + "."
 
 
-def _method_html(down=None) -> str:
-    return "".join(f"<p>{html.escape(p)}</p>" for p in posture.method_text(down)) + (
+def _method_html(down=None, paused: bool = False) -> str:
+    pause = ("<p>Paused for privacy: someone at home asked posed to stop watching for a while (through the "
+             "robot: voice, app or a button); posed looked at nothing until the pause ended by its time or was "
+             "ended. Those minutes are counted apart: neither watched nor 'not watching'.</p>") if paused else ""
+    return "".join(f"<p>{html.escape(p)}</p>" for p in posture.method_text(down)) + pause + (
         "<p>Watching: posed counts, minute by minute, the frames that came through it and the seconds with a "
         "person in view. A minute with no frame is 'not watching': posed was off or had no camera, and nothing "
         "that happened then is in this report. 'In view, posture not measured': a person was there, but the "
@@ -405,4 +517,4 @@ _CSS = """body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1250px;margin:
 h1{font-size:1.5em}h2{font-size:1.15em;margin-top:1.4em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:.25em .7em;text-align:left}
 th{background:#f2f2f2}.meta,.small{color:#555;font-size:.9em}.warn{color:#c0392b}
-.notice{background:#f6f6f6;border-left:4px solid #888;padding:.4em .8em}"""
+.notice{background:#f6f6f6;border-left:4px solid #888;padding:.4em .8em}.notice.paused{border-left-color:#7e6fc0}"""

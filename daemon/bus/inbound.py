@@ -1,5 +1,6 @@
-"""What anyone on the bus may put where the daemon listens (acknowledgements, the robot's camera pose): raw bytes
-read as bounded text before any parsing, and bounded printable text fields. Each raises the caller's own error
+"""What anyone on the bus may put where the daemon listens (acknowledgements, the robot's camera pose) or ask it
+(query parameters): raw bytes read as bounded text before any parsing, bounded printable text fields, and a
+query's parameters. Each raises the caller's own error
 type (``bad``: a ValueError subclass) with a one-line message saying what is wrong."""
 
 from __future__ import annotations
@@ -32,3 +33,21 @@ def text_field(value, key: str, max_chars: int, bad: Callable[[str], Exception],
     if not value.isprintable():
         raise bad(f'"{key}" holds control characters')
     return value or None
+
+
+def query_values(params, keys: tuple[str, ...]) -> dict[str, str]:
+    """The values of ``keys`` among a query's parameters (anything with ``get(key)``, or None). Zenoh separates
+    parameters with ``;``; a URL habit (``since=2h&limit=50``) reaches the daemon as one value
+    (``since="2h&limit=50"``), which is split too rather than read as one odd value. Other keys found that way
+    are kept as well (the caller ignores or rejects them)."""
+    found: dict[str, str] = {}
+    for key in keys:
+        v = params.get(key) if params is not None else None
+        if v is None:
+            continue
+        head, *rest = str(v).split("&")
+        found.setdefault(key, head)
+        for part in rest:
+            k, _, val = part.partition("=")
+            found.setdefault(k.strip(), val)
+    return found

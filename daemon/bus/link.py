@@ -11,7 +11,9 @@ declared on it (interfaces.md section 4).
   as ``(event id, state or None)``; a payload that is not one is counted (``acks_rejected``) and logged with a
   rate limit (:class:`daemon.proc.throttle.Throttle`), so a flood cannot fill the log;
 * with ``on_mount`` (``falls.camera_mount_from_bus``) the subscriber ``camera/mount``: each payload's raw bytes go
-  to ``on_mount``, which parses them (:mod:`daemon.stages.mount_feed`); without it, no subscriber.
+  to ``on_mount``, which parses them (:mod:`daemon.stages.mount_feed`); without it, no subscriber;
+* with ``on_pause`` the queryable ``privacy/pause``: each query is read (:mod:`daemon.bus.pause_query`) and
+  handed to ``on_pause``, whose ``posed.privacy`` message (or refusal) is the reply.
 
 The session is opened after spawn and entered into the stage's ``ExitStack`` (so it is used inside ``with``);
 when it cannot be opened (client mode without a router, a busy port) ``try_open`` retries every
@@ -25,7 +27,7 @@ import contextlib
 import os
 from collections.abc import Callable
 
-from posed.daemon.bus import acks, queries
+from posed.daemon.bus import acks, pause_query, queries
 from posed.daemon.bus.listen_check import ListenPortTaken, taken_listen_problems
 from posed.daemon.bus.payloads import dumps
 from posed.daemon.bus.robot_claim import RobotIdWatch, instance_name
@@ -64,11 +66,14 @@ class BusLink:
 
     ``history(since, until, limit)`` answers ``events/history`` queries; ``on_ack(event_id, state, by)`` is called
     for each acknowledgement (on a Zenoh thread; ``state`` None: the whole event); ``on_mount(payload bytes)`` for
-    each message on ``camera/mount`` (on a Zenoh thread; None: not subscribed)."""
+    each message on ``camera/mount`` (on a Zenoh thread; None: not subscribed); ``on_pause(PauseRequest)`` for each
+    query on ``privacy/pause`` (on a Zenoh thread; the ``posed.privacy`` reply, or raises
+    :class:`daemon.bus.pause_query.PauseRefused`; None: no queryable)."""
 
     def __init__(self, cfg: ZenohConfig, robot: str, stack: contextlib.ExitStack, log, *,
                  history: queries.HistoryLookup, on_ack: Callable[[str, str | None, str | None], None],
-                 on_mount: Callable[[bytes], None] | None = None) -> None:
+                 on_mount: Callable[[bytes], None] | None = None,
+                 on_pause: Callable[[pause_query.PauseRequest], dict] | None = None) -> None:
         self.cfg = cfg
         self.topics = Topics(robot)
         self.latest = queries.LatestState()
@@ -77,6 +82,7 @@ class BusLink:
         self._history = history
         self._on_ack = on_ack
         self._on_mount = on_mount
+        self._on_pause = on_pause
         self.acks_rejected = 0          # payloads on events/ack that were not an acknowledgement
         self._throttle = Throttle()
         self.session = None
@@ -135,6 +141,8 @@ class BusLink:
         ]
         if self._on_mount is not None:
             self._keep.append(session.declare_subscriber(t.camera_mount, self._on_mount_sample))
+        if self._on_pause is not None:
+            self._keep.append(session.declare_queryable(t.privacy_pause, self._on_pause_query, complete=True))
         self._stack.callback(self.release)      # runs before the session's own exit (last in, first out)
         self._matching = False
         self.log.info("zenoh_open", zid=str(session.zid()), mode=self.cfg.mode,
@@ -268,6 +276,9 @@ class BusLink:
 
     def _on_history_query(self, query) -> None:
         queries.answer_history(query, self.topics.history, self._history, self.log)
+
+    def _on_pause_query(self, query) -> None:
+        pause_query.answer_pause(query, self.topics.privacy_pause, self._on_pause, self.log, self._throttle)
 
     def _on_mount_sample(self, sample) -> None:
         try:

@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Sequence
 
 from posed.daemon.bus import payloads
+from posed.daemon.bus.inbound import query_values
 from posed.daemon.bus.payloads import JSON_ENCODING, dumps
 
 HISTORY_DEFAULT_LIMIT = 100
@@ -59,18 +60,7 @@ def parse_history_parameters(params) -> tuple[float | None, float | None, int]:
     raises ValueError naming the bad one."""
     from posed.daemon.timeparse import parse_time
 
-    found: dict[str, str] = {}
-    for key in ("since", "until", "limit"):
-        v = params.get(key) if params is not None else None
-        if v is None:
-            continue
-        # Zenoh separates parameters with ';'. A URL habit, since=2h&limit=50, reaches us as since="2h&limit=50":
-        # split it too rather than answer that "2h&limit=50" is not a time.
-        head, *rest = str(v).split("&")
-        found.setdefault(key, head)
-        for part in rest:
-            k, _, val = part.partition("=")
-            found.setdefault(k.strip(), val)
+    found = query_values(params, ("since", "until", "limit"))      # since=2h&limit=50 read as two
 
     def get(key):
         v = found.get(key)

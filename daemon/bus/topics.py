@@ -40,6 +40,12 @@ class Topics:
         return f"{self.root}/camera/mount"
 
     @property
+    def privacy_pause(self) -> str:
+        """Queryable: the robot's software asks posed to stop watching for a while, or to resume
+        (daemon.bus.pause_query; docs/daemon.md, "Pausing for privacy")."""
+        return f"{self.root}/privacy/pause"
+
+    @property
     def alive(self) -> str:
         return f"{self.root}/alive"
 

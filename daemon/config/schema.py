@@ -22,6 +22,7 @@ from posed.daemon.config.sections import (
     HooksConfig,
     LoggingConfig,
     PipelineConfig,
+    PrivacyConfig,
     Ros2Config,
     WebConfig,
     ZenohConfig,
@@ -53,6 +54,7 @@ class Config:
     logging: LoggingConfig = LoggingConfig()
     web: WebConfig = WebConfig()
     ros2: Ros2Config = Ros2Config()
+    privacy: PrivacyConfig = PrivacyConfig()
 
 
 def source_override(uri: str) -> tuple[dict, list[ConfigProblem]]:

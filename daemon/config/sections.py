@@ -1,4 +1,5 @@
-"""Configuration sections owned by the daemon itself: ``pipeline``, ``zenoh``, ``logging`` and ``hooks``."""
+"""Configuration sections owned by the daemon itself: ``pipeline``, ``zenoh``, ``logging``, ``hooks``, ``web``,
+``ros2`` and ``privacy``."""
 
 from __future__ import annotations
 
@@ -241,4 +242,19 @@ class Ros2Config:
     body_frame_id: str = field(
         default="posed_mid_hip", metadata={"doc": "frame of a skeleton whose position is unknown (no intrinsics): "
                                                   "camera-aligned axes, origin at the person's mid-hip"}
+    )
+
+
+@dataclass(frozen=True)
+class PrivacyConfig:
+    """Pausing the watching for privacy, asked on posed/ROBOT/privacy/pause (docs/daemon.md, "Pausing for privacy")."""
+
+    allow_pause: bool = field(
+        default=True, metadata={"doc": "whether a pause may be asked for on posed/ROBOT/privacy/pause (resuming is "
+                                       "always allowed); false: every pause is refused with this key named"}
+    )
+    max_pause_s: float = field(
+        default=3600.0, metadata={"doc": "the longest pause; a longer one asked for is cut to this (the reply says "
+                                         "clamped: true); watching resumes by itself when a pause ends",
+                                  "unit": "s", "range": (60.0, 86400.0)}
     )

@@ -9,7 +9,7 @@ may drop the last uncommitted seconds, never corrupts the file — the angles ar
 
 ``maintain()`` (the publisher calls it about once a minute) averages rows older than
 ``history_downsample_after_h`` into buckets of ``history_downsample_period_s`` (``level`` 1) and deletes rows older than
-``history_retention_days``.
+``history_retention_days`` (and the pauses for privacy, table ``paused``, that ended before then).
 
 A state directory that cannot take the file (read-only, full, gone) never stops the daemon: the store then
 keeps no rows (``last_error`` says why, ``dropped`` counts the rows lost, one log line a minute at most) and
@@ -230,6 +230,10 @@ class AngleHistory:
                 with self._db:
                     self._db.execute("BEGIN")
                     deleted = self._db.execute("DELETE FROM angles WHERE wall < ?", (cutoff_gone,)).rowcount
+                    if self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'paused'"
+                                        ).fetchone():   # the pauses for privacy (daemon.history.paused) expire too
+                        self._db.execute("DELETE FROM paused WHERE COALESCE(ended_unix, until_unix) < ?",
+                                         (cutoff_gone,))
                     before = self._db.execute("SELECT count(*) FROM angles WHERE level = 0 AND wall < ?",
                                               (cutoff_old,)).fetchone()[0]
                     if before:

@@ -23,9 +23,9 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from posed.daemon.outbox.journal_rows import StoredEvent
+from posed.daemon.outbox.private import write_private
 from posed.falls.event import FallEvent
 
-FILE_MODE = 0o600
 # StoredEvent's fields besides the message (a file written by an older posed lacks the newer ones: None)
 DELIVERY_FIELDS = ("published_at", "acked_at", "acked_by", "hooks_done_at", "hooks_outcome")
 
@@ -58,21 +58,11 @@ class FallbackStore:
     def save(self, items: Iterable[StoredEvent]) -> bool:
         """Replace the file's content with ``items``; False (and ``last_error``) when it cannot be written."""
         lines = [json.dumps(dict(item.to_json(), wall=item.wall), separators=(",", ":")) for item in items]
-        tmp = self.path.with_name(self.path.name + ".tmp")
         try:
             self.path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, FILE_MODE)
-            with os.fdopen(fd, "w") as fh:
-                fh.write("\n".join(lines) + ("\n" if lines else ""))
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, self.path)
+            write_private(self.path, "\n".join(lines) + ("\n" if lines else ""))
         except OSError as exc:
             self.last_error = f"cannot write {self.path}: {exc}"
-            try:
-                tmp.unlink()
-            except OSError:
-                pass
             return False
         self.last_error = ""
         return True

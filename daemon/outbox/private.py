@@ -6,6 +6,8 @@ tightens an existing one that holds nothing but the daemon's files; a folder sha
 left alone with one warning. :func:`private_file` creates a file with mode 0600 before SQLite opens it
 (SQLite gives its ``-wal`` and ``-shm`` files the main file's mode) and tightens an existing one. Only
 files and folders this user owns are changed. systemd's ``StateDirectory=`` comes out the same way.
+:func:`write_private` replaces a small file of the daemon's (learned geometry, a pause, events kept aside)
+atomically, with mode 0600.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from pathlib import Path
 FOLDER_MODE = 0o700
 FILE_MODE = 0o600
 OWN_PREFIXES = ("events.sqlite3", "history.sqlite3",     # with -wal, -shm and *.corrupt-* siblings
-                "falls-geometry")                          # the fall detector's learned geometry per camera
+                "falls-geometry",                          # the fall detector's learned geometry per camera
+                "privacy.json")                            # a pause for privacy (daemon.stages.privacy_file)
 
 
 def private_folder(folder: Path, log=None) -> None:
@@ -65,3 +68,24 @@ def private_file(path: Path) -> None:
                 p.chmod(FILE_MODE)
         except OSError:
             pass
+
+
+def write_private(path: Path, text: str) -> None:
+    """Replace ``path``'s content with ``text`` atomically (a temporary sibling, fsync'd, renamed over it), mode
+    0600; raises OSError (a read-only, full or missing folder) and then leaves no temporary file behind (a full
+    disk would leave an empty one)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, FILE_MODE)
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except OSError:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise

@@ -3,7 +3,7 @@
 A fall monitor that cannot see cannot raise an alarm, and the carer who relies on the alarm hook would hear
 nothing either way. The status says why posed is not watching (:data:`NOT_WATCHING`: ``blind``, no frame
 gets through; ``waiting_for_camera``, unplugged or a wrong device; ``degraded``, a stage failing;
-``escalated``, too many restarts; or the camera ``lost`` or ``ended``). Once that has lasted
+``escalated``, too many restarts; ``paused``, for privacy on purpose; or the camera ``lost`` or ``ended``). Once that has lasted
 ``hooks.watch_lost_after_s`` (:class:`WatchLoss`), each hook runs once with ``POSED_WATCH=lost``; when posed
 watches again (``running`` with the camera open), once more with ``POSED_WATCH=back``. ``starting`` and
 ``stopping`` change nothing: a start is judged once it is done, a stop is someone's decision.
@@ -65,19 +65,31 @@ class WatchNotice:
 def judge(status: dict) -> tuple[str, str] | str | None:
     """Whether the status says posed is watching (the one rule of the hooks and of the status's ``watch``):
     None when it watches; ``(reason, detail)`` when it does not (``reason`` the state — blind,
-    waiting_for_camera, degraded, escalated — or ``camera lost`` / ``camera ended``; ``detail`` what the status
+    waiting_for_camera, degraded, escalated, paused (for privacy) — or ``camera lost`` / ``camera ended``; ``detail`` what the status
     said: the blind reason, the camera's error, or ``""``); ``""`` for ``UNDECIDED`` states (keep the current
     judgement)."""
     state = status.get("state")
     camera = status.get("camera") or {}
     if state in UNDECIDED:
         return ""
+    if state == "paused":
+        return "paused", paused_detail(status.get("privacy") or {})
     if state in NOT_WATCHING:
         blind = status.get("blind") or {}
         return str(state), blind.get("reason") or camera.get("error") or ""
     if camera.get("state") in CAMERA_GONE:
         return f"camera {camera['state']}", camera.get("error") or ""
     return None
+
+
+def paused_detail(privacy: dict) -> str:
+    """``paused for privacy by voice until 2026-12-07T15:42:00+01:00`` (the end in the robot's zone, ISO 8601)."""
+    from posed.daemon.timeparse import clock_text, local_zone
+
+    by = privacy.get("by")
+    until = privacy.get("until_unix")
+    text = "paused for privacy" + (f" by {by}" if by else "")
+    return text + (f" until {clock_text(float(until), local_zone())}" if until is not None else "")
 
 
 def why_not_watching(status: dict) -> str | None:

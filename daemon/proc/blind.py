@@ -49,14 +49,15 @@ class BlindWatch:
 
     def update(self, now: float, ready: bool, camera: str, counts: Counts, problem: dict | None) -> dict | None:
         """The blind verdict at ``now`` (monotonic seconds): ``camera`` is the capture stage's camera state
-        (opening, open, lost, ended), ``problem`` the capture stage's last {error, fix} or None."""
+        (opening, open, lost, ended, paused), ``problem`` the capture stage's last {error, fix} or None. Never
+        blind while ``paused`` for privacy: nothing is looked at on purpose, and the 3 s start again after it."""
         if counts.processed != self._last_processed:
             self._last_processed = counts.processed
             if counts.processed > 0:
                 self.processed_any = True
             self._since = now
             self._at_progress = counts
-        if not ready or camera in ("opening", "lost", "none") or self._since is None:
+        if not ready or camera in ("opening", "lost", "none", "paused") or self._since is None:
             self._since = now
             self._at_progress = counts
             self.blind = None

@@ -14,9 +14,10 @@ from posed.daemon.proc.mailbox import Mailbox
 
 # name -> capacity in bytes. frames: capture -> landmarks (FrameRef); landmarks: -> fitting; fits: ->
 # publisher; status: supervisor -> publisher; mount: publisher -> fitting (the robot's camera poses,
-# daemon.stages.mount_samples.MountSamples: at most 64 samples of ~250 bytes); report.<stage>: stage -> supervisor
-# (fatal errors, camera info).
-MAILBOXES = {"frames": 4096, "landmarks": 65536, "fits": 131072, "status": 65536, "mount": 32768}
+# daemon.stages.mount_samples.MountSamples: at most 64 samples of ~250 bytes); privacy: publisher -> capture (the
+# pause for privacy, daemon.stages.privacy_gate.PrivacyOrder, polled); report.<stage>: stage -> supervisor
+# (fatal errors, camera info, the publisher's pause for privacy).
+MAILBOXES = {"frames": 4096, "landmarks": 65536, "fits": 131072, "status": 65536, "mount": 32768, "privacy": 4096}
 REPORT_CAPACITY = 16384
 DOORBELLS = ("frames", "landmarks", "fits")
 

@@ -24,7 +24,7 @@ FIELDS = (
 F = {name: i for i, name in enumerate(FIELDS)}
 
 STATES = ("starting", "running", "stopping", "stopped", "fatal", "failed")
-CAMERA_STATES = ("none", "opening", "open", "lost", "ended", "error")
+CAMERA_STATES = ("none", "opening", "open", "lost", "ended", "error", "paused")   # paused: for privacy
 
 
 class HealthBoard:

@@ -24,6 +24,9 @@
   reaches the landmark stage for a while.
 * A recording is a recording, not a camera: its log line is ``recording_open`` (``camera_open`` for a
   camera) and the status' ``camera.kind`` says ``file``.
+* Paused for privacy (:class:`daemon.stages.privacy_gate.PauseGate`: the publisher's orders, privacy.json at the
+  start, the clock): a live camera is closed until the pause ends (its LED goes off), a recording's frames are
+  read and discarded (its time line runs on); camera state ``paused``. Nothing reaches the next stage.
 
 ``run_recording`` replaces capture *and* landmarks for a ``*.landmarks.jsonl`` source: it reads the
 recording (``landmarks.recording``) and sends LandmarkMsg straight to the fitting stage, with capture
@@ -99,11 +102,31 @@ def run(rt: StageRuntime) -> None:
     news = _News(rt)
     unplugged = False
     unexpected = 0                  # reads in a row that failed with something other than a SourceError
+    gate = _gate(rt)                # a pause for privacy: a camera closed, a recording's frames discarded
+    live = src_cfg.type != "file"
+    was_paused = False
     rt.row.set_camera("opening")
     try:
         while True:
             rt.beat()
             rt.check_stop()
+            paused = gate.paused()
+            if paused != was_paused:
+                was_paused = paused
+                news.privacy(paused, gate.pause)
+                if not paused and source is not None:
+                    rt.row.set_camera("lost" if unplugged else "open")
+            if paused and live:         # the camera is closed (its LED goes off) until the pause ends
+                if source is not None:
+                    _close(source)
+                    source = None
+                    unplugged = False
+                rt.row.set_camera("paused")
+                if not reported_ready:
+                    reported_ready = True
+                    rt.ready()
+                sleep_until(clock.now() + 0.1, rt)
+                continue
             if source is None:
                 try:
                     source = hal.open_source(src_cfg)
@@ -122,7 +145,7 @@ def run(rt: StageRuntime) -> None:
                     continue
                 failures = 0
                 source.max_pixels = max(slot_px, hal.MAX_DECODE_PIXELS)   # larger: never decoded
-                rt.row.set_camera("open")
+                rt.row.set_camera("paused" if paused else "open")
                 news.opened(source)
                 if not reported_ready:
                     reported_ready = True
@@ -181,8 +204,11 @@ def run(rt: StageRuntime) -> None:
             unexpected = 0
             if unplugged:
                 unplugged = False
-                rt.row.set_camera("open")
+                rt.row.set_camera("paused" if paused else "open")
                 news.back(source)
+            if paused:                  # a recording runs on, unseen: its frames are read and discarded
+                rt.row.set_camera("paused")
+                continue
             news.frame(source, frame)
             if not thinner.take(frame.t):
                 rt.skip()
@@ -203,6 +229,16 @@ def run(rt: StageRuntime) -> None:
     finally:
         _close(source)
         rt.row.set_camera("none")
+
+
+def _gate(rt: StageRuntime):
+    """The pause for privacy as this stage sees it: the publisher's orders (the ``privacy`` mailbox), the state
+    dir's privacy.json at the start, and the clock (:class:`daemon.stages.privacy_gate.PauseGate`)."""
+    from posed.daemon.config import paths
+    from posed.daemon.stages.privacy_gate import PauseGate
+
+    box = rt.control.mailboxes.get("privacy")
+    return PauseGate(box, paths.state_dir(rt.config.pipeline), rt.log)
 
 
 def _to_ring(rt: StageRuntime, frame, slot_px: int, t_origin: float | None):
@@ -242,7 +278,8 @@ class _News:
 
     def opened(self, source) -> None:
         info = _info(source)
-        self.camera = {**info, "kind": _kind(info)}
+        paused = {k: v for k, v in self.camera.items() if k == "paused_until_unix"}    # opened during a pause
+        self.camera = {**info, "kind": _kind(info), **paused}
         self.size = None
         event = "recording_open" if self.camera["kind"] == "file" else "camera_open"
         self.rt.log.info(event, **self.camera)
@@ -283,6 +320,14 @@ class _News:
         if now >= self.next_problem or warn:
             self.next_problem = now + 0.5
             self._send()
+
+    def privacy(self, paused: bool, pause) -> None:
+        """A pause for privacy began or ended: the camera info says so (the supervisor's status)."""
+        if paused:
+            self.camera["paused_until_unix"] = round(pause.until_unix, 3)
+        else:
+            self.camera.pop("paused_until_unix", None)
+        self._send()
 
     def ended(self, source) -> None:
         self.camera.update(_info(source) if source is not None else {})
@@ -388,6 +433,8 @@ def run_recording(rt: StageRuntime) -> None:
     passes = 0
     info: dict = {}
     problem: dict | None = None
+    gate = _gate(rt)
+    was_paused = False
     while True:
         try:
             header, stream = iter_recording(src.path)
@@ -432,11 +479,17 @@ def run_recording(rt: StageRuntime) -> None:
                                     "the frame before")
             if src.realtime:
                 sleep_until(t_capture, rt, slice_s=0.05)
+            paused = gate.paused()
+            if paused != was_paused:            # paused for privacy: the recording runs on, unseen
+                was_paused = paused
+                rt.row.set_camera("paused" if paused else "open")
             if seq_first is None:
                 seq_first = item.seq
             seq = item.seq if passes == 0 else seq_offset + item.seq - seq_first
             last_seq = seq
             pass_frames += 1
+            if paused:
+                continue
             if not thinner.take(t_capture):
                 rt.skip()
                 continue

@@ -42,7 +42,6 @@ values (``falls.camera_*``); an unreadable file is set aside (``.corrupt-<unix t
 from __future__ import annotations
 
 import json
-import os
 import re
 import time
 from collections.abc import Callable
@@ -52,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from posed.daemon.messages import FitMsg
+from posed.daemon.outbox.private import write_private
 from posed.daemon.stages.depth_floor import KEEP_S as FLOOR_KEEP_S
 from posed.falls import FallDetector, FallEvent, FallsConfig
 from posed.falls.people import PeopleFalls
@@ -176,20 +176,10 @@ class FallWatch:
         if text == self._saved:
             return True
         path = self.state_file
-        tmp = path.with_name(path.name + ".tmp")
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-            with os.fdopen(fd, "w") as f:
-                f.write(text)
-                f.flush()
-                os.fsync(f.fileno())
-            tmp.replace(path)
+            write_private(path, text)
         except OSError as exc:
-            try:
-                tmp.unlink()            # a full disk leaves an empty one behind
-            except OSError:
-                pass
             if self.save_error != str(exc):
                 self.log.warning("falls_geometry_not_saved", file=str(path), error=str(exc),
                                  fix="make the state dir writable (pipeline.state_dir); detection goes on")
@@ -197,6 +187,19 @@ class FallWatch:
             return False
         self._saved, self.save_error = text, None
         return True
+
+    def start_afresh(self) -> None:
+        """Forget every person and every fall in progress (watching resumes after a pause for privacy: what was
+        followed before it says nothing of now); what was learned about the camera (its geometry) is kept."""
+        if self.people is None:
+            return
+        old = self.detector
+        fresh = FallDetector(old.cfg, old.robot_id, old.fit_frame)
+        why = fresh.camera.restore(old.camera.state())
+        if why is not None:
+            self.log.info("falls_geometry_not_restored", reason=why, when="watching resumed")
+        self.people = PeopleFalls(fresh)
+        self._save_t = None
 
     def close(self) -> None:
         """Keep what was learned (on shutdown)."""

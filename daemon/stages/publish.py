@@ -32,6 +32,12 @@ that state's message (:mod:`daemon.bus.acks`). With ``falls.camera_mount_from_bu
 ``posed/ROBOT/camera/mount``: the camera's pose from the robot (:class:`daemon.stages.mount_feed.MountFeed`),
 given to the fall detector for the frames it covers and passed on to the fitting stage (the ``mount`` mailbox).
 
+Paused for privacy (``posed/ROBOT/privacy/pause``, :class:`daemon.stages.privacy_keeper.PrivacyKeeper`): the
+queryable is answered here, the pause kept in privacy.json and handed to the capture stage (the ``privacy``
+mailbox) and to the supervisor (its report mailbox); a frame that arrives meanwhile is dropped (no pose, history
+or event), the state reply's pose is null, the status says ``paused`` and ``privacy``; the fall detector starts
+afresh when watching resumes.
+
 The session is opened here, after spawn, inside ``with``; when it cannot be opened (client mode without a
 router, a busy port) the stage keeps consuming frames, journals events and retries every
 ``zenoh.reconnect_s``.
@@ -70,11 +76,21 @@ from posed.daemon.proc.blind import blind_after_s
 from posed.daemon.stages.base import StageRuntime
 from posed.daemon.stages.fall_watch import FallWatch, geometry_file
 from posed.daemon.stages.mount_feed import MountFeed
+from posed.daemon.stages.privacy_keeper import PrivacyKeeper
 from posed.daemon.stages.restored_falls import RestoredFalls
+
+WATCHING_STATES = ("running", "blind", "waiting_for_camera")     # what a pause for privacy is said over
 
 
 class PublisherStage:
     """The parts the stage composes; ``handle`` per fit, ``periodic`` between them (monotonic seconds)."""
+
+    privacy: PrivacyKeeper | None = None     # the pause for privacy (set in __init__)
+
+    @property
+    def paused(self) -> bool:
+        """Paused for privacy now."""
+        return self.privacy is not None and self.privacy.paused
 
     def __init__(self, rt: StageRuntime, stack: contextlib.ExitStack) -> None:
         self.rt = rt
@@ -87,7 +103,8 @@ class PublisherStage:
             self.falls.mount = self.mount
         self.bus = BusLink(cfg.zenoh, cfg.robot_id, stack, rt.log,
                            history=self._stored_events, on_ack=self._acknowledge,
-                           on_mount=self.mount.on_payload if self.mount is not None else None)
+                           on_mount=self.mount.on_payload if self.mount is not None else None,
+                           on_pause=self._ask_pause)
         private_folder(paths.state_dir(cfg.pipeline), rt.log)         # health data: 0700, files 0600
         if cfg.falls.history_enabled:
             private_file(paths.history_path(cfg.pipeline))
@@ -110,9 +127,17 @@ class PublisherStage:
         self._next_reap = 0.0
         self._stack = stack
         self._conflict_said: list | None = None     # the other daemons with our robot id told the supervisor
+        self._conflict_state: dict | None = None    # ... and the conflict itself, as last told
         self.history = HistoryRecorder(
             AngleHistory(paths.history_path(cfg.pipeline), cfg.falls) if cfg.falls.history_enabled else None,
             rt.log)
+        # paused for privacy (posed/ROBOT/privacy/pause): kept in the state dir, handed to the capture stage
+        self.privacy = PrivacyKeeper(cfg.privacy, cfg.robot_id, paths.state_dir(cfg.pipeline), rt.log,
+                                     mailbox=rt.mailbox("privacy"), pause_log=_pause_log(cfg, rt.log),
+                                     open_fall=self._open_fall)
+        self._was_paused = self.privacy.paused
+        self._told_pause = self.privacy.pause       # what the supervisor was last told
+        self._report()
 
     def try_open(self, now: float) -> None:
         """Open the session when it is closed and the retry time has come; then send what waited."""
@@ -126,6 +151,8 @@ class PublisherStage:
             self.outbox.session_opened()
 
     def handle(self, msg: FitMsg) -> None:
+        if self.paused:             # a frame still in the pipeline when the pause began: never published
+            return
         pose = pose_message(msg, clock.now(), self.rt.config.robot_id)
         self.bus.put_pose(pose)
         poses = {id(msg.result): pose}
@@ -150,6 +177,7 @@ class PublisherStage:
         if status is not None:
             self.publish_status(status)
         self.bus.watch_link(now)
+        self.privacy_tick(now)
         if self.mount is not None:
             self.mount.reforward(now)
         self.falls_between_frames(now)
@@ -164,13 +192,55 @@ class PublisherStage:
         self.rt.row.set("unstored", storage["unstored_events"])
         self.rt.row.set("storage_fault", 0.0 if storage["state"] == "ok" else 1.0)
 
+    def privacy_tick(self, now: float) -> None:
+        """The pause for privacy's schedule (its end, the order to the capture stage) and what its start and end
+        change here: no pose in the state replies while paused; a fresh fall detector (the camera's learned
+        geometry kept) and a fresh frame clock when watching resumes; the supervisor told (its status and
+        systemd's STATUS= line)."""
+        self.privacy.tick(now)
+        pause = self.privacy.pause
+        if pause != self._told_pause:       # a pause began, ended, or was made longer or shorter
+            self._told_pause = pause
+            self._report()
+        paused = pause is not None
+        if paused == self._was_paused:
+            return
+        self._was_paused = paused
+        if paused:
+            self.bus.latest.set_pose(None)
+        else:
+            self.falls.start_afresh()
+            self._frame_at, self._frame_t = now, None
+
+    def _ask_pause(self, request) -> dict:
+        """A query on privacy/pause (a Zenoh thread): the keeper's answer; a pause clears the state's pose at once."""
+        message = self.privacy.ask(request)
+        if message["paused"]:
+            self.bus.latest.set_pose(None)
+        return message
+
+    def _open_fall(self) -> str | None:
+        """The id of the newest fall event that is open (its last message is not ``recovered``) and has a message
+        nobody acknowledged (a Zenoh thread: the journal is thread-safe); None when there is none."""
+        journal = self.outbox.journal
+        for event_id in reversed(list(dict.fromkeys(e.id for e in journal.unacknowledged()))):
+            stored = journal.get(event_id)
+            if stored and stored[-1].event.state != "recovered":
+                return event_id
+        return None
+
+    def _report(self) -> None:
+        """Tell the supervisor the pause for privacy and the robot id conflict together (its report mailbox keeps
+        only the latest message, so neither may replace the other)."""
+        self.rt.report(robot_id_conflict=self._conflict_state, privacy=self.privacy.status())
+
     def falls_between_frames(self, now: float) -> None:
         """The alarms due without a frame: a restored fall's when due; and when no frame has been handled for
         ``tick_after_s``, the detectors' timers run on to the capture clock's now (the monotonic clock, or for an
         unpaced replay, whose capture clock runs ahead of it, the last frame's capture time plus the time since).
         A frame that comes later, with an older capture time, raises nothing twice (FallDetector.tick)."""
         quiet = now - self._frame_at
-        frameless = quiet >= self.tick_after_s
+        frameless = quiet >= self.tick_after_s and not self.paused        # paused for privacy: nothing to time
         events = self.restored.due(now, self.falls, quiet if frameless else None)
         if frameless:
             t = now if self._frame_t is None else max(now, self._frame_t + quiet)
@@ -212,6 +282,7 @@ class PublisherStage:
         if self.restored.open:
             status["falls"]["restored_open"] = self.restored.status()
         status["storage"] = self.storage()
+        self.privacy_status(status)
         if self.ros2 is not None:
             status["ros2"] = self.ros2.status()
         now = clock.now()
@@ -221,13 +292,25 @@ class PublisherStage:
             status["watch"] = watch
         self.bus.put_status(status_message(status, self.rt.config.robot_id, now))
 
+    def privacy_status(self, status: dict) -> None:
+        """The status's ``privacy`` (the keeper's, now) and, while paused, ``state: paused`` and no ``blind``
+        (the supervisor says so too once the capture stage has closed the camera: this covers the moment
+        between)."""
+        status["privacy"] = self.privacy.status()
+        if self.privacy.paused and status.get("state") in (*WATCHING_STATES, "paused"):
+            status["state"] = "paused"
+            status["blind"] = None
+        elif not self.privacy.paused and status.get("state") == "paused":
+            status["state"] = "running"         # resumed a moment ago; the supervisor follows
+
     def report_conflict(self, conflict: dict | None) -> None:
         """Another daemon with our robot id (``zenoh.robot_id_conflict``), or its end, told to the supervisor when
         it changes: systemd's STATUS= line says it (daemon.supervisor.status_text)."""
         others = list(conflict["other_daemons"]) if conflict else None
         if others != self._conflict_said:
             self._conflict_said = others
-            self.rt.report(robot_id_conflict=conflict)
+            self._conflict_state = conflict
+            self._report()
 
     def watching(self, status: dict, now: float) -> None:
         """Whether posed watches, judged on each status once (:class:`WatchLoss`: the status's ``watch``, its
@@ -260,6 +343,7 @@ class PublisherStage:
                                     note="processes the hooks left running (setsid) ended with the publisher")
                 orphans.end(left)
         self.history.close()
+        self.privacy.close()                       # a running pause stays in privacy.json for the next start
         self.falls.close()                         # keep the geometry learned from people
 
     def _send_event(self, obj: dict) -> bool:
@@ -276,6 +360,21 @@ class PublisherStage:
 
     def _acknowledge(self, event_id: str, state: str | None, by: str | None) -> None:
         self.outbox.acknowledge(event_id, state, by)
+
+
+def _pause_log(cfg, log):
+    """The history file's record of the pauses (``PauseLog``, table ``paused``), or None without a history
+    (``falls.history_enabled`` false) or when it cannot be opened (said once; the pauses work without it)."""
+    if not cfg.falls.history_enabled:
+        return None
+    try:
+        from posed.daemon.history.paused import PauseLog
+
+        return PauseLog(paths.history_path(cfg.pipeline), log)
+    except Exception as exc:
+        log.error("pause_log_unavailable", error=repr(exc), path=str(paths.history_path(cfg.pipeline)),
+                  note="pauses for privacy work, but the daily report cannot list them")
+        return None
 
 
 def _is_resource_tracker(pid: int) -> bool:

@@ -1,11 +1,12 @@
 """``posed report --day YYYY-MM-DD [-o REPORT.html]``: the day's summary for a caregiver (viz.report).
 
-Reads the joint-angle history, the minutes posed watched (kept in the same file) and the event journal
-(read-only, like ``posed plot history``) and writes one self-contained HTML file: whether posed was watching,
-time standing, sitting, lying, in view and with nobody in view, sit-to-stand transitions, walking bouts,
-falls and how they ended, the day's joint-angle ranges, the day hour by hour and the angle plot. The day runs
-from local midnight to midnight in the robot's time zone (``--tz`` another; ``daemon.timeparse.local_zone``,
-the zone ``posed events`` and ``posed history`` print in): 23 or 25 hours the day the clocks go forward or back.
+Reads the joint-angle history, the minutes posed watched and the pauses for privacy (kept in the same file) and
+the event journal (read-only, like ``posed plot history``) and writes one self-contained HTML file: whether posed
+was watching (and when it was paused for privacy, counted apart), time standing, sitting, lying, in view and
+with nobody in view, sit-to-stand transitions, walking bouts, falls and how they ended, the day's joint-angle
+ranges, the day hour by hour and the angle plot. The day runs from local midnight to midnight in the robot's time
+zone (``--tz`` another; ``daemon.timeparse.local_zone``, the zone ``posed events`` and ``posed history`` print
+in): 23 or 25 hours the day the clocks go forward or back.
 The part of today still to come is never counted, nor what was stamped later than now (a clock set right since).
 """
 
@@ -70,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from posed.commands._history_series import angle_series, event_marks
     from posed.commands.history import history_path
     from posed.daemon.config.paths import EVENTS_FILE
+    from posed.daemon.history.paused import PauseLog
     from posed.daemon.history.store import ROW_COLUMNS, AngleHistory, HistoryFileError
     from posed.daemon.history.watched import WatchLog
     from posed.daemon.outbox.journal import EventJournal, JournalError
@@ -101,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
             rows = list(hist.rows(start, end, ROW_COLUMNS))
         with WatchLog(db, readonly=True) as watch_log:
             watched = watch_log.minutes(start, end)
+        with PauseLog(db, readonly=True) as pause_log:
+            paused = pause_log.between(start, end)
     except (FileNotFoundError, HistoryFileError) as exc:
         _err(str(exc))
         return 2
@@ -121,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
             return 1
     step = float(np.median(np.diff(series.time))) if len(series.time) > 1 else 1.0
     text = day_report(series, falls, day, tz, robot=config.robot_id, max_step_s=max(1.0, 3.0 * step),
-                      watched=watched, down=camera_down(config, db.parent), now=now, stamped_later=later,
+                      watched=watched, paused=paused, down=camera_down(config, db.parent), now=now, stamped_later=later,
                       in_progress_s=config.falls.alarm_after_s + IN_PROGRESS_MARGIN_S,
                       sources=f"{db} ({len(rows)} samples) and "
                               + (f"{journal_path}" if journal_path.is_file() else "no event journal"))

@@ -1,10 +1,15 @@
 """``posed watch [ROBOT] [--connect ENDPOINT]``: show a running daemon's poses, status and fall events (read with
-the :mod:`client` package; ``--json`` prints every raw message instead)."""
+the :mod:`client` package; ``--json`` prints every raw message instead).
+
+A robot paused for privacy (its status ``state: paused``, ``privacy``; posed/ROBOT/privacy/pause) says so on its
+line — ``PAUSED for privacy by voice until 15:42 CET`` in the robot's time zone — instead of "NOT WATCHING": a
+pause someone asked for is not a fault."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 
@@ -46,6 +51,55 @@ def open_viewer(endpoint: str, wait_s: float, quiet: bool = False):
                       "endpoint with --connect", file=sys.stderr)
                 return None
             time.sleep(0.25)
+
+
+# what the summary line says of a status whose watch is "not watching" (posed.commands._viewer.Summary.line)
+_NOT_WATCHING = re.compile(r"  NOT WATCHING \(.*?\): a fall would not be detected(?:, since \S+(?: \S+)?)?")
+_UNDECIDED = ("starting", "stopping")
+
+
+def paused_words(status: dict | None) -> str | None:
+    """``PAUSED for privacy by voice until 15:42 CET`` while ``status`` (the status message as JSON) says posed
+    is paused for privacy (``state: paused``; or ``privacy.paused`` while starting or stopping), the end in the
+    robot's time zone (its ``time_zone``; this machine's when not said); None while it is not paused."""
+    from posed.daemon.timeparse import until_text
+
+    if not isinstance(status, dict):
+        return None
+    privacy = status.get("privacy") if isinstance(status.get("privacy"), dict) else {}
+    if status.get("state") != "paused" and not (privacy.get("paused") is True
+                                                 and status.get("state") in _UNDECIDED):
+        return None
+    by, until = privacy.get("by"), privacy.get("until_unix")
+    text = "PAUSED for privacy" + (f" by {by}" if isinstance(by, str) and by and by.isprintable() else "")
+    if isinstance(until, (int, float)) and not isinstance(until, bool):
+        text += " until " + until_text(float(until), _zone(status.get("time_zone")))
+    return text
+
+
+def _zone(name):
+    """The robot's zone (an IANA name from its status), else this machine's (daemon.timeparse.local_zone)."""
+    from posed.daemon.timeparse import local_zone
+
+    try:
+        return local_zone(name if isinstance(name, str) else None)
+    except ValueError:                 # not a zone this machine knows
+        return local_zone()
+
+
+def _with_pause(summary_class):
+    """``summary_class`` (:class:`posed.commands._viewer.Summary`) whose line says a pause for privacy as one, in
+    place of "NOT WATCHING"."""
+
+    class PauseAware(summary_class):
+        def line(self, elapsed_s: float, period_s: float = 1.0) -> list[str]:
+            out = super().line(elapsed_s, period_s)
+            said = paused_words(self.status)
+            if said and out:
+                out[-1] = _NOT_WATCHING.sub("", out[-1]) + "  " + said
+            return out
+
+    return PauseAware
 
 
 class _Decoded:
@@ -120,7 +174,7 @@ def _watch(args: argparse.Namespace) -> int:
     with session:
         if args.json:
             return _print_json(session, args, t0)
-        robots = Robots(args.robot, Summary)
+        robots = Robots(args.robot, _with_pause(Summary))
         keep = _subscribe(PosedClient(session), args.robot, robots)
         print(f"posed watch: {args.connect}, robot {args.robot} (Ctrl-C to stop)", flush=True)
         next_line = t0 + 1.0

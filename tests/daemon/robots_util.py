@@ -16,6 +16,21 @@ ROOT = Path(__file__).resolve().parents[2]
 FALL = Path("falls") / "urfd_dev" / "urfd_04_fall.landmarks.jsonl"
 
 
+def log_events(out: Path, name: str) -> list[dict]:
+    """The JSON log lines in the file ``out`` (a daemon's stdout with ``logging.format=json``) whose event is
+    ``name``."""
+    found = []
+    for line in out.read_text(errors="replace").splitlines():
+        if line.startswith("{") and f'"{name}"' in line:
+            try:
+                obj = json.loads(line)
+            except ValueError:
+                continue
+            if obj.get("event") == name:
+                found.append(obj)
+    return found
+
+
 class Daemon:
     """One ``posed run`` in a session of its own (so a kill -9 of its whole group reaches only it); ``prefix``:
     what runs it (e.g. ``unshare --pid --fork``: a pid namespace of its own, as in a container); ``env``: added to
@@ -45,16 +60,7 @@ class Daemon:
 
     def events(self, name: str) -> list[dict]:
         """The log lines (JSON) whose event is ``name``."""
-        found = []
-        for line in self.out.read_text(errors="replace").splitlines():
-            if line.startswith("{") and f'"{name}"' in line:
-                try:
-                    obj = json.loads(line)
-                except ValueError:
-                    continue
-                if obj.get("event") == name:
-                    found.append(obj)
-        return found
+        return log_events(self.out, name)
 
     def journal(self) -> list[tuple]:
         """(robot, event id, state, acked_at) of every message in the daemon's journal."""

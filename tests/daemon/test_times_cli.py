@@ -127,3 +127,16 @@ def test_times_stamped_later_than_now_are_said_to_be_so(tmp_path):
     history_at(db, [time.time() - 30, ahead])
     shown = posed("history", "--db", str(db)).stdout
     assert "; the last is stamped" in shown and "later than now by this machine's clock" in shown
+
+
+def test_an_end_is_said_with_its_date_only_when_not_today_in_the_zone():
+    from zoneinfo import ZoneInfo
+
+    from posed.daemon.timeparse import until_text
+
+    tokyo = ZoneInfo("Asia/Tokyo")
+    now = dt.datetime(2026, 12, 7, 23, 40, tzinfo=tokyo).timestamp()
+    assert until_text(now + 15 * 60, tokyo, now) == "23:55 JST"
+    assert until_text(now + 40 * 60, tokyo, now) == "2026-12-08 00:20 JST"      # past midnight there
+    assert until_text(now + 40 * 60, ZoneInfo("UTC"), now) == "15:20 UTC"       # the same instant, today in UTC
+    assert until_text(now + 15 * 60, tokyo, now, zone=False) == "23:55"

@@ -8,7 +8,9 @@ angles, null when not measured), ``status`` (with ``floor``: the fall detector's
 ``watching``/``not_watching``: whether posed can see at all, with why and since when: the status's ``watch``,
 judged by the daemon (the rule of ``hooks.on_watch_lost``), else — an older posed, or one still starting — the
 same rule judged here, since when this view saw it (``since_known`` false when it was so already at the first
-status); ``restored_open``: falls taken back after a restart whose alarm is still due),
+status); ``restored_open``: falls taken back after a restart whose alarm is still due; ``paused``: while the
+status says posed is paused for privacy (``state: paused``, its ``privacy``), who asked and until when — then
+``watching`` is false but ``not_watching`` null: a pause someone asked for is said plainly, never as a fault),
 ``event`` (each fall-event message once per (id, state), with ``restored`` — taken back from the journal
 after a restart; ``clock`` when its alarm was raised at once for a stepped clock — and ``without_frames_s`` — an alarm raised with no camera frame for that long — and ``robot``, whose it is), ``acked`` (through this page,
 or learned from the robot's journal: acknowledged elsewhere), ``forget`` (events the page no longer lists:
@@ -17,8 +19,8 @@ The events held are bounded (``fall_list.FallList``): the page's window and ever
 A hub for every robot (``"*"``) lists every robot's events and keeps each robot's live parts (its last status and
 pose, its minute of angles, its liveliness and verdict: newest wins, at most ``MAX_ROBOTS`` robots); a page gets
 those of the one robot it shows (``subscribe(robot)``; poses of the others never reach it) and, for every robot,
-a ``card`` (``cards``: up or down and since when, watching or why not, frames per second, its last pose's time
-and its time zone), the changed ones at most once a tick.
+a ``card`` (``cards``: up or down and since when, watching or why not, paused for privacy, frames per second, its
+last pose's time and its time zone), the changed ones at most once a tick.
 With several people in view one person is drawn: the household member the status says is followed, else each
 frame's own person. ``snapshot()`` is what a page that opens now needs first: the last status, the last minute
 of angles, the events seen, whether the robot is up.
@@ -279,7 +281,8 @@ class Hub:
         return {"robot": live.robot, "state": v["state"], "why": v["why"],
                 "since_unix": None if v["state"] == "up" else v["since_unix"], "alive": live.alive,
                 "status": st.get("state"), "watching": st.get("watching"), "not_watching": st.get("not_watching"),
-                "fps": st.get("fps"), "time_zone": st.get("time_zone"), "unacknowledged": st.get("unacknowledged"),
+                "paused": st.get("paused"), "fps": st.get("fps"), "time_zone": st.get("time_zone"),
+                "unacknowledged": st.get("unacknowledged"),
                 "pose_unix": None if live.pose_unix is None else math.floor(live.pose_unix)}
 
     def default_robot(self) -> str | None:
@@ -464,9 +467,11 @@ class Hub:
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
                "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
                "storage": storage_of(status.raw), "restored_open": restored_open_of(status.raw),
-               "time_zone": zone_of(status.raw)}
+               "time_zone": zone_of(status.raw), "paused": paused_of(status.raw)}
         watch = watch_of(status.raw)
         why = not_watching(status.raw) if watch is None else watch[0]
+        if msg["paused"] is not None:       # asked for: said as a pause (the page's banner), not as a fault
+            why = None
         with self._lock:
             live.follow = followed if isinstance(followed, int) and not isinstance(followed, bool) else None
             if why == "":       # starting or stopping: the judgement so far stands
@@ -481,7 +486,7 @@ class Hub:
             else:
                 live.not_watching = (why, *live.not_watching[1:])
             nw = live.not_watching
-            msg["watching"] = nw is None
+            msg["watching"] = nw is None and msg["paused"] is None
             msg["not_watching"] = None if nw is None else {"reason": nw[0], "since_unix": nw[1],
                                                             "since_known": nw[2]}
             live.status = msg
@@ -580,8 +585,11 @@ class Hub:
 NOT_WATCHING_STATES = ("blind", "waiting_for_camera", "degraded", "escalated")
 CAMERA_GONE = ("lost", "ended")
 UNDECIDED_STATES = ("starting", "stopping")
+PAUSED_STATE = "paused"     # paused for privacy (posed/ROBOT/privacy/pause): not watching, as asked
+BY_CHARS = 64               # who asked for a pause: at most this many characters (the daemon's own limit)
 NOT_WATCHING_WORDS = {"blind": "no frame gets through", "waiting_for_camera": "waiting for the camera",
                       "degraded": "a stage is failing", "escalated": "too many restarts",
+                      "paused": "paused for privacy",
                       "lost": "the camera is lost", "ended": "the camera stopped (the recording ended)"}
 
 
@@ -594,6 +602,8 @@ def not_watching(raw) -> str | None:
     camera = raw.get("camera") if isinstance(raw.get("camera"), dict) else {}
     if state in UNDECIDED_STATES:
         return ""
+    if state == PAUSED_STATE:
+        return NOT_WATCHING_WORDS[PAUSED_STATE]
     if state in NOT_WATCHING_STATES:
         blind = raw.get("blind") if isinstance(raw.get("blind"), dict) else {}
         detail = blind.get("reason") or camera.get("error") or ""
@@ -617,6 +627,23 @@ def watch_of(raw) -> tuple[str | None, float] | None:
     detail = w.get("detail") if isinstance(w.get("detail"), str) else ""
     words = NOT_WATCHING_WORDS.get(reason.removeprefix("camera "), reason)
     return words + (f" ({detail})" if detail else ""), _num(w["since_unix"])
+
+
+def paused_of(raw) -> dict | None:
+    """While the status says posed is paused for privacy (``state: paused``, or its ``privacy.paused`` while
+    starting or stopping; a fault during a pause — degraded, escalated — is said as the fault): who asked
+    (``by``, None when not said) and since and until when (``since_unix``, ``until_unix``, unix s; None when not
+    said); None while it is not paused."""
+    if not isinstance(raw, dict):
+        return None
+    privacy = raw.get("privacy") if isinstance(raw.get("privacy"), dict) else {}
+    if raw.get("state") != PAUSED_STATE and not (privacy.get("paused") is True
+                                                 and raw.get("state") in UNDECIDED_STATES):
+        return None
+    by = privacy.get("by")
+    by = by if isinstance(by, str) and by and by.isprintable() else None
+    return {"by": None if by is None else by[:BY_CHARS], "since_unix": _num(privacy.get("since_unix")),
+            "until_unix": _num(privacy.get("until_unix"))}
 
 
 def restored_open_of(raw) -> list[dict]:

@@ -107,9 +107,9 @@ function drawSkeleton() {
   }
   if (!fitted) {  // say why, and keep the last fitted skeleton in grey
     g.fillStyle = "#bbb"; g.font = "15px sans-serif";
-    const nw = view.status && view.status.not_watching;
-    const why = nw ? "posed is not watching: " + nw.reason : pose ? "no fit: " + (pose.reason || "no person") :
-      "waiting for poses…";
+    const nw = view.status && view.status.not_watching, paused = view.status && view.status.paused;
+    const why = paused ? pausedText(paused) : nw ? "posed is not watching: " + nw.reason :
+      pose ? "no fit: " + (pose.reason || "no person") : "waiting for poses…";
     g.fillText(why.length > 70 ? why.slice(0, 69) + "…" : why, 16, 26);
     if (shown && pose) g.fillText(`grey: the last fit, ${Math.max(0, pose.time_unix - shown.time_unix).toFixed(1)} s ago`, 16, 48);
     note.textContent = "";
@@ -266,7 +266,8 @@ function showStatus(s) {
   setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
   setText("st-camera", s.camera || "–"); setText("st-drops", s.drops); setText("st-restarts", s.restarts);
   const nw = s.not_watching;
-  setText("st-watching", nw ? `NO: ${nw.reason}` + (nw.since_known ? `, since ${sinceText(nw.since_unix)}` : "") :
+  setText("st-watching", s.paused ? pausedText(s.paused).replace(/^Watching paused/, "no: paused") :
+    nw ? `NO: ${nw.reason}` + (nw.since_known ? `, since ${sinceText(nw.since_unix)}` : "") :
     s.state === "starting" ? "not yet (starting)" : "yes");
   document.getElementById("st-watching").className = nw ? "warn" : "";
   const restored = s.restored_open || [];
@@ -319,6 +320,18 @@ function ageText(t) {  // "at 22:31:24, 35 s ago"
     `${(a / 3600).toFixed(1)} h ago`);
 }
 
+function hmText(t, zone) {  // HH:MM in the page's zone (the robot's; or zone), with the date when not today
+  const d = toDate(t);
+  if (!d) return "–";
+  const o = partsOf(d, zone), n = partsOf(new Date(), zone);
+  return (o.year === n.year && o.month === n.month && o.day === n.day ? "" : `${o.year}-${o.month}-${o.day} `) +
+    `${o.hour}:${o.minute}`;
+}
+function pausedText(p, zone) {  // "Watching paused for privacy by voice until 15:42" (the status's privacy)
+  return "Watching paused for privacy" + (p.by ? ` by ${p.by}` : "") +
+    (p.until_unix === null || p.until_unix === undefined ? "" : ` until ${hmText(p.until_unix, zone)}`);
+}
+
 function showRobot(r) {
   if (!r) return;
   view.robotState = r;
@@ -347,6 +360,10 @@ function showLiveness() {  // the red bar, the "live" badge, and everything stal
   const live = view.streamLost === null && view.connected && r.state === "up";
   // posed runs and is heard from, but sees nothing (camera ended, lost, blind; a stage failing): said as loudly
   const nw = live && view.status && view.status.not_watching;
+  const paused = live && view.status && view.status.paused;   // asked for: a plain banner, not an alarm
+  const pbar = document.getElementById("paused");
+  pbar.hidden = !paused;
+  pbar.textContent = paused ? pausedText(paused) : "";
   const wbar = document.getElementById("watching");
   wbar.hidden = !nw;
   wbar.textContent = nw ? `posed on ${robot} is running but NOT WATCHING ` + (nw.since_known ?
@@ -354,9 +371,9 @@ function showLiveness() {  // the red bar, the "live" badge, and everything stal
     `: ${nw.reason} — a fall would NOT be detected.` : "";
   const waiting = view.streamLost === null && r.state === "waiting";
   const conn = document.getElementById("conn");
-  conn.textContent = nw ? "live, NOT WATCHING" : live ? "live" : view.streamLost !== null ? "NOT LIVE: reconnecting…" :
-    waiting ? "waiting for the robot…" : "NOT LIVE";
-  conn.className = "pill" + (live && !nw ? "" : waiting ? " off" : " bad");
+  conn.textContent = nw ? "live, NOT WATCHING" : paused ? "live, paused" : live ? "live" :
+    view.streamLost !== null ? "NOT LIVE: reconnecting…" : waiting ? "waiting for the robot…" : "NOT LIVE";
+  conn.className = "pill" + (paused && !nw ? " paused" : live && !nw ? "" : waiting ? " off" : " bad");
   view.live = live;
   view.stale = !live && !waiting;
   document.body.classList.toggle("stale", view.stale);
@@ -620,7 +637,9 @@ const DOWN_WORDS = {gone: "not running (its Zenoh liveliness token went away)", 
 function cardParts(c, open) {  // [state pill text, pill class, watching line, whether it watches, falls line, pose line, open]
   const zone = zoneOf(c.time_zone), since = sinceText(c.since_unix, zone);
   let pill = "up", cls = "", watch, watching = false;
-  if (c.state === "up") {
+  if (c.state === "up" && c.paused) {   // asked for: said plainly, never as a fault
+    pill = "paused"; cls = " paused"; watch = pausedText(c.paused, zone);
+  } else if (c.state === "up") {
     const nw = c.not_watching;
     watching = c.watching !== false;
     watch = !watching && nw ? `NOT WATCHING: ${nw.reason}` + (nw.since_known ? `, since ${sinceText(nw.since_unix, zone)}` : "") :
@@ -658,8 +677,10 @@ function showCards() {
     }
     if (list.children[i] !== b) list.insertBefore(b, list.children[i] || null);
     const parts = c.state === "absent" ? null : cardParts(c, open[id]);
-    b.className = "robot-card" + (id === view.selected ? " selected" : "") + (parts && parts[3] ? "" : " down");
-    b.dataset.robot = id; b.dataset.state = c.state;
+    const paused = parts && c.state === "up" && c.paused;
+    b.className = "robot-card" + (id === view.selected ? " selected" : "") +
+      (paused ? " paused" : parts && parts[3] ? "" : " down");
+    b.dataset.robot = id; b.dataset.state = paused ? "paused" : c.state;
     b.setAttribute("aria-pressed", id === view.selected ? "true" : "false");
     let html;
     if (c.state === "absent") {
@@ -668,7 +689,7 @@ function showCards() {
     } else {
       const [pill, cls, watch, watching, falls, pose, n] = parts;
       html = `<div class="rc-head"><b>${esc(id)}</b> <span class="pill${cls}">${esc(pill)}</span></div>` +
-        `<div class="rc-watch${watching ? "" : " warn"}">${esc(watch)}</div>` +
+        `<div class="rc-watch${watching || paused ? "" : " warn"}">${esc(watch)}</div>` +
         `<div class="rc-falls${n ? " warn" : ""}">${esc(falls)}</div><div class="rc-pose note">${esc(pose)}</div>`;
     }
     if (b.posedHtml !== html) { b.innerHTML = html; b.posedHtml = html; }
