@@ -1,8 +1,9 @@
-"""The fall benchmark with a camera that moves: a robot's head tilting during the scene.
+"""The fall benchmark with a camera that moves: a robot's head tilting and panning, and its base driving.
 
-``posed bench falls --camera static|follow|nod`` renders the scenarios and CMU clips of ``posed bench falls``
-(the same bodies, motions, cameras and noise seeds: :mod:`bench.falls_scenarios`, :func:`bench.falls.cmu_cases`)
-through a camera whose tilt changes frame by frame, and scores the detector in six arms.
+``posed bench falls --camera static|follow|nod|follow_pan|drive`` renders the scenarios and CMU clips of
+``posed bench falls`` (the same bodies, motions, cameras and noise seeds: :mod:`bench.falls_scenarios`,
+:func:`bench.falls.cmu_cases`) through a camera whose tilt (and, for the last two, yaw and floor position)
+changes frame by frame, and scores the detector in six arms.
 
 Camera motions (``MOTIONS``): the scene's own camera (height 0.9-1.3 m, 8-22 deg down, 640x480, 69 deg) is
 the head's home position, ``base``.
@@ -12,13 +13,21 @@ the head's home position, ``base``.
   following the person does (:class:`FollowHead`): it sees the person's landmarks ``delay_s`` after their
   capture (the frame's processing and the hop to the head's controller), and its tilt servo moves towards the
   last target with a first-order time constant ``tau_s``, never faster than ``max_rate_deg_s``. It starts at
-  ``base``; pan is not simulated (it does not change gravity in the camera's axes), so a person walking
-  sideways still leaves the image.
+  ``base``; it does not pan, so a person walking sideways still leaves the image.
 * ``nod``: a slow scan unrelated to the person, ``base + amplitude * sin(2 pi t / period + phase)``, the
   phase drawn from the scene's name (so falls meet the scan at every phase).
+* ``follow_pan`` (:mod:`bench.falls_base_motion`, :class:`~bench.falls_base_motion.PanTiltHead`): the head pans
+  *and* tilts to keep the mid-hip on the image's centre, with ``follow``'s delay, servo time constant and tilt
+  rate limit, and a pan rate limit of 80 deg/s (the slower of the Sony EVI-D30 / EVI-D100 pan speed tables).
+* ``drive`` (:class:`~bench.falls_base_motion.DriveBase`): the robot's base drives on the floor (the camera's
+  height constant) to keep 2 m from the person, turning to face them, at most 0.5 m/s and 0.5 / 0.6 m/s^2
+  (speeding up / slowing down: a Kobuki base's navigation and driver limits), the head following on it as in
+  ``follow_pan``. It starts at rest 2 m from the person. The ``imu`` and ``imu_gyro`` arms feel the base: the
+  accelerometer reads gravity plus the base's acceleration, the gyro the base's yaw with the head's pan and
+  tilt (:func:`bench.falls_base_motion.base_imu_downs`).
 
 The camera turns about its optical centre: its height stays the scene's (a real head's camera sits some 5 cm
-in front of the tilt axis, which moves it by under 2 cm over 20 deg).
+in front of the tilt axis, which moves it by under 2 cm over 20 deg); the base carries it on its turning axis.
 
 Arms (``ARMS``), each with the shipped config otherwise:
 
@@ -33,10 +42,15 @@ Arms (``ARMS``), each with the shipped config otherwise:
   the other sources (the feet of people standing or sitting upright, else the configured height).
 * ``imu``: the default config and the gravity of an accelerometer on the head (a RealSense D435i's), as
   ``hal.imu`` filters it (:func:`imu_downs`), through ``FallDetector.set_gravity``: what a robot with such a
-  camera gets without telling posed anything, when only the accelerometer is used.
+  camera gets without telling posed anything, when only the accelerometer is used. Under ``follow_pan`` and
+  ``drive`` the accelerometer reads the specific force, gravity and the base's acceleration together.
 * ``imu_gyro``: as ``imu`` with the camera's gyroscope too (:func:`imu_gyro_downs`): the head's true angular
   rate at 200 Hz with a BMI055's noise and a constant bias drawn per scene from its datasheet's range, and the
-  same noiseless accelerometer, through ``hal.imu.GravityEstimate``'s gyro + accelerometer filter.
+  same noiseless accelerometer, through ``hal.imu.GravityEstimate``'s gyro + accelerometer filter; under
+  ``follow_pan`` and ``drive`` the gyro reads the base's yaw, the pan and the tilt together.
+
+Under ``drive`` the still head's comparison (``findings``) mixes two things: the base starts 2 m from the person
+while the scene's camera is 2.6-4.4 m away, so the person is also seen larger and nearer the image's edges.
 """
 
 from __future__ import annotations
@@ -51,6 +65,7 @@ from pathlib import Path
 
 import numpy as np
 
+from posed.bench import falls_base_motion as base_motion
 from posed.bench.falls import (
     DETECTING_STATES,
     Case,
@@ -136,6 +151,8 @@ MOTIONS = {
     "static": "the head stays at its home tilt (the scene's camera): today's frames",
     "follow": FOLLOW.meaning(),
     "nod": NOD.meaning(),
+    "follow_pan": base_motion.PAN.meaning(),
+    "drive": base_motion.DRIVE.meaning(),
 }
 ARMS = {
     "default": "the config as it is (tilt 0, height 1 m: a guess checked against the body): a freshly started "
@@ -174,7 +191,7 @@ class StaticHead:
     def tilt_at(self, t: float) -> float:
         return self.base.tilt
 
-    def observe(self, t: float, landmarks: np.ndarray | None, camera: WorldCamera) -> None:
+    def observe(self, t: float, landmarks: np.ndarray | None, camera: WorldCamera, world: dict | None = None) -> None:
         pass
 
 
@@ -188,7 +205,7 @@ class NodHead:
     def camera_at(self, t: float) -> WorldCamera:
         return replace(self.base, tilt=self.tilt_at(t))
 
-    def observe(self, t: float, landmarks: np.ndarray | None, camera: WorldCamera) -> None:
+    def observe(self, t: float, landmarks: np.ndarray | None, camera: WorldCamera, world: dict | None = None) -> None:
         pass
 
 
@@ -220,7 +237,7 @@ class FollowController:
         return float(np.clip(camera.tilt + math.degrees(math.atan((v - cy) / f)),
                              self.head.min_tilt_deg, self.head.max_tilt_deg))
 
-    def observe(self, t: float, landmarks: np.ndarray | None, camera: WorldCamera) -> None:
+    def observe(self, t: float, landmarks: np.ndarray | None, camera: WorldCamera, world: dict | None = None) -> None:
         target = self.target_from(landmarks, camera)
         if target is not None:
             self.pending.append((t + self.head.delay_s, target))
@@ -266,7 +283,8 @@ def head_for(motion: str, base: WorldCamera, name: str, follow: FollowHead = FOL
 
 def render(static_frames: Iterable[Frame], head, body: Body, seed: int, noise_frac: float,
            dropouts: tuple[tuple[float, float], ...] = ()) -> tuple[list[Frame], list[WorldCamera]]:
-    """The frames of a scene seen by ``head`` (``camera_at``, ``observe``): each frame's world joints projected
+    """The frames of a scene seen by ``head`` (``camera_at``, ``observe``, which is also given the frame's world
+    joints: the driving base's depth reading of the person): each frame's world joints projected
     through that frame's camera, the noise drawn as :func:`bench.falls_scenarios.frames` draws it (one
     generator seeded with ``seed``, nothing drawn for a frame that is dropped or behind the camera), so a head
     that never moves gives exactly the same landmarks."""
@@ -277,7 +295,7 @@ def render(static_frames: Iterable[Frame], head, body: Body, seed: int, noise_fr
         cam = head.camera_at(fr.t)
         lost = any(lo <= fr.t < hi for lo, hi in dropouts)
         lm = None if lost else cam.project(fr.joints_world, body, rng, noise_frac)
-        head.observe(fr.t, lm, cam)
+        head.observe(fr.t, lm, cam, fr.joints_world)
         out.append(Frame(fr.seq, fr.t, lm, fr.joints_world))
         cams.append(cam)
     return out, cams
@@ -289,15 +307,40 @@ class MovingCase:
     cameras: list[WorldCamera]          # one per frame
     motion: str
     tilt_at: Callable[[float], float] | None = None   # the head's tilt at any time of the scene (deg down)
+    pose_at: Callable[[float], tuple] | None = None   # follow_pan, drive: the camera's yaw, tilt, base acceleration
+    track: base_motion.Track | None = None            # follow_pan, drive: every controller step
 
 
 def case_name(motion: str, name: str) -> str:
     return name if motion == "static" else f"{motion}/{name}"
 
 
+def _rendered(motion: str, static_frames: Iterable[Frame], camera: WorldCamera, name: str, body: Body, seed: int,
+              noise_frac: float, dropouts: tuple = (), follow: FollowHead = FOLLOW, nod: Nod = NOD,
+              pan: base_motion.PanTiltHead = base_motion.PAN, drive: base_motion.DriveBase = base_motion.DRIVE):
+    """The frames and cameras of one scene under ``motion``, and its head."""
+    if motion in base_motion.BASE_MOTIONS:
+        static_frames = list(static_frames)
+        head = base_motion.head_for(motion, camera, static_frames[0].joints_world if static_frames else None, pan,
+                                    drive)
+    else:
+        head = head_for(motion, camera, name, follow, nod)
+    fr, cams = render(static_frames, head, body, seed, noise_frac, dropouts)
+    return fr, cams, head
+
+
+def _moving(case: Case, cams: list[WorldCamera], motion: str, head) -> MovingCase:
+    if isinstance(head, base_motion.PanTiltController):
+        return MovingCase(case, cams, motion, head.tilt_at, head.pose_at, head.track)
+    return MovingCase(case, cams, motion, head.tilt_at)
+
+
 def moving_cases(splits: Iterable[str], motion: str, shared_data: Path | None = None, only: str = "",
-                 follow: FollowHead = FOLLOW, nod: Nod = NOD) -> list[MovingCase]:
+                 follow: FollowHead = FOLLOW, nod: Nod = NOD, pan: base_motion.PanTiltHead = base_motion.PAN,
+                 drive: base_motion.DriveBase = base_motion.DRIVE) -> list[MovingCase]:
     """Every case of ``splits`` (tune, heldout, cmu) whose name contains ``only``, seen by the ``motion`` head."""
+    if motion not in MOTIONS:
+        raise ValueError(f"camera motion {motion!r} is not one of: {', '.join(MOTIONS)}")
     out: list[MovingCase] = []
     for split in splits:
         if split == "cmu":
@@ -306,27 +349,30 @@ def moving_cases(splits: Iterable[str], motion: str, shared_data: Path | None = 
             for i, c in enumerate(cmu_cases(shared_data / "mocap" / "cmu")):
                 if only and only not in c.name:
                     continue
-                head = head_for(motion, c.camera, c.name, follow, nod)
-                fr, cams = render(c.frames, head, Body(c.body_height), CMU_SEED + i, CMU_NOISE)
-                out.append(MovingCase(replace(c, name=case_name(motion, c.name), frames=fr), cams, motion,
-                                      head.tilt_at))
+                fr, cams, head = _rendered(motion, c.frames, c.camera, c.name, Body(c.body_height), CMU_SEED + i,
+                                           CMU_NOISE, (), follow, nod, pan, drive)
+                out.append(_moving(replace(c, name=case_name(motion, c.name), frames=fr), cams, motion, head))
             continue
         for sc in catalogue(split):
             if only and only not in sc.name:
                 continue
-            head = head_for(motion, sc.camera, sc.name, follow, nod)
-            fr, cams = render(frames(sc), head, sc.body, sc.seed, sc.noise_frac, sc.dropouts)
-            out.append(MovingCase(Case(case_name(motion, sc.name), sc.kind, split, sc.camera, fr, sc.truth,
-                                       sc.body.height), cams, motion, head.tilt_at))
+            fr, cams, head = _rendered(motion, frames(sc), sc.camera, sc.name, sc.body, sc.seed, sc.noise_frac,
+                                       sc.dropouts, follow, nod, pan, drive)
+            out.append(_moving(Case(case_name(motion, sc.name), sc.kind, split, sc.camera, fr, sc.truth,
+                                    sc.body.height), cams, motion, head))
     return out
 
 
 def imu_downs(mc: MovingCase, rate_hz: float = IMU_RATE_HZ) -> list[tuple[float, float, float] | None]:
     """Each frame's gravity as a camera accelerometer on the head gives it: the head's true down at every sample
     (``mc.tilt_at``, the specific force -g down, no noise: the filter's lag alone) through
-    :class:`hal.imu.GravityEstimate`, read at the frame's capture time; None until it has enough samples."""
+    :class:`hal.imu.GravityEstimate`, read at the frame's capture time; None until it has enough samples. A head
+    that pans or a base that drives (``mc.pose_at``): the specific force with the base's acceleration
+    (:func:`bench.falls_base_motion.base_imu_downs`)."""
     from posed.hal import G_M_S2, GravityEstimate
 
+    if mc.pose_at is not None:
+        return base_motion.base_imu_downs(mc, False, rate_hz, GYRO_RATE_HZ, 0.0, 0.0, np.zeros(3), 0)
     est = GravityEstimate()
     tilt_at = mc.tilt_at or (lambda t: mc.case.camera.tilt)
     out = []
@@ -365,14 +411,19 @@ def imu_gyro_downs(mc: MovingCase, rate_hz: float = IMU_RATE_HZ, gyro_hz: float 
     :class:`hal.imu.GravityEstimate`: the accelerometer as :func:`imu_downs` (the true down at ``rate_hz``, no
     noise); the gyro at ``gyro_hz``, each sample the head's mean angular rate since the previous one
     (:func:`head_rate`) plus white noise of ``noise_density_deg_s * sqrt(gyro_hz / 2)`` per axis and the scene's
-    constant bias (:func:`gyro_bias`), the noise drawn from the scene's name. Read at each frame's capture time."""
+    constant bias (:func:`gyro_bias`), the noise drawn from the scene's name. Read at each frame's capture time.
+    A head that pans or a base that drives (``mc.pose_at``): the same sensors, the accelerometer feeling the
+    base's acceleration and the gyro its yaw (:func:`bench.falls_base_motion.base_imu_downs`)."""
     from posed.hal import G_M_S2, GravityEstimate
 
+    name = mc.case.name.split("/", 1)[1] if mc.motion != "static" else mc.case.name
+    bias = gyro_bias(name, bias_deg_s)
+    if mc.pose_at is not None:
+        return base_motion.base_imu_downs(mc, True, rate_hz, gyro_hz, noise_density_deg_s, bias_deg_s, bias,
+                                          zlib.crc32(("gyro-noise:" + mc.case.name).encode()))
     est = GravityEstimate()
     cam = mc.case.camera
     tilt_at = mc.tilt_at or (lambda t: cam.tilt)
-    name = mc.case.name.split("/", 1)[1] if mc.motion != "static" else mc.case.name
-    bias = gyro_bias(name, bias_deg_s)
     rng = np.random.default_rng(zlib.crc32(("gyro-noise:" + mc.case.name).encode()))
     sigma = math.radians(noise_density_deg_s) * math.sqrt(gyro_hz / 2.0)
     out = []
@@ -511,13 +562,17 @@ def head_summary(cases: list[MovingCase]) -> dict:
             "tilt_rate_max_deg_s": round(max(rate), 1) if rate else 0.0}
 
 
-def fit_key(arm: str, motion: str, follow: FollowHead = FOLLOW, nod: Nod = NOD) -> str:
+def fit_key(arm: str, motion: str, follow: FollowHead = FOLLOW, nod: Nod = NOD,
+            pan: base_motion.PanTiltHead = base_motion.PAN, drive: base_motion.DriveBase = base_motion.DRIVE) -> str:
     """The gravity a case's fit is given, for :func:`bench.falls.cached_fit`'s key: none (default), the measured
     mount's (``given``, as ``posed bench falls --synthetic-geometry given``), or the robot's per-frame one (the
     same as ``given`` for a static head)."""
     if arm == "default":
         return "none"
-    head = "" if motion == "static" else f"{motion}:{follow if motion == 'follow' else nod}"
+    if motion in base_motion.BASE_MOTIONS:
+        head = f"{motion}:{pan}" + (f":{drive}" if motion == "drive" else "")
+    else:
+        head = "" if motion == "static" else f"{motion}:{follow if motion == 'follow' else nod}"
     if arm == "imu":
         return f"imu:{IMU_RATE_HZ:g}:{head}"
     if arm == "imu_gyro":
@@ -588,6 +643,8 @@ def run_protocol(motions: Iterable[str], splits: Iterable[str], fit_kind: str = 
     for motion in motions:
         cases = moving_cases(splits, motion, shared_data, only, follow, nod)
         heads[motion] = head_summary(cases)
+        if motion in base_motion.BASE_MOTIONS:
+            heads[motion]["base"] = base_motion.base_summary(cases)
         results[motion] = {}
         scenarios[motion] = {}
         for arm in arms:
@@ -595,7 +652,8 @@ def run_protocol(motions: Iterable[str], splits: Iterable[str], fit_kind: str = 
             for mc in cases:
                 if fit_kind == "real":
                     fit.reset()  # type: ignore[union-attr]
-                    fn = cached_fit(mc.case, fit, fit_config, cache, None, fit_key(arm, motion, follow, nod))
+                    fn = cached_fit(mc.case, fit, fit_config, cache, None,
+                                    fit_key(arm, motion, follow, nod, base_motion.PAN, base_motion.DRIVE))
                 else:
                     by_seq = {fr.seq: (fr, cam) for fr, cam in zip(mc.case.frames, mc.cameras, strict=True)}
 
@@ -615,6 +673,8 @@ def run_protocol(motions: Iterable[str], splits: Iterable[str], fit_kind: str = 
             "follow_head": {"delay_s": follow.delay_s, "tau_s": follow.tau_s, "max_rate_deg_s": follow.max_rate_deg_s,
                             "step_s": follow.step_s},
             "nod": {"amplitude_deg": nod.amplitude_deg, "period_s": nod.period_s},
+            **({"pan_tilt_head": base_motion.PAN.__dict__} if set(motions) & set(base_motion.BASE_MOTIONS) else {}),
+            **({"drive_base": base_motion.DRIVE.__dict__} if "drive" in motions else {}),
             "set_camera_mount": has_camera_mount(), "head": heads, "results": results,
             "findings": findings(results, fit_kind != "real"), "scenarios": scenarios,
             "seconds": round(time.monotonic() - t0, 1)}
@@ -633,6 +693,12 @@ def print_report(report: dict, out=None) -> None:
         print(f"{motion}: {report['motions'][motion]}", file=out)
         print(f"  head: {h['cases']} scenes, farthest from home: median {h['tilt_dev_max_deg']['median']} deg, "
               f"max {h['tilt_dev_max_deg']['max']} deg; fastest {h['tilt_rate_max_deg_s']} deg/s", file=out)
+        if h.get("base", {}).get("travel_m"):
+            b = h["base"]
+            print(f"  camera yaw from home: median {b['yaw_from_home_deg']['median']} deg, max "
+                  f"{b['yaw_from_home_deg']['max']} deg; base travel: median {b['travel_m']['median']} m, max "
+                  f"{b['travel_m']['max']} m; fastest {b['speed_max_m_s']['max']} m/s, hardest "
+                  f"{b['accel_max_m_s2']['max']} m/s^2", file=out)
         for arm, s in arms.items():
             if "skipped" in s:
                 print(f"  {arm:10} {s['skipped']}", file=out)

@@ -69,7 +69,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the moving-camera protocol instead: the simulated scenarios and CMU clips (--split, "
                              "--only, --truth) seen by a robot head that stays still (static), tilts to follow the "
                              "person's pelvis (follow: 0.15 s delay, 0.15 s servo, at most 60 deg/s) or scans the "
-                             "room (nod: +-12 deg every 6 s); comma-separated, or all. Each is scored with the "
+                             "room (nod: +-12 deg every 6 s), pans and tilts to follow it (follow_pan: the same, at "
+                             "most 80 deg/s in pan) or rides a base that drives to keep 2 m from the person, facing "
+                             "them (drive: at most 0.5 m/s, 0.5 / 0.6 m/s^2, the head as follow_pan; the IMU feels "
+                             "the base's acceleration); comma-separated, or all. Each is scored with the "
                              "default config, the home mount configured as measured, and the true mount of every "
                              "frame given through FallDetector.set_camera_mount, with and without its height, "
                              "and the head's accelerometer as hal.imu filters it, alone (imu) and with the camera's gyro "
@@ -77,7 +80,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "--synthetic-geometry does not apply")
 
 
-CAMERA_MOTIONS = ("static", "follow", "nod")
+CAMERA_MOTIONS = ("static", "follow", "nod", "follow_pan", "drive")
 
 
 def _camera_motions(value: str) -> list[str] | str:

@@ -8,6 +8,7 @@ geometry (each test says how)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import zlib
@@ -316,3 +317,150 @@ def test_the_text_report_says_what_a_moving_head_got_wrong(capsys):
     # the head follows the person down to the floor, the configured home tilt is then ~10 deg off: missed
     assert "not what a user would expect:" in out and "follow head, measured arm" in out
 
+
+
+# ---------------------------------------------------------------------------- a head that pans, a base that drives
+
+
+def _cam_axes_reference(yaw_deg: float, tilt_deg: float) -> np.ndarray:
+    """Rows: the camera's right, image-down and forward in the room, for a camera turned ``yaw_deg``
+    counter-clockwise from +y and pitched ``tilt_deg`` down (no roll): plain trigonometry."""
+    y, a = math.radians(yaw_deg), math.radians(tilt_deg)
+    forward = np.array([-math.sin(y) * math.cos(a), math.cos(y) * math.cos(a), -math.sin(a)])
+    right = np.array([math.cos(y), math.sin(y), 0.0])
+    return np.stack([right, np.cross(forward, right), forward])
+
+
+def _pelvis_px(fr) -> np.ndarray:
+    return fr.landmarks[[23, 24], :2].mean(axis=0)
+
+
+STILL_ADLS = ("tune/adl/sit-down-chair/normal-v30", "tune/adl/lie-on-bed-side/normal-v100",
+              "tune/adl/bend-pick-up/normal-v30")
+
+
+def test_the_panning_head_stays_put_keeps_its_limits_and_centres_the_pelvis():
+    """follow_pan: the camera stays where the scene's is (x, y, height); its yaw and tilt never change faster
+    than 80 and 60 deg/s (every 5 ms servo step); once the person has stood still for a second the mid-hip is on
+    the image's centre, column and row, to within five times the landmark noise (15 px); and a person walking
+    sideways out of the picture stays in it longer than under the tilt-only follow head."""
+    from posed.bench.falls_base_motion import PAN
+
+    cases = [mc for name in STILL_ADLS for mc in moving_cases(["tune"], "follow_pan", only=name)]
+    assert len(cases) == len(STILL_ADLS)
+    for mc in cases:
+        home = mc.case.camera
+        assert all((c.x, c.y, c.z, c.roll) == (home.x, home.y, home.z, home.roll) for c in mc.cameras)
+        tr = mc.track.arrays()
+        dt = np.diff(tr["t"])
+        assert np.all(np.abs(np.diff(tr["yaw"])) <= PAN.max_pan_rate_deg_s * dt + 1e-9)
+        assert np.all(np.abs(np.diff(tr["tilt"])) <= PAN.max_tilt_rate_deg_s * dt + 1e-9)
+        fr = next(f for f in mc.case.frames if f.t >= 1.0)
+        u, v = _pelvis_px(fr)
+        assert abs(u - home.width / 2.0) < 15.0 and abs(v - home.height / 2.0) < 15.0, mc.case.name
+    walk = {m: moving_cases(["tune"], m, only="tune/adl/walk-out-sideways/c0")[0] for m in ("follow", "follow_pan")}
+
+    def seen(mc):
+        return sum(fr.landmarks is not None and bool(np.all(fr.landmarks[[23, 24], 3] >= 0.5)) for fr in mc.case.frames)
+
+    assert seen(walk["follow_pan"]) > seen(walk["follow"])
+
+
+def test_the_driving_base_keeps_its_height_limits_and_distance():
+    """drive, against plain NumPy on the controller's own track: the camera's height is the scene's on every
+    frame and step; the base's speed never exceeds 0.5 m/s; its acceleration along its heading never exceeds
+    0.5 m/s^2 speeding up nor 0.6 slowing down; the acceleration it records is the second difference of its
+    positions; and at the end of scenes where the person stays put it is 2 m from their mid-hip, facing them,
+    the mid-hip near the image's centre."""
+    from posed.bench.falls_base_motion import DRIVE
+
+    assert (DRIVE.distance_m, DRIVE.max_speed_m_s, DRIVE.max_accel_m_s2, DRIVE.max_decel_m_s2) == (2.0, 0.5, 0.5, 0.6)
+    cases = [mc for name in STILL_ADLS + FALLS for mc in moving_cases(["tune"], "drive", only=name)]
+    moved = 0
+    for mc in cases:
+        home = mc.case.camera
+        assert all(c.z == home.z and c.roll == home.roll for c in mc.cameras)
+        tr = mc.track.arrays()
+        dt = np.diff(tr["t"])
+        assert np.all(np.abs(tr["speed"]) <= DRIVE.max_speed_m_s + 1e-12)
+        dv = np.diff(tr["speed"])
+        up = np.abs(tr["speed"][1:]) > np.abs(tr["speed"][:-1])
+        assert np.all(np.abs(dv[up]) <= DRIVE.max_accel_m_s2 * dt[up] + 1e-12)
+        assert np.all(np.abs(dv) <= DRIVE.max_decel_m_s2 * dt + 1e-12)
+        # the velocity each step ends with, from the positions (trapezoid: v_k = 2 dx_k / dt - v_{k-1})
+        vx, vy = np.zeros(len(dt) + 1), np.zeros(len(dt) + 1)
+        for k in range(len(dt)):
+            vx[k + 1] = 2.0 * (tr["x"][k + 1] - tr["x"][k]) / dt[k] - vx[k]
+            vy[k + 1] = 2.0 * (tr["y"][k + 1] - tr["y"][k]) / dt[k] - vy[k]
+        np.testing.assert_allclose(np.diff(vx) / dt, tr["ax"][1:], atol=1e-6)
+        np.testing.assert_allclose(np.diff(vy) / dt, tr["ay"][1:], atol=1e-6)
+        moved += np.max(np.abs(tr["speed"])) > 0.1
+        if mc.case.kind == "adl":
+            last = mc.case.frames[-1]
+            p = 0.5 * (np.asarray(last.joints_world["left_hip"]) + np.asarray(last.joints_world["right_hip"]))
+            cam = mc.cameras[-1]
+            assert math.hypot(p[0] - cam.x, p[1] - cam.y) == pytest.approx(DRIVE.distance_m, abs=0.1), mc.case.name
+            u, v = _pelvis_px(last)
+            assert abs(u - home.width / 2.0) < 15.0 and abs(v - home.height / 2.0) < 15.0, mc.case.name
+    assert moved >= 2      # the falls from standing move the pelvis 0.5-1 m, so the base drives (from sitting: less)
+
+
+def test_the_head_s_accelerometer_feels_the_base_and_its_gyro_the_turn():
+    """The imu arms under drive: each accelerometer sample is the base's acceleration plus 1 g up, in the
+    camera's axes (a plain-trigonometry rotation of the track's numbers); without the base's acceleration the
+    filtered gravity differs, by at most the steepest tilt of the specific force (atan(0.6 / g) and the
+    centripetal part: under 4 deg) and by a visible amount on a scene where the base brakes and backs off; and
+    the gyro's rate is the turn of the camera's axes (a central difference, as the tilt-only test)."""
+    from posed.bench import falls_base_motion as bm
+    from posed.bench.falls_moving import imu_downs
+    from posed.hal import G_M_S2
+
+    mc = moving_cases(["tune"], "drive", only="tune/fall/standing-forward/fast-v30")[0]
+    tr = mc.track.arrays()
+    for ts in np.arange(0.0, tr["t"][-1], 1.0 / 63.0):
+        yaw, tilt, acc = mc.pose_at(float(ts))
+        want = _cam_axes_reference(yaw, tilt) @ (acc + [0.0, 0.0, G_M_S2])
+        np.testing.assert_allclose(bm.accel_sample(yaw, tilt, 0.0, acc, G_M_S2), want, atol=1e-9)
+    assert np.max(np.hypot(tr["ax"], tr["ay"])) > 0.3          # the base does accelerate in this scene
+    with_base = imu_downs(mc)
+    # the same head, the base's acceleration removed
+    without = imu_downs(dataclasses.replace(mc, pose_at=lambda t: (*mc.pose_at(t)[:2], np.zeros(3))))
+    diff = [_angle(a, b) for a, b in zip(with_base, without, strict=True) if a is not None]
+    assert 0.5 < max(diff) < 4.0
+    for yaw, tilt, dyaw, dtilt in ((0.0, 12.0, 40.0, 0.0), (-30.0, 20.0, -60.0, 25.0), (170.0, -5.0, 90.0, -45.0)):
+        h = 1e-6
+        c0, c1 = _cam_axes_reference(yaw - dyaw * h, tilt - dtilt * h), _cam_axes_reference(yaw + dyaw * h, tilt + dtilt * h)
+        wx = -((c1 - c0) / (2 * h)) @ _cam_axes_reference(yaw, tilt).T
+        want = np.array([wx[2, 1], wx[0, 2], wx[1, 0]])
+        got = bm.camera_rate(yaw - dyaw * h, tilt - dtilt * h, yaw + dyaw * h, tilt + dtilt * h, 0.0, 2 * h)
+        np.testing.assert_allclose(got, want, atol=1e-6)
+        np.testing.assert_allclose(bm.camera_axes(yaw, tilt, 0.0), _cam_axes_reference(yaw, tilt), atol=1e-12)
+
+
+def test_the_new_motions_on_the_command_line(capsys):
+    code = main(["bench", "falls", "--camera", "drive,follow_pan", "--truth", "--split", "tune", "--only",
+                 "standing-forward/fast-v30", "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and list(report["results"]) == ["follow_pan", "drive"]
+    assert report["head"]["follow_pan"]["base"]["travel_m"]["max"] == 0.0
+    assert report["head"]["drive"]["base"]["travel_m"]["max"] > 0.3          # they fall towards it: it backs off
+    assert report["drive_base"]["distance_m"] == 2.0 and report["pan_tilt_head"]["max_pan_rate_deg_s"] == 80.0
+    for motion in ("follow_pan", "drive"):
+        [sc] = report["scenarios"][motion]["imu"]
+        assert sc["name"] == f"{motion}/tune/fall/standing-forward/fast-v30"
+
+
+def test_a_panning_head_or_base_that_never_moves_gives_today_s_frames():
+    """The new heads through the same renderer: a pan-tilt head (and a base) whose targets never arrive (a delay
+    longer than the scene) keeps the scene's camera, so every landmark is today's, bit for bit."""
+    from posed.bench.falls_base_motion import DRIVE, PAN, PanTiltController
+
+    sc = _scene("tune/fall/standing-forward/fast-v30")
+    today = list(frames(sc))
+    never = dataclasses.replace(PAN, delay_s=1e3)
+    for base in (None, DRIVE):
+        head = PanTiltController(sc.camera, never, base)
+        out, cams = render(frames(sc), head, sc.body, sc.seed, sc.noise_frac, sc.dropouts)
+        assert all(c == sc.camera for c in cams)
+        assert all(np.array_equal(a.landmarks, b.landmarks) for a, b in zip(today, out, strict=True))
+        assert head.pending                                   # it was asked, the answer never came
