@@ -1,6 +1,8 @@
-"""A robot on a real Zenoh bus for the tests of the pause for privacy: its liveliness token and a status every
+"""A robot on a real Zenoh bus for the tests of the pause for privacy: its liveliness token, a status every
 ``STATUS_PERIOD_S`` as the daemon publishes it (docs/formats.md, the contract of posed/ROBOT/privacy/pause):
-running, or ``state: paused`` with its ``privacy`` and the daemon's ``watch`` (not watching, reason ``paused``)."""
+running, or ``state: paused`` with its ``privacy`` and the daemon's ``watch`` (not watching, reason ``paused``),
+and while it watches a pose every 0.1 s (a fitted body, left knee at ``KNEE_DEG``), none while paused (as the
+daemon publishes none)."""
 
 from __future__ import annotations
 
@@ -11,14 +13,24 @@ import threading
 import time
 from zoneinfo import ZoneInfo
 
+from posed.fitting import FitResult
 from tests.daemon import zenoh_util
 
 STATUS_PERIOD_S = 0.3
+KNEE_DEG = 42.0
+
+
+def pose(seq: int, t_unix: float) -> FitResult:
+    """A fitted body (a few joints, the left knee bent ``KNEE_DEG``), captured at ``t_unix``."""
+    return FitResult(seq, seq * 0.1, True, joint_angles_deg={"theta_kn_l": KNEE_DEG},
+                     joints_3d={"mid_hip": (0.0, 0.0, 0.0), "left_hip": (0.1, 0.0, 0.0),
+                                "left_knee": (0.12, 0.45, 0.0), "right_hip": (-0.1, 0.0, 0.0)},
+                     extra={"time_unix": t_unix})
 
 
 class Robot:
-    """A robot on the bus: a client session to the router, its liveliness token, a status every
-    ``STATUS_PERIOD_S``: running, or paused for privacy by ``by`` until ``until_unix`` (``pause``/``resume``)."""
+    """A robot on the bus: a client session to the router, its liveliness token, poses while it watches, a status
+    every ``STATUS_PERIOD_S``: running, or paused for privacy by ``by`` until ``until_unix`` (``pause``/``resume``)."""
 
     def __init__(self, robot: str, endpoint: str, zone: str) -> None:
         self.robot, self.zone = robot, zone
@@ -54,8 +66,14 @@ class Robot:
         return out
 
     def _run(self) -> None:
-        while not self._stop.wait(STATUS_PERIOD_S):
-            self.session.put(f"posed/{self.robot}/status", json.dumps(self.status()))
+        seq, next_status = 0, 0.0
+        while not self._stop.wait(0.1):
+            if self.pause_of is None:
+                seq += 1
+                self.session.put(f"posed/{self.robot}/pose", json.dumps(pose(seq, time.time()).to_json()))
+            if time.monotonic() >= next_status:
+                next_status = time.monotonic() + STATUS_PERIOD_S
+                self.session.put(f"posed/{self.robot}/status", json.dumps(self.status()))
 
     def close(self) -> None:
         self._stop.set()

@@ -12,12 +12,13 @@ running, then ``state: paused`` with its ``privacy`` and the daemon's ``watch`` 
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 
 import pytest
 
 from tests.viz.browser import Browser
-from tests.viz.paused_robot import Robot, hhmm, on_bus
+from tests.viz.paused_robot import KNEE_DEG, Robot, hhmm, on_bus
 from tests.viz.web_cli import posed_web
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,6 +50,8 @@ def test_the_page_says_a_pause_plainly_and_drops_it_when_watching_again(tmp_path
     b.open(url)
     b.wait_for("posedView.status && posedView.status.state === 'running' && posedView.live", 60, "a live status")
     assert shown(b, "paused") == "" and shown(b, "watching") == ""
+    b.wait_for("posedView.drawn > 0", 20, "a body drawn")          # it watches: the body and its angles now
+    assert f"{KNEE_DEG:.0f}°" in b.js("document.getElementById('angles-now').textContent")
 
     until = robot.pause("voice", 30)
     b.wait_for("posedView.status && posedView.status.state === 'paused'", 20, "the paused status")
@@ -60,6 +63,12 @@ def test_the_page_says_a_pause_plainly_and_drops_it_when_watching_again(tmp_path
     assert b.js("document.getElementById('conn').textContent") == "live, paused"
     assert "NOT" not in b.js("document.getElementById('st-watching').textContent")
     assert "paused for privacy by voice" in b.js("document.getElementById('st-watching').textContent")
+    # the person asked not to be watched: no body (not even the last one from before), no angles, no minute of them
+    drawn = b.js("posedView.drawn")
+    time.sleep(1.0)
+    assert b.js("posedView.drawn") == drawn
+    assert b.js("document.getElementById('angles-now').textContent") == ""
+    assert b.js("posedView.angleSamples") == 0
     b.js("window.scrollTo(0, 0)")
     b.screenshot(SHOT)
 

@@ -22,11 +22,12 @@ const ANKLE_HEIGHT = 0.08, WINDOW_S = 60, GAP_S = 3;
 const view = window.posedView = {
   connected: false, poses: 0, drawn: 0, lastPose: null, status: null, fpsText: "",
   events: {}, acked: {}, history: [], labels: {}, yaw: -35, pitch: 20, zoom: 1.0, lastGood: null, floorNote: "",
-  showAllEvents: false, showAllHistory: false, robotState: null, streamLost: null, stale: false,
+  showAllEvents: false, showAllHistory: false, robotState: null, streamLost: null, stale: false, paused: null,
   // posed web '*': a card per robot; the robot whose live parts are shown, and why (its card was clicked: "hash";
   // "default"); which robots' poses were drawn since it was chosen
   cards: {}, unlisted: 0, maxRobots: 0, selected: null, selectedBy: null, poseRobots: {}};
 const angleLog = []; // {time_unix, angles}
+Object.defineProperty(view, "angleSamples", {get: () => angleLog.length});   // for tests: the chart's samples
 
 // ------------------------------------------------------------------ 3D skeleton
 const sk = document.getElementById("skeleton"), g = sk.getContext("2d");
@@ -94,6 +95,14 @@ function drawSkeleton() {
   }
   const pose = view.lastPose;
   const note = document.getElementById("pose-note");
+  const paused = view.status && view.status.paused;
+  if (paused && !view.stale) {  // paused for privacy: the person asked not to be watched, so no body is drawn,
+    g.fillStyle = "#bbb"; g.font = "15px sans-serif";   // not even the last one from before the pause
+    const why = pausedText(paused);
+    g.fillText(why.length > 70 ? why.slice(0, 69) + "…" : why, 16, 26);
+    note.textContent = "";
+    return;
+  }
   const fitted = pose && pose.ok && Object.keys(pose.joints).length;
   const shown = fitted ? pose : view.lastGood;
   if (view.stale && shown) {  // posed is not heard from: the last skeleton in grey, with its age
@@ -107,8 +116,8 @@ function drawSkeleton() {
   }
   if (!fitted) {  // say why, and keep the last fitted skeleton in grey
     g.fillStyle = "#bbb"; g.font = "15px sans-serif";
-    const nw = view.status && view.status.not_watching, paused = view.status && view.status.paused;
-    const why = paused ? pausedText(paused) : nw ? "posed is not watching: " + nw.reason :
+    const nw = view.status && view.status.not_watching;
+    const why = nw ? "posed is not watching: " + nw.reason :
       pose ? "no fit: " + (pose.reason || "no person") : "waiting for poses…";
     g.fillText(why.length > 70 ? why.slice(0, 69) + "…" : why, 16, 26);
     if (shown && pose) g.fillText(`grey: the last fit, ${Math.max(0, pose.time_unix - shown.time_unix).toFixed(1)} s ago`, 16, 48);
@@ -204,7 +213,8 @@ function showEvidence(pose) {  // what the last fit used: "2D landmarks + BlazeP
   if (pose.ok && pose.evidence) setText("st-evidence", pose.evidence.replace(/^3D from: /, ""));
 }
 
-function showAnglesNow(pose) {
+function showAnglesNow(pose) {  // none while paused for privacy (a pose of before the pause is not "now")
+  if (view.status && view.status.paused) { document.getElementById("angles-now").innerHTML = ""; return; }
   const rows = Object.entries(pose.angles).map(([n, v]) =>
     `<tr><th>${label(n)}</th><td>${v === null ? "not seen" : Math.round(v) + "°"}</td></tr>`);
   document.getElementById("angles-now").innerHTML = rows.join("");
@@ -266,6 +276,11 @@ function showStatus(s) {
   setText("st-latency", s.latency_p95_ms === null ? "–" : Math.round(s.latency_p95_ms) + " ms");
   setText("st-camera", s.camera || "–"); setText("st-drops", s.drops); setText("st-restarts", s.restarts);
   const nw = s.not_watching;
+  if (s.paused) {   // paused for privacy: no body, no angles now, no minute of angles from before the pause
+    angleLog.length = 0;
+    document.getElementById("angles-now").innerHTML = "";
+  }
+  if (Boolean(s.paused) !== Boolean(view.paused)) { view.paused = s.paused; requestDraw(); }
   setText("st-watching", s.paused ? pausedText(s.paused).replace(/^Watching paused/, "no: paused") :
     nw ? `NO: ${nw.reason}` + (nw.since_known ? `, since ${sinceText(nw.since_unix)}` : "") :
     s.state === "starting" ? "not yet (starting)" : "yes");
