@@ -31,7 +31,7 @@ demo: models warmup
 	$(BIN)/posed demo
 
 lint: $(STAMP)
-	$(BIN)/ruff check posed daemon hal landmarks fitting falls bench camera_model viz client tests
+	$(BIN)/ruff check posed daemon hal landmarks fitting falls bench camera_model viz client tests deploy
 
 clean:
 	rm -rf $(VENV) build dist *.egg-info
