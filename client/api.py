@@ -232,12 +232,19 @@ class PosedClient:
         return out
 
     def history(self, robot: str = "*", since: str | float | None = None, until: str | float | None = None,
-                limit: int = 100, timeout: float = 5.0) -> list[t.HistoryEntry]:
+                limit: int = 100, timeout: float = 5.0, event_id: str | None = None) -> list[t.HistoryEntry]:
         """Stored fall-event messages of ``robot`` (``"*"``: every robot that answers), oldest first by
-        ``time_unix``; ``since``/``until``: unix seconds, ISO 8601, ``2h``, ``7d``, ``today``; ``limit`` per robot."""
+        ``time_unix``; ``since``/``until``: unix seconds, ISO 8601, ``2h``, ``7d``, ``today``; ``limit`` per robot;
+        ``event_id``: that event's messages only, however old (a posed older than this answers such a query with
+        an error: :class:`PosedClientError`)."""
         params = [f"limit={int(limit)}"]
         params += [f"{k}={v}" for k, v in (("since", since), ("until", until)) if v is not None]
-        rows = self._get(_selector(robot, "events/history/**") + "?" + ";".join(params), timeout)
+        tail = "events/history/**"
+        if event_id is not None:
+            if not isinstance(event_id, str) or not event_id or any(c in event_id for c in "/*$#?; "):
+                raise ValueError(f"event_id {event_id!r}: give one event's id (its `id` field)")
+            tail = f"events/history/{event_id}/**"
+        rows = self._get(_selector(robot, tail) + "?" + ";".join(params), timeout)
         entries = [t.HistoryEntry.from_json(obj) for _, obj in rows]
         return sorted(entries, key=lambda e: (t.time_unix(e.event) or 0.0, e.event.t_detect))
 
@@ -270,16 +277,25 @@ class PosedClient:
             if confirm_s <= 0:
                 return True
             time.sleep(0.2)
-            try:
-                mine = [e for e in self.history(robot, limit=HISTORY_LIMIT, timeout=2.0)
-                        if e.event.id == event_id and (state is None or e.event.state == state)]
-            except PosedClientError:
-                mine = []
+            mine = [e for e in self._event_history(robot, event_id)
+                    if e.event.id == event_id and (state is None or e.event.state == state)]
             if mine and all(e.acked_at is not None for e in mine):
                 return True
             if time.monotonic() >= deadline:
                 return False
             time.sleep(0.3)
+
+    def _event_history(self, robot: str, event_id: str) -> list[t.HistoryEntry]:
+        """One event's stored messages (``history(event_id=...)``); from a posed older than that query, the newest
+        HISTORY_LIMIT messages instead; [] when the robot does not answer."""
+        try:
+            return self.history(robot, limit=HISTORY_LIMIT, timeout=2.0, event_id=event_id)
+        except PosedClientError:
+            pass
+        try:
+            return self.history(robot, limit=HISTORY_LIMIT, timeout=2.0)
+        except PosedClientError:
+            return []
 
     # ------------------------------------------------------------------ a pause for privacy
     def pause(self, for_s: float, by: str | None = None, *, robot: str | None = None,

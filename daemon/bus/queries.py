@@ -12,6 +12,8 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 
+import zenoh
+
 from posed.daemon.bus import payloads
 from posed.daemon.bus.inbound import query_values
 from posed.daemon.bus.payloads import JSON_ENCODING, dumps
@@ -21,7 +23,7 @@ HISTORY_MAX_LIMIT = 10000
 HISTORY_USAGE = "since, until: unix seconds or ISO 8601 (also 2h, 7d, today); limit: integer"
 
 # (since, until, limit) -> the stored messages, oldest first; each has .event (.id, .state) and .to_json()
-HistoryLookup = Callable[[float | None, float | None, int], Sequence]
+HistoryLookup = Callable[[float | None, float | None, int, str | None], Sequence]
 
 
 class LatestState:
@@ -78,25 +80,37 @@ def parse_history_parameters(params) -> tuple[float | None, float | None, int]:
             parse_time(until) if until is not None else None, n)
 
 
+def event_of_query(key: str, base: str) -> str | None:
+    """The event id a history query names (``<base>/<id>/**`` or ``<base>/<id>/<state>``: a first chunk after
+    ``base`` with no wildcard), else None (every event)."""
+    rest = key[len(base) + 1:] if key.startswith(base + "/") else ""
+    chunk = rest.split("/", 1)[0]
+    return chunk if chunk and not any(c in chunk for c in "*$") else None
+
+
 def answer_history(query, base: str, lookup: HistoryLookup, log) -> None:
     """One reply per stored message, each on its own key ``<base>/<id>/<state>`` (so that consolidation cannot
-    merge them); a query on the bare key ``base`` (which cannot accept other keys) gets one reply holding the
-    list. A bad parameter gets an error reply naming it."""
+    merge them), only those within the query's key expression (``<base>/<id>/**``: one event's messages, looked up
+    by its id however old; ``<base>/*/alarm``: the alarms); a query on the bare key ``base`` (which cannot accept
+    other keys) gets one reply holding the list. A bad parameter gets an error reply naming it."""
     try:
         since, until, limit = parse_history_parameters(query.parameters)
     except ValueError as exc:
         query.reply_err(json.dumps(payloads.error_message(str(exc), HISTORY_USAGE)), encoding=JSON_ENCODING)
         return
     try:
-        stored = lookup(since, until, limit)
-        if str(query.key_expr) == base:
+        asked = str(query.key_expr)
+        stored = lookup(since, until, limit, event_of_query(asked, base))
+        if asked == base:
             robot = base.split("/")[1] if base.count("/") >= 2 else ""
             query.reply(base, dumps(payloads.history_message([s.to_json() for s in stored], robot, time.time())),
                         encoding=JSON_ENCODING)
         else:
+            within = zenoh.KeyExpr(asked)
             for s in stored:
-                query.reply(f"{base}/{s.event.id}/{s.event.state}", dumps(payloads.event_message(s.to_json())),
-                            encoding=JSON_ENCODING)
+                key = f"{base}/{s.event.id}/{s.event.state}"
+                if within.intersects(zenoh.KeyExpr(key)):     # Zenoh refuses a reply outside the query's keys
+                    query.reply(key, dumps(payloads.event_message(s.to_json())), encoding=JSON_ENCODING)
     except Exception as exc:
         log.warning("history_query_failed", error=repr(exc))
         try:

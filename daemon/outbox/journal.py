@@ -420,10 +420,11 @@ class EventJournal:
         return [s.event for s in self._select(Selection(unpublished=True), None)]
 
     def query(self, since: float | None = None, until: float | None = None,
-              limit: int | None = None, unacked: bool = False) -> list[StoredEvent]:
+              limit: int | None = None, unacked: bool = False, event_id: str | None = None) -> list[StoredEvent]:
         """Messages journalled between two unix times (inclusive), only the unacknowledged ones when
-        ``unacked``, oldest first, at most ``limit`` (the newest ``limit`` when more match)."""
-        return self._select(Selection(since=since, until=until, unacked=unacked), limit)
+        ``unacked``, only event ``event_id``'s when given, oldest first, at most ``limit`` (the newest ``limit``
+        when more match)."""
+        return self._select(Selection(since=since, until=until, event_id=event_id, unacked=unacked), limit)
 
     def get(self, event_id: str) -> list[StoredEvent]:
         """All messages of one event, oldest first."""

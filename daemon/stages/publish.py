@@ -355,8 +355,8 @@ class PublisherStage:
         return sent
 
     # Zenoh threads
-    def _stored_events(self, since: float | None, until: float | None, limit: int):
-        return self.outbox.journal.query(since, until, limit)
+    def _stored_events(self, since: float | None, until: float | None, limit: int, event_id: str | None = None):
+        return self.outbox.journal.query(since, until, limit, event_id=event_id)
 
     def _acknowledge(self, event_id: str, state: str | None, by: str | None) -> None:
         self.outbox.acknowledge(event_id, state, by)

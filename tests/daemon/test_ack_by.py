@@ -70,8 +70,12 @@ def test_by_goes_from_the_bus_link_to_the_journal_the_log_and_the_history(tmp_pa
                   ("e2", "falling"): None}                          # the first acknowledgement's is kept
 
     base = "posed/r1/events/history"
+
+    def lookup(since, until, limit, event_id=None):
+        return journal.query(since, until, limit, event_id=event_id)
+
     q = FakeQuery(f"{base}/**")
-    queries.answer_history(q, base, lambda since, until, limit: journal.query(since, until, limit), log)
+    queries.answer_history(q, base, lookup, log)
     replies = [json.loads(p) for _, p in q.replies]
     for obj in replies:
         contract.validate(obj)
@@ -81,7 +85,7 @@ def test_by_goes_from_the_bus_link_to_the_journal_the_log_and_the_history(tmp_pa
     assert entries[2].acked_by == "daughter" and entries[2].hooks_outcome == "no_hooks"
     assert "acked_by" not in entries[2].event.extra                # delivery fields are not the event's
     bare = FakeQuery(base)
-    queries.answer_history(bare, base, lambda since, until, limit: journal.query(since, until, limit), log)
+    queries.answer_history(bare, base, lookup, log)
     reply = json.loads(bare.replies[0][1])
     contract.validate(reply)
     assert [e["acked_by"] for e in reply["events"]] == ["night nurse", "night nurse", "daughter", None]

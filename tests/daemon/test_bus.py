@@ -56,9 +56,9 @@ def test_history_answers_per_message_or_as_one_list():
     rows = [stored("e1", "falling", 100.0), stored("e1", "alarm", 101.0)]
     asked = []
 
-    def lookup(since, until, limit):
+    def lookup(since, until, limit, event_id=None):
         asked.append((since, until, limit))
-        return rows[-limit:]
+        return [r for r in rows if event_id in (None, r.event.id)][-limit:]
 
     log = RecordingLog()
     q = FakeQuery(f"{base}/**", limit="10")
@@ -78,6 +78,31 @@ def test_history_answers_per_message_or_as_one_list():
     failing = FakeQuery(base)
     queries.answer_history(failing, base, broken, log)
     assert "disk gone" in failing.errors[0] and log.events("warning") == ["history_query_failed"]
+
+
+def test_history_answers_one_event_or_one_state_within_the_keys_asked():
+    """A query naming an event (``<base>/<id>/**``) is looked up by its id, however old; every reply lies within
+    the query's keys (Zenoh refuses one outside them: ``<base>/*/alarm`` gets the alarms only)."""
+    base = "posed/r1/events/history"
+    rows = [stored("e1", "falling", 100.0), stored("e1", "alarm", 101.0), stored("e2", "falling", 200.0)]
+    ids = []
+
+    def lookup(since, until, limit, event_id=None):
+        ids.append(event_id)
+        return [r for r in rows if event_id in (None, r.event.id)][-limit:]
+
+    log = RecordingLog()
+    one = FakeQuery(f"{base}/e1/**", limit="1")
+    queries.answer_history(one, base, lookup, log)
+    assert [k for k, _ in one.replies] == [f"{base}/e1/alarm"] and ids == ["e1"]      # the newest of e1's
+    alarms = FakeQuery(f"{base}/*/alarm")
+    queries.answer_history(alarms, base, lookup, log)
+    assert [k for k, _ in alarms.replies] == [f"{base}/e1/alarm"] and ids[-1] is None
+    state = FakeQuery(f"{base}/e2/falling")
+    queries.answer_history(state, base, lookup, log)
+    assert [k for k, _ in state.replies] == [f"{base}/e2/falling"] and ids[-1] == "e2"
+    assert queries.event_of_query(f"{base}/**", base) is None and queries.event_of_query(base, base) is None
+    assert log.events("warning") == []
 
 
 def test_state_answers_the_latest_pose_and_status():

@@ -65,9 +65,9 @@ def test_any_history_parameters_are_answered(tmp_path_factory, raw, bare):
     journal = EventJournal(tmp_path_factory.mktemp("hist") / "events.sqlite3")
     looked_up: list = []
 
-    def lookup(since, until, limit):
+    def lookup(since, until, limit, event_id=None):
         looked_up.append((since, until, limit))
-        return journal.query(since, until, limit)
+        return journal.query(since, until, limit, event_id=event_id)
 
     q = Query(BASE if bare else f"{BASE}/**", raw)
     log = Log()
