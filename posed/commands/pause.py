@@ -1,5 +1,5 @@
-"""``posed pause DURATION [--by NAME] [--robot R]`` and ``posed resume [--by NAME] [--robot R]``: ask the
-running daemon to stop watching for a while (privacy: a bath, a visitor), or to watch again now.
+"""``posed pause DURATION [--by NAME] [--robot R]``: ask the running daemon to stop watching for a while (privacy:
+a bath, a visitor); ``0`` resumes (``posed resume``, :mod:`posed.commands.resume`, is the same with 0).
 
 A Zenoh query on ``posed/ROBOT/privacy/pause?for=SECONDS;by=NAME`` (docs/daemon.md, "Pausing for privacy"),
 through the daemon's endpoint and robot id from the config (as ``posed events ack``). The answer is printed with
@@ -30,16 +30,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "the running one; one longer than the robot's privacy.max_pause_s is cut to it.")
     pause.add_argument("duration", metavar="DURATION",
                        help="how long: seconds (900, 90.5) or 30s, 15m, 1h, 1h30m; 0 resumes now")
-    _common(pause)
+    add_common_args(pause)
     pause.set_defaults(func=run_pause)
-    resume = sub.add_parser("resume", help="end a pause for privacy now: watch again",
-                            description="Asks the running daemon to end its pause for privacy now (always "
-                                        "allowed; nothing happens when none runs).")
-    _common(resume)
-    resume.set_defaults(func=run_resume)
 
 
-def _common(parser: argparse.ArgumentParser) -> None:
+def add_common_args(parser: argparse.ArgumentParser) -> None:
+    """The options ``posed pause`` and ``posed resume`` share (the config, --by, --robot, --connect, --wait)."""
     add_config_args(parser, source=False, example="robot_id=kitchen")
     parser.add_argument("--by", metavar="NAME", default=None,
                         help=f"who asks, shown in the status and the report (free text, at most {MAX_BY_CHARS} "
@@ -59,11 +55,7 @@ def run_pause(args: argparse.Namespace) -> int:
     except BadPause as exc:
         print(f"posed pause: {exc}", file=sys.stderr)
         return 2
-    return _ask(args, "posed pause", seconds)
-
-
-def run_resume(args: argparse.Namespace) -> int:
-    return _ask(args, "posed resume", 0.0)
+    return ask(args, "posed pause", seconds)
 
 
 def _by(args: argparse.Namespace, who: str) -> str | None:
@@ -80,7 +72,7 @@ def _by(args: argparse.Namespace, who: str) -> str | None:
     return by or None
 
 
-def _ask(args: argparse.Namespace, who: str, seconds: float) -> int:
+def ask(args: argparse.Namespace, who: str, seconds: float) -> int:
     from posed.client import PosedClient, PosedClientError
     from posed.client.api import NoAnswerError
     from posed.commands._bus import open_client
