@@ -121,6 +121,15 @@ def mid_hip(world: dict) -> np.ndarray:
     return 0.5 * (np.asarray(world["left_hip"], float) + np.asarray(world["right_hip"], float))
 
 
+def seen_hips(landmarks: np.ndarray | None) -> np.ndarray | None:
+    """The two hips' landmark rows (u, v, z, visibility) when both are seen (visibility 0.5 or more), else None:
+    what a head that follows the person aims at."""
+    if landmarks is None:
+        return None
+    hips = landmarks[list(HIPS)]
+    return None if np.any(hips[:, 3] < 0.5) else hips
+
+
 @dataclass
 class Track:
     """Every controller step: time, base position and heading, the camera's yaw and tilt, the base's forward
@@ -171,10 +180,8 @@ class PanTiltController:
     def gaze_from(self, landmarks: np.ndarray | None, camera: WorldCamera) -> tuple[float, float] | None:
         """The camera yaw and tilt (deg, world) whose optical axis passes through the frame's mid-hip pixel, or
         None (hips not both seen)."""
-        if landmarks is None:
-            return None
-        hips = landmarks[list(HIPS)]
-        if np.any(hips[:, 3] < 0.5):
+        hips = seen_hips(landmarks)
+        if hips is None:
             return None
         u, v = float(hips[:, 0].mean()), float(hips[:, 1].mean())
         k = camera.intrinsics

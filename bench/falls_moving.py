@@ -87,7 +87,6 @@ from posed.fitting import FitResult
 
 CMU_SEED = 77          # bench.falls.cmu_cases: the noise of its n-th view is drawn from CMU_SEED + n
 CMU_NOISE = 0.01
-HIPS = (23, 24)        # MediaPipe landmark numbers of the hips
 TORSO = (11, 12, 23, 24)
 IMU_RATE_HZ = 63.0       # the D435i accelerometer's sample rate (hal/imu.py)
 # The D435i's gyro (Bosch BMI055, datasheet BST-BMI055-DS000, typical values; hal/imu.py): its lowest rate,
@@ -226,10 +225,8 @@ class FollowController:
 
     def target_from(self, landmarks: np.ndarray | None, camera: WorldCamera) -> float | None:
         """The tilt that puts the frame's mid-hip on the image's centre row, or None (hips not both seen)."""
-        if landmarks is None:
-            return None
-        hips = landmarks[list(HIPS)]
-        if np.any(hips[:, 3] < 0.5):
+        hips = base_motion.seen_hips(landmarks)
+        if hips is None:
             return None
         v = float(hips[:, 1].mean())
         f = camera.intrinsics.fy

@@ -20,11 +20,11 @@ import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from posed.daemon.history.paused import ENDED
 from posed.daemon.outbox.private import write_private
 
 PRIVACY_FILE = "privacy.json"
 FILE_FORMAT = "posed.privacy_file"
-ENDINGS = ("time", "resumed", "stopped")
 
 
 class PrivacyFileError(ValueError):
@@ -107,8 +107,8 @@ def read_privacy_file(path: Path) -> tuple[Pause | None, EndedPause | None]:
         pause = Pause(_time(p, "since_unix"), _time(p, "until_unix"), _text(p, "by"))
     e = obj.get("last")
     if e is not None:
-        if not isinstance(e, dict) or e.get("ended") not in ENDINGS:
-            raise PrivacyFileError(f"last is not an ended pause (ended: one of {', '.join(ENDINGS)})")
+        if not isinstance(e, dict) or e.get("ended") not in ENDED:
+            raise PrivacyFileError(f"last is not an ended pause (ended: one of {', '.join(ENDED)})")
         last = EndedPause(_time(e, "since_unix"), _time(e, "ended_unix"), _text(e, "by"), e["ended"],
                           _text(e, "resumed_by"))
     return pause, last

@@ -17,9 +17,9 @@ import argparse
 import sys
 
 from posed.commands import add_config_args, config_from_args
+from posed.daemon.bus.pause_query import MAX_BY_CHARS
 
 EX_UNAVAILABLE = 69
-MAX_BY_CHARS = 64                       # daemon.bus.pause_query.MAX_BY_CHARS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
