@@ -7,16 +7,13 @@ with its robot, and an acknowledgement goes to the robot the event is from — n
 
 from __future__ import annotations
 
-import time
-
 from posed.viz.web.fall_list import KEEP_S
 from posed.viz.web.hub import EVERY_ROBOT, Hub, caveats_of
 
 HISTORY_SINCE = f"{round(KEEP_S / 86400)}d"     # the page's window (fall_list.KEEP_S)
 HISTORY_LIMIT = 2000            # stored messages per robot the page is sent at most (a week at ~100 falls a day)
 ACK_CONFIRM_S = 5.0
-CONFIRM_MARGIN_S = 60.0         # the confirmation reads the journal around the event's own messages
-CONFIRM_LIMIT = 10000           # the daemon's largest limit: an event whose time is unknown is looked for in all
+CONFIRM_LIMIT = 10000           # the daemon's largest limit: a history asked between two times
 
 
 class AckRefused(ValueError):
@@ -49,35 +46,13 @@ class RobotLink:
 
     def ack(self, event_id: str, by: str | None = None) -> bool:
         """Acknowledge every message of the event so far, as ``by`` (the name the page's user gave; "posed
-        web" when none), on the robot it is from; True once the robot's journal shows it. The journal is read
-        around the event's own time (not the whole history: thousands of messages after months of use)."""
+        web" when none), on the robot it is from; True once the robot's journal shows it. The journal is asked
+        for this event's messages by its id (``PosedClient.ack``'s confirmation: however old the event, not
+        the whole history)."""
         robot = self.robot_for(event_id)
-        span = self.hub.span_of(event_id)
-        since, until = (span[0] - CONFIRM_MARGIN_S, span[1] + CONFIRM_MARGIN_S) if span else (None, None)
-        deadline = time.monotonic() + ACK_CONFIRM_S
-        ok = False
-        while True:
-            # the put again on every round: one made before the route to the daemon exists can be lost
-            self.client.ack(robot, event_id, by=by or "posed web")
-            time.sleep(0.2)
-            mine = self._stored(robot, event_id, since, until)
-            if not mine and since is not None:      # stored at another time than it says: look in all
-                mine = self._stored(robot, event_id, None, None)
-            if mine and all(e.acked_at is not None for e in mine):
-                ok = True
-                break
-            if time.monotonic() >= deadline:
-                break
-            time.sleep(0.3)
+        ok = self.client.ack(robot, event_id, by=by or "posed web", confirm_s=ACK_CONFIRM_S)
         self.hub.on_acked(event_id, ok)
         return ok
-
-    def _stored(self, robot: str, event_id: str, since: float | None, until: float | None) -> list:
-        try:
-            return [e for e in self.client.history(robot, since=since, until=until, limit=CONFIRM_LIMIT,
-                                                   timeout=2.0) if e.event.id == event_id]
-        except Exception:       # no answer this round: the next one asks again
-            return []
 
     def history(self, since: float | None = None, until: float | None = None) -> list[dict]:
         """The robot's stored event messages of the page's window, oldest first, as JSON objects (at most

@@ -95,14 +95,6 @@ class FallList:
                 out.append(eid)
         return out
 
-    def span(self, event_id: str) -> tuple[float, float] | None:
-        """The times of the event's first and last messages held here (their ``wall_time``); None when not
-        held or when a message does not say."""
-        times = [unix_of(m.get("wall_time")) for m in self._msgs.get(event_id, {}).values()]
-        if not times or None in times:
-            return None
-        return min(times), max(times)
-
     def robot_of(self, event_id: str) -> str | None:
         return self._robot.get(event_id)
 

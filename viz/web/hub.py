@@ -529,11 +529,6 @@ class Hub:
         with self._lock:
             return self._falls.robot_of(event_id)
 
-    def span_of(self, event_id: str) -> tuple[float, float] | None:
-        """When the event's first and last messages held here were (unix s); None: not known."""
-        with self._lock:
-            return self._falls.span(event_id)
-
     def is_acked(self, event_id: str) -> bool:
         with self._lock:
             return self._falls.is_acked(event_id)
