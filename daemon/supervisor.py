@@ -616,6 +616,8 @@ def _state_text(status: dict) -> str:
     e2e = status["latency_ms"]
     text = (f"{status['state']}: {status['fps']:.1f} fps, latency p95 {fmt_ms(e2e['p95'])} ms, drops "
             f"{status['drops']}, restarts {status['restarts']}, {what} {cam['state']}")
+    if cam.get("spectrum") == "infrared":      # a dark room, watched by the RealSense's infrared image
+        text += " (dark: by infrared)"
     storage = status.get("storage") or {}
     if storage.get("state", "ok") != "ok":
         text += (f"; STORAGE DEGRADED: the state directory fails, {storage.get('unstored_events', 0)} fall-event "

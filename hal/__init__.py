@@ -31,6 +31,7 @@ from posed.hal.errors import (
 )
 from posed.hal.frame import Frame
 from posed.hal.imu import G_M_S2, GravityEstimate
+from posed.hal.night import mean_luma
 from posed.hal.recorder import RecordSummary, check_output, record
 from posed.hal.registry import (
     REGISTRY,
@@ -71,6 +72,7 @@ __all__ = [
     "downscale_depth",
     "is_landmark_recording",
     "is_realsense_recording",
+    "mean_luma",
     "open_source",
     "parse_uri",
     "record",

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 SOURCE_TYPES = ("realsense", "v4l2", "file")
+INFRARED_MODES = ("auto", "off", "always")   # source.infrared (hal.night)
 
 NEVER = -1  # a fault_*_at value that never fires
 
@@ -41,6 +42,10 @@ class SourceConfig:
         "doc": "realsense: read the accelerometer (D435i, D455; a recording's accel stream) for the direction of "
                "gravity, which falls.imu_gravity uses instead of the camera tilt and roll; cameras without one "
                "(D435, D415) stream as before"})
+    infrared: str = field(default="auto", metadata={
+        "doc": "realsense (live and recordings): also stream the left infrared imager and deliver its image when "
+               "the colour image is dark (auto: below a mean luma, with hysteresis; hal.night), always, or "
+               "never (off); other sources ignore it", "choices": INFRARED_MODES})
     fx: float = field(default=0.0, metadata={
         "doc": "v4l2/file: focal length x at width x height; 0 = unknown (frames carry no intrinsics)",
         "unit": "px", "range": (0.0, 100000.0)})

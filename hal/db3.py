@@ -13,6 +13,12 @@ frame's down vector times g (the low-passed reading, not the raw samples). A gyr
 it, on the same motion sensor, holds angular rates in rad/s in the same axes, as a D435i's gyro
 (``write_gyro``); a recording without one plays as an accelerometer-only camera.
 
+An infrared stream (``infrared``) holds the left infrared imager's images (stream index 1, y8, as a D4xx's
+"Stereo Module" delivers them; ``write(..., infrared=Y8 image)``), at ``infrared_intrinsics`` (default the
+colour's). The left imager is the frame depth is computed in, so its extrinsics are the identity to depth (and
+through it depth's to colour), or, in a recording without depth, the identity to colour. Depth given the
+infrared intrinsics thus lies on the infrared grid, as a camera's raw depth does.
+
 Note: ``rs.extrinsics()`` starts with an all-zero rotation; an unset rotation makes alignment map all depth to
 0, so the identity is always written explicitly.
 """
@@ -28,6 +34,7 @@ import numpy as np
 from posed.camera_model import Intrinsics
 from posed.hal.errors import SourceUnsupported
 from posed.hal.realsense import import_rs
+from posed.hal.rs_playback import INFRARED_INDEX
 
 IDENTITY_ROTATION = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
@@ -38,38 +45,52 @@ class Db3Writer:
     ``depth_scale`` None records colour only. ``depth_intrinsics`` default: the colour intrinsics (depth
     already aligned); ``depth_to_colour`` = (rotation 9 values row-major, translation 3 values in metres),
     default identity. ``accel_fps``: also record an accelerometer stream at this rate (``write_accel``);
-    ``gyro_fps`` (with ``accel_fps``): a gyro stream too (``write_gyro``).
+    ``gyro_fps`` (with ``accel_fps``): a gyro stream too (``write_gyro``). ``infrared``: an infrared stream
+    (index 1, y8) at ``infrared_intrinsics`` (default the colour's), identity extrinsics to depth (module doc);
+    its images go with ``write(..., infrared=...)``.
     """
 
     def __init__(self, path: str | os.PathLike, intrinsics: Intrinsics, fps: float,
                  depth_scale: float | None = None, depth_intrinsics: Intrinsics | None = None,
                  depth_to_colour: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
                  serial: str = "posed-recording", name: str = "posed recording",
-                 accel_fps: int | None = None, gyro_fps: int | None = None) -> None:
+                 accel_fps: int | None = None, gyro_fps: int | None = None, infrared: bool = False,
+                 infrared_intrinsics: Intrinsics | None = None) -> None:
         self.path = Path(path)
         if self.path.suffix.lower() != ".db3":
             raise SourceUnsupported(f"{self.path}: librealsense 2.59 records ROS 2 .db3 files only; name the "
                                     "output NAME.db3", str(self.path))
         if gyro_fps is not None and accel_fps is None:
             raise ValueError("a gyro stream needs the accelerometer's beside it: give accel_fps too")
+        if infrared_intrinsics is not None and not infrared:
+            raise ValueError("infrared_intrinsics without an infrared stream: give infrared=True too")
         rs = import_rs()
         self._rs = rs
         if self.path.exists():
             self.path.unlink()  # the recorder refuses to append
         self.intrinsics = intrinsics
         self.depth_intrinsics = depth_intrinsics or intrinsics
+        self.infrared_intrinsics = (infrared_intrinsics or intrinsics) if infrared else None
         rate = max(1, int(round(fps)))
         dev = rs.software_device()
         dev.register_info(rs.camera_info.name, name)
         dev.register_info(rs.camera_info.serial_number, serial)
         self._depth_sensor = None
         self._depth_profile = None
+        self._infrared_sensor = None
+        self._infrared_profile = None
         if depth_scale is not None:
             ds = dev.add_sensor("Depth")
             self._depth_profile = ds.add_video_stream(
                 _video_stream(rs, rs.stream.depth, 0, self.depth_intrinsics, rate, rs.format.z16, 2))
             ds.add_read_only_option(rs.option.depth_units, float(depth_scale))
             self._depth_sensor = ds
+        if self.infrared_intrinsics is not None:   # the left imager: beside depth on one sensor, as on a D4xx
+            irs = self._depth_sensor if self._depth_sensor is not None else dev.add_sensor("Stereo Module")
+            self._infrared_profile = irs.add_video_stream(
+                _video_stream(rs, rs.stream.infrared, 4, self.infrared_intrinsics, rate, rs.format.y8, 1,
+                              index=INFRARED_INDEX))
+            self._infrared_sensor = irs
         cs = dev.add_sensor("Color")
         self._colour_profile = cs.add_video_stream(
             _video_stream(rs, rs.stream.color, 1, intrinsics, rate, rs.format.bgr8, 3))
@@ -80,6 +101,9 @@ class Db3Writer:
             ext.rotation = [float(v) for v in rotation]
             ext.translation = [float(v) for v in translation]
             self._depth_profile.register_extrinsics_to(self._colour_profile, ext)
+        if self._infrared_profile is not None:
+            self._infrared_profile.register_extrinsics_to(
+                self._depth_profile if self._depth_profile is not None else self._colour_profile, _identity(rs))
         self._accel_sensor = None
         self._accel_profile = None
         self._gyro_profile = None
@@ -91,23 +115,37 @@ class Db3Writer:
             self._accel_sensor = ms
         self._device = dev
         self._recorder: Any = rs.recorder(str(self.path), dev)
-        self._sensors = [s for s in (self._depth_sensor, cs, self._accel_sensor) if s is not None]
+        stereo = self._depth_sensor if self._depth_sensor is not None else self._infrared_sensor
+        self._sensors = [s for s in (stereo, cs, self._accel_sensor) if s is not None]
         motion = [p for p in (self._accel_profile, self._gyro_profile) if p is not None]
-        for sensor, profile in ((self._depth_sensor, self._depth_profile), (cs, self._colour_profile),
-                                (self._accel_sensor, motion)):
+        stereo_profiles = [p for p in (self._depth_profile, self._infrared_profile) if p is not None]
+        for sensor, profiles in ((stereo, stereo_profiles), (cs, [self._colour_profile]),
+                                 (self._accel_sensor, motion)):
             if sensor is not None:
-                sensor.open(profile)
+                sensor.open(profiles)
                 sensor.start(_ignore)
         self.depth_scale = depth_scale
         self.frames = 0
+        self.infrared_frames = 0
         self.accel_samples = 0
         self.gyro_samples = 0
 
-    def write(self, image: np.ndarray, depth: np.ndarray | None, t_ms: float, number: int) -> None:
-        """Add one colour image (BGR uint8, H x W x 3) and its depth (uint16 on the depth grid, or None)."""
+    def write(self, image: np.ndarray, depth: np.ndarray | None, t_ms: float, number: int,
+              infrared: np.ndarray | None = None) -> None:
+        """Add one colour image (BGR uint8, H x W x 3), its depth (uint16 on the depth grid, or None) and, in a
+        recording with an infrared stream, its infrared image (Y8: uint8 H x W on the infrared grid, or None)."""
         w, h = self.intrinsics.width, self.intrinsics.height
         if image.shape != (h, w, 3) or image.dtype != np.uint8:
             raise ValueError(f"colour image must be {h}x{w}x3 uint8, got {image.shape} {image.dtype}")
+        if infrared is not None:
+            k = self.infrared_intrinsics
+            if k is None:
+                raise ValueError("this recording has no infrared stream: open the writer with infrared=True")
+            if infrared.shape != (k.height, k.width) or infrared.dtype != np.uint8:
+                raise ValueError(f"infrared image must be {k.height}x{k.width} uint8 (Y8), got {infrared.shape} "
+                                 f"{infrared.dtype}")
+            self._send(self._infrared_sensor, self._infrared_profile, infrared, 1, t_ms, number)
+            self.infrared_frames += 1
         if depth is not None and self._depth_sensor is not None:
             dw, dh = self.depth_intrinsics.width, self.depth_intrinsics.height
             if depth.shape != (dh, dw) or depth.dtype != np.uint16:
@@ -195,7 +233,15 @@ def _motion_stream(rs: Any, kind: Any, uid: int, fps: int) -> Any:
     return m
 
 
-def _video_stream(rs: Any, kind: Any, uid: int, k: Intrinsics, fps: int, fmt: Any, bpp: int) -> Any:
+def _identity(rs: Any) -> Any:
+    ext = rs.extrinsics()
+    ext.rotation = list(IDENTITY_ROTATION)
+    ext.translation = [0.0, 0.0, 0.0]
+    return ext
+
+
+def _video_stream(rs: Any, kind: Any, uid: int, k: Intrinsics, fps: int, fmt: Any, bpp: int,
+                  index: int = 0) -> Any:
     intr = rs.intrinsics()
     intr.width, intr.height = int(k.width), int(k.height)
     intr.fx, intr.fy, intr.ppx, intr.ppy = float(k.fx), float(k.fy), float(k.cx), float(k.cy)
@@ -203,7 +249,7 @@ def _video_stream(rs: Any, kind: Any, uid: int, k: Intrinsics, fps: int, fmt: An
     intr.coeffs = [0.0] * 5
     vs = rs.video_stream()
     vs.type = kind
-    vs.index = 0
+    vs.index = index
     vs.uid = uid
     vs.width, vs.height = int(k.width), int(k.height)
     vs.fps = fps

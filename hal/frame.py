@@ -10,10 +10,12 @@ import numpy as np
 
 from posed.camera_model import Intrinsics
 
+SPECTRA = ("colour", "infrared")
+
 
 @dataclass(frozen=True, eq=False)
 class Frame:
-    """A colour image, optionally depth aligned to it, and when it was captured.
+    """An image (colour, or infrared at night), optionally depth aligned to it, and when it was captured.
 
     image        H x W x 3 uint8, BGR (treat as read-only)
     depth        H x W uint16 aligned to ``image`` (same pixel grid), 0 = no depth; or None
@@ -21,8 +23,11 @@ class Frame:
     t            capture time, seconds on the ``time.monotonic()`` clock of this machine
     seq          frame number from the source (increasing; a gap means frames were lost)
     intrinsics   of ``image``, or None when unknown
-    gravity      the direction of gravity (down), a unit vector in the colour camera's axes (x right, y down,
-                 z forward), from the camera's accelerometer (:mod:`hal.imu`); None without one
+    gravity      the direction of gravity (down), a unit vector in the axes of the camera that took ``image``
+                 (x right, y down, z forward), from the camera's accelerometer (:mod:`hal.imu`); None without one
+    spectrum     what ``image`` shows: ``colour`` (the colour camera's picture), or ``infrared`` (a RealSense's
+                 left infrared imager in a dark room, :mod:`hal.night`: its grey image as BGR, ``intrinsics``,
+                 ``gravity`` and ``depth`` then those of that imager)
     """
 
     image: np.ndarray
@@ -32,8 +37,11 @@ class Frame:
     seq: int
     intrinsics: Intrinsics | None = None
     gravity: tuple[float, float, float] | None = None
+    spectrum: str = "colour"
 
     def __post_init__(self) -> None:
+        if self.spectrum not in SPECTRA:
+            raise ValueError(f"Frame.spectrum must be one of {', '.join(SPECTRA)}, got {self.spectrum!r}")
         if self.gravity is not None:
             g = tuple(float(v) for v in self.gravity)
             if len(g) != 3 or not all(np.isfinite(g)) or abs(float(np.linalg.norm(g)) - 1.0) > 1e-6:

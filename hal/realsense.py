@@ -17,6 +17,13 @@ Playback delivers every colour frame of the recording exactly once, with the dep
 frame numbers not above the last one delivered are skipped (a playback re-opened after a stall starts the
 file again) and counted as ``duplicates``. Live, a frameset repeating the last colour frame is skipped too.
 
+Night (``source.infrared``, :mod:`hal.night`): unless ``off``, the left infrared imager (stream index 1, y8, at
+the colour's size and rate) streams too, live or from a recording that has it. Per frame the chooser picks the
+colour image or, in a dark room (or a blank colour frame), the infrared one; an infrared frame carries that
+imager's grey image as BGR, its intrinsics, the raw depth when depth lies on its grid (same intrinsics,
+identity extrinsics: a D4xx computes depth in that imager's frame) and gravity in its axes. Live, a camera that
+cannot start with the infrared stream starts without it under ``auto`` (``info["infrared"]`` says the error).
+
 Timestamps: live frames stamped on ``global_time``/``system_time`` (host clock, ms) are mapped from wall to
 monotonic time; ``hardware_clock`` stamps go through :class:`hal.clock.DeviceClock`. Playback: ``t = t_start +
 (ts - ts_first)`` as for every file (see :mod:`hal.replay`), paced by the recorded stamps when ``realtime``;
@@ -36,6 +43,7 @@ import math
 import os
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -53,8 +61,9 @@ from posed.hal.errors import (
 )
 from posed.hal.frame import Frame
 from posed.hal.imu import GravityEstimate, find_accel, find_gyro, rotation_of, sample_sink
+from posed.hal.night import COLOUR, INFRARED, SpectrumChooser
 from posed.hal.replay import Timeline
-from posed.hal.rs_playback import PlaybackPipeline
+from posed.hal.rs_playback import INFRARED_INDEX, PlaybackPipeline
 from posed.hal.source import Source
 
 # After hardware_reset() the camera re-enumerates; touching it too soon has crashed librealsense
@@ -82,8 +91,10 @@ class RealSenseSource(Source):
     with no argument and must return an ``rs.pipeline`` (default, or a subclass); for a recording it is called
     with the pyrealsense2 module and must return a :class:`PlaybackPipeline` (default, or a subclass).
     ``info`` adds serial, device name, size, fps, depth scale, intrinsics, ``imu`` and ``gyro`` (off | none |
-    streaming | error: ...) and the counters timeouts, reopens, reopen_failures, hardware_resets, disconnects,
-    duplicates, passes.
+    streaming | error: ...), ``infrared`` (off | none: no infrared stream | standby | in use | error: ...),
+    ``spectrum`` (of the last frame: colour | infrared), ``infrared_intrinsics`` and the counters timeouts,
+    reopens, reopen_failures, hardware_resets, disconnects, duplicates, passes, infrared_frames,
+    spectrum_switches.
     """
 
     kind = "realsense"
@@ -105,11 +116,17 @@ class RealSenseSource(Source):
         self.fps = 0.0
         self.colour_format = ""
         self.counters.update(timeouts=0, reopens=0, reopen_failures=0, hardware_resets=0, disconnects=0,
-                             duplicates=0, passes=0, corrupt=0, blank=0)
+                             duplicates=0, passes=0, corrupt=0, blank=0, infrared_frames=0, spectrum_switches=0)
         self._gravity: GravityEstimate | None = None   # this start's accelerometer filter, when there is one
         self._imu_sensor: Any = None                   # live: the motion sensor opened beside the pipeline
         self.imu = "off" if not config.imu else "none"  # off | none (no accelerometer) | streaming | error: ...
         self.gyro = self.imu                            # off | none (no gyro: accelerometer only) | streaming | ...
+        self.infrared = "off" if config.infrared == "off" else "none"  # off | none | standby | in use | error: ...
+        self.spectrum = COLOUR                          # what the last frame delivered showed
+        self._chooser = SpectrumChooser(config.infrared)
+        self._infrared: _InfraredStream | None = None   # the usable infrared stream of this start, if any
+        self._infrared_error = ""                       # live: why the camera streams without infrared
+        self._infrared_asked = False                    # this start asked for the infrared stream
 
     # -- Source -------------------------------------------------------------------------------------------
     def _open(self) -> None:
@@ -139,6 +156,8 @@ class RealSenseSource(Source):
                 "depth_alignment": getattr(self, "_depth_mode", "none"),
                 "intrinsics": self.intrinsics.to_json() if self.intrinsics else None, "imu": self.imu,
                 "gyro": self.gyro, **(self._gravity.counters() if self._gravity is not None else {}),
+                "infrared": self.infrared, "spectrum": self.spectrum,
+                "infrared_intrinsics": self._infrared.intrinsics.to_json() if self._infrared else None,
                 "realtime": self.config.realtime if self.playback else True}
 
     def _has_depth(self) -> bool:
@@ -173,28 +192,26 @@ class RealSenseSource(Source):
             self._gravity = GravityEstimate() if c.imu else None
         else:
             pipe = (self._pipeline_factory or rs.pipeline)()  # a factory must return an rs.pipeline (subclass)
-            cfg = rs.config()
-            if c.serial:
-                cfg.enable_device(c.serial)
-            cfg.enable_stream(rs.stream.color, c.width, c.height, rs.format.bgr8, int(round(c.fps)))
-            if c.depth:
-                cfg.enable_stream(rs.stream.depth, c.width, c.height, rs.format.z16, int(round(c.fps)))
+        self._infrared_asked = infrared = c.infrared != "off"
         try:
             if self.playback is None:
-                profile = pipe.start(cfg)
+                profile = self._start_live(pipe)
             elif self._gravity is not None:
-                profile = pipe.start(self.playback, c.depth, motion=sample_sink(rs, self._gravity))
+                profile = pipe.start(self.playback, c.depth, motion=sample_sink(rs, self._gravity), infrared=infrared)
             else:
-                profile = pipe.start(self.playback, c.depth)
+                profile = pipe.start(self.playback, c.depth, infrared=infrared)
         except RuntimeError as exc:
             if self.playback is not None:
                 raise SourceCorrupt(f"{self.playback}: librealsense cannot play this recording ({exc}); it may be "
                                     "truncated or corrupt — record it again (posed record -o NAME.db3)",
                                     self.name) from exc
+            with_ir = " + infrared" if self._infrared_asked else ""
+            ir_fix = (" (the infrared stream needs y8 at the colour's size and rate; source.infrared auto streams "
+                      "without it when it cannot start)") if self._infrared_asked else ""
             raise SourceNotFound(
                 f"RealSense {c.serial or '(first camera)'}: cannot start colour {c.width}x{c.height}@{c.fps:g}"
-                f"{' + depth' if c.depth else ''} ({exc}); check the modes with `rs-enumerate-devices`, try "
-                "640x480@30, and that no other program holds the camera", self.name) from exc
+                f"{' + depth' if c.depth else ''}{with_ir} ({exc}); check the modes with `rs-enumerate-devices`"
+                f"{ir_fix}, try 640x480@30, and that no other program holds the camera", self.name) from exc
         try:
             self._configure(pipe, profile)
         except Exception:
@@ -202,6 +219,33 @@ class RealSenseSource(Source):
             raise
         self._pipe = pipe
         self.state = "streaming"
+
+    def _live_config(self, infrared: bool) -> Any:
+        rs = self._rs
+        c = self.config
+        cfg = rs.config()
+        if c.serial:
+            cfg.enable_device(c.serial)
+        fps = int(round(c.fps))
+        cfg.enable_stream(rs.stream.color, c.width, c.height, rs.format.bgr8, fps)
+        if c.depth:
+            cfg.enable_stream(rs.stream.depth, c.width, c.height, rs.format.z16, fps)
+        if infrared:  # the left imager, at the colour's size: its image replaces colour's one for one
+            cfg.enable_stream(rs.stream.infrared, INFRARED_INDEX, c.width, c.height, rs.format.y8, fps)
+        return cfg
+
+    def _start_live(self, pipe: Any) -> Any:
+        """Start the camera (with the infrared stream unless ``off``); under ``auto`` a camera that cannot start
+        with it starts without it and ``info["infrared"]`` says why (``_infrared_asked``: the last try's)."""
+        self._infrared_error = ""
+        try:
+            return pipe.start(self._live_config(self._infrared_asked))
+        except RuntimeError as exc:
+            if not self._infrared_asked or self.config.infrared == "always":
+                raise
+            self._infrared_error = f"the camera cannot start with it ({exc}); streaming colour without it"
+        self._infrared_asked = False
+        return pipe.start(self._live_config(False))
 
     def _configure(self, pipe: Any, profile: Any) -> None:
         rs = self._rs
@@ -233,9 +277,40 @@ class RealSenseSource(Source):
                 self._depth_mode = "align"
                 self._align = rs.align(rs.stream.color)
         self._configure_imu(dev, streams, colour)
+        self._configure_infrared(profile, colour, depth if self._depth_mode != "none" else None)
         for key, attr in ((rs.camera_info.serial_number, "serial"), (rs.camera_info.name, "device_name")):
             if dev.supports(key):  # a software/played-back device may lack some infos
                 setattr(self, attr, dev.get_info(key))
+
+    def _configure_infrared(self, profile: Any, colour: Any, depth: Any) -> None:
+        """The left infrared stream of this start, when it streams and is usable: the colour's size (its image
+        replaces colour's pixel for pixel in the frame), its intrinsics, whether depth lies on its grid, and the
+        rotation that turns gravity from the colour camera's axes into its own."""
+        rs = self._rs
+        self._infrared = None
+        if self.config.infrared == "off":
+            self.infrared = "off"
+            return
+        ir = next((s for s in profile.get_streams() if s.stream_type() == rs.stream.infrared
+                   and s.stream_index() == INFRARED_INDEX), None)
+        if ir is None:
+            self.infrared = f"error: {self._infrared_error}" if self._infrared_error else "none"
+            return
+        k = ir.as_video_stream_profile().get_intrinsics()
+        size, colour_size = (int(k.width), int(k.height)), self.size
+        if size != colour_size:
+            self.infrared = (f"error: the infrared stream is {size[0]}x{size[1]}, the colour one "
+                             f"{colour_size[0]}x{colour_size[1]}: an infrared image replaces a colour one only at "
+                             "the same size (record both streams at one size); colour only")
+            return
+        try:
+            rotation = rotation_of(colour.get_extrinsics_to(ir))
+        except RuntimeError:
+            rotation = np.eye(3)  # not calibrated: the D400s' imagers agree within a degree
+        self._infrared = _InfraredStream(
+            intrinsics=Intrinsics(float(k.fx), float(k.fy), float(k.ppx), float(k.ppy), size[0], size[1]),
+            depth_on_grid=depth is not None and _same_grid(depth, ir), rotation=rotation)
+        self.infrared = "in use" if self.spectrum == INFRARED else "standby"
 
     def _configure_imu(self, dev: Any, streams: dict[Any, Any], colour: Any) -> None:
         """Gravity from the accelerometer: a recording's accel stream (already playing), or live the motion
@@ -437,17 +512,25 @@ class RealSenseSource(Source):
         if last is not None and (number <= last if self.playback is not None else number == last):
             self.count("duplicates")
             return None
+        image = _CONVERSIONS[self.colour_format](np.asanyarray(colour.get_data()))
+        ir = self._infrared_image(frames, image.shape[:2])
+        spectrum = self._chooser.choose(image, ir is not None)
+        intrinsics = self.intrinsics
         depth = None
-        if self._depth_mode != "none" and frames.get_depth_frame():
+        if spectrum == INFRARED:      # taken before any alignment: rs.align keeps colour and depth only
+            image, intrinsics = _grey_to_bgr(ir), self._infrared.intrinsics
+            d = frames.get_depth_frame() if self._infrared.depth_on_grid else None
+            if d:
+                depth = np.array(np.asanyarray(d.get_data()), dtype=np.uint16, copy=True)
+        elif self._depth_mode != "none" and frames.get_depth_frame():
             if self._align is not None:
                 frames = self._align.process(frames)
                 colour = frames.get_color_frame()
             d = frames.get_depth_frame()
             if d:
                 depth = np.array(np.asanyarray(d.get_data()), dtype=np.uint16, copy=True)
-        image = _CONVERSIONS[self.colour_format](np.asanyarray(colour.get_data()))
         if depth is not None and depth.shape != image.shape[:2]:
-            depth = None  # never hand out depth that is not on the colour grid
+            depth = None  # never hand out depth that is not on the image's grid
         if self.playback is None and last is not None and number < last:
             self._timeline.continue_seq()  # the camera restarted its frame counter by itself
             self._first_number = number
@@ -457,15 +540,36 @@ class RealSenseSource(Source):
         t = self._timestamp(colour, arrival)
         seq = self._timeline.add_frame(number if self.playback is not None else number - self._first_number)
         if is_blank(image):       # a covered lens: nobody can be seen; said (hal.blank), its seq a gap
-            self.count("blank")
-            raise SourceCorrupt(f"{self.name}: {blank_message(image)}; skipping it — {BLANK_FIX}", self.name,
+            self.count("blank")   # (a blank colour frame with an infrared image came as that image: hal.night)
+            also = " (its infrared image too)" if spectrum == INFRARED else ""
+            raise SourceCorrupt(f"{self.name}: {blank_message(image)}{also}; skipping it — {BLANK_FIX}", self.name,
                                 fix=BLANK_FIX)
         # playback: the samples recorded up to this frame (the same gravity on every replay); live: every
         # sample so far (the motion sensor may stamp in another clock domain than colour)
         gravity = None if self._gravity is None else self._gravity.at(
             float(colour.get_timestamp()) / 1000.0 if self.playback is not None else math.inf)
+        if spectrum == INFRARED:
+            self.count("infrared_frames")
+            if gravity is not None:   # the colour camera's axes -> the infrared imager's (the depth sensor's)
+                g = self._infrared.rotation @ np.asarray(gravity)
+                gravity = tuple(float(v) for v in g / np.linalg.norm(g))
+        if spectrum != self.spectrum:
+            self.count("spectrum_switches")
+            self.spectrum = spectrum
+        if self._infrared is not None:
+            self.infrared = "in use" if spectrum == INFRARED else "standby"
         return Frame(image=image, depth=depth, depth_scale=self.depth_scale if depth is not None else 0.0, t=t,
-                     seq=seq, intrinsics=self.intrinsics, gravity=gravity)
+                     seq=seq, intrinsics=intrinsics, gravity=gravity, spectrum=spectrum)
+
+    def _infrared_image(self, frames: Any, size: tuple[int, int]) -> np.ndarray | None:
+        """The frameset's left infrared image (uint8 H x W, the colour's size), or None."""
+        if self._infrared is None:
+            return None
+        f = frames.get_infrared_frame(INFRARED_INDEX)
+        if not f:
+            return None
+        ir = np.asanyarray(f.get_data())
+        return ir if ir.shape == size else None
 
     def _timestamp(self, colour: Any, arrival: float) -> float:
         rs = self._rs
@@ -478,17 +582,27 @@ class RealSenseSource(Source):
         return self._clock_map.map(ts_s, arrival)
 
 
-def _same_grid(depth: Any, colour: Any) -> bool:
-    """True when the depth stream already lies on the colour pixel grid (same intrinsics, identity pose)."""
+@dataclass(frozen=True)
+class _InfraredStream:
+    """The usable left infrared stream of one start (``RealSenseSource._configure_infrared``)."""
+
+    intrinsics: Intrinsics      # of its image (the colour's size)
+    depth_on_grid: bool         # raw depth lies on its pixel grid: an infrared frame carries it
+    rotation: np.ndarray        # 3 x 3: a vector in the colour camera's axes -> in the infrared imager's
+
+
+def _same_grid(a: Any, b: Any) -> bool:
+    """True when stream ``a``'s pixels are stream ``b``'s (same intrinsics, no distortion, identity pose): depth
+    already on the colour grid (posed record), or raw depth on the left infrared imager's."""
     try:
-        kd = depth.as_video_stream_profile().get_intrinsics()
-        kc = colour.as_video_stream_profile().get_intrinsics()
-        ext = depth.get_extrinsics_to(colour)
+        ka = a.as_video_stream_profile().get_intrinsics()
+        kb = b.as_video_stream_profile().get_intrinsics()
+        ext = a.get_extrinsics_to(b)
     except RuntimeError:
         return False
-    same_k = (kd.width, kd.height) == (kc.width, kc.height) and all(
-        abs(a - b) < 1e-3 for a, b in ((kd.fx, kc.fx), (kd.fy, kc.fy), (kd.ppx, kc.ppx), (kd.ppy, kc.ppy)))
-    no_distortion = not any(kd.coeffs) and not any(kc.coeffs)
+    same_k = (ka.width, ka.height) == (kb.width, kb.height) and all(
+        abs(x - y) < 1e-3 for x, y in ((ka.fx, kb.fx), (ka.fy, kb.fy), (ka.ppx, kb.ppx), (ka.ppy, kb.ppy)))
+    no_distortion = not any(ka.coeffs) and not any(kb.coeffs)
     identity = np.allclose(np.asarray(ext.rotation, float), np.eye(3).ravel(), atol=1e-6) and np.allclose(
         np.asarray(ext.translation, float), 0.0, atol=1e-6)
     return bool(same_k and no_distortion and identity)
@@ -501,6 +615,12 @@ def _stop_quietly(pipe: Any, close: bool = False) -> None:
             action()
         except RuntimeError:
             pass
+
+
+def _grey_to_bgr(grey: np.ndarray) -> np.ndarray:
+    import cv2
+
+    return cv2.cvtColor(np.ascontiguousarray(grey), cv2.COLOR_GRAY2BGR)
 
 
 def _copy(image: np.ndarray) -> np.ndarray:

@@ -13,6 +13,16 @@ The output format follows the name given:
 ``NAME`` (no suffix)   a folder of PNG images + ``NAME/timestamps.jsonl``
 =====================  ===========================================================================
 
+Infrared frames (a RealSense in a dark room, ``Frame.spectrum`` ``infrared``, :mod:`hal.night`): a ``.db3``
+from a source that streams an infrared image (``info["infrared"]`` standby or in use) gets an infrared stream
+at the source's infrared intrinsics. Each frame writes one image to each stream: an infrared frame its image to
+the infrared stream, a black frame to colour and depth 0 (its depth lies on the infrared imager's grid, not on
+the recording's colour one: not kept); a colour frame its image and depth as before and a black infrared image.
+A replay (``source.infrared`` auto) then chooses the same image for every frame as the camera did: a black
+colour frame is dark. Gravity is written as each frame carried it (an infrared frame's in the infrared imager's
+axes, within a degree of the colour camera's on a D4xx). A video or image folder has one image per frame: infrared frames are written as they
+came (grey) and the summary's notes say how many there were.
+
 The sidecar (:mod:`hal.sidecar`) keeps each frame's seq and capture time; ``file:NAME.mkv`` replays them.
 Depth is kept only in ``.db3``. The output's folder is created when it does not exist.
 
@@ -39,6 +49,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from posed.camera_model import Intrinsics
 from posed.hal.errors import EndOfStream, SourceCorrupt, SourceDisconnected, SourceTimeout, SourceUnsupported
 from posed.hal.frame import Frame
 from posed.hal.imu import G_M_S2
@@ -98,6 +109,11 @@ class _Sink:
     notes: tuple[str, ...] = ()
     largest = 0          # the most bytes one frame took on disk so far (0: not measured yet)
     guess = 0            # the first guess of a frame's size (FIRST_GUESS)
+
+    def infrared_note(self, n: int) -> str:
+        """What became of the ``n`` infrared frames written (module doc)."""
+        return (f"{n} frames were infrared images (a dark room; hal.night): written as the grey images they are, "
+                "so a replay shows them as ordinary frames; record to NAME.db3 to keep them as infrared")
 
     def write(self, frame: Frame) -> None: ...
 
@@ -224,24 +240,31 @@ class _ImageSink(_Sink):
 class _Db3Sink(_Sink):
     format = "db3"
 
-    def __init__(self, path: Path, first: Frame, fps: float, source: str, gyro: bool = False) -> None:
+    def __init__(self, path: Path, first: Frame, fps: float, source: str, gyro: bool = False,
+                 infrared: tuple[Intrinsics, Intrinsics, float] | None = None) -> None:
         """``gyro``: the source's gravity comes with a gyro's (``info["gyro"]`` streaming): record a gyro stream
         too, the turn from each frame's gravity to the next (``write``), so that the replay's filter turns its
         average with the camera as the live one did, and gives the recorded gravity again rather than a
-        low-passed copy of it."""
+        low-passed copy of it. ``infrared``: (colour intrinsics, infrared intrinsics, depth scale or 0) of a source
+        that streams an infrared image beside colour: an infrared stream too (module doc)."""
         from posed.hal.db3 import Db3Writer
 
         if first.intrinsics is None:
             raise SourceUnsupported(f"{path}: a RealSense recording needs the camera intrinsics and {source} has "
                                     "none; set source.fx (and fy/cx/cy) or record to a video instead", str(path))
-        k = first.intrinsics
+        k, k_ir, scale = infrared if infrared is not None else (first.intrinsics, None, first.depth_scale)
         if (k.width, k.height) != (first.width, first.height):
             k = k.scaled(first.width, first.height)
-        self.has_depth = first.depth is not None
+        if k_ir is not None and (k_ir.width, k_ir.height) != (first.width, first.height):
+            k_ir = k_ir.scaled(first.width, first.height)
+        # the first frame may be an infrared one without depth (not on its grid): the source says
+        self.has_depth = first.depth is not None or (infrared is not None and scale > 0)
         # always an accelerometer stream: the first frames of an IMU carry no gravity yet (hal.imu.MIN_SAMPLES)
-        self.writer = Db3Writer(path, k, fps, depth_scale=first.depth_scale if self.has_depth else None,
+        self.writer = Db3Writer(path, k, fps, depth_scale=(scale or first.depth_scale) if self.has_depth else None,
                                 accel_fps=max(1, int(round(fps))),
-                                gyro_fps=int(round(1.0 / GYRO_STEP_S)) if gyro else None)
+                                gyro_fps=int(round(1.0 / GYRO_STEP_S)) if gyro else None,
+                                infrared=k_ir is not None, infrared_intrinsics=k_ir)
+        self.infrared = k_ir is not None
         self.gyro = gyro
         self._last_down: tuple[float, np.ndarray] | None = None   # (t_ms, unit down) of the last gravity
         self.t0 = first.t
@@ -249,7 +272,8 @@ class _Db3Sink(_Sink):
         self.guess = _guess(first, "db3")
 
     def write(self, frame: Frame) -> None:
-        depth = frame.depth if self.has_depth else None
+        by_infrared = self.infrared and frame.spectrum == "infrared"
+        depth = frame.depth if self.has_depth and not by_infrared else None   # infrared: on its own grid
         if self.has_depth and depth is None:
             depth = np.zeros((frame.height, frame.width), np.uint16)  # a frame without depth: 0 = unknown
         t_ms = (frame.t - self.t0) * 1000.0
@@ -257,7 +281,23 @@ class _Db3Sink(_Sink):
             if self.gyro:
                 self._write_turn(t_ms, np.asarray(frame.gravity, dtype=np.float64))
             self.writer.write_accel(t_ms, tuple(-G_M_S2 * c for c in frame.gravity))
-        self.writer.write(frame.image, depth, t_ms, frame.seq)
+        if not self.infrared:
+            self.writer.write(frame.image, depth, t_ms, frame.seq)
+            return
+        black = np.zeros((frame.height, frame.width), np.uint8)
+        if by_infrared:   # the grey image as BGR has three equal channels: one is the Y8 image
+            self.writer.write(np.zeros_like(frame.image), depth, t_ms, frame.seq,
+                              infrared=np.ascontiguousarray(frame.image[:, :, 0]))
+        else:
+            self.writer.write(frame.image, depth, t_ms, frame.seq, infrared=black)
+
+    def infrared_note(self, n: int) -> str:
+        if not self.infrared:
+            return (f"{n} frames were infrared images (a dark room; hal.night), written as colour frames: the "
+                    "source had no usable infrared stream when recording began, so a replay shows them as colour")
+        return (f"{n} frames were infrared images (a dark room; hal.night): kept in the infrared stream with a "
+                "black colour frame, so a replay (source.infrared auto) gives them as infrared again; their depth "
+                "(on the infrared imager's grid) is not kept")
 
     def _write_turn(self, t_ms: float, down: np.ndarray) -> None:
         """Gyro samples that turn the last frame's down into this one's: the smallest rotation between them at a
@@ -313,6 +353,7 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
     sink: _Sink | None = None
     problems: dict[str, int] = {}
     frames = 0
+    infrared_frames = 0
     reason = "stopped"
     try:
         while True:
@@ -342,7 +383,7 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
                     if sink_type is not _ImageSink:
                         folder.mkdir(parents=True, exist_ok=True)
                     sink = sink_type(path, frame, fps, source.name, **(
-                        {"gyro": dict(source.info).get("gyro") == "streaming"} if sink_type is _Db3Sink else {}))
+                        _db3_options(dict(source.info)) if sink_type is _Db3Sink else {}))
                 _check_room(folder, sink.need())
                 sink.write(frame)
             except _DiskFull:
@@ -354,6 +395,7 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
                 reason = DISK_FULL
                 break
             frames += 1
+            infrared_frames += frame.spectrum == "infrared"
     except KeyboardInterrupt:
         reason = "interrupted"
     finally:
@@ -367,12 +409,25 @@ def record(source: Source, output: str, seconds: float | None = None, max_frames
         if frames == 0 and reason == DISK_FULL and isinstance(sink, _VideoSink):
             for leftover in (path, Path(sink.side.path)):     # no frame: no unplayable stub left behind
                 leftover.unlink(missing_ok=True)
+    if sink is not None and infrared_frames:
+        notes = (*notes, sink.infrared_note(infrared_frames))
     if reason == DISK_FULL:
         notes = (*notes, f"disk full at {os.path.abspath(folder)} after {frames} frames: free space or record "
                          "elsewhere")
     return RecordSummary(path=str(path), format=sink.format if sink else "", frames=frames,
                          seconds=clock() - start, reason=reason, sidecar=sink.sidecar if sink else None,
                          has_depth=bool(sink and sink.has_depth), problems=problems, notes=notes)
+
+
+def _db3_options(info: dict[str, Any]) -> dict[str, Any]:
+    """What a ``.db3`` records besides colour and depth, from the source's ``info``: a gyro stream when its
+    gravity comes with a gyro's, an infrared stream when it streams an infrared image."""
+    out: dict[str, Any] = {"gyro": info.get("gyro") == "streaming"}
+    colour, ir = info.get("intrinsics"), info.get("infrared_intrinsics")
+    if info.get("infrared") in ("standby", "in use") and isinstance(colour, dict) and isinstance(ir, dict):
+        scale = float(info.get("depth_scale") or 0.0) if info.get("has_depth") else 0.0
+        out["infrared"] = (Intrinsics.from_json(colour), Intrinsics.from_json(ir), scale)
+    return out
 
 
 def _check_room(folder: Path, need: int) -> None:

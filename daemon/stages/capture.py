@@ -22,6 +22,10 @@
   with the fix), never fatal; the source reads on with the next frame. The last problem (a bad frame, a read
   timeout, a clock jump) goes to the supervisor with its fix, which says ``blind`` with it when no frame
   reaches the landmark stage for a while.
+* Night: a RealSense delivers its infrared image when the colour one is dark (``hal.night``); the frame's
+  ``spectrum`` says which. ``camera`` in the status has ``spectrum`` (``colour`` or ``infrared``) and
+  ``spectrum_since_unix`` (the capture time of the first frame in it), and each switch is logged once
+  (``camera_dark``: "camera: dark, watching by infrared"; ``camera_light``: "camera: light again, colour").
 * A recording is a recording, not a camera: its log line is ``recording_open`` (``camera_open`` for a
   camera) and the status' ``camera.kind`` says ``file``.
 * Paused for privacy (:class:`daemon.stages.privacy_gate.PauseGate`: the publisher's orders, privacy.json at the
@@ -271,6 +275,7 @@ class _News:
         self.next_problem = 0.0
         self.jumps = 0
         self.last_problem: dict | None = None
+        self.spectrum: dict = {}                    # spectrum and spectrum_since_unix, once a frame came
 
     def _send(self) -> None:
         extra = {"problem": self.last_problem} if self.last_problem else {}
@@ -279,7 +284,7 @@ class _News:
     def opened(self, source) -> None:
         info = _info(source)
         paused = {k: v for k, v in self.camera.items() if k == "paused_until_unix"}    # opened during a pause
-        self.camera = {**info, "kind": _kind(info), **paused}
+        self.camera = {**info, "kind": _kind(info), **paused, **self.spectrum}
         self.size = None
         event = "recording_open" if self.camera["kind"] == "file" else "camera_open"
         self.rt.log.info(event, **self.camera)
@@ -288,6 +293,7 @@ class _News:
     def frame(self, source, frame) -> None:
         size = (frame.width, frame.height)
         now = clock.now()
+        switched = self._spectrum(frame)
         if size != self.size:                       # the first frame: what the source really delivers
             from posed.hal import scale_factor, working_size
 
@@ -311,6 +317,23 @@ class _News:
                              "none needed; if the recording's timestamps are wrong, re-record it", warn=True)
             else:
                 self._send()
+        elif switched:
+            self._send()
+
+    def _spectrum(self, frame) -> bool:
+        """Note the image the frame carries (colour, or infrared in a dark room); True when that changed. Each
+        switch is logged once (the first frame's colour is no news)."""
+        spectrum = getattr(frame, "spectrum", "colour")
+        was = self.spectrum.get("spectrum")
+        if spectrum == was:
+            return False
+        self.spectrum = {"spectrum": spectrum, "spectrum_since_unix": round(clock.wall_from_monotonic(frame.t), 3)}
+        self.camera.update(self.spectrum)
+        if spectrum == "infrared":
+            self.rt.log.info("camera_dark", note="camera: dark, watching by infrared", spectrum=spectrum)
+        elif was is not None:
+            self.rt.log.info("camera_light", note="camera: light again, colour", spectrum=spectrum)
+        return True
 
     def problem(self, error: str, fix: str, warn: bool = False) -> None:
         now = clock.now()
