@@ -211,6 +211,13 @@ def _convert(tp: Any, value: Any, path: str, meta: Any, problems: list[ConfigPro
             problems.append(ConfigProblem(path, "NaN is not allowed"))
             return None
     elif tp is str:
+        if isinstance(value, bool):         # YAML 1.1 reads a bare off/on/no/yes as false/true
+            word = _yaml_word(value, meta)
+            if word is None:
+                problems.append(ConfigProblem(path, f"{_fmt(value)} is not a string (YAML reads a bare off, on, no "
+                                                    "or yes as a boolean: quote the word, e.g. \"off\")"))
+                return None
+            value = word
         if not isinstance(value, str):
             problems.append(ConfigProblem(path, f"{_fmt(value)} is not a string"))
             return None
@@ -219,6 +226,14 @@ def _convert(tp: Any, value: Any, path: str, meta: Any, problems: list[ConfigPro
         return None
     _check_meta(value, path, meta, problems)
     return value
+
+
+def _yaml_word(value: bool, meta: Any) -> str | None:
+    """The choice a bare YAML ``off``/``on`` meant, when the key has that choice (``source.infrared: off``);
+    None when it has not."""
+    word = "on" if value else "off"
+    choices = meta.get("choices") if meta else None
+    return word if choices is not None and word in choices else None
 
 
 def _check_meta(value: Any, path: str, meta: Any, problems: list[ConfigProblem]) -> None:

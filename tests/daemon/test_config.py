@@ -108,3 +108,19 @@ def test_overrides_and_source_uri(tmp_path):
 def test_missing_file_is_a_config_error(tmp_path):
     with pytest.raises(ConfigError, match="cannot read the config file"):
         load_config(tmp_path / "nope.yaml")
+
+
+def test_a_bare_yaml_off_means_the_choice_off_where_the_key_has_it(tmp_path):
+    """YAML 1.1 reads ``off`` as false: ``source.infrared: off`` (the natural way to write it) means the choice
+    "off", in a file and in --set; a key without that choice says to quote the word."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("source:\n  infrared: off\n")
+    assert load_config(cfg).source.infrared == "off"
+    assert load_config(None, overrides=["source.infrared=off"]).source.infrared == "off"
+    assert load_config(None, overrides=['source.infrared="always"']).source.infrared == "always"
+    cfg.write_text("source:\n  type: off\n  infrared: on\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(cfg)
+    text = str(err.value)
+    assert "source.type: False is not a string (YAML reads a bare off" in text and 'quote the word' in text
+    assert "source.infrared: True is not a string" in text        # "on" is not one of its choices either
