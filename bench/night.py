@@ -19,7 +19,16 @@ for every clip and condition. Conditions (:func:`conditions`; image models in :m
 * ``gray f=1/N+dots xK``: a dark room with the projector on: the grayscale image at 1/N of the light, then
   each dot added at a peak of K times the *lit* grayscale image at that pixel (a dot shows the surface's
   reflectance, as the room's light did; the projector's light does not dim with the room's, and the camera's
-  gain, set by the dark scene, is not applied to it).
+  gain, set by the dark scene, is not applied to it);
+* ``colour f=1/N +gain``, ``gray f=1/N +gain``: the same frames as ``colour f=1/N`` / ``gray f=1/N`` (the same
+  seed: the same noise), each frame given a gain before the landmark stage sees it (:mod:`bench.night_gain`, on
+  the 8-bit values: measured, not adopted); ``+gain linear``: the gain in linear light instead. Every other
+  condition shows the stage the frames as they come. ``--only`` runs some conditions (and the original), each on the frames
+  it draws in the whole list.
+
+Sources ``untouched`` (``--sources untouched``): the multi-person clips of the shared data, never looked at while
+the gain was made (:data:`UNTOUCHED`, thinned to ``pipeline.target_fps`` as the videos above), under
+:func:`untouched_conditions`; the main person as above.
 
 Metrics per source and condition, against the colour original: of the frames where the original found the
 person (the person with the longest torso in the frame, the main person), those where the condition found
@@ -46,10 +55,15 @@ LIGHT = tuple(2.0 ** -k for k in range(12))          # 1 ... 1/2048
 GRAY_LIGHT = (1 / 32, 1 / 128)
 DOT_LEVELS = (0.5, 2.0)
 DARK_DOTS = ((1 / 512, 1.0),)                          # (light, dots' level over the lit original's mean luma)
+GAIN_LIGHT = tuple(2.0 ** -k for k in range(7, 12))   # 1/128 ... 1/2048: around the loss
+OTHER_GAIN_LIGHT = GAIN_LIGHT                           # the gain in linear light, beside the default's
+GRAY_GAIN_LIGHT = (1 / 128,)
 SEED = 20261207
 VIDEOS = (("squat", Path("reference/tfjs_pose_squats/pose_squats.mp4")),
           *((f"balancing {c}", Path(f"reference/pose2sim_demo/balancing/{c}.mp4"))
             for c in ("cam01", "cam02", "cam03", "cam04")))
+UNTOUCHED = (("s2d_enter", Path("reference/multi_person/s2d_enter.mp4")),
+             ("bend_hand", Path("reference/multi_person/bend_hand.mp4")))
 IMAGES = (Path("reference/mediapipe_pose_jpg/pose.jpg"), Path("reference/mediapipe_samples_ios_sitting/test_image.jpg"),
           Path("images/coco_cc_by/coco_val2017_000000000785.jpg"))
 
@@ -60,18 +74,48 @@ class Condition:
     kind: str          # "colour", "dim", "gray", "dots", "gray_dim", "dark_dots"
     value: float       # the light fraction (dim, gray_dim, dark_dots) or the dots' level (dots); 1 otherwise
     level: float = 0.0  # dark_dots: the dots' peak over the lit original's mean luma
+    gain: str = ""      # the dim-frame gain before the stage: "" off, "linear" or "srgb" (bench.night_gain)
+
+    @property
+    def base(self) -> str:
+        """The condition whose frames (and seed) a ``+gain`` condition shares: its name without the gain."""
+        return self.name.split(" +gain")[0]
+
+
+def gained(cond: Condition, space: str = "") -> Condition:
+    """``cond`` with the gain on: in ``space`` (default ``bench.night_gain.SPACE``, named ``+gain``; the other
+    space is named ``+gain SPACE``)."""
+    from posed.bench.night_gain import SPACE as default
+
+    space = space or default
+    return Condition(f"{cond.name} +gain" + ("" if space == default else f" {space}"), cond.kind, cond.value,
+                     cond.level, space)
 
 
 def conditions(light: tuple[float, ...] = LIGHT, gray_light: tuple[float, ...] = GRAY_LIGHT,
                dot_levels: tuple[float, ...] = DOT_LEVELS,
-               dark_dots: tuple[tuple[float, float], ...] = DARK_DOTS) -> list[Condition]:
+               dark_dots: tuple[tuple[float, float], ...] = DARK_DOTS, gain_light: tuple[float, ...] = GAIN_LIGHT,
+               other_gain_light: tuple[float, ...] = OTHER_GAIN_LIGHT,
+               gray_gain_light: tuple[float, ...] = GRAY_GAIN_LIGHT) -> list[Condition]:
+    """The conditions in order (the ``+gain`` ones last, so the others keep their seeds)."""
     out = [Condition("colour", "colour", 1.0)]
     out += [Condition(f"colour f=1/{round(1 / f)}", "dim", f) for f in light]
     out.append(Condition("gray", "gray", 1.0))
     out += [Condition(f"gray+dots x{k:g}", "dots", k) for k in dot_levels]
     out += [Condition(f"gray f=1/{round(1 / f)}", "gray_dim", f) for f in gray_light]
     out += [Condition(f"gray f=1/{round(1 / f)}+dots x{k:g}", "dark_dots", f, k) for f, k in dark_dots]
+    out += [gained(Condition(f"colour f=1/{round(1 / f)}", "dim", f)) for f in gain_light]
+    out += [gained(Condition(f"colour f=1/{round(1 / f)}", "dim", f), "linear") for f in other_gain_light]
+    out += [gained(Condition(f"gray f=1/{round(1 / f)}", "gray_dim", f)) for f in gray_gain_light]
+    out += [gained(Condition(f"gray f=1/{round(1 / f)}", "gray_dim", f), "linear") for f in gray_gain_light]
     return out
+
+
+def untouched_conditions() -> list[Condition]:
+    """For the untouched clips: the original, colour from 1/64 down (just above the gain's threshold and
+    below) with and without the gain, and gray at 1/128 with and without it."""
+    light = tuple(2.0 ** -k for k in range(6, 12))
+    return conditions(light=light, gray_light=GRAY_GAIN_LIGHT, dot_levels=(), dark_dots=())
 
 
 def transform(cond: Condition, seed: int, shape: tuple[int, int]) -> Callable[[np.ndarray], tuple[np.ndarray, float]]:
@@ -134,10 +178,20 @@ def read_video(path: Path, target_fps: float, limit: int | None = None) -> Clip:
     return Clip(path.stem, path.name, float(fps), frames)
 
 
-def clips(shared: Path, target_fps: float, quick: int | None = None) -> list[Clip]:
-    """The sources (module docstring); ``quick``: only the squat video's first ``quick`` frames."""
+def clips(shared: Path, target_fps: float, quick: int | None = None, sources: str = "dev") -> list[Clip]:
+    """The sources (module docstring); ``quick``: only the squat video's first ``quick`` frames (``dev``) or
+    the first untouched clip's (``untouched``)."""
     import cv2
 
+    if sources not in ("dev", "untouched"):
+        raise ValueError(f"sources must be dev or untouched, got {sources!r}")
+    if sources == "untouched":
+        out = []
+        for source, rel in UNTOUCHED[:1] if quick else UNTOUCHED:
+            clip = read_video(shared / rel, target_fps, quick)
+            clip.source = source
+            out.append(clip)
+        return out
     if quick:
         clip = read_video(shared / VIDEOS[0][1], target_fps, quick)
         clip.source = VIDEOS[0][0]
@@ -168,17 +222,29 @@ class Stage:
         self.landmarker = MultiPoseLandmarker(cfg) if cfg.max_people > 1 else PoseLandmarker(cfg)
         self.landmarker.warmup()
 
-    def run(self, images: Iterator[tuple[int, np.ndarray]], fps: float) -> list[list[np.ndarray]]:
+    def run(self, images: Iterator[tuple[int, np.ndarray]], fps: float, gain: str = "",
+            gains: list[float] | None = None, after: list[float] | None = None) -> list[list[np.ndarray]]:
         """Each frame's people (a list of (33, 5) landmark arrays in source pixels; empty: nobody). The tracker
-        starts afresh (``reset``: what the daemon's stage does when a source starts again)."""
-        from posed.hal import downscale, scale_factor
+        starts afresh (``reset``: what the daemon's stage does when a source starts again). ``gain``: the
+        dim-frame gain put on each frame before the stage sees it (``bench.night_gain.LowLight`` in that space;
+        "" = off); each frame's gain is added to ``gains``
+        and the mean luma of the image the models saw to ``after``."""
+        from posed.bench.night_gain import LowLight
+        from posed.hal import downscale, mean_luma, scale_factor
 
         self.landmarker.reset()
+        low_light = LowLight(space=gain) if gain else None
         out = []
         for seq, (index, image) in enumerate(images):
             h, w = image.shape[:2]
             k = scale_factor(w, h, self.config.pipeline.frame_max_pixels)
-            frame = self.landmarker.process(downscale(image, k), index / fps, seq)
+            small = downscale(image, k)
+            seen, g = low_light.apply(small) if low_light is not None else (small, 1.0)
+            frame = self.landmarker.process(seen, index / fps, seq)
+            if gains is not None:
+                gains.append(g)
+            if after is not None:
+                after.append(mean_luma(seen))
             people = ([p.landmarks for p in frame.people] if frame.people
                       else [] if frame.landmarks is None else [frame.landmarks])
             scaled = []
@@ -271,8 +337,11 @@ def thresholds(rows: list[dict], levels: tuple[float, ...] = (0.95, 0.80)) -> di
     (``held_to``; None when even the brightest is lost): the switch belongs between the two lumas. A brighter
     light whose rate dips below the level with brighter and darker lights above it (a frame or two lost to
     the noise, not to the darkness) is listed in ``dips``."""
-    dims = sorted((r for r in rows if r["kind"] == "dim"), key=lambda r: r["value"])     # darkest first
+    dims = sorted((r for r in rows if r["kind"] == "dim" and not r.get("gain")),
+                  key=lambda r: r["value"])     # darkest first
     out = {}
+    if not dims:                # no colour f=1/N row without the gain (a run of some conditions only)
+        return out
     for level in levels:
         def ok(r, level=level):
             return r["found_rate"] is not None and r["found_rate"] >= level
@@ -294,32 +363,44 @@ def thresholds(rows: list[dict], levels: tuple[float, ...] = (0.95, 0.80)) -> di
 
 
 def run_bench(shared: Path, config, *, quick: int | None = None, seed: int = SEED,
-              conds: list[Condition] | None = None, progress=lambda m: None) -> dict:
-    """Every source under every condition (module docstring); one JSON-able dict."""
-    conds = conds or conditions()
+              conds: list[Condition] | None = None, sources: str = "dev", only: set[str] | None = None,
+              progress=lambda m: None) -> dict:
+    """Every source under every condition (module docstring); one JSON-able dict. ``sources``: ``dev`` (the
+    sources the thresholds were read on) or ``untouched`` (:data:`UNTOUCHED`, default conditions
+    :func:`untouched_conditions`). ``only``: the names of the conditions to run (the original always runs);
+    each still draws the frames it draws in the whole list."""
+    conds = conds or (untouched_conditions() if sources == "untouched" else conditions())
+    names = [c.name for c in conds]
     t0 = time.monotonic()
     stage = Stage(config)
-    sources: dict[str, list[Clip]] = {}
-    for clip in clips(shared, config.pipeline.target_fps, quick):
-        sources.setdefault(clip.source, []).append(clip)
+    groups: dict[str, list[Clip]] = {}
+    for clip in clips(shared, config.pipeline.target_fps, quick, sources):
+        groups.setdefault(clip.source, []).append(clip)
     report_sources = []
-    for s_idx, (source, group) in enumerate(sources.items()):
+    for s_idx, (source, group) in enumerate(groups.items()):
         reference: list[np.ndarray | None] = []
         per_cond: dict[str, dict] = {}
         for c_idx, cond in enumerate(conds):
-            found, lumas = [], []
+            if only is not None and cond.kind != "colour" and cond.name not in only:
+                continue
+            found, lumas, gains, after = [], [], [], []
+            # a +gain condition draws the same frames (seed) as the condition without it
+            seed_idx = names.index(cond.base) if cond.gain and cond.base in names else c_idx
             for k_idx, clip in enumerate(group):
-                apply = transform(cond, hash_seed(seed, s_idx, c_idx, k_idx), clip.frames[0][1].shape[:2])
+                apply = transform(cond, hash_seed(seed, s_idx, seed_idx, k_idx), clip.frames[0][1].shape[:2])
                 images = []
                 for index, image in clip.frames:
                     out, y = apply(image)
                     images.append((index, out))
                     lumas.append(y)
-                found += stage.run(iter(images), clip.fps)
+                found += stage.run(iter(images), clip.fps, cond.gain, gains, after)
             if cond.kind == "colour":
                 reference = [main_person(p) for p in found]
             per_cond[cond.name] = {"condition": cond.name, "kind": cond.kind, "value": cond.value,
                                    **score(reference, found, lumas)}
+            if cond.gain:
+                per_cond[cond.name].update(gain=cond.gain, gain_median=round(float(np.median(gains)), 3),
+                                           gained_luma_median=round(float(np.median(after)), 2))
             progress(f"night: {source} {cond.name}: {per_cond[cond.name]['found']}/"
                      f"{per_cond[cond.name]['reference_frames']} found, luma {per_cond[cond.name]['mean_luma_median']}"
                      f" ({time.monotonic() - t0:.0f} s)")
@@ -328,7 +409,7 @@ def run_bench(shared: Path, config, *, quick: int | None = None, seed: int = SEE
                                "frames": sum(len(c.frames) for c in group),
                                "image_size": list(group[0].frames[0][1].shape[1::-1]),
                                "rows": rows, "thresholds": thresholds(rows)})
-    return {"benchmark": "night", "seed": seed, "match_iou": MATCH_IOU, "sensor": sensor_params(),
+    return {"benchmark": "night", "source_set": sources, "seed": seed, "match_iou": MATCH_IOU, "sensor": sensor_params(),
             "dots": {"count": ns.DOTS, "sigma_px_at_1280": ns.DOT_SIGMA_PX, "levels_x_mean_luma": list(DOT_LEVELS)},
             "landmarks_config": {"max_people": config.landmarks.max_people, "tracking": config.landmarks.tracking,
                                  "frame_max_pixels": config.pipeline.frame_max_pixels,
@@ -353,14 +434,15 @@ def fmt(v, spec: str = ".2f") -> str:
 
 def table(report: dict) -> list[str]:
     """The report as text lines: one table, then the thresholds per source."""
-    lines = [f"{'source':18} {'condition':18} {'luma':>6} {'found':>9} {'rate':>6} {'px med':>7} {'px p90':>7} "
-             f"{'torso med':>9} {'torso p90':>9}"]
+    lines = [f"{'source':18} {'condition':26} {'luma':>6} {'found':>9} {'rate':>6} {'px med':>7} {'px p90':>7} "
+             f"{'torso med':>9} {'torso p90':>9}  (+gain: median gain -> median luma the models saw)"]
     for s in report["sources"]:
         for r in s["rows"]:
-            lines.append(f"{s['source']:18} {r['condition']:18} {fmt(r['mean_luma_median'], '.1f'):>6} "
+            gain = (f"  x{r['gain_median']:.2f} -> {r['gained_luma_median']:.1f}" if r.get("gain") else "")
+            lines.append(f"{s['source']:18} {r['condition']:26} {fmt(r['mean_luma_median'], '.1f'):>6} "
                          f"{r['found']:>4}/{r['reference_frames']:<4} {fmt(r['found_rate'], '.3f'):>6} "
                          f"{fmt(r['dev_px_median'], '.1f'):>7} {fmt(r['dev_px_p90'], '.1f'):>7} "
-                         f"{fmt(r['dev_torso_median'], '.3f'):>9} {fmt(r['dev_torso_p90'], '.3f'):>9}")
+                         f"{fmt(r['dev_torso_median'], '.3f'):>9} {fmt(r['dev_torso_p90'], '.3f'):>9}{gain}")
     lines.append("")
     lines.append("colour in dim light, read from the dark end: lost at = the brightest light with it and every "
                  "darker one under the rate; held to = the light above it")

@@ -145,6 +145,10 @@ def test_thresholds_from_the_dim_rows():
     t = night.thresholds(rows)
     assert t["95%"]["held_to"]["f"] == 1 / 4 and t["95%"]["lost_at"]["f"] == 1 / 8
     assert [d["f"] for d in t["95%"]["dips"]] == [1 / 2]
+    # a +gain row (the same frames, the stage's gain on) is not a light level of its own
+    with_gain = rows + [{"kind": "dim", "value": 1 / 2, "found_rate": 0.0, "mean_luma_median": 75, "gain": "linear"}]
+    assert night.thresholds(with_gain) == t
+    assert night.thresholds(rows[:1] + with_gain[-1:]) == {}     # `--only` some +gain rows: nothing to read
     for r in rows[1:]:
         r["found_rate"] = 1.0
     t = night.thresholds(rows)
@@ -170,7 +174,9 @@ def small_run():
     config = load_config(None)
     conds = [night.Condition("colour", "colour", 1.0), night.Condition("colour f=1/1", "dim", 1.0),
              night.Condition("colour f=1/4096", "dim", 1 / 4096), night.Condition("gray", "gray", 1.0),
-             night.Condition("gray+dots x2", "dots", 2.0)]
+             night.Condition("gray+dots x2", "dots", 2.0), night.Condition("colour f=1/512", "dim", 1 / 512),
+             night.Condition("gray f=1/128", "gray_dim", 1 / 128)]
+    conds += [night.gained(c) for c in conds[5:]] + [night.gained(conds[1]), night.gained(conds[5], "linear")]
     return night.run_bench(SHARED, config, quick=4, conds=conds)
 
 
@@ -179,7 +185,9 @@ def test_small_real_run(small_run):
     (source,) = report["sources"]
     assert source["source"] == "squat" and source["frames"] == 4
     rows = {r["condition"]: r for r in source["rows"]}
-    assert set(rows) == {"colour", "colour f=1/1", "colour f=1/4096", "gray", "gray+dots x2"}
+    assert set(rows) == {"colour", "colour f=1/1", "colour f=1/4096", "gray", "gray+dots x2", "colour f=1/512",
+                         "gray f=1/128", "colour f=1/512 +gain", "gray f=1/128 +gain", "colour f=1/1 +gain",
+                         "colour f=1/512 +gain linear"}
     for r in rows.values():
         assert {"found", "reference_frames", "found_rate", "dev_px_median", "dev_px_p90", "dev_torso_median",
                 "dev_torso_p90", "mean_luma_median"} <= set(r)
@@ -193,7 +201,35 @@ def test_small_real_run(small_run):
     assert rows["gray"]["found_rate"] == 1.0 and rows["gray"]["dev_px_median"] > 0.0
     lines = night.table(report)
     assert any(line.startswith("squat") and "colour f=1/4096" in line for line in lines)
+    assert any(line.startswith("squat") and "colour f=1/512 +gain linear" in line and " -> " in line for line in lines)
     assert "held to" in lines[-1]
+
+
+def test_small_real_run_gain_conditions(small_run):
+    """A ``+gain`` row runs the frames of its base row (the same seed, so the same mean luma) brightened by
+    the gain before the landmark stage sees them: above the threshold (full light; gray at 1/128, luma ~56) it changes nothing, to
+    the field; below it (colour at 1/512, luma ~25) the models see a frame brightened towards the target (and
+    find the woman on frames where she is lost without it); the thresholds are read from the rows without the
+    gain."""
+    from posed.bench import night_gain as ll
+
+    (source,) = small_run["sources"]
+    rows = {r["condition"]: r for r in source["rows"]}
+    for base in ("colour f=1/1", "gray f=1/128"):
+        same = {k: v for k, v in rows[base + " +gain"].items()
+                if k not in ("condition", "gain", "gain_median", "gained_luma_median")}
+        assert rows[base]["mean_luma_median"] > ll.THRESHOLD
+        assert same == {k: v for k, v in rows[base].items() if k != "condition"}
+        assert rows[base + " +gain"]["gain_median"] == 1.0
+    dim, srgb, lin = rows["colour f=1/512"], rows["colour f=1/512 +gain"], rows["colour f=1/512 +gain linear"]
+    assert "gain" not in dim and lin["gain"] == "linear" and srgb["gain"] == "srgb" == ll.SPACE
+    assert lin["mean_luma_median"] == dim["mean_luma_median"] == srgb["mean_luma_median"] < ll.THRESHOLD
+    assert srgb["gain_median"] == pytest.approx(ll.gain_for(dim["mean_luma_median"]), rel=0.05)
+    assert lin["gain_median"] == pytest.approx(ll.gain_for(dim["mean_luma_median"], space="linear"), rel=0.05)
+    assert lin["gained_luma_median"] > 80 and srgb["gained_luma_median"] == pytest.approx(ll.TARGET, abs=2)
+    # measured on these 4 frames: none found as they come, all 4 with either gain
+    assert dim["found"] < lin["found"] and dim["found"] < srgb["found"]
+    assert source["thresholds"] == night.thresholds([r for r in source["rows"] if not r.get("gain")])
 
 
 
