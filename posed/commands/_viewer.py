@@ -116,6 +116,8 @@ class Summary:
             cam = camera.get("state", "?")
             what = "recording" if camera.get("kind") == "file" or str(camera.get("source") or "").startswith(
                 "file:") else "camera"
+            if camera.get("spectrum") == "infrared":     # a dark room, watched by a RealSense's infrared image
+                cam += " (dark: by infrared)"
             parts.append(f"[{status.get('state')}, {what} {cam}, drops {status.get('drops')}, "
                          f"restarts {status.get('restarts')}, {status.get('memory_mb')} MB]")
             decoded = Status.from_json(status) if "state" in status else None

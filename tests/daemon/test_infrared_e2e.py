@@ -12,6 +12,7 @@ import pytest
 
 from posed.camera_model import Intrinsics
 from posed.client import contract
+from posed.commands._viewer import Summary
 from posed.daemon.supervisor import status_text
 from tests.daemon.replay_util import replay_to_end
 from tests.daemon.robots_util import log_events
@@ -61,6 +62,9 @@ def test_a_dark_room_is_watched_by_infrared(tmp_path, shared_data):
     assert len(dark) == 1 and not log_events(run / "out.log", "camera_light"), dark
     assert dark[0]["note"] == "camera: dark, watching by infrared"
     assert "(dark: by infrared)" in status_text(got["status"][-1])
+    viewer = Summary()                                  # posed watch's line
+    viewer.status = next(s for s in reversed(got["status"]) if s["camera"].get("spectrum") == "infrared")
+    assert f"recording {viewer.status['camera']['state']} (dark: by infrared)" in viewer.line(1.0)[-1]
 
 
 @pytest.mark.timeout(300)
