@@ -113,3 +113,20 @@ def test_with_several_people_the_page_draws_one_person():
     clock.now = 2.0
     hub.on_pose("r", pose(11, 1011.0, knee=33.0))           # one person again (no ids): drawn
     assert hub.snapshot()["pose"]["angles"]["theta_kn_l"] == 33.0
+
+
+def test_the_camera_says_when_it_watches_by_infrared():
+    """A RealSense in a dark room (status camera.spectrum infrared) is said on the page's camera line."""
+    from posed.client.types import Status
+
+    hub = Hub("r", clock=Clock())
+    q = hub.subscribe()
+    for spectrum, said in (("infrared", "open (dark: by infrared)"), ("colour", "open"), (None, "open")):
+        camera = {"state": "open"} if spectrum is None else {"state": "open", "spectrum": spectrum}
+        hub.on_status("r", Status("r", "running", 1001.0, 10.0, 20.0, 0, 0, "open", 0, raw={"camera": camera}))
+        statuses = []
+        while not q.empty():
+            m = q.get()
+            if m["type"] == "status":
+                statuses.append(m)
+        assert statuses and statuses[-1]["camera"] == said
