@@ -1,7 +1,8 @@
 """Which image a frame carries, by the light: the colour camera's, or at night the infrared imager's.
 
-A RealSense D4xx sees the room by its own infrared projector (and any 850 nm illuminator) when visible light
-is gone, so in a dark room its left infrared image shows the person the colour image no longer does. The
+A RealSense D4xx's infrared imagers see the room by infrared light when visible light is gone: an 850 nm
+illuminator's, or, sparsely, its own projector's dots (which alone may not show a person: docs/hal.md). So in a
+dark room its left infrared image can show the person the colour image no longer does. The
 colour image's brightness decides: its mean luma (:func:`mean_luma`: BT.601 weights over every
 ``LUMA_STEP``-th row and column) below ``DARK_LUMA_ENTER`` makes it dark, above ``DARK_LUMA_LEAVE`` light
 again, and in between it stays what it was (hysteresis: a lamp flickering near one threshold does not switch
