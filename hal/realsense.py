@@ -121,7 +121,8 @@ class RealSenseSource(Source):
         self._imu_sensor: Any = None                   # live: the motion sensor opened beside the pipeline
         self.imu = "off" if not config.imu else "none"  # off | none (no accelerometer) | streaming | error: ...
         self.gyro = self.imu                            # off | none (no gyro: accelerometer only) | streaming | ...
-        self.infrared = "off" if config.infrared == "off" else "none"  # off | none | standby | in use | error: ...
+        # ``infrared`` without a usable stream: off | none | error: ...
+        self._infrared_unused = "off" if config.infrared == "off" else "none"
         self.spectrum = COLOUR                          # what the last frame delivered showed
         self._chooser = SpectrumChooser(config.infrared)
         self._infrared: _InfraredStream | None = None   # the usable infrared stream of this start, if any
@@ -159,6 +160,14 @@ class RealSenseSource(Source):
                 "infrared": self.infrared, "spectrum": self.spectrum,
                 "infrared_intrinsics": self._infrared.intrinsics.to_json() if self._infrared else None,
                 "realtime": self.config.realtime if self.playback else True}
+
+    @property
+    def infrared(self) -> str:
+        """The infrared stream: ``in use`` (the last frame was its image) or ``standby`` while this start has a
+        usable one; else ``off``, ``none`` (no infrared stream) or ``error: ...`` (why it is not used)."""
+        if self._infrared is None:
+            return self._infrared_unused
+        return "in use" if self.spectrum == INFRARED else "standby"
 
     def _has_depth(self) -> bool:
         return self.depth_scale > 0.0
@@ -289,19 +298,20 @@ class RealSenseSource(Source):
         rs = self._rs
         self._infrared = None
         if self.config.infrared == "off":
-            self.infrared = "off"
+            self._infrared_unused = "off"
             return
         ir = next((s for s in profile.get_streams() if s.stream_type() == rs.stream.infrared
                    and s.stream_index() == INFRARED_INDEX), None)
         if ir is None:
-            self.infrared = f"error: {self._infrared_error}" if self._infrared_error else "none"
+            self._infrared_unused = f"error: {self._infrared_error}" if self._infrared_error else "none"
             return
         k = ir.as_video_stream_profile().get_intrinsics()
         size, colour_size = (int(k.width), int(k.height)), self.size
         if size != colour_size:
-            self.infrared = (f"error: the infrared stream is {size[0]}x{size[1]}, the colour one "
-                             f"{colour_size[0]}x{colour_size[1]}: an infrared image replaces a colour one only at "
-                             "the same size (record both streams at one size); colour only")
+            self._infrared_unused = (
+                f"error: the infrared stream is {size[0]}x{size[1]}, the colour one {colour_size[0]}x{colour_size[1]}: "
+                "an infrared image replaces a colour one only at the same size (record both streams at one size); "
+                "colour only")
             return
         try:
             rotation = rotation_of(colour.get_extrinsics_to(ir))
@@ -310,7 +320,6 @@ class RealSenseSource(Source):
         self._infrared = _InfraredStream(
             intrinsics=Intrinsics(float(k.fx), float(k.fy), float(k.ppx), float(k.ppy), size[0], size[1]),
             depth_on_grid=depth is not None and _same_grid(depth, ir), rotation=rotation)
-        self.infrared = "in use" if self.spectrum == INFRARED else "standby"
 
     def _configure_imu(self, dev: Any, streams: dict[Any, Any], colour: Any) -> None:
         """Gravity from the accelerometer: a recording's accel stream (already playing), or live the motion
@@ -556,8 +565,6 @@ class RealSenseSource(Source):
         if spectrum != self.spectrum:
             self.count("spectrum_switches")
             self.spectrum = spectrum
-        if self._infrared is not None:
-            self.infrared = "in use" if spectrum == INFRARED else "standby"
         return Frame(image=image, depth=depth, depth_scale=self.depth_scale if depth is not None else 0.0, t=t,
                      seq=seq, intrinsics=intrinsics, gravity=gravity, spectrum=spectrum)
 
