@@ -8,7 +8,7 @@ robot's own software puts (where the camera is: ``PosedClient.set_camera_mount``
 """
 
 __all__ = ["Alive", "CameraMount", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError",
-           "PrivacyState", "Restored", "RestoredFall", "State", "Status", "Watch", "camera_mount_message",
+           "PrivacyState", "Restored", "RestoredFall", "State", "Status", "Watch", "camera_mount_message", "dark_note",
            "mount_from_rotation", "quaternion_matrix", "restored", "session_config", "without_frames_s"]
 _API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 _MOUNT = {"CameraMount", "camera_mount_message", "mount_from_rotation", "quaternion_matrix"}

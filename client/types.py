@@ -94,6 +94,14 @@ def restored(event: FallEvent) -> Restored | None:
                     _text(r.get("clock")))
 
 
+def dark_note(camera: Any) -> str:
+    """`` (dark: by infrared)`` while a status's ``camera`` (its object) says a RealSense in a dark room watches by
+    its infrared image (``spectrum`` infrared; docs/hal.md), else "": what STATUS=, ``posed watch`` and the web
+    page add to the camera's state."""
+    dark = isinstance(camera, dict) and camera.get("spectrum") == "infrared"
+    return " (dark: by infrared)" if dark else ""
+
+
 def without_frames_s(event: FallEvent) -> float | None:
     """An alarm raised while no camera frame came: seconds since the last frame (None: raised on a frame)."""
     return _number(event.extra.get("without_frames_s"))

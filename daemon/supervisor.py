@@ -602,6 +602,8 @@ def paused_text(privacy: dict) -> str:
 
 
 def _state_text(status: dict) -> str:
+    from posed.client import dark_note
+
     cam = status["camera"]
     if status["state"] == "paused":
         return f"{paused_text(status.get('privacy') or {})}; restarts {status['restarts']}"
@@ -615,9 +617,7 @@ def _state_text(status: dict) -> str:
                 f"restarts {status['restarts']}")
     e2e = status["latency_ms"]
     text = (f"{status['state']}: {status['fps']:.1f} fps, latency p95 {fmt_ms(e2e['p95'])} ms, drops "
-            f"{status['drops']}, restarts {status['restarts']}, {what} {cam['state']}")
-    if cam.get("spectrum") == "infrared":      # a dark room, watched by the RealSense's infrared image
-        text += " (dark: by infrared)"
+            f"{status['drops']}, restarts {status['restarts']}, {what} {cam['state']}{dark_note(cam)}")
     storage = status.get("storage") or {}
     if storage.get("state", "ok") != "ok":
         text += (f"; STORAGE DEGRADED: the state directory fails, {storage.get('unstored_events', 0)} fall-event "

@@ -6,7 +6,7 @@ import json
 import threading
 import time
 
-from posed.client.types import Status
+from posed.client.types import Status, dark_note
 from posed.daemon.proc.stats import percentile_summary
 
 
@@ -116,8 +116,7 @@ class Summary:
             cam = camera.get("state", "?")
             what = "recording" if camera.get("kind") == "file" or str(camera.get("source") or "").startswith(
                 "file:") else "camera"
-            if camera.get("spectrum") == "infrared":     # a dark room, watched by a RealSense's infrared image
-                cam += " (dark: by infrared)"
+            cam += dark_note(camera)
             parts.append(f"[{status.get('state')}, {what} {cam}, drops {status.get('drops')}, "
                          f"restarts {status.get('restarts')}, {status.get('memory_mb')} MB]")
             decoded = Status.from_json(status) if "state" in status else None

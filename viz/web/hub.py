@@ -42,6 +42,7 @@ import threading
 import time
 from collections import deque
 
+from posed.client import dark_note
 from posed.viz.names import MAIN_ANGLES, evidence_text, short_label
 from posed.viz.series import STATE_WORDS
 from posed.viz.web.fall_list import KEEP_S, FallList, unix_of
@@ -463,7 +464,7 @@ class Hub:
         household = ((status.raw or {}).get("falls") or {}).get("household") or {}
         followed = household.get("followed")
         msg = {"type": "status", "robot": robot, "state": status.state, "fps": _num(status.fps),
-               "latency_p95_ms": _num(status.latency_p95_ms), "camera": camera_words(status), "drops": status.drops,
+               "latency_p95_ms": _num(status.latency_p95_ms), "camera": status.camera + dark_note((status.raw or {}).get("camera")), "drops": status.drops,
                "restarts": status.restarts, "unacknowledged": status.unacknowledged_events,
                "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
                "storage": storage_of(status.raw), "restored_open": restored_open_of(status.raw),
@@ -577,14 +578,6 @@ class Hub:
 
 # why posed is not watching, from its status: the rule of the daemon's hooks.on_watch_lost
 # (daemon.outbox.watch_hooks.why_not_watching; tests/viz/test_web_watching.py holds the two together)
-def camera_words(status) -> str:
-    """The camera's state as the page says it: ``open``, or ``open (dark: by infrared)`` while a RealSense in a
-    dark room watches by its infrared image (the status's ``camera.spectrum``; docs/hal.md)."""
-    camera = (status.raw or {}).get("camera")
-    dark = isinstance(camera, dict) and camera.get("spectrum") == "infrared"
-    return status.camera + (" (dark: by infrared)" if dark else "")
-
-
 NOT_WATCHING_STATES = ("blind", "waiting_for_camera", "degraded", "escalated")
 CAMERA_GONE = ("lost", "ended")
 UNDECIDED_STATES = ("starting", "stopping")
