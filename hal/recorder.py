@@ -284,12 +284,12 @@ class _Db3Sink(_Sink):
         if not self.infrared:
             self.writer.write(frame.image, depth, t_ms, frame.seq)
             return
-        black = np.zeros((frame.height, frame.width), np.uint8)
         if by_infrared:   # the grey image as BGR has three equal channels: one is the Y8 image
             self.writer.write(np.zeros_like(frame.image), depth, t_ms, frame.seq,
                               infrared=np.ascontiguousarray(frame.image[:, :, 0]))
         else:
-            self.writer.write(frame.image, depth, t_ms, frame.seq, infrared=black)
+            self.writer.write(frame.image, depth, t_ms, frame.seq,
+                              infrared=np.zeros((frame.height, frame.width), np.uint8))
 
     def infrared_note(self, n: int) -> str:
         if not self.infrared:
