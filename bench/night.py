@@ -271,18 +271,14 @@ def torso_px(lm: np.ndarray) -> float:
 
 
 def box_iou(a: np.ndarray, b: np.ndarray) -> float:
-    """IoU of the boxes around two sets of 2D points (NaN points left out)."""
+    """IoU of the boxes around two sets of 2D points (NaN points left out; 0 when either has none)."""
+    from posed.landmarks import box_iou as iou_of_boxes
+
     def box(p):
         p = p[np.isfinite(p).all(axis=1)]
-        return (p[:, 0].min(), p[:, 1].min(), p[:, 0].max(), p[:, 1].max()) if len(p) else None
+        return np.concatenate([p.min(axis=0), p.max(axis=0)]) if len(p) else None
     ba, bb = box(a), box(b)
-    if ba is None or bb is None:
-        return 0.0
-    iw = max(0.0, min(ba[2], bb[2]) - max(ba[0], bb[0]))
-    ih = max(0.0, min(ba[3], bb[3]) - max(ba[1], bb[1]))
-    inter = iw * ih
-    union = (ba[2] - ba[0]) * (ba[3] - ba[1]) + (bb[2] - bb[0]) * (bb[3] - bb[1]) - inter
-    return float(inter / union) if union > 0 else 0.0
+    return 0.0 if ba is None or bb is None else iou_of_boxes(ba, bb)
 
 
 def main_person(people: list[np.ndarray]) -> np.ndarray | None:

@@ -82,7 +82,7 @@ if TYPE_CHECKING:
         SessionSettings,
     )
     from posed.landmarks.sides import RecordingSides, SideKeeper
-    from posed.landmarks.tracks import PersonTracker, landmark_box, oks
+    from posed.landmarks.tracks import PersonTracker, box_iou, landmark_box, oks
 
 __all__ = [
     "DETECTOR_INPUT_SIZE",
@@ -121,6 +121,7 @@ __all__ = [
     "oks",
     "iter_recording",
     "landmark_box",
+    "box_iou",
     "landmark_input",
     "read_recording",
     "rotate_image",
@@ -157,6 +158,7 @@ _ORIGIN = {
     "MultiPoseLandmarker": ("posed.landmarks.people", "MultiPoseLandmarker"),
     "PersonTracker": ("posed.landmarks.tracks", "PersonTracker"),
     "landmark_box": ("posed.landmarks.tracks", "landmark_box"),
+    "box_iou": ("posed.landmarks.tracks", "box_iou"),
     "oks": ("posed.landmarks.tracks", "oks"),
     "PersonLandmarks": ("posed.landmarks.recording", "PersonLandmarks"),
     "rotate_image": ("posed.landmarks.pipeline", "rotate_image"),
