@@ -8,8 +8,9 @@ robot's own software puts (where the camera is: ``PosedClient.set_camera_mount``
 """
 
 __all__ = ["Alive", "CameraMount", "HistoryEntry", "Landmarks", "PersonLandmarks", "PosedClient", "PosedClientError",
-           "PrivacyState", "Restored", "RestoredFall", "State", "Status", "Watch", "camera_mount_message", "dark_note",
-           "mount_from_rotation", "quaternion_matrix", "restored", "session_config", "without_frames_s"]
+           "Presence", "PrivacyState", "Restored", "RestoredFall", "State", "Status", "Watch", "absence_note",
+           "camera_mount_message", "dark_note", "mount_from_rotation", "presence_change", "presence_note",
+           "quaternion_matrix", "restored", "session_config", "without_frames_s"]
 _API = {"Alive", "PosedClient", "PosedClientError", "session_config"}
 _MOUNT = {"CameraMount", "camera_mount_message", "mount_from_rotation", "quaternion_matrix"}
 

@@ -4,8 +4,9 @@
   ``image_size``, ``timing_ms``, ``root_cam_m``, ``format``, ``version`` ...);
 * fall event -> :class:`falls.FallEvent` (``extra`` keeps ``time_unix``, ``t_onset_unix``, ``t_impact_unix``,
   ``restored``, ``without_frames_s``: read them typed with :func:`restored` and :func:`without_frames_s`);
-* status -> :class:`Status` (``raw`` keeps the whole object; ``restored_open``, ``watch`` and ``privacy`` typed,
-  ``not_watching``);
+* status -> :class:`Status` (``raw`` keeps the whole object; ``restored_open``, ``watch``, ``presence`` and
+  ``privacy`` typed, ``not_watching``); :func:`presence_note` and :func:`presence_change` say its ``presence``
+  in words (``posed watch`` and the web page use them);
 * a pause for privacy (the reply to ``PosedClient.pause``/``resume``) -> :class:`PrivacyState`;
 * landmarks -> :class:`Landmarks`: ``points``, ``depth_m``, ``world``, ``people`` (each a
   :class:`PersonLandmarks`), ``gravity``, ``floor``, and ``raw``, the whole object as received;
@@ -19,7 +20,9 @@ Capture-clock times (``t``, ``t_detect``...) are seconds on the robot's monotoni
 
 from __future__ import annotations
 
+import datetime as dt
 import json
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -141,6 +144,139 @@ def _text(v) -> str | None:
 
 
 @dataclass(frozen=True)
+class Presence:
+    """The status's ``presence``: when posed last saw the person in its room and whether they have been out of
+    view for longer than usual (the absence notice, docs/falls.md). Times in unix seconds on the robot's clock;
+    ``absent_s`` the seconds posed WATCHED since ``last_seen_unix`` (time it did not watch adds nothing);
+    ``usual_s`` the longest the person was away at this time of day on the ``days`` past days counted (None
+    while ``learning``: fewer than ``learn_days`` days counted); ``notice_after_s`` = ``usual_s`` + the margin;
+    ``absent`` while the notice runs (given at ``absent_since_unix``); ``in_view``: the person in the latest
+    frame."""
+
+    last_seen_unix: float | None
+    absent_s: float
+    usual_s: float | None
+    notice_after_s: float | None
+    days: int
+    learn_days: int
+    learning: bool
+    absent: bool
+    absent_since_unix: float | None = None
+    in_view: bool = False
+
+    @classmethod
+    def from_json(cls, p) -> Presence | None:
+        """A status's ``presence`` object typed; None when it is null or malformed."""
+        if not isinstance(p, dict) or not isinstance(p.get("absent"), bool) \
+                or not isinstance(p.get("learning"), bool):
+            return None
+        absent_s, days, learn_days = _finite(p.get("absent_s")), _count(p.get("days")), _count(p.get("learn_days"))
+        if absent_s is None or absent_s < 0 or days is None or learn_days is None:
+            return None
+        return cls(_finite(p.get("last_seen_unix")), absent_s, _finite(p.get("usual_s")),
+                   _finite(p.get("notice_after_s")), days, learn_days, p["learning"], p["absent"],
+                   _finite(p.get("absent_since_unix")), p.get("in_view") is True)
+
+
+def _finite(v) -> float | None:
+    n = _number(v)
+    return n if n is not None and math.isfinite(n) else None
+
+
+def _count(v) -> int | None:
+    return v if isinstance(v, int) and not isinstance(v, bool) and v >= 0 else None
+
+
+def _presence(obj: dict) -> Presence | None:
+    return Presence.from_json(obj.get("presence"))
+
+
+def _duration(s: float) -> str:
+    """``3 h 10 min``, ``45 min``, ``2 h``; under a minute ``< 1 min`` (whole minutes, rounded down)."""
+    m = int(max(0.0, s) // 60) if math.isfinite(s) else 0
+    if m < 1:
+        return "< 1 min"
+    h, m = divmod(m, 60)
+    return f"{m} min" if not h else f"{h} h" if not m else f"{h} h {m} min"
+
+
+def _absence(p: Presence, loud: bool) -> str:
+    """``not seen for 3 h 10 min — longer than on any of the last 14 days (usually back within 2 h 5 min)``
+    (``PERSON NOT SEEN FOR ...`` when ``loud``)."""
+    out = ("PERSON NOT SEEN FOR " if loud else "not seen for ") + _duration(p.absent_s)
+    if p.usual_s is not None:
+        days = "the last day" if p.days == 1 else f"any of the last {p.days} days"
+        out += f" — longer than on {days} (usually back within {_duration(p.usual_s)})"
+    return out
+
+
+def absence_note(presence: Presence | None) -> str:
+    """``PERSON NOT SEEN FOR 3 h 10 min — longer than on any of the last 14 days (usually back within 2 h
+    5 min)`` while the absence notice runs, else "": what STATUS= and ``posed watch`` say."""
+    return _absence(presence, loud=True) if presence is not None and presence.absent else ""
+
+
+def _clock_in(t: float, now_unix: float, zone) -> str:
+    """``14:02`` in ``zone`` (an IANA name or a tzinfo; this machine's when None or unknown), dated
+    (``2026-12-06 14:02``) when not ``now_unix``'s day there."""
+    tz = zone
+    if isinstance(zone, str):
+        from zoneinfo import ZoneInfo
+
+        try:
+            tz = ZoneInfo(zone)
+        except (ValueError, KeyError, OSError):     # a zone this machine does not know (ZoneInfoNotFoundError)
+            tz = None
+    try:
+        at, today = dt.datetime.fromtimestamp(t, tz), dt.datetime.fromtimestamp(now_unix, tz)
+    except (OverflowError, OSError, ValueError):    # a time no calendar holds
+        return "?"
+    return at.strftime("%H:%M" if at.date() == today.date() else "%Y-%m-%d %H:%M")
+
+
+def presence_note(presence: Presence | None, now_unix: float, zone=None) -> str:
+    """The status's ``presence`` in words, as the web page shows it (its "person" line) — one of:
+    ``in view`` (the person in the latest frame); ``last seen 14:02 (12 min ago)`` (HH:MM in ``zone``, an IANA
+    name such as the status's ``time_zone``; this machine's when None); ``not seen yet``; while the absence
+    notice runs ``not seen for 3 h 10 min — longer than on any of the last 14 days (usually back within 2 h
+    5 min)``; while learning ``; learning the routine: 3 of 7 days`` after it. "" for None (no ``presence``:
+    an older posed, or the absence notice off). ``now_unix``: the robot's time now (the status's
+    ``time_unix``)."""
+    if presence is None:
+        return ""
+    if presence.absent:
+        text = _absence(presence, loud=False)
+    elif presence.last_seen_unix is None:
+        text = "not seen yet"
+    else:
+        age = now_unix - presence.last_seen_unix
+        text = "in view" if presence.in_view else \
+            f"last seen {_clock_in(presence.last_seen_unix, now_unix, zone)} ({_duration(age)} ago)"
+    if presence.learning:
+        text += f"; learning the routine: {presence.days} of {presence.learn_days} days"
+    return text
+
+
+def presence_change(before: Presence | None, after: Presence | None) -> str | None:
+    """What changed from one status's ``presence`` to the next, in words, as ``posed watch`` prints it: the
+    absence notice begins (``PERSON NOT SEEN FOR 3 h 10 min — longer than on any of the last 14 days (usually
+    back within 2 h 5 min)``; also for the first status heard when it is absent already, ``before`` None) or
+    ends with the person seen again (``person seen again after 3 h 25 min``: from last seen to seen again, by
+    the clock); None otherwise (also when a notice ends without the person seen: posed judged again)."""
+    if after is None:
+        return None
+    was = before is not None and before.absent
+    if after.absent and not was:
+        return absence_note(after)
+    if was and not after.absent and after.last_seen_unix is not None and (
+            before.last_seen_unix is None or after.last_seen_unix > before.last_seen_unix):
+        away = after.last_seen_unix - before.last_seen_unix if before.last_seen_unix is not None \
+            else before.absent_s
+        return f"person seen again after {_duration(away)}"
+    return None
+
+
+@dataclass(frozen=True)
 class PrivacyState:
     """A robot's pause for privacy: the reply to a pause or resume (``posed.privacy``, :meth:`PosedClient.pause`)
     or the status's ``privacy`` (:attr:`Status.privacy`). Times in unix seconds; ``since_unix``, ``until_unix``
@@ -189,6 +325,7 @@ class Status:
     raw: dict = field(repr=False, default_factory=dict)
     restored_open: tuple[RestoredFall, ...] = ()
     watch: Watch | None = None
+    presence: Presence | None = None     # the status's ``presence`` typed (None: not said, null or malformed)
 
     @property
     def not_watching(self) -> str | None:
@@ -233,7 +370,8 @@ class Status:
                    drops=int(obj.get("drops") or 0), restarts=int(obj.get("restarts") or 0),
                    camera=str((obj.get("camera") or {}).get("state", "")),
                    unacknowledged_events=(obj.get("events") or {}).get("unacknowledged"), raw=obj,
-                   restored_open=_restored_open(obj), watch=_watch(obj))
+                   restored_open=_restored_open(obj), watch=_watch(obj),
+                   presence=_presence(obj))
 
 
 def _restored_open(obj: dict) -> tuple[RestoredFall, ...]:

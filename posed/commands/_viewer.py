@@ -1,4 +1,6 @@
-"""What ``posed watch`` and ``posed demo`` show: the daemon's topics folded into one line per second."""
+"""What ``posed watch`` and ``posed demo`` show: the daemon's topics folded into one line per second, and a
+line of its own when the absence notice begins or ends (``ROBOT: PERSON NOT SEEN FOR ...``, ``ROBOT: person seen
+again after ...``: :func:`client.presence_change`, once per change, not on every status)."""
 
 from __future__ import annotations
 
@@ -6,7 +8,7 @@ import json
 import threading
 import time
 
-from posed.client.types import Status, dark_note
+from posed.client import Status, dark_note, presence_change
 from posed.daemon.proc.stats import percentile_summary
 
 
@@ -36,6 +38,8 @@ class Summary:
         self.poses_total = 0
         self.poses_ok = 0
         self.first_pose_at: float | None = None
+        self._presence = None                   # the last status's client.Presence
+        self._notices: list[str] = []           # absence notice begun or ended, not yet printed
 
     # -- callbacks --------------------------------------------------------------------------------------
     def on_pose(self, sample) -> None:
@@ -60,8 +64,24 @@ class Summary:
 
     def on_status(self, sample) -> None:
         obj = json.loads(sample.payload.to_string())
+        try:
+            presence = Status.from_json(obj).presence if isinstance(obj, dict) and "state" in obj else None
+        except (ValueError, TypeError):     # a status the client cannot read: no word on presence
+            presence = None
         with self._lock:
             self.status = obj
+            said = presence_change(self._presence, presence)
+            if said:
+                self._notices.append(f"{obj.get('robot') or 'robot'}: {said}")
+            if presence is not None or self._presence is None or not self._presence.absent:
+                self._presence = presence       # a status without it does not end a notice (nor say it again)
+
+    def take_notices(self) -> list[str]:
+        """The absence notice's lines since the last call (``ROBOT: PERSON NOT SEEN FOR ...``, ``ROBOT: person
+        seen again after ...``), each once."""
+        with self._lock:
+            out, self._notices = self._notices, []
+            return out
 
     def on_event(self, sample) -> None:
         obj = json.loads(sample.payload.to_string())
@@ -77,14 +97,16 @@ class Summary:
             return poses, events, self.status
 
     def line(self, elapsed_s: float, period_s: float = 1.0) -> list[str]:
-        """The lines for the period just ended: fall events first, then the one-line summary."""
+        """The lines for the period just ended: fall events first, the absence notice's (:meth:`take_notices`),
+        then the one-line summary."""
         poses, events, status = self.take_period()
+        notices = self.take_notices()
         out = [f"{elapsed_s:5.1f}s  FALL {e.get('state', '?'):9s} id {str(e.get('id', ''))[:8]}  "
                f"confidence {e.get('confidence', 0):.2f}  features {','.join(e.get('features') or [])}"
                + (f"  person {e['person']}" if e.get("person") is not None else "")
                + (f" ({e['member']})" if e.get("member") else "")
                + (f"  [{n}]" if (n := event_notes(e)) else "")
-               for e in events]
+               for e in events] + notices
         parts = [f"{elapsed_s:5.1f}s"]
         if not poses:
             parts.append(f"no poses ({waiting_for(status)})")

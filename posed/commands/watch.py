@@ -3,7 +3,12 @@ the :mod:`client` package; ``--json`` prints every raw message instead).
 
 A robot paused for privacy (its status ``state: paused``, ``privacy``; posed/ROBOT/privacy/pause) says so on its
 line — ``PAUSED for privacy by voice until 15:42 CET`` in the robot's time zone — instead of "NOT WATCHING": a
-pause someone asked for is not a fault."""
+pause someone asked for is not a fault.
+
+When the absence notice begins (the status's ``presence``: the person out of view for longer than on any of the
+last days at this time, docs/falls.md) a line says so once — ``home: PERSON NOT SEEN FOR 3 h 10 min — longer than
+on any of the last 14 days (usually back within 2 h 5 min)`` — and when it ends ``home: person seen again after
+3 h 25 min`` (:func:`client.presence_change`)."""
 
 from __future__ import annotations
 
@@ -140,6 +145,7 @@ class Robots:
         out = []
         for robot, summary in robots:
             prefix = f"{robot}  " if self.robot == "*" else ""
+            out += summary.take_notices()       # "ROBOT: PERSON NOT SEEN FOR ...": named already
             out += [prefix + line for line in summary.line(elapsed_s)]
             conflict = ((summary.status or {}).get("zenoh") or {}).get("robot_id_conflict")
             if conflict:

@@ -81,6 +81,10 @@ class Browser:
             raise BrowserError(f"{expression}: {r['exceptionDetails'].get('text')}")
         return r["result"].get("value")
 
+    def shown(self, element: str) -> str:
+        """The text of the element with id ``element`` as the page shows it ("" while hidden)."""
+        return self.js(f"(e => e.hidden ? '' : e.textContent)(document.getElementById('{element}'))")
+
     def wait_for(self, expression: str, timeout: float, what: str):
         deadline = time.monotonic() + timeout
         error = None

@@ -31,6 +31,15 @@ def procs():
 
 
 @pytest.fixture
+def bus():
+    """A Zenoh router on 127.0.0.1 and a list for the test's robots (tests.viz.paused_robot.on_bus)."""
+    from tests.viz.paused_robot import on_bus
+
+    with on_bus() as b:
+        yield b
+
+
+@pytest.fixture
 def served_page(tmp_path):
     """``open(hub, link, ready)``: a real WebServer of ``hub`` and ``link`` on a free port and a headless Chromium
     page on it, once the JavaScript ``ready`` is true; after the test each page is closed and each server shut."""

@@ -14,7 +14,7 @@ from zoneinfo import ZoneInfo
 import pytest
 
 from posed.commands.watch import paused_words
-from tests.viz.paused_robot import Robot, hhmm, on_bus
+from tests.viz.paused_robot import Robot, hhmm
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -24,12 +24,6 @@ def watch(robot: str, endpoint: str, seconds: float = 4.0) -> list[str]:
                         str(seconds)], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     return r.stdout.splitlines()
-
-
-@pytest.fixture
-def bus():
-    with on_bus() as b:
-        yield b
 
 
 @pytest.mark.timeout(180)

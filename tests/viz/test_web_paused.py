@@ -18,23 +18,12 @@ from pathlib import Path
 import pytest
 
 from tests.viz.browser import Browser
-from tests.viz.paused_robot import KNEE_DEG, Robot, hhmm, on_bus
+from tests.viz.paused_robot import KNEE_DEG, Robot, hhmm
 from tests.viz.web_cli import posed_web
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
 SHOT = Path(os.environ.get("POSED_WEB_PAUSED_SHOT", ARTIFACTS / "web_paused.png"))
-
-
-@pytest.fixture
-def bus():
-    with on_bus() as b:
-        yield b
-
-
-def shown(b: Browser, element: str) -> str:
-    """The text of an element the page shows ("" while hidden)."""
-    return b.js(f"(e => e.hidden ? '' : e.textContent)(document.getElementById('{element}'))")
 
 
 @pytest.mark.timeout(240)
@@ -49,7 +38,7 @@ def test_the_page_says_a_pause_plainly_and_drops_it_when_watching_again(tmp_path
     procs.append(b)
     b.open(url)
     b.wait_for("posedView.status && posedView.status.state === 'running' && posedView.live", 60, "a live status")
-    assert shown(b, "paused") == "" and shown(b, "watching") == ""
+    assert b.shown("paused") == "" and b.shown("watching") == ""
     b.wait_for("posedView.drawn > 0", 20, "a body drawn")          # it watches: the body and its angles now
     assert f"{KNEE_DEG:.0f}°" in b.js("document.getElementById('angles-now').textContent")
 
@@ -59,7 +48,7 @@ def test_the_page_says_a_pause_plainly_and_drops_it_when_watching_again(tmp_path
     assert banner == f"Watching paused for privacy by voice until {hhmm(until, zone)}", banner
     assert b.js("getComputedStyle(document.getElementById('paused')).backgroundColor") != \
         b.js("getComputedStyle(document.getElementById('watching')).backgroundColor")     # not the alarm's red
-    assert shown(b, "watching") == "" and shown(b, "down") == ""                           # not an error, not blind
+    assert b.shown("watching") == "" and b.shown("down") == ""                           # not an error, not blind
     assert b.js("document.getElementById('conn').textContent") == "live, paused"
     assert "NOT" not in b.js("document.getElementById('st-watching').textContent")
     assert "paused for privacy by voice" in b.js("document.getElementById('st-watching').textContent")

@@ -10,7 +10,9 @@ judged by the daemon (the rule of ``hooks.on_watch_lost``), else — an older po
 same rule judged here, since when this view saw it (``since_known`` false when it was so already at the first
 status); ``restored_open``: falls taken back after a restart whose alarm is still due; ``paused``: while the
 status says posed is paused for privacy (``state: paused``, its ``privacy``), who asked and until when — then
-``watching`` is false but ``not_watching`` null: a pause someone asked for is said plainly, never as a fault),
+``watching`` is false but ``not_watching`` null: a pause someone asked for is said plainly, never as a fault;
+``presence``: the status's ``presence`` in words, ``client.presence_note``'s — "last seen 14:02 (12 min ago)",
+"in view", while the absence notice runs "not seen for 3 h 10 min — ..." with ``absent`` true — null without one),
 ``event`` (each fall-event message once per (id, state), with ``restored`` — taken back from the journal
 after a restart; ``clock`` when its alarm was raised at once for a stepped clock — and ``without_frames_s`` — an alarm raised with no camera frame for that long — and ``robot``, whose it is), ``acked`` (through this page,
 or learned from the robot's journal: acknowledged elsewhere), ``forget`` (events the page no longer lists:
@@ -19,8 +21,8 @@ The events held are bounded (``fall_list.FallList``): the page's window and ever
 A hub for every robot (``"*"``) lists every robot's events and keeps each robot's live parts (its last status and
 pose, its minute of angles, its liveliness and verdict: newest wins, at most ``MAX_ROBOTS`` robots); a page gets
 those of the one robot it shows (``subscribe(robot)``; poses of the others never reach it) and, for every robot,
-a ``card`` (``cards``: up or down and since when, watching or why not, paused for privacy, frames per second, its
-last pose's time and its time zone), the changed ones at most once a tick.
+a ``card`` (``cards``: up or down and since when, watching or why not, paused for privacy, the person's
+``presence``, frames per second, its last pose's time and its time zone), the changed ones at most once a tick.
 With several people in view one person is drawn: the household member the status says is followed, else each
 frame's own person. ``snapshot()`` is what a page that opens now needs first: the last status, the last minute
 of angles, the events seen, whether the robot is up.
@@ -42,7 +44,7 @@ import threading
 import time
 from collections import deque
 
-from posed.client import dark_note
+from posed.client import dark_note, presence_note
 from posed.viz.names import MAIN_ANGLES, evidence_text, short_label
 from posed.viz.series import STATE_WORDS
 from posed.viz.web.fall_list import KEEP_S, FallList, unix_of
@@ -275,15 +277,15 @@ class Hub:
 
     def _card(self, live: _Live) -> dict:
         """What a robot's card says (lock held): whether it is up (the verdict, since when it is not), its
-        liveliness, whether it watches and why not, its frames per second, its last pose's time (its clock,
-        whole seconds) and its time zone."""
+        liveliness, whether it watches and why not, the person's presence (:func:`presence_of`), its frames per
+        second, its last pose's time (its clock, whole seconds) and its time zone."""
         v = self._judge(live)
         st = live.status or {}
         return {"robot": live.robot, "state": v["state"], "why": v["why"],
                 "since_unix": None if v["state"] == "up" else v["since_unix"], "alive": live.alive,
                 "status": st.get("state"), "watching": st.get("watching"), "not_watching": st.get("not_watching"),
                 "paused": st.get("paused"), "fps": st.get("fps"), "time_zone": st.get("time_zone"),
-                "unacknowledged": st.get("unacknowledged"),
+                "presence": st.get("presence"), "unacknowledged": st.get("unacknowledged"),
                 "pose_unix": None if live.pose_unix is None else math.floor(live.pose_unix)}
 
     def default_robot(self) -> str | None:
@@ -469,6 +471,7 @@ class Hub:
                "time_unix": _num(status.time_unix), "floor": floor_of(status.raw),
                "storage": storage_of(status.raw), "restored_open": restored_open_of(status.raw),
                "time_zone": zone_of(status.raw), "paused": paused_of(status.raw)}
+        msg["presence"] = presence_of(status, msg["time_zone"], msg["time_unix"] or self._wall())
         watch = watch_of(status.raw)
         why = not_watching(status.raw) if watch is None else watch[0]
         if msg["paused"] is not None:       # asked for: said as a pause (the page's banner), not as a fault
@@ -670,6 +673,17 @@ def restored_of(extra: dict) -> dict | None:
     return {"at_unix": _num(r.get("at_unix")), "due_unix": _num(r.get("due_unix")),
             "last_state": STATE_WORDS.get(last, last) if isinstance(last, str) else None,
             "clock": clock if isinstance(clock, str) else None}
+
+
+def presence_of(status, zone: str | None, now_unix: float) -> dict | None:
+    """A ``client.Status``'s ``presence`` as the page shows it: ``text`` (``client.presence_note``: HH:MM in the
+    robot's ``zone``, the age against ``now_unix``, the status's time), ``absent`` (the notice runs: in red),
+    ``learning``; None when the status has none (an older posed, the absence notice off, or malformed)."""
+    p = status.presence
+    if p is None:
+        return None
+    return {"text": presence_note(p, now_unix, zone), "absent": p.absent, "learning": p.learning,
+            "last_seen_unix": p.last_seen_unix}
 
 
 def zone_of(raw) -> str | None:

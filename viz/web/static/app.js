@@ -285,6 +285,7 @@ function showStatus(s) {
     nw ? `NO: ${nw.reason}` + (nw.since_known ? `, since ${sinceText(nw.since_unix)}` : "") :
     s.state === "starting" ? "not yet (starting)" : "yes");
   document.getElementById("st-watching").className = nw ? "warn" : "";
+  showPresence(s.presence);
   const restored = s.restored_open || [];
   document.getElementById("st-restored-row").hidden = !restored.length;
   setText("st-restored", restored.map((r) => `${r.id.slice(0, 8)}: ` +
@@ -296,6 +297,12 @@ function showStatus(s) {
   if (s.storage) storage.textContent = "The robot cannot store fall events on its disk: " +
     (s.storage.unstored_events || 0) + " kept in memory and in " + (s.storage.fallback || "its fallback file") +
     " (" + (s.storage.reason || "the state directory fails") + "). Fix: " + (s.storage.fix || "check its disk") + ".";
+}
+
+function showPresence(p) {  // "last seen 14:02 (12 min ago)", "in view"; absent: in red (the server's words)
+  document.getElementById("st-person-row").hidden = !p;
+  setText("st-person", p ? p.text : "–");
+  document.getElementById("st-person").className = p && p.absent ? "warn" : "";
 }
 
 function showBus(bus) {  // the page cannot reach the robot's bus: say so, never show an empty history as all well
@@ -379,6 +386,10 @@ function showLiveness() {  // the red bar, the "live" badge, and everything stal
   const pbar = document.getElementById("paused");
   pbar.hidden = !paused;
   pbar.textContent = paused ? pausedText(paused) : "";
+  const pr = live && view.status && view.status.presence, absent = pr && pr.absent ? pr : null;
+  const abar = document.getElementById("absent");   // the absence notice: the person may have fallen out of view
+  abar.hidden = !absent;
+  abar.textContent = absent ? `${robot}: person ${absent.text}` : "";
   const wbar = document.getElementById("watching");
   wbar.hidden = !nw;
   wbar.textContent = nw ? `posed on ${robot} is running but NOT WATCHING ` + (nw.since_known ?
@@ -623,6 +634,7 @@ function follow(robot, by) {  // show robot's live parts: its own stream, nothin
   view.poseRobots = {}; angleLog.length = 0;
   for (const id of ["st-state", "st-fps", "st-latency", "st-camera", "st-drops", "st-restarts", "st-evidence",
     "st-watching"]) setText(id, "–");
+  showPresence(null);
   setText("st-poses", 0); document.getElementById("angles-now").innerHTML = "";
   showRobotName(); showCards(); requestDraw();
   connect();
@@ -649,7 +661,7 @@ function zoneOf(zone) {  // the robot's IANA zone when this browser knows it, el
 const DOWN_WORDS = {gone: "not running (its Zenoh liveliness token went away)", silent: "sends nothing (stopped or stuck)",
   starting: "starting again", bus: "this side has no bus"};
 
-function cardParts(c, open) {  // [state pill text, pill class, watching line, whether it watches, falls line, pose line, open]
+function cardParts(c, open) {  // [pill, its class, watching line, whether it watches, falls, pose line, open, presence]
   const zone = zoneOf(c.time_zone), since = sinceText(c.since_unix, zone);
   let pill = "up", cls = "", watch, watching = false;
   if (c.state === "up" && c.paused) {   // asked for: said plainly, never as a fault
@@ -670,7 +682,8 @@ function cardParts(c, open) {  // [state pill text, pill class, watching line, w
   const pose = (c.pose_unix === null || c.pose_unix === undefined ? "no pose yet" :
     `last pose ${sinceText(c.pose_unix, zone)}`) + ` (${zone})` +
     (c.fps === null || c.fps === undefined ? "" : ` · ${c.fps.toFixed(1)} fps`);
-  return [pill, cls, watch, watching, falls, pose, n];
+  const person = c.state === "up" && c.presence ? c.presence : null;
+  return [pill, cls, watch, watching, falls, pose, n, person];
 }
 
 const cardEls = new Map();   // robot -> its card's button, kept while the robot is listed (a click is never lost to a redraw)
@@ -702,9 +715,10 @@ function showCards() {
       html = `<div class="rc-head"><b>${esc(id)}</b> <span class="pill off">not on the bus</span></div>` +
         '<div class="note">chosen in this page\'s address; no message from it since the page opened</div>';
     } else {
-      const [pill, cls, watch, watching, falls, pose, n] = parts;
+      const [pill, cls, watch, watching, falls, pose, n, person] = parts;
       html = `<div class="rc-head"><b>${esc(id)}</b> <span class="pill${cls}">${esc(pill)}</span></div>` +
         `<div class="rc-watch${watching || paused ? "" : " warn"}">${esc(watch)}</div>` +
+        (person ? `<div class="rc-person${person.absent ? " warn" : ""}">person ${esc(person.text)}</div>` : "") +
         `<div class="rc-falls${n ? " warn" : ""}">${esc(falls)}</div><div class="rc-pose note">${esc(pose)}</div>`;
     }
     if (b.posedHtml !== html) { b.innerHTML = html; b.posedHtml = html; }
