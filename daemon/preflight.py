@@ -105,8 +105,9 @@ def check(cfg: Config) -> list[str]:
 
 
 def _hooks(cfg: Config):
-    """(list key, index, hook) of every configured hook: fall events' and posed not watching's."""
-    for key in ("on_event", "on_watch_lost"):
+    """(list key, index, hook) of every configured hook: fall events', posed not watching's and the person not
+    seen's."""
+    for key in ("on_event", "on_watch_lost", "on_absent"):
         for i, hook in enumerate(getattr(cfg.hooks, key)):
             yield key, i, hook
 
@@ -213,7 +214,8 @@ def hook_program_problems(cfg: Config) -> list[str]:
             continue                                  # check() reports an empty argv
         prog = hook.argv[0]
         found = Path(prog) if os.sep in prog else shutil.which(prog)
-        when = "at the first fall" if key == "on_event" else "when posed stops watching"
+        when = {"on_event": "at the first fall", "on_absent": "when the person is not seen for longer than "
+                "usual"}.get(key, "when posed stops watching")
         if found is None or not Path(found).is_file():
             problems.append(f"hooks.{key}[{i}].argv[0]: {prog!r} does not exist"
                             + ("" if os.sep in prog else " on PATH") + "; give the absolute path of an installed "

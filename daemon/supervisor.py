@@ -99,6 +99,7 @@ class Supervisor:
         self._problem: dict | None = None        # the capture stage's last reported problem {error, fix}
         self._conflict: dict | None = None       # the publisher's zenoh.robot_id_conflict: our robot id used twice
         self._privacy: dict = {}                 # the publisher's pause for privacy (PrivacyKeeper.status)
+        self._presence: dict | None = None       # the publisher's presence (PresenceWatch.state): absent or not
         self.models = models_in_use(config)      # the status's "models": read once, from the manifest
         self.time_zone = robot_zone()            # the status's "time_zone": the zone people read times in
         self._next_blind_log = 0.0
@@ -205,6 +206,7 @@ class Supervisor:
         slot.restart_at = None
         if spec.name == "publisher":
             self._conflict = None       # a new publisher's session says it again while it lasts
+            self._presence = None       # ... and a new publisher's presence judges the absence afresh
         self.control.board.row(spec.name).set("pid", proc.pid)
 
     # ------------------------------------------------------------------ the loop
@@ -219,7 +221,8 @@ class Supervisor:
             self._ready_sent = True
             for slot in self._slots.values():
                 self.control.board.row(slot.spec.name).set("go", 1.0)
-            self.notifier.ready(status_text(self.status(now), self._conflict) + f"; warm-up took {now - self._t0:.1f} s")
+            self.notifier.ready(status_text(self.status(now), self._conflict, self._presence)
+                                + f"; warm-up took {now - self._t0:.1f} s")
             self.log.info("daemon_ready", warmup_s=round(now - self._t0, 2))
         if now >= self._next_status:
             self._next_status = now + self.config.pipeline.status_period_s
@@ -241,6 +244,8 @@ class Supervisor:
                 self._conflict = info["robot_id_conflict"]
             if "privacy" in info:
                 self._privacy = dict(info["privacy"] or {})
+            if "presence" in info:
+                self._presence = info["presence"]
             if "fatal" in info:
                 self._fatal(slot.spec.name, info["fatal"], info.get("fix", ""))
 
@@ -408,7 +413,7 @@ class Supervisor:
             self.control.mailbox("status").put(status)
         except ValueError as exc:
             self.log.error("status_too_large", error=str(exc))
-        self.notifier.status(status_text(status, self._conflict))
+        self.notifier.status(status_text(status, self._conflict, self._presence))
         e2e = status["latency_ms"]
         if now >= self._next_stats_log:
             self._next_stats_log = now + self.config.logging.stats_period_s
@@ -576,10 +581,21 @@ def models_in_use(config: Config) -> dict:
         return {"dir": str(config.landmarks.models_dir or ""), "error": f"cannot read the models folder: {exc}"}
 
 
-def status_text(status: dict, conflict: dict | None = None) -> str:
+def status_text(status: dict, conflict: dict | None = None, presence: dict | None = None) -> str:
     """systemd's STATUS= line for a status object: the state first, then what matters for it; ``conflict``: the
-    publisher's ``zenoh.robot_id_conflict`` (another daemon uses our robot id), said at the end."""
-    return _state_text(status) + conflict_text(conflict)
+    publisher's ``zenoh.robot_id_conflict`` (another daemon uses our robot id), said at the end; ``presence``:
+    the publisher's (the status's ``presence``), said while the person is not seen for longer than usual."""
+    return _state_text(status) + absence_text(presence) + conflict_text(conflict)
+
+
+def absence_text(presence: dict | None) -> str:
+    """``; PERSON NOT SEEN FOR 3 h 10 min — longer than on any of the last 14 days (usually back within 2 h
+    5 min)`` while the presence says ``absent`` (hooks.on_absent's rule, daemon.history.absence); "" otherwise.
+    The words are the client's (client.absence_note), as ``posed watch`` says them."""
+    from posed.client import Presence, absence_note
+
+    note = absence_note(Presence.from_json(presence))
+    return f"; {note}" if note else ""
 
 
 def conflict_text(conflict: dict | None) -> str:

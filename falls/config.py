@@ -201,8 +201,36 @@ class FallsConfig:
         default=90.0, metadata={"doc": "joint-angle history: rows older than this are deleted", "unit": "d", "range": (0.01, 36500.0)}
     )
 
+    absence_enabled: bool = field(
+        default=True, metadata={"doc": "say when the person has not been seen for longer than on any of the last "
+                                       "absence_days days at this time of day (hooks.on_absent, the status's "
+                                       "presence); learned from the history, so nothing without history_enabled; "
+                                       "see docs/daemon.md"}
+    )
+    absence_margin_h: float = field(
+        default=1.0, metadata={"doc": "the notice comes this long after the latest the person was back on any of "
+                                      "those days (1 h: a long lie on the floor, of an hour or more, is what "
+                                      "studies of older people's falls tie to serious harm)", "unit": "h",
+                               "range": (0.1, 48.0)}
+    )
+    absence_learn_days: int = field(
+        default=7, metadata={"doc": "past days (each watched at least half the day) needed before an absence is "
+                                    "judged; until then the status says learning", "range": (1, 90)}
+    )
+    absence_days: int = field(
+        default=14, metadata={"doc": "past days the usual time until the person is back is learned from (the "
+                                     "history keeps history_retention_days)", "range": (1, 90)}
+    )
+
     def __post_init__(self) -> None:
+        problems = []
         names = [m.name for m in self.household]
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
-            raise ValueError(f"household: each member needs a name of their own; named twice: {', '.join(twice)}")
+            problems.append(f"household: each member needs a name of their own; named twice: {', '.join(twice)}")
+        if self.absence_learn_days > self.absence_days:
+            problems.append(f"absence_learn_days: {self.absence_learn_days} is more than falls.absence_days "
+                            f"({self.absence_days}); the routine is learned from the last absence_days days, so "
+                            "no more of them can count: lower absence_learn_days or raise absence_days")
+        if problems:
+            raise ValueError("; ".join(problems))

@@ -138,7 +138,7 @@ class HookConfig:
 
 @dataclass(frozen=True)
 class HooksConfig:
-    """Commands run on fall events, and when posed stops watching and watches again."""
+    """Commands run on fall events, when posed stops and resumes watching, and when the person is long unseen."""
 
     on_event: tuple[HookConfig, ...] = field(default=(), metadata={"doc": "hooks run for every fall event"})
     on_watch_lost: tuple[HookConfig, ...] = field(default=(), metadata={
@@ -149,6 +149,11 @@ class HooksConfig:
         "doc": "how long posed must not have been watching before on_watch_lost runs; above the routine "
                "recoveries (a stage restart about 2 s, a camera reconnect up to source.reconnect_max_s), so "
                "those call nobody", "unit": "s", "range": (1.0, 86400.0)})
+    on_absent: tuple[HookConfig, ...] = field(default=(), metadata={
+        "doc": "hooks run once when the person has not been seen for longer than usual (falls.absence_margin_h "
+               "past the latest they were back on any of the last falls.absence_days days at this time of day: "
+               "maybe fallen in another room), and once when they are seen again (POSED_ABSENT=absent / back; "
+               "docs/daemon.md)"})
     retry_delay_s: float = field(
         default=2.0, metadata={"doc": "wait before the n-th retry: n times this", "unit": "s",
                                "range": (0.0, 600.0)}

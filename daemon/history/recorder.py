@@ -1,6 +1,8 @@
 """The publisher's side of the joint-angle history: one ``add`` per fit and the store's maintenance about
 once a minute (:mod:`daemon.history.store` keeps, downsamples and deletes the rows); every frame also counts in
-the minutes posed watched (:mod:`daemon.history.watched`), written at the same time.
+the minutes posed watched (:mod:`daemon.history.watched`), written at the same time, and in the person's
+presence (:mod:`daemon.history.absence`: not seen for longer than usual), whose notices :meth:`notices` hands
+on.
 
 The row's wall time is the capture timestamp converted to unix seconds; the schedule runs on the monotonic
 clock. With ``falls.history_enabled`` false there is no store and every call does nothing.
@@ -9,6 +11,7 @@ clock. With ``falls.history_enabled`` false there is no store and every call doe
 from __future__ import annotations
 
 from posed.daemon import clock
+from posed.daemon.history.absence import AbsenceNotice, PresenceWatch
 from posed.daemon.history.store import AngleHistory
 from posed.daemon.history.watched import WatchLog
 from posed.fitting import FitResult
@@ -20,9 +23,11 @@ class HistoryRecorder:
     """Feeds an :class:`AngleHistory` (or nothing, when ``store`` is None)."""
 
     def __init__(self, store: AngleHistory | None, log, maintain_every_s: float = MAINTAIN_EVERY_S,
-                 now: float | None = None) -> None:
+                 now: float | None = None, presence: PresenceWatch | None = None) -> None:
         self.store = store
         self.log = log
+        self.presence = presence if store is not None else None    # fed the frames the history counts
+        self._notices: list[AbsenceNotice] = []
         self.maintain_every_s = maintain_every_s
         self._next_maintain = (clock.now() if now is None else now) + maintain_every_s
         # the watched minutes are written as often as the angle rows (falls.history_commit_every_s): a report
@@ -43,12 +48,27 @@ class HistoryRecorder:
         if self.store is not None:
             wall = clock.wall_from_monotonic(t_capture)
             self.store.add(result, wall)
+            person = result.ok or result.reason != "no person"
             if self.watched is not None:
-                self.watched.add(wall, person=result.ok or result.reason != "no person", fitted=result.ok)
+                self.watched.add(wall, person=person, fitted=result.ok)
+            if self.presence is not None:
+                self._keep(self.presence.add(wall, person))
+
+    def _keep(self, notice: AbsenceNotice | None) -> None:
+        if notice is not None:
+            self._notices.append(notice)
+
+    def notices(self) -> list[AbsenceNotice]:
+        """The absence notices since the last call (:class:`PresenceWatch`), oldest first."""
+        out, self._notices = self._notices, []
+        return out
 
     def tick(self, now: float) -> None:
         """Write the watched minutes every ``watch_flush_every_s``; downsample and expire old rows every
-        ``maintain_every_s``; a failure is logged, never raised."""
+        ``maintain_every_s``; a failure is logged, never raised. The presence reads the person's usual absence
+        when it needs it (at most once a minute)."""
+        if self.presence is not None:
+            self._keep(self.presence.tick(now, clock.wall_from_monotonic(now)))
         if self.watched is not None and now >= self._next_watch_flush:
             self._next_watch_flush = now + self.watch_flush_every_s
             self.watched.flush()

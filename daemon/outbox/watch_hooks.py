@@ -188,27 +188,40 @@ class WatchLoss:
 
 
 class WatchHooks:
-    """Runs ``cfg.on_watch_lost`` for each notice, in order, on one thread of its own (``submit`` returns at
-    once; a notice that finds the queue full is dropped and logged: the next one says the current state)."""
+    """Runs a list of hooks for each notice, in order, on one thread of its own (``submit`` returns at once; a
+    notice that finds the queue full is dropped and logged: the next one says the current state). A notice is
+    anything with ``to_json()`` (the hook's stdin) and ``environment()`` (its ``POSED_*`` variables).
+
+    By default the hooks are ``cfg.on_watch_lost`` (:class:`WatchNotice`), logged as ``watch_hook_*`` with the
+    notice's ``watch``; ``hooks``, ``key``, ``log_as`` and ``field`` run another list the same way, e.g.
+    ``hooks.on_absent`` (:class:`daemon.history.absence.AbsenceNotice`: ``absent_hook_*``, ``absence``)."""
 
     QUEUE = 8
 
-    def __init__(self, cfg: HooksConfig, log) -> None:
+    def __init__(self, cfg: HooksConfig, log, hooks: tuple[HookConfig, ...] | None = None,
+                 key: str = "on_watch_lost", log_as: str = "watch_hook", field: str = "watch") -> None:
         self.cfg = cfg
         self.log = log
-        self._queue: queue.Queue[WatchNotice | None] = queue.Queue(self.QUEUE)
+        self.hooks = tuple(cfg.on_watch_lost if hooks is None else hooks)
+        self.key = key              # the config key, in messages: hooks.KEY[i]
+        self.log_as = log_as        # log event prefix: LOG_AS_done, _failed, _gave_up, _dropped
+        self.field = field          # the notice's to_json() field the log names it by
+        self._queue: queue.Queue = queue.Queue(self.QUEUE)
         self._stopping = threading.Event()
         self._proc: subprocess.Popen | None = None
         self._lock = threading.Lock()
-        self._thread = threading.Thread(target=self._loop, name="watch-hooks", daemon=True)
+        self._thread = threading.Thread(target=self._loop, name=f"{log_as.replace('_', '-')}s", daemon=True)
         self._thread.start()
 
-    def submit(self, notice: WatchNotice) -> None:
+    def _what(self, notice) -> dict:
+        return {self.field: notice.to_json().get(self.field)}
+
+    def submit(self, notice) -> None:
         try:
             self._queue.put_nowait(notice)
         except queue.Full:
-            self.log.warning("watch_hook_dropped", watch=notice.to_json()["watch"],
-                             note="the watch hooks are still busy with earlier notices")
+            self.log.warning(f"{self.log_as}_dropped", **self._what(notice),
+                             note=f"the hooks.{self.key} hooks are still busy with earlier notices")
 
     def close(self, timeout: float = 1.0) -> None:
         """What is queued and running gets ``timeout`` s; then no run starts any more and a running hook's process
@@ -230,34 +243,35 @@ class WatchHooks:
             notice = self._queue.get()
             if notice is None:
                 return
-            for index, hook in enumerate(self.cfg.on_watch_lost):
+            for index, hook in enumerate(self.hooks):
                 self._deliver(index, hook, notice)
 
-    def _deliver(self, index: int, hook: HookConfig, notice: WatchNotice) -> None:
+    def _deliver(self, index: int, hook: HookConfig, notice) -> None:
         attempts = 1 + hook.retries
-        watch = notice.to_json()["watch"]
+        what = self._what(notice)
         for n in range(1, attempts + 1):
             if self._stopping.is_set():
                 return
             rc, timed_out, error, out, err = self._run_once(index, hook, notice, n)
-            fields = dict(hook=index, watch=watch, attempt=n, of=attempts, returncode=rc)
+            fields = dict(hook=index, **what, attempt=n, of=attempts, returncode=rc)
             if out:
                 fields["stdout"] = out
             if err:
                 fields["stderr"] = err
             if rc == 0 and not timed_out and not error:
-                self.log.info("watch_hook_done", **fields)
+                self.log.info(f"{self.log_as}_done", **fields)
                 return
-            self.log.warning("watch_hook_failed", error=error or ("timeout" if timed_out else f"exit status {rc}"),
-                             **fields)
+            self.log.warning(f"{self.log_as}_failed",
+                             error=error or ("timeout" if timed_out else f"exit status {rc}"), **fields)
             if n < attempts:
                 self._stopping.wait(self.cfg.retry_delay_s * n)
-        self.log.error("watch_hook_gave_up", hook=index, watch=watch, attempts=attempts)
+        self.log.error(f"{self.log_as}_gave_up", hook=index, **what, attempts=attempts)
 
-    def _run_once(self, index: int, hook: HookConfig, notice: WatchNotice, attempt: int):
+    def _run_once(self, index: int, hook: HookConfig, notice, attempt: int):
         limit = self.cfg.output_limit
+        where = f"hooks.{self.key}[{index}]"
         if not hook.argv:
-            return None, False, f"hooks.on_watch_lost[{index}].argv is empty", "", ""
+            return None, False, f"{where}.argv is empty", "", ""
         env = dict(os.environ)
         env.update(notice.environment())
         env["POSED_HOOK_ATTEMPT"] = str(attempt)
@@ -268,7 +282,7 @@ class WatchHooks:
             try:
                 proc = start_program(hook.argv, env)
             except OSError as exc:
-                return None, False, cannot_start(hook.argv, exc, f"hooks.on_watch_lost[{index}]"), "", ""
+                return None, False, cannot_start(hook.argv, exc, where), "", ""
             self._proc = proc
         try:
             rc, timed_out, out, err = finish_program(proc, json.dumps(notice.to_json()).encode(), limit,

@@ -22,10 +22,11 @@ supervisor's: 3 s at any usual frame rate) the detectors' alarm timers run on wi
 
 Between frames: ``posed/ROBOT/status`` (the supervisor's status every ``pipeline.status_period_s``, plus the
 Zenoh session, the event backlog and ``watch``: whether posed is watching, since when and why not, the rule of
-``hooks.on_watch_lost``); unacknowledged events published again when a new subscriber to
-events/fall appears and every ``zenoh.event_republish_s``; history maintenance. The bus also holds the
-liveliness token ``posed/ROBOT/alive``, the queryables ``posed/ROBOT/state`` (latest pose + status) and
-``posed/ROBOT/events/history`` (stored events; parameters ``since``, ``until`` (unix seconds or ISO 8601),
+``hooks.on_watch_lost``; and ``presence``: when the person was last seen and whether that is longer ago than
+usual, the rule of ``hooks.on_absent``, :mod:`daemon.history.absence`); unacknowledged events published again
+when a new subscriber to events/fall appears and every ``zenoh.event_republish_s``; history maintenance. The
+bus also holds the liveliness token ``posed/ROBOT/alive``, the queryables ``posed/ROBOT/state`` (latest pose +
+status) and ``posed/ROBOT/events/history`` (stored events; parameters ``since``, ``until`` (unix seconds or ISO 8601),
 ``limit``), and the subscriber ``posed/ROBOT/events/ack``: a receiver puts an event id there (text, or JSON
 ``{"id": ...}``) to acknowledge every message of that event so far, or ``{"id": ..., "state": ...}`` for only
 that state's message (:mod:`daemon.bus.acks`). With ``falls.camera_mount_from_bus``, the subscriber
@@ -62,6 +63,7 @@ from posed.daemon.bus.payloads import (
 from posed.daemon.bus.ros2 import Ros2Bridge
 from posed.daemon.bus.session import ZenohConfigError
 from posed.daemon.config import paths
+from posed.daemon.history.absence import AbsenceNotice, PresenceWatch
 from posed.daemon.history.recorder import HistoryRecorder
 from posed.daemon.history.store import AngleHistory
 from posed.daemon.messages import FitMsg, origin
@@ -123,14 +125,20 @@ class PublisherStage:
         self.watch = WatchLoss(cfg.robot_id, cfg.hooks.watch_lost_after_s)
         self.watch_hooks = WatchHooks(cfg.hooks, rt.log) if cfg.hooks.on_watch_lost else None
         # what a hook leaves behind (setsid) comes back here; no hooks configured: nothing to adopt or scan for
-        self.subreaper = bool(cfg.hooks.on_event or cfg.hooks.on_watch_lost) and orphans.become_subreaper()
+        self.subreaper = bool(cfg.hooks.on_event or cfg.hooks.on_watch_lost or cfg.hooks.on_absent) \
+            and orphans.become_subreaper()
         self._next_reap = 0.0
         self._stack = stack
         self._conflict_said: list | None = None     # the other daemons with our robot id told the supervisor
         self._conflict_state: dict | None = None    # ... and the conflict itself, as last told
         self.history = HistoryRecorder(
             AngleHistory(paths.history_path(cfg.pipeline), cfg.falls) if cfg.falls.history_enabled else None,
-            rt.log)
+            rt.log, presence=_presence_watch(cfg, rt.log))
+        # the person not seen for longer than usual (daemon.history.absence) said to the hooks that want it
+        self.absent_hooks = (WatchHooks(cfg.hooks, rt.log, cfg.hooks.on_absent, key="on_absent",
+                                        log_as="absent_hook", field="absence")
+                             if cfg.hooks.on_absent and self.history.presence is not None else None)
+        self._told_presence: tuple | None = None    # what the supervisor was last told of an absence
         # paused for privacy (posed/ROBOT/privacy/pause): kept in the state dir, handed to the capture stage
         self.privacy = PrivacyKeeper(cfg.privacy, cfg.robot_id, paths.state_dir(cfg.pipeline), rt.log,
                                      mailbox=rt.mailbox("privacy"), pause_log=_pause_log(cfg, rt.log),
@@ -171,6 +179,7 @@ class PublisherStage:
             self.ros2.publish_pose(poses.get(id(followed)) or pose_message(replace(msg, result=followed, others=()),
                                                                            clock.now(), self.rt.config.robot_id))
         self.history.add(followed, msg.t_capture)
+        self.absence_notices()
 
     def periodic(self, now: float) -> None:
         status = self.rt.mailbox("status").take()
@@ -185,6 +194,7 @@ class PublisherStage:
             self.outbox.subscriber_appeared(now)
         self.outbox.tick(now, self.bus.event_subscribed)
         self.history.tick(now)
+        self.absence_notices()
         if self.subreaper and now >= self._next_reap:
             self._next_reap = now + 1.0
             orphans.reap_adopted(self.outbox.hooks.pids())
@@ -230,9 +240,10 @@ class PublisherStage:
         return None
 
     def _report(self) -> None:
-        """Tell the supervisor the pause for privacy and the robot id conflict together (its report mailbox keeps
-        only the latest message, so neither may replace the other)."""
-        self.rt.report(robot_id_conflict=self._conflict_state, privacy=self.privacy.status())
+        """Tell the supervisor the pause for privacy, the robot id conflict and the presence together (its report
+        mailbox keeps only the latest message, so none may replace another)."""
+        self.rt.report(robot_id_conflict=self._conflict_state, privacy=self.privacy.status(),
+                       presence=self.presence())
 
     def falls_between_frames(self, now: float) -> None:
         """The alarms due without a frame: a restored fall's when due; and when no frame has been handled for
@@ -290,6 +301,7 @@ class PublisherStage:
         watch = self.watch.state()          # absent while starting: no judgement yet (WatchLoss.state)
         if watch is not None:
             status["watch"] = watch
+        status["presence"] = self.presence()
         self.bus.put_status(status_message(status, self.rt.config.robot_id, now))
 
     def privacy_status(self, status: dict) -> None:
@@ -329,12 +341,48 @@ class PublisherStage:
         if self.watch_hooks is not None:
             self.watch_hooks.submit(notice)
 
+    def presence(self) -> dict | None:
+        """The status's ``presence`` (:meth:`PresenceWatch.state`); None without the history or with
+        ``falls.absence_enabled`` false."""
+        watch = self.history.presence
+        return None if watch is None else watch.state()
+
+    def absence_notices(self) -> None:
+        """The person not seen for longer than usual, or seen again after that (:class:`PresenceWatch`, fed by the
+        history recorder): logged and handed to ``hooks.on_absent``; the supervisor told while it lasts (its
+        STATUS= line says it, daemon.supervisor.status_text), again each minute as it grows."""
+        for notice in self.history.notices():
+            self._said_absence(notice)
+        watch = self.history.presence
+        told = None
+        if watch is not None and watch.absent_since is not None:       # per frame: no status object built
+            told = (watch.absent_since, int(watch.absent_s // 60))
+        if told != self._told_presence:
+            self._told_presence = told
+            self._report()
+
+    def _said_absence(self, notice: AbsenceNotice) -> None:
+        fields = notice.to_json()
+        said = dict(last_seen=clock.iso(notice.last_seen_unix) if notice.last_seen_unix is not None else None,
+                    absent_s=fields["absent_s"], usual_s=fields["usual_s"],
+                    notice_after_s=fields["notice_after_s"], hooks=len(self.rt.config.hooks.on_absent))
+        if notice.absent:
+            self.rt.log.error("person_absent", **said, days=notice.days,
+                              note="the person has not been seen for longer than on any of the last days at this "
+                                   "time of day: they may have fallen out of view")
+        else:
+            self.rt.log.info("person_back", **said)
+        if self.absent_hooks is not None:
+            self.absent_hooks.submit(notice)
+
     def close(self) -> None:
         """Close everything but the session (the ``with`` around the stage closes it)."""
         self.bus.forget()
         self.outbox.close(hook_timeout_s=0.5)     # then TERM, KILL: within pipeline.shutdown_timeout_s
         if self.watch_hooks is not None:
             self.watch_hooks.close(timeout=0.5)
+        if self.absent_hooks is not None:
+            self.absent_hooks.close(timeout=0.5)
         self.rt.row.set("unstored", self.outbox.journal.pending_in_memory)   # the supervisor says it at stop
         if self.subreaper:                          # what the hooks left behind (setsid, env -i): adopted here
             left = [p for p in orphans.descendants(os.getpid()) if not _is_resource_tracker(p)]
@@ -375,6 +423,16 @@ def _pause_log(cfg, log):
         log.error("pause_log_unavailable", error=repr(exc), path=str(paths.history_path(cfg.pipeline)),
                   note="pauses for privacy work, but the daily report cannot list them")
         return None
+
+
+def _presence_watch(cfg, log) -> PresenceWatch | None:
+    """The person's presence (``falls.absence_enabled``), learned from the history file: None without one
+    (``falls.history_enabled`` false)."""
+    if not (cfg.falls.history_enabled and cfg.falls.absence_enabled):
+        return None
+    from posed.daemon.timeparse import local_zone
+
+    return PresenceWatch(paths.history_path(cfg.pipeline), cfg.robot_id, cfg.falls, log, tz=local_zone())
 
 
 def _is_resource_tracker(pid: int) -> bool:
