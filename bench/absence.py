@@ -25,14 +25,12 @@ benchmark; it reports them, it does not tune them.
 from __future__ import annotations
 
 import math
-import os
-import platform
-import sys
 import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from posed.bench.machine import machine
 from posed.falls.absence import DAY_S, MINUTE_S, SEEN_S, WINDOW_S, Minutes, last_seen, usual_absence
 from posed.falls.config import FallsConfig
 
@@ -328,22 +326,6 @@ def run_bench(plan: Plan, progress=lambda msg: None) -> dict:
 def _r(x: float, digits: int) -> float | None:
     """Rounded; None for NaN or infinity (JSON has neither)."""
     return None if x is None or not math.isfinite(x) else round(float(x), digits)
-
-
-def machine() -> dict:
-    """The machine a run was made on (as bench.chaos and bench.fit report it)."""
-    cpu = platform.processor() or ""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    load = os.getloadavg() if hasattr(os, "getloadavg") else (math.nan,) * 3
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": sys.version.split()[0], "numpy": np.__version__,
-            "platform": platform.platform(), "load_avg_1m": round(load[0], 2)}
 
 
 def table(report: dict) -> list[str]:

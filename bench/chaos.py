@@ -46,6 +46,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from posed.bench import chaos_alarms, chaos_bus, chaos_faults, chaos_inputs
+from posed.bench.machine import machine
 
 STAGES = ("capture", "landmarks", "fitting", "publisher")
 
@@ -440,18 +441,6 @@ def _by_state(keys: set) -> dict:
     for _, s in keys:
         out[s] = out.get(s, 0) + 1
     return out
-
-
-def machine() -> dict:
-    model = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"cpu": model, "cores": os.cpu_count(), "python": sys.version.split()[0]}
 
 
 def run_campaign(plan: ChaosPlan, shared: Path, progress=lambda msg: None, work: Path | None = None) -> dict:

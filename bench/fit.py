@@ -20,8 +20,6 @@ other processes on a shared machine; JIT compilation excluded by a warm-up) and 
 from __future__ import annotations
 
 import math
-import os
-import platform
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
@@ -30,6 +28,7 @@ import numpy as np
 
 from posed.bench import ood as OOD
 from posed.bench import simulate as S
+from posed.bench.machine import machine as basic_machine
 from posed.bench.speed_reference import reference_ms
 from posed.fitting import BODY_LANDMARK_NAMES, VARIABLE_NAMES, FitConfig, Fitter, Pose
 
@@ -101,20 +100,9 @@ def mpjpe3d_mm(joints: dict, truth: dict) -> float:
 def machine(speed_ref_before_ms: float | None = None) -> dict:
     """The machine a run was made on, and how fast it ran (bench.speed_reference: before the run when given,
     and now)."""
-    cpu = platform.processor() or ""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     import numba
 
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__,
-            "numba": numba.__version__, "platform": platform.platform(), "load_avg_1m": round(load[0], 2),
+    return {**basic_machine(), "numba": numba.__version__,
             "speed_ref_ms": {"before": speed_ref_before_ms, "after": reference_ms()},
             "note": "2 cores shared with other engineers' jobs: wall times are pessimistic; ms_per_frame is the "
                     "fitting thread's CPU time; speed_ref_ms: a fixed workload's CPU time before and after the run "
