@@ -335,18 +335,23 @@ def test_unwatched_minutes_never_add_to_the_absence():
     assert watched_between(m, at(15, 22.0), at(16, 3.0)) == pytest.approx(3 * H)   # 22-24 and 02-03
 
 
+def early_night(bedtime: float) -> tuple[Minutes, float]:
+    """The household of 17 days, on day 15 to bed at ``bedtime`` (h): last seen in the minute before it; the
+    minutes and that last sighting (asserted to be at the bedtime)."""
+    day = routine_day(15, [7.5] + [float(h) for h in range(8, 21) if h < bedtime] + [bedtime - 1 / 60])
+    m = to_minutes(household(17, {15: day}))
+    t0 = last_seen(m, before=at(15, 23.0))
+    assert t0 == at(15, bedtime)
+    return m, t0
+
+
 @pytest.mark.parametrize("bedtime,without", [(21.0, 0.0), (20.5, 30 * 60)])
 def test_an_early_night_within_one_and_a_half_hours_waits_for_the_usual_wake_up(bedtime, without):
     """To bed at 21:00 (1 h early) or 20:30 (1.5 h, the window's edge), earlier than on any of the last 14
     days: on past days the person went out of view at 22:00, within 1.5 h, and was back at 07:30, so the usual
     runs from the bedtime to 07:30 and the notice waits for the usual wake-up + 1 h. Without the window: to the
     21:00 walk on past days, and a notice at 22:00 while asleep."""
-    def early(day):                                             # last seen in the minute before bedtime
-        return routine_day(day, [7.5] + [float(h) for h in range(8, 21) if h < bedtime] + [bedtime - 1 / 60])
-
-    m = to_minutes(household(17, {15: early(15)}))
-    t0 = last_seen(m, before=at(15, 23.0))
-    assert t0 == at(15, bedtime)
+    m, t0 = early_night(bedtime)
     u = usual_absence(m, t0)
     night = at(16, 7.5) - t0                                    # 10.5 h, 11 h
     assert u.days == 14 and u.per_day == pytest.approx([night] * 14)    # bedtime to 07:30
@@ -364,12 +369,7 @@ def test_an_early_night_more_than_one_and_a_half_hours_earlier_than_ever_gives_a
     than the window; going to bed at 22:00 is not within 1.5 h, so the usual is the time to a walk through the
     room (from 20:00: the 21:59 sighting after 21:01; from 19:00: the 21:00 walk after 20:01) and the notice
     comes while asleep (at 22:59, 22:00)."""
-    def early(day):                                             # last seen in the minute before bedtime
-        return routine_day(day, [7.5] + [float(h) for h in range(8, 21) if h < bedtime] + [bedtime - 1 / 60])
-
-    m = to_minutes(household(17, {15: early(15)}))
-    t0 = last_seen(m, before=at(15, 23.0))
-    assert t0 == at(15, bedtime)
+    m, t0 = early_night(bedtime)
     u = usual_absence(m, t0)
     assert u.usual_s == pytest.approx(usual)
     assert t0 + u.notice_after_s(H) == pytest.approx(at(15, bedtime + 1) + usual)   # asleep till 07:30

@@ -16,7 +16,7 @@ import pytest
 from tests.viz.absent_robot import MIN, SHOWN, AbsentRobot
 from tests.viz.browser import Browser
 from tests.viz.paused_robot import hhmm
-from tests.viz.web_cli import posed_web
+from tests.viz.web_cli import posed_web, web_page
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
@@ -35,11 +35,7 @@ def test_the_page_says_when_the_person_was_last_seen_and_in_red_when_not_for_lon
     zone = "Asia/Tokyo"                  # not this machine's (UTC): the page's times are the robot's
     robot = AbsentRobot("home", endpoint, zone, "absent")     # absent from the start: no body was ever seen
     robots.append(robot)
-    proc, url = posed_web("home", endpoint, 60)
-    procs.append(proc)
-    b = Browser(tmp_path / "profile")
-    procs.append(b)
-    b.open(url)
+    b = web_page("home", endpoint, procs, tmp_path / "profile")
     b.wait_for("posedView.status && posedView.live && posedView.status.presence", 60, "a live status")
     assert person(b) == SHOWN
     assert b.js("getComputedStyle(document.getElementById('st-person')).color") == RED

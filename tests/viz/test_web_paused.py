@@ -19,7 +19,7 @@ import pytest
 
 from tests.viz.browser import Browser
 from tests.viz.paused_robot import KNEE_DEG, Robot, hhmm
-from tests.viz.web_cli import posed_web
+from tests.viz.web_cli import posed_web, web_page
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = Path(os.environ.get("POSED_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
@@ -32,11 +32,7 @@ def test_the_page_says_a_pause_plainly_and_drops_it_when_watching_again(tmp_path
     zone = "Asia/Tokyo"                  # not this machine's (UTC): the page's times are the robot's
     robot = Robot("home", endpoint, zone)
     robots.append(robot)
-    proc, url = posed_web("home", endpoint, 60)
-    procs.append(proc)
-    b = Browser(tmp_path / "profile")
-    procs.append(b)
-    b.open(url)
+    b = web_page("home", endpoint, procs, tmp_path / "profile")
     b.wait_for("posedView.status && posedView.status.state === 'running' && posedView.live", 60, "a live status")
     assert b.shown("paused") == "" and b.shown("watching") == ""
     b.wait_for("posedView.drawn > 0", 20, "a body drawn")          # it watches: the body and its angles now

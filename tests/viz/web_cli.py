@@ -18,3 +18,16 @@ def posed_web(robot: str, endpoint: str, wait_s: float = 120.0) -> tuple[subproc
     url = proc.stdout.readline().strip()
     assert url.startswith("http://127.0.0.1:"), f"posed web printed {url!r} (exit {proc.poll()})"
     return proc, url
+
+
+def web_page(robot: str, endpoint: str, procs: list, profile: Path):
+    """A real ``posed web ROBOT`` and a headless Chromium on its page (both appended to ``procs``, the conftest
+    fixture that stops them): the :class:`tests.viz.browser.Browser`."""
+    from tests.viz.browser import Browser
+
+    proc, url = posed_web(robot, endpoint, 60)
+    procs.append(proc)
+    b = Browser(profile)
+    procs.append(b)
+    b.open(url)
+    return b
