@@ -31,13 +31,12 @@ from __future__ import annotations
 
 import math
 import os
-import sqlite3
 import time
 from dataclasses import dataclass
 from datetime import tzinfo
 from pathlib import Path
 
-from posed.daemon.history.watched import MAX_FRAME_GAP_S, MINUTE_S
+from posed.daemon.history.watched import MINUTE_S, WatchLog, frame_seconds
 from posed.falls.absence import DAY_S, SEEN_S, Minutes, Usual, usual_absence
 from posed.falls.config import FallsConfig
 
@@ -119,32 +118,20 @@ class PresenceWatch:
         self._start(time.time() if now_unix is None else now_unix)
 
     # -- reading the history file ----------------------------------------------------------------------------
-    def _query(self, sql: str, args: tuple) -> list[tuple]:
-        """Rows of ``sql`` on the history file opened read-only (no file, or no ``watched`` table: none)."""
-        if not self.path.is_file():
-            return []
-        db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True, timeout=1.0)
-        try:
-            return db.execute(sql, args).fetchall()
-        except sqlite3.OperationalError as exc:
-            if "no such table" in str(exc):
-                return []
-            raise
-        finally:
-            db.close()
+    def _history(self) -> WatchLog | None:
+        """The history file's watched minutes, opened read-only (the recorder writes them); None without a file."""
+        return WatchLog(self.path, readonly=True) if self.path.is_file() else None
 
     def _start(self, now_unix: float) -> None:
         """The absence so far, from the history: the end of the last minute that saw the person and the watched
         seconds of the minutes since (all of them when it never did)."""
         try:
-            rows = self._query("SELECT MAX(minute) FROM watched WHERE person_s >= ? AND minute < ?",
-                               (SEEN_S, now_unix))
-            last = rows[0][0] if rows else None
-            self.t0 = None if last is None else float(last) + MINUTE_S
-            since = -math.inf if self.t0 is None else self.t0
-            rows = self._query("SELECT SUM(MAX(watched_s, 0)) FROM watched WHERE minute >= ? AND minute < ?",
-                               (since, now_unix))
-            self.absent_s = float(rows[0][0] or 0.0) if rows else 0.0
+            history = self._history()
+            if history is not None:
+                with history:
+                    last = history.last_minute_seen(SEEN_S, now_unix)
+                    self.t0 = None if last is None else last + MINUTE_S
+                    self.absent_s = history.watched_seconds(-math.inf if self.t0 is None else self.t0, now_unix)
         except Exception as exc:        # a record, not an alarm: said, never raised
             self._said_failure("at the start", exc)
         if not math.isfinite(self.absent_s):
@@ -152,9 +139,14 @@ class PresenceWatch:
 
     def _read_usual(self, t0: float) -> None:
         try:
-            rows = self._query("SELECT minute, watched_s, person_s FROM watched WHERE minute >= ? AND minute < ?",
-                               (t0 - self.days * DAY_S - READ_MARGIN_S, t0))
-            self.usual = usual_absence(Minutes.from_rows(rows), t0, self.days, self.learn_days, tz=self.tz)
+            history = self._history()
+            rows = []
+            if history is not None:
+                with history:
+                    rows = history.minutes(t0 - self.days * DAY_S - READ_MARGIN_S, t0) or []
+            # (minute, frames, person, fitted, watched_s, person_s): the rule reads the minute and its seconds
+            minutes = Minutes.from_rows((r[0], r[4], r[5]) for r in rows)
+            self.usual = usual_absence(minutes, t0, self.days, self.learn_days, tz=self.tz)
             self._failed = None
         except Exception as exc:        # a record, not an alarm: said, never raised
             self._said_failure("for the usual", exc)
@@ -170,7 +162,7 @@ class PresenceWatch:
     # -- live ----------------------------------------------------------------------------------------------
     def add(self, wall: float, person: bool) -> AbsenceNotice | None:
         """One frame at unix time ``wall``, with a person in view or not."""
-        dt = 0.0 if self._last_wall is None else min(max(wall - self._last_wall, 0.0), MAX_FRAME_GAP_S)
+        dt = frame_seconds(self._last_wall, wall)
         self._last_wall = wall
         minute = math.floor(wall / MINUTE_S) * MINUTE_S
         if minute != self._minute:

@@ -25,6 +25,12 @@ _SCHEMA = ("CREATE TABLE IF NOT EXISTS watched (minute INTEGER PRIMARY KEY, fram
 _COLUMNS = ("frames", "person", "fitted", "watched_s", "person_s")
 
 
+def frame_seconds(last: float | None, wall: float) -> float:
+    """The seconds a frame at unix time ``wall`` counts as watched: the time since the frame before (``last``;
+    0 for the first), at most ``MAX_FRAME_GAP_S`` (a longer gap is not watching), never negative."""
+    return 0.0 if last is None else min(max(wall - last, 0.0), MAX_FRAME_GAP_S)
+
+
 class WatchLog:
     """Per-minute frame counts in ``path`` (the history file); thread-safe; ``readonly`` for the readers."""
 
@@ -37,7 +43,7 @@ class WatchLog:
         if readonly:
             if not self.path.is_file():
                 raise FileNotFoundError(f"no history at {self.path}")
-            self._db = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, check_same_thread=False)
+            self._db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True, check_same_thread=False)
         else:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False, timeout=5.0)
@@ -48,7 +54,7 @@ class WatchLog:
         """One frame at unix time ``wall``: whether a person was in view and whether the fit succeeded."""
         minute = int(wall // MINUTE_S) * MINUTE_S
         with self._lock:
-            dt = 0.0 if self._last is None else min(max(wall - self._last, 0.0), MAX_FRAME_GAP_S)
+            dt = frame_seconds(self._last, wall)
             self._last = wall
             c = self._counts.setdefault(minute, [0, 0, 0, 0.0, 0.0])
             c[0] += 1
@@ -90,11 +96,25 @@ class WatchLog:
         """(minute start in unix seconds, frames, with a person, fitted, seconds watched, seconds with a
         person) of the minutes from ``since`` to ``until``, in time order; None when this history file has no
         such record (written by a posed older than it: when it watched cannot be told)."""
+        return self._read(f"SELECT minute, {', '.join(_COLUMNS)} FROM watched WHERE minute >= ? AND minute < ? "
+                          "ORDER BY minute", (int(since // MINUTE_S) * MINUTE_S, until))
+
+    def last_minute_seen(self, person_s: float, before: float) -> float | None:
+        """The start (unix seconds) of the last minute before ``before`` with at least ``person_s`` seconds of a
+        person in view; None when none (or no such record)."""
+        row = self._read("SELECT MAX(minute) FROM watched WHERE person_s >= ? AND minute < ?", (person_s, before))
+        return None if not row or row[0][0] is None else float(row[0][0])
+
+    def watched_seconds(self, since: float, until: float) -> float:
+        """The seconds watched in the minutes from ``since`` to ``until`` (0 when none, or no such record)."""
+        row = self._read("SELECT SUM(MAX(watched_s, 0)) FROM watched WHERE minute >= ? AND minute < ?",
+                         (since, until))
+        return float(row[0][0] or 0.0) if row else 0.0
+
+    def _read(self, sql: str, args: tuple) -> list[tuple] | None:
         with self._lock:
             try:
-                return self._db.execute(f"SELECT minute, {', '.join(_COLUMNS)} FROM watched WHERE minute >= ? "
-                                        "AND minute < ? ORDER BY minute",
-                                        (int(since // MINUTE_S) * MINUTE_S, until)).fetchall()
+                return self._db.execute(sql, args).fetchall()
             except sqlite3.OperationalError as exc:
                 if "no such table" in str(exc):
                     return None
